@@ -1,0 +1,156 @@
+// Forward kinematics and Jacobian of the WAM per call: the core library and KDL in the same run.
+//
+//   kinematics_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
+//
+// Each benchmark cycles through the same seeded random configurations. Besides Google Benchmark's mean time per
+// iteration, counters give the per-call median, p99 and worst case (ns), each from batches of kBatch calls timed with
+// a steady clock (per-call = batch time / kBatch, so clock overhead is spread over the batch).
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+
+#include <benchmark/benchmark.h>
+#include <kdl/chainfksolverpos_recursive.hpp>
+#include <kdl/chainjnttojacsolver.hpp>
+#include <kdl_parser/kdl_parser.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace bk = bimanual_skills::kinematics;
+
+namespace {
+
+constexpr unsigned kSeed = 42;
+constexpr int kConfigurations = 1024;
+constexpr int kBatch = 8;
+const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
+
+struct Fixture {
+  bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+  KDL::Chain chain;
+  std::vector<Eigen::VectorXd> q;
+  std::vector<KDL::JntArray> q_kdl;
+
+  Fixture() {
+    KDL::Tree tree;
+    if (!kdl_parser::treeFromFile(kWamUrdf, tree) || !tree.getChain("wam_base", "wam_tool", chain)) {
+      throw std::runtime_error("KDL cannot load " + kWamUrdf);
+    }
+    std::mt19937 rng(kSeed);
+    for (int k = 0; k < kConfigurations; ++k) {
+      Eigen::VectorXd sample(model.nq());
+      for (int i = 0; i < model.nq(); ++i) {
+        sample[i] = std::uniform_real_distribution<double>(model.lowerLimits()[i], model.upperLimits()[i])(rng);
+      }
+      q.push_back(sample);
+      KDL::JntArray sample_kdl(chain.getNrOfJoints());
+      sample_kdl.data = sample;
+      q_kdl.push_back(sample_kdl);
+    }
+  }
+};
+
+const Fixture& fixture() {
+  static const Fixture instance;
+  return instance;
+}
+
+/// Runs `call(k)` for configuration k in timed batches and reports per-call median, p99 and maximum.
+template <typename Call>
+void timeBatches(benchmark::State& state, Call call) {
+  std::vector<double> per_call_ns;
+  per_call_ns.reserve(1 << 22);
+  int k = 0;
+  for (auto _ : state) {
+    const auto start = std::chrono::steady_clock::now();
+    for (int b = 0; b < kBatch; ++b) {
+      call(k);
+      k = (k + 1) % kConfigurations;
+    }
+    const auto stop = std::chrono::steady_clock::now();
+    if (per_call_ns.size() < per_call_ns.capacity()) {
+      per_call_ns.push_back(std::chrono::duration<double, std::nano>(stop - start).count() / kBatch);
+    }
+  }
+  state.SetItemsProcessed(state.iterations() * kBatch);
+  std::sort(per_call_ns.begin(), per_call_ns.end());
+  const auto at = [&](double fraction) {
+    return per_call_ns[static_cast<std::size_t>(fraction * static_cast<double>(per_call_ns.size() - 1))];
+  };
+  state.counters["median_ns"] = at(0.5);
+  state.counters["p99_ns"] = at(0.99);
+  state.counters["max_ns"] = per_call_ns.back();
+}
+
+void BM_Fk(benchmark::State& state) {
+  const Fixture& f = fixture();
+  bk::ChainData data(f.model);
+  timeBatches(state, [&](int k) {
+    benchmark::DoNotOptimize(bk::forwardKinematics(f.model, data, f.q[static_cast<std::size_t>(k)]));
+    benchmark::DoNotOptimize(data.tipPose().data());
+  });
+}
+
+void BM_FkJacobian(benchmark::State& state) {
+  const Fixture& f = fixture();
+  bk::ChainData data(f.model);
+  timeBatches(state, [&](int k) {
+    benchmark::DoNotOptimize(bk::computeJacobian(f.model, data, f.q[static_cast<std::size_t>(k)]));
+    benchmark::DoNotOptimize(data.jacobian.data());
+  });
+}
+
+void BM_KdlFk(benchmark::State& state) {
+  const Fixture& f = fixture();
+  KDL::ChainFkSolverPos_recursive fk(f.chain);
+  KDL::Frame tip;
+  timeBatches(state, [&](int k) {
+    benchmark::DoNotOptimize(fk.JntToCart(f.q_kdl[static_cast<std::size_t>(k)], tip));
+    benchmark::DoNotOptimize(&tip);
+  });
+}
+
+void BM_KdlJacobian(benchmark::State& state) {
+  const Fixture& f = fixture();
+  KDL::ChainJntToJacSolver jac(f.chain);
+  KDL::Jacobian J(f.chain.getNrOfJoints());
+  timeBatches(state, [&](int k) {
+    benchmark::DoNotOptimize(jac.JntToJac(f.q_kdl[static_cast<std::size_t>(k)], J));
+    benchmark::DoNotOptimize(J.data.data());
+  });
+}
+
+/// What a CLIK step needs from KDL: the tip pose and the Jacobian (JntToJac recomputes the chain internally).
+void BM_KdlFkJacobian(benchmark::State& state) {
+  const Fixture& f = fixture();
+  KDL::ChainFkSolverPos_recursive fk(f.chain);
+  KDL::ChainJntToJacSolver jac(f.chain);
+  KDL::Frame tip;
+  KDL::Jacobian J(f.chain.getNrOfJoints());
+  timeBatches(state, [&](int k) {
+    benchmark::DoNotOptimize(fk.JntToCart(f.q_kdl[static_cast<std::size_t>(k)], tip));
+    benchmark::DoNotOptimize(jac.JntToJac(f.q_kdl[static_cast<std::size_t>(k)], J));
+    benchmark::DoNotOptimize(J.data.data());
+  });
+}
+
+}  // namespace
+
+BENCHMARK(BM_Fk);
+BENCHMARK(BM_KdlFk);
+BENCHMARK(BM_FkJacobian);
+BENCHMARK(BM_KdlJacobian);
+BENCHMARK(BM_KdlFkJacobian);
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::AddCustomContext("seed", std::to_string(kSeed));
+  benchmark::AddCustomContext("model", kWamUrdf + " (wam_base -> wam_tool)");
+  benchmark::AddCustomContext("batch", std::to_string(kBatch));
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

@@ -1,0 +1,48 @@
+/// \file
+/// Test utility: proves that a scope performs no heap allocation.
+///
+/// Linking the bimanual_skills_testing library into a test executable replaces the global operator new/delete and
+/// malloc/calloc/realloc/posix_memalign/aligned_alloc/memalign with counting versions (forwarding to glibc). Counting
+/// is per thread and only while an AllocationCounter is alive in that thread. With EIGEN_RUNTIME_NO_MALLOC defined,
+/// Eigen's own check is switched off for the scope as well (it fires in builds with assertions).
+///
+/// \code
+///   { NoAllocGuard guard; status = forwardKinematics(model, data, q); }  // fails the test on any allocation
+/// \endcode
+#pragma once
+
+#include <cstddef>
+
+namespace bimanual_skills::testing {
+
+/// Counts heap allocations made by the current thread while it is alive. Nestable.
+class AllocationCounter {
+ public:
+  AllocationCounter() noexcept;
+  ~AllocationCounter();
+  AllocationCounter(const AllocationCounter&) = delete;
+  AllocationCounter& operator=(const AllocationCounter&) = delete;
+
+  /// Allocations (operator new or the malloc family) by this thread since construction.
+  std::size_t allocations() const noexcept;
+
+ private:
+  std::size_t start_;
+  bool eigen_was_allowed_;
+};
+
+/// Fails the current gtest (non-fatally, naming file and line) if its scope allocates on the heap.
+class NoAllocGuard {
+ public:
+  explicit NoAllocGuard(const char* file = __builtin_FILE(), int line = __builtin_LINE()) noexcept;
+  ~NoAllocGuard();
+  NoAllocGuard(const NoAllocGuard&) = delete;
+  NoAllocGuard& operator=(const NoAllocGuard&) = delete;
+
+ private:
+  AllocationCounter counter_;
+  const char* file_;
+  int line_;
+};
+
+}  // namespace bimanual_skills::testing

@@ -1,0 +1,64 @@
+// The committed robot descriptions must be exactly what the generator scripts produce from their sources.
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+#include <cstdlib>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace {
+
+const std::string kSource = BIMANUAL_SKILLS_SOURCE_DIR;
+
+std::string readFile(const std::string& path) {
+  std::ifstream file(path);
+  std::stringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+/// Runs a generator with /usr/bin/python3 (the ROS interpreter) and returns what it wrote.
+std::string generate(const std::string& script, const std::string& arguments) {
+  char dir_template[] = "/tmp/bimanual_skills_urdf_XXXXXX";
+  const char* dir = mkdtemp(dir_template);
+  EXPECT_NE(dir, nullptr);
+  const std::string out = std::string(dir) + "/generated.urdf";
+  const std::string command = "/usr/bin/python3 " + kSource + "/scripts/" + script + " " + arguments + " --out " + out;
+  EXPECT_EQ(std::system(command.c_str()), 0) << command;
+  std::string text = readFile(out);
+  std::remove(out.c_str());
+  rmdir(dir);
+  return text;
+}
+
+}  // namespace
+
+TEST(UrdfGeneration, CommittedWamEqualsGenerated) {
+  const std::string generated = generate("generate_wam_urdf.py", "");
+  ASSERT_FALSE(generated.empty());
+  EXPECT_EQ(readFile(kSource + "/urdf/wam.urdf"), generated)
+      << "urdf/wam.urdf is stale: run scripts/generate_wam_urdf.py --out urdf/wam.urdf";
+}
+
+TEST(UrdfGeneration, CommittedBimanualEqualsGenerated) {
+  const std::string generated = generate("generate_bimanual_urdf.py", "");
+  ASSERT_FALSE(generated.empty());
+  EXPECT_EQ(readFile(kSource + "/urdf/bimanual_wam.urdf"), generated)
+      << "urdf/bimanual_wam.urdf is stale: run scripts/generate_bimanual_urdf.py --out urdf/bimanual_wam.urdf";
+}
+
+TEST(UrdfGeneration, BadConfigurationIsAClearErrorNotACrash) {
+  char path[] = "/tmp/bimanual_skills_config_XXXXXX";
+  const int fd = mkstemp(path);
+  ASSERT_GE(fd, 0);
+  const std::string bad = "arms:\n  - prefix: left_\n    xyz: [0, nan_here, 0]\n    rpy: [0, 0, 0]\n";
+  ASSERT_EQ(write(fd, bad.data(), bad.size()), static_cast<ssize_t>(bad.size()));
+  close(fd);
+  const std::string command =
+      "/usr/bin/python3 " + kSource + "/scripts/generate_bimanual_urdf.py --config " + path + " > /dev/null 2>&1";
+  const int status = std::system(command.c_str());
+  std::remove(path);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+}
