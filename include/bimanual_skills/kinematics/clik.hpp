@@ -1,0 +1,139 @@
+/// \file
+/// Closed-loop inverse kinematics (CLIK) with every inverse operator and joint-limit scheme of the thesis (Ch. 3.1,
+/// Table 3.1), composed as an (operator, scheme) pair: e.g. {SvfSelectiveDamping, ContinuousTaskPriority} is the
+/// thesis' CTP+SD+SVF, {Pseudoinverse, None} is plain JP.
+#pragma once
+
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/kinematics/pose_error.hpp"
+#include "bimanual_skills/kinematics/thin_svd.hpp"
+
+#include <vector>
+
+namespace bimanual_skills::kinematics {
+
+/// Inverse operator J* applied to the task error (Table 3.1). Each maps a singular value σ of the (weighted) Jacobian
+/// to a gain g(σ) in J* = Σ g(σ_i) v_i u_iᵀ, except the selective-damping ones, which bound each component's step.
+enum class InverseOperator {
+  Pseudoinverse,         ///< JP (2.7): g = 1/σ (0 below pinv_tolerance).
+  Transpose,             ///< JT (3.1): Δq = α Jᵀ e with Buss's step α = ⟨e, JJᵀe⟩ / ‖JJᵀe‖².
+  SelectiveDamping,      ///< SD (Buss & Kim; thesis 3.35–3.38 with σ̂ = σ): per-component step bound γ_s.
+  Damping,               ///< JD (3.3): g = σ / (σ² + λ²).
+  Filtering,             ///< JF (3.6): λ² = (1 − (σ_min/ε)²) λ_max² inside the singular region σ_min < ε.
+  ErrorDamping,          ///< ED (3.7): g = σ / (σ² + E), E = ½ eᵀe.
+  ImprovedErrorDamping,  ///< IED (3.8): g = σ / (σ² + E + ω).
+  SingularValueFilter,   ///< SVF (3.10–3.12): g = 1 / h_{ν,σ0}(σ).
+  SvfErrorDamping,       ///< SVF+ED: ED applied to the filtered values, g = h / (h² + E).
+  SvfSelectiveDamping,   ///< SVF+SD: SD with σ̂ = h_{ν,σ0}(σ).
+};
+
+/// How joint limits (and other secondary goals) enter the step (Sec. 3.1.3–3.1.4).
+enum class LimitScheme {
+  None,                    ///< Δq = J* e; limits ignored (Table 3.4 methods).
+  JointWeighting,          ///< JW (3.16): Δq = W^{-1/2} (J W^{-1/2})* e, W from Chan & Dubey's criterion.
+  GradientProjection,      ///< GP (3.17): Δq = J* e + μ (I − J^† J) ∇H, H the joint-centring function (3.19).
+  JointClamping,           ///< JC (3.20): Δq = A (J A)* e, A = I − H_β (joints blocked at their limits).
+  TaskAugmentation,        ///< TA: J extended with the rows h_i e_iᵀ (push-to-centre tasks of joints near limits).
+  TaskPriority,            ///< TP (3.18, 3.25): limits first with the ordinary pseudoinverse of H_β, then the pose.
+  ContinuousTaskPriority,  ///< CTP (3.26–3.28; with SD 3.29–3.40): limits first, continuous pseudoinverse (3.22).
+};
+
+/// Human-readable thesis abbreviation ("JP", "SVF+SD", "CTP+SD+SVF", ...) of an (operator, scheme) pair.
+const char* methodName(InverseOperator op, LimitScheme scheme) noexcept;
+
+/// Parameters of a CLIK solver. Defaults are the thesis' (Tables 3.4, 3.5; Sec. 3.1.2).
+struct ClikParameters {
+  InverseOperator inverse = InverseOperator::SvfSelectiveDamping;
+  LimitScheme limits = LimitScheme::ContinuousTaskPriority;
+  TaskMode mode = TaskMode::Pose;
+  double rotation_weight = 1.0;  ///< Task metric: metres per radian of orientation error (scales the ω rows).
+  double pinv_tolerance = 1e-9;  ///< JP: singular values below this count as zero.
+  double lambda = 0.005;         ///< JD damping λ (Table 3.4).
+  double filter_epsilon = 0.05;  ///< JF: width ε of the singular region (in singular values).
+  double lambda_max = 0.02;      ///< JF: maximum damping λ_max = 4λ (Table 3.4).
+  double ied_omega = 0.01;       ///< IED: ω (Ω = ω I_m, Table 3.4).
+  double sigma0 = 0.01;          ///< SVF: minimum singular value σ0 (Table 3.4).
+  double nu = 10.0;              ///< SVF: shape factor ν (σ0 < ν < 2/σ0).
+  double gamma_max = 0.5;        ///< SD: maximum joint change per step γ_max [rad] (Table 3.4).
+  double gp_gain = 0.2;          ///< GP: μ (Table 3.5).
+  /// Activation buffer β [rad]: h_β rises from 0 to 1 over the last β before a limit. The thesis leaves β open;
+  /// 0.1 measured best on WAM goals near limits (goals inside the buffer compete with the push to the centre).
+  double beta = 0.1;
+  double lambda_jl = 0.1;    ///< Push-to-centre gain λ_JL (thesis: 0.1–0.5).
+  int max_iterations = 500;  ///< solve(): iteration cap.
+  double tolerance = 1e-5;   ///< solve(): converged when every error component ≤ tolerance [m, rad].
+  double timeout = 0.0;      ///< solve(): time budget [s]; 0 = none.
+
+  /// Throws std::invalid_argument naming the first parameter that is out of range.
+  void validate() const;
+};
+
+/// Outcome of a CLIK step or solve.
+enum class IkStatus { Converged, MaxIterations, Timeout, InvalidInput, NumericalFailure };
+const char* toString(IkStatus status) noexcept;
+
+/// Result of solve(): status, iterations used and the final residual max_i |e_i| (unweighted, m and rad).
+struct IkResult {
+  IkStatus status = IkStatus::InvalidInput;
+  int iterations = 0;
+  double residual = 0.0;
+};
+
+/// Joint-limit activation h_β(q) ∈ [0, 1] (3.24): 0 farther than β from both limits, 1 at or beyond a limit,
+/// C∞ in between (h = ½ (1 + tanh(1/x − 1/(1 − x))), x = distance / β).
+double limitActivation(double q, double lower, double upper, double beta) noexcept;
+
+/// Scratch buffers of a CLIK solver for one chain and one parameter set, sized once.
+struct ClikData {
+  ClikData(const ChainModel& model, const ClikParameters& parameters);
+
+  ChainData kinematics;
+  Eigen::VectorXd error;     ///< Unweighted task error (m rows).
+  Eigen::VectorXd task;      ///< Weighted task error.
+  Eigen::MatrixXd jacobian;  ///< Weighted task Jacobian (m × n).
+  Eigen::VectorXd dq;        ///< Last step.
+
+  // Internal workspaces.
+  std::vector<ThinSvd> svd_by_columns;              ///< SVD of m × c sub-Jacobians, c = 1..n (index c − 1).
+  ThinSvd svd_augmented;                            ///< (m + n) × n, task augmentation.
+  ThinSvd svd_inverse;                              ///< n × m, SVD of a continuous pseudoinverse (CTP+SD).
+  Eigen::MatrixXd columns;                          ///< m × n, sub-Jacobian of selected columns (left block used).
+  Eigen::MatrixXd augmented;                        ///< (m + n) × n.
+  Eigen::VectorXd augmented_task;                   ///< m + n.
+  Eigen::MatrixXd inverse;                          ///< n × m, an inverse operator as a matrix.
+  Eigen::VectorXd activation;                       ///< h_β(q_i).
+  Eigen::VectorXd centre;                           ///< Joint range centres (0 for unlimited joints).
+  Eigen::VectorXd column_norms;                     ///< ‖J^j‖ for selective damping.
+  Eigen::VectorXd scale;                            ///< Per-joint scaling (JW: W^{-1/2}; JC: 1 − h).
+  Eigen::VectorXd previous_gradient;                ///< JW: |∂H/∂q| at the previous step.
+  Eigen::VectorXd n1, n2, n3;                       ///< n-vectors.
+  Eigen::VectorXd m1;                               ///< m-vector.
+  Eigen::VectorXd gains;                            ///< Operator gains g(σ_i).
+  Eigen::VectorXd rows;                             ///< Task-row scratch (m + n).
+  std::vector<int> always, transitional, selected;  ///< Joint index lists (capacity n, never grown).
+};
+
+/// One CLIK step Δq at configuration q towards `target` (pose of the chain tip in the base frame), into data.dq.
+/// Real-time safe: no allocation, no exceptions. InvalidInput for a wrong size or non-finite q or target.
+[[nodiscard]] IkStatus step(const ChainModel& model, const ClikParameters& parameters, ClikData& data,
+                            const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Isometry3d& target) noexcept;
+
+/// Iterates q ← q + Δq from the given q until every error component is within tolerance, the iteration cap or
+/// the time budget. q is updated in place (the last iterate on failure). JW's step memory is reset at the start.
+/// Real-time safe: no allocation, no exceptions.
+[[nodiscard]] IkResult solve(const ChainModel& model, const ClikParameters& parameters, ClikData& data,
+                             Eigen::Ref<Eigen::VectorXd> q, const Eigen::Isometry3d& target) noexcept;
+
+/// Continuous pseudoinverse with joint activations a_i ∈ [0, 1] (thesis eq. 3.22):
+/// J^{A⊕} = Σ_{Q ⊆ {1..n}} (∏_{i∈Q} a_i)(∏_{i∉Q} (1 − a_i)) J_Q^*, J_Q the columns in Q (others zero), * the inner
+/// operator (Pseudoinverse or SingularValueFilter gains). Only joints with 0 < a_i < 1 branch: the cost is 2^k
+/// decompositions for k such joints (1 when none is in transition). `inner` gives the gains g(σ) of J_Q^* (the
+/// selective-damping operators use their undamped inverse: 1/σ or 1/h(σ)); `error_energy` is E for ED/IED.
+/// J must be m × n (the task size of `data`); writes n × m into `out`.
+/// Real-time safe: no allocation, no exceptions.
+void continuousPseudoinverse(const ClikParameters& parameters, ClikData& data,
+                             const Eigen::Ref<const Eigen::MatrixXd>& J,
+                             const Eigen::Ref<const Eigen::VectorXd>& activation, InverseOperator inner,
+                             double error_energy, Eigen::Ref<Eigen::MatrixXd> out) noexcept;
+
+}  // namespace bimanual_skills::kinematics
