@@ -19,8 +19,10 @@ double svfFilter(double sigma, double sigma0, double nu) noexcept {
   return (sigma * sigma * sigma + nu * sigma * sigma + 2.0 * sigma + 2.0 * sigma0) / (sigma * sigma + nu * sigma + 2.0);
 }
 
-/// Gain g(σ) of J* = Σ g(σ_i) v_i u_iᵀ (Table 3.2). sigma_min is the smallest singular value (JF), E = ½ eᵀe.
-double operatorGain(const ClikParameters& p, InverseOperator op, double sigma, double sigma_min, double E) noexcept {
+}  // namespace
+
+double inverseOperatorGain(const ClikParameters& p, InverseOperator op, double sigma, double sigma_min,
+                           double E) noexcept {
   const auto pinv = [&](double s) { return s > p.pinv_tolerance ? 1.0 / s : 0.0; };
   switch (op) {
     case InverseOperator::Pseudoinverse:
@@ -51,6 +53,8 @@ double operatorGain(const ClikParameters& p, InverseOperator op, double sigma, d
   return 0.0;
 }
 
+namespace {
+
 /// Scales v so that max_i |v_i| ≤ bound (Buss & Kim's ClampMaxAbs).
 void clampMaxAbs(Eigen::Ref<Eigen::VectorXd> v, double bound) noexcept {
   const double largest = v.cwiseAbs().maxCoeff();
@@ -61,7 +65,7 @@ void clampMaxAbs(Eigen::Ref<Eigen::VectorXd> v, double bound) noexcept {
 void computeGains(const ClikParameters& p, InverseOperator op, const ThinSvd& svd, double E, ClikData& data) noexcept {
   const Eigen::VectorXd& sigma = svd.singularValues();
   const double sigma_min = sigma.size() > 0 ? sigma.minCoeff() : 0.0;
-  for (Eigen::Index i = 0; i < sigma.size(); ++i) data.gains[i] = operatorGain(p, op, sigma[i], sigma_min, E);
+  for (Eigen::Index i = 0; i < sigma.size(); ++i) data.gains[i] = inverseOperatorGain(p, op, sigma[i], sigma_min, E);
 }
 
 /// out = Σ_i g_i v_i (u_iᵀ e) with the gains in data.gains.
@@ -106,6 +110,24 @@ bool applyInverse(const ClikParameters& p, InverseOperator op, ThinSvd& svd, con
     out *= norm2 > 0.0 ? e.dot(JJte) / norm2 : 0.0;
     return true;
   }
+  if ((op == InverseOperator::Damping || op == InverseOperator::ErrorDamping ||
+       op == InverseOperator::ImprovedErrorDamping) &&
+      A.rows() == data.task.size()) {
+    // σ / (σ² + c) gains are J^T (J J^T + c I)^{-1} (3.3, 3.7, 3.8): one m × m Cholesky instead of an SVD.
+    const double c = op == InverseOperator::Damping        ? p.lambda * p.lambda
+                     : op == InverseOperator::ErrorDamping ? E
+                                                           : E + p.ied_omega;
+    if (c > 0.0) {
+      if (!A.allFinite()) return false;
+      data.gram.noalias() = A * A.transpose();
+      data.gram.diagonal().array() += c;
+      data.gram_llt.compute(data.gram);
+      auto y = data.rows.head(A.rows());
+      y = data.gram_llt.solve(e);
+      out.noalias() = A.transpose() * y;
+      return data.gram_llt.info() == Eigen::Success;
+    }
+  }
   if (!svd.compute(A)) return false;
   computeGains(p, op, svd, E, data);
   if (!isSelectiveDamping(op)) {
@@ -123,7 +145,9 @@ bool applyInverse(const ClikParameters& p, InverseOperator op, ThinSvd& svd, con
 
 /// Gradient of the joint-centring function H (thesis eq. 3.19), which grows towards the range centre:
 /// ∂H/∂q_i = (q_max − q_min)² (q_max + q_min − 2 q_i) / (2n f_i²), f_i = (q_max − q_i)(q_i − q_min).
-/// q is clamped just inside the limits, so the gradient outside points back to the centre.
+/// Taken literally beyond the limits too (it still points to the centre there, decaying with distance); only f = 0
+/// is kept away from. Clamping q inside the range instead makes steps of hundreds of radians near the limits
+/// (measured: GP then solved 19 % of Table 3.5 problems instead of 100 %).
 void centringGradient(const ChainModel& model, const Eigen::Ref<const Eigen::VectorXd>& q,
                       Eigen::Ref<Eigen::VectorXd> out) noexcept {
   const int n = model.nq();
@@ -135,8 +159,9 @@ void centringGradient(const ChainModel& model, const Eigen::Ref<const Eigen::Vec
       continue;
     }
     const double range = hi - lo;
-    const double qi = std::clamp(q[i], lo + 1e-3 * range, hi - 1e-3 * range);
-    const double f = (hi - qi) * (qi - lo);
+    const double qi = q[i];
+    double f = (hi - qi) * (qi - lo);
+    if (std::abs(f) < 1e-12) f = 1e-12;
     out[i] = range * range * (hi + lo - 2.0 * qi) / (2.0 * n * f * f);
   }
 }
@@ -151,7 +176,8 @@ void jointWeights(const ChainModel& model, const Eigen::Ref<const Eigen::VectorX
       data.scale[i] = 1.0;
       continue;
     }
-    double gradient = std::numeric_limits<double>::infinity();  // at or beyond a limit: blocked
+    // Beyond a limit the criterion is undefined: no weighting there (JW does not enforce limits, Table 3.5).
+    double gradient = 0.0;
     if (q[i] > lo && q[i] < hi) {
       const double a = hi - q[i];
       const double b = q[i] - lo;
@@ -403,7 +429,9 @@ ClikData::ClikData(const ChainModel& model, const ClikParameters& parameters)
       n3(model.nq()),
       m1(taskDimension(parameters.mode)),
       gains(taskDimension(parameters.mode) + model.nq()),
-      rows(taskDimension(parameters.mode) + model.nq()) {
+      rows(taskDimension(parameters.mode) + model.nq()),
+      gram(taskDimension(parameters.mode), taskDimension(parameters.mode)),
+      gram_llt(taskDimension(parameters.mode)) {
   parameters.validate();
   const int m = taskDimension(parameters.mode);
   const int n = model.nq();
@@ -509,6 +537,7 @@ IkResult solve(const ChainModel& model, const ClikParameters& parameters, ClikDa
       return result;
     }
     q += data.dq;
+    if (parameters.clamp_to_limits) q = q.cwiseMax(model.lowerLimits()).cwiseMin(model.upperLimits());
   }
 }
 

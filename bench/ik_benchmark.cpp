@@ -1,0 +1,524 @@
+// The thesis' inverse kinematics experiments (Ch. 3.1: Tables 3.4, 3.5, Figs. 3.2–3.5) and the TRAC-IK protocol
+// against KDL's solvers, as one seeded program.
+//
+//   ik_benchmark --experiment table34|table35|fig35|fig32|fig33|tracik|all --seed S --out DIR [--quick]
+//
+// Writes DIR/summary.json (one object per solver x setting), DIR/<experiment>.csv (one row per sample, written as
+// samples complete), then runs scripts/plot_ik_benchmark.py for the PNG plots and DIR/tables.md.
+#include "bimanual_skills/kinematics/global_ik.hpp"
+
+#include <kdl/chainfksolverpos_recursive.hpp>
+#include <kdl/chainiksolverpos_lma.hpp>
+#include <kdl/chainiksolverpos_nr_jl.hpp>
+#include <kdl/chainiksolvervel_pinv.hpp>
+#include <kdl_parser/kdl_parser.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace bk = bimanual_skills::kinematics;
+using bk::InverseOperator;
+using bk::LimitScheme;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
+const std::string kWamUrdf = kSourceDir + "/urdf/wam.urdf";
+
+struct Options {
+  std::string experiment;
+  std::string out;
+  std::uint32_t seed = 1;
+  bool quick = false;
+};
+
+[[noreturn]] void usage(const std::string& error) {
+  std::cerr << "ik_benchmark: " << error << "\n"
+            << "usage: ik_benchmark --experiment table34|table35|fig35|fig32|fig33|tracik|all --seed S --out DIR "
+               "[--quick]\n";
+  std::exit(2);
+}
+
+Options parse(int argc, char** argv) {
+  Options options;
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    const auto value = [&]() -> std::string {
+      if (i + 1 >= argc) usage(arg + " needs a value");
+      return argv[++i];
+    };
+    if (arg == "--experiment") {
+      options.experiment = value();
+    } else if (arg == "--out") {
+      options.out = value();
+    } else if (arg == "--seed") {
+      const std::string text = value();
+      char* end = nullptr;
+      const unsigned long seed = std::strtoul(text.c_str(), &end, 10);
+      if (text.empty() || *end != '\0' || seed > 0xffffffffUL) usage("--seed must be a non-negative integer");
+      options.seed = static_cast<std::uint32_t>(seed);
+    } else if (arg == "--quick") {
+      options.quick = true;
+    } else {
+      usage("unknown argument '" + arg + "'");
+    }
+  }
+  const std::vector<std::string> known = {"table34", "table35", "fig35", "fig32", "fig33", "tracik", "all"};
+  if (std::find(known.begin(), known.end(), options.experiment) == known.end()) {
+    usage("--experiment must be one of table34, table35, fig35, fig32, fig33, tracik, all");
+  }
+  if (options.out.empty()) usage("--out DIR is required");
+  return options;
+}
+
+/// One row of summary.json.
+struct Summary {
+  std::string experiment, solver, setting;
+  int samples = 0;
+  double success_rate = 0, within_limits_rate = 0, median_us = 0, p99_us = 0, mean_iterations = 0;
+  double mean_residual_failed = 0;
+};
+
+/// Accumulates per-sample outcomes of one solver x setting and writes them to the experiment's CSV as they come.
+class Recorder {
+ public:
+  Recorder(std::ofstream& csv, std::string experiment, std::string solver, std::string setting)
+      : csv_(csv), summary_{std::move(experiment), std::move(solver), std::move(setting)} {}
+
+  void add(bool success, bool within_limits, double time_us, int iterations, double residual) {
+    csv_ << summary_.solver << ',' << summary_.setting << ',' << times_.size() << ',' << success << ',' << within_limits
+         << ',' << time_us << ',' << iterations << ',' << residual << '\n';
+    times_.push_back(time_us);
+    ++summary_.samples;
+    if (success) {
+      ++successes_;
+      iterations_ += iterations;
+      if (within_limits) ++within_;
+    } else {
+      ++failures_;
+      residual_failed_ += residual;
+    }
+  }
+
+  Summary finish() {
+    csv_.flush();
+    std::sort(times_.begin(), times_.end());
+    const auto at = [&](double f) {
+      return times_.empty() ? 0.0 : times_[static_cast<std::size_t>(f * static_cast<double>(times_.size() - 1))];
+    };
+    const double n = std::max(1, summary_.samples);
+    summary_.success_rate = successes_ / n;
+    summary_.within_limits_rate = within_ / n;
+    summary_.median_us = at(0.5);
+    summary_.p99_us = at(0.99);
+    summary_.mean_iterations = successes_ > 0 ? iterations_ / successes_ : 0.0;
+    summary_.mean_residual_failed = failures_ > 0 ? residual_failed_ / failures_ : 0.0;
+    std::printf(
+        "  %-12s %-22s n=%-6d success %6.2f %%  within limits %6.2f %%  median %8.1f us  p99 %9.1f us  it %.1f\n",
+        summary_.solver.c_str(), summary_.setting.c_str(), summary_.samples, 100 * summary_.success_rate,
+        100 * summary_.within_limits_rate, summary_.median_us, summary_.p99_us, summary_.mean_iterations);
+    std::fflush(stdout);
+    return summary_;
+  }
+
+ private:
+  std::ofstream& csv_;
+  Summary summary_;
+  std::vector<double> times_;
+  double successes_ = 0, within_ = 0, failures_ = 0, iterations_ = 0, residual_failed_ = 0;
+};
+
+/// A CLIK method of the thesis with its table label and parameter note.
+struct Method {
+  std::string name;
+  std::string setting;
+  bk::ClikParameters parameters;
+};
+
+Method method(InverseOperator op, LimitScheme scheme, std::string setting) {
+  bk::ClikParameters parameters;
+  parameters.inverse = op;
+  parameters.limits = scheme;
+  return {bk::methodName(op, scheme), std::move(setting), parameters};
+}
+
+std::vector<Method> table34Methods() {
+  return {method(InverseOperator::Pseudoinverse, LimitScheme::None, "-"),
+          method(InverseOperator::Transpose, LimitScheme::None, "Buss step"),
+          method(InverseOperator::SelectiveDamping, LimitScheme::None, "gamma_max=0.5"),
+          method(InverseOperator::Damping, LimitScheme::None, "lambda=0.005"),
+          method(InverseOperator::Filtering, LimitScheme::None, "lambda_max=4lambda"),
+          method(InverseOperator::ErrorDamping, LimitScheme::None, "-"),
+          method(InverseOperator::ImprovedErrorDamping, LimitScheme::None, "Omega=0.01I"),
+          method(InverseOperator::SingularValueFilter, LimitScheme::None, "nu=10 sigma0=0.01"),
+          method(InverseOperator::SvfErrorDamping, LimitScheme::None, "-"),
+          method(InverseOperator::SvfSelectiveDamping, LimitScheme::None, "-")};
+}
+
+std::vector<Method> table35Methods() {
+  return {method(InverseOperator::Pseudoinverse, LimitScheme::JointWeighting, "Chan-Dubey W"),
+          method(InverseOperator::Pseudoinverse, LimitScheme::GradientProjection, "mu=0.2"),
+          method(InverseOperator::Pseudoinverse, LimitScheme::TaskAugmentation, "h_beta rows"),
+          method(InverseOperator::Pseudoinverse, LimitScheme::JointClamping, "H=I-h_beta"),
+          method(InverseOperator::Pseudoinverse, LimitScheme::TaskPriority, "h_beta"),
+          method(InverseOperator::Pseudoinverse, LimitScheme::ContinuousTaskPriority, "h_beta"),
+          method(InverseOperator::SingularValueFilter, LimitScheme::ContinuousTaskPriority, "-"),
+          method(InverseOperator::SelectiveDamping, LimitScheme::ContinuousTaskPriority, "-"),
+          method(InverseOperator::SvfSelectiveDamping, LimitScheme::ContinuousTaskPriority, "-")};
+}
+
+Eigen::VectorXd uniformWithin(const bk::ChainModel& model, std::mt19937& rng) {
+  Eigen::VectorXd q(model.nq());
+  for (int i = 0; i < model.nq(); ++i) {
+    q[i] = std::uniform_real_distribution<double>(model.lowerLimits()[i], model.upperLimits()[i])(rng);
+  }
+  return q;
+}
+
+/// q_F uniform in the box |q_F − q_0| < A intersected with the limits (the thesis' acceptance test, sampled directly:
+/// rejection from independent draws has an acceptance of ~1e-7 at A = 0.25).
+Eigen::VectorXd uniformNear(const bk::ChainModel& model, const Eigen::VectorXd& q0, double A, std::mt19937& rng) {
+  Eigen::VectorXd q(model.nq());
+  for (int i = 0; i < model.nq(); ++i) {
+    const double lo = std::max(model.lowerLimits()[i], q0[i] - A);
+    const double hi = std::min(model.upperLimits()[i], q0[i] + A);
+    q[i] = std::uniform_real_distribution<double>(lo, hi)(rng);
+  }
+  return q;
+}
+
+/// Runs a local CLIK solve from every start to the FK of every goal.
+Summary runClik(const bk::ChainModel& model, const Method& m, const std::vector<Eigen::VectorXd>& starts,
+                const std::vector<Eigen::Isometry3d>& targets, std::ofstream& csv, const std::string& experiment,
+                const std::string& setting) {
+  bk::ClikData data(model, m.parameters);
+  Recorder recorder(csv, experiment, m.name, setting);
+  for (std::size_t k = 0; k < starts.size(); ++k) {
+    Eigen::VectorXd q = starts[k];
+    const auto t0 = Clock::now();
+    const bk::IkResult result = bk::solve(model, m.parameters, data, q, targets[k]);
+    const double us = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+    const bool success = result.status == bk::IkStatus::Converged;
+    recorder.add(success, success && model.withinLimits(q), us, result.iterations, result.residual);
+  }
+  return recorder.finish();
+}
+
+std::vector<Eigen::Isometry3d> forward(const bk::ChainModel& model, const std::vector<Eigen::VectorXd>& qs) {
+  bk::ChainData data(model);
+  std::vector<Eigen::Isometry3d> poses;
+  for (const auto& q : qs) {
+    if (bk::forwardKinematics(model, data, q) != bk::KinematicsStatus::Success) throw std::runtime_error("FK failed");
+    poses.push_back(data.tipPose());
+  }
+  return poses;
+}
+
+std::ofstream openCsv(const Options& options, const std::string& name, const std::string& header) {
+  std::ofstream csv(options.out + "/" + name + ".csv");
+  if (!csv) throw std::runtime_error("cannot write " + options.out + "/" + name + ".csv");
+  csv.precision(10);
+  csv << header << '\n';
+  return csv;
+}
+
+const char* kSampleHeader = "solver,setting,sample,success,within_limits,time_us,iterations,residual";
+
+void table34(const Options& options, std::vector<Summary>& out) {
+  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+  const int samples = options.quick ? 100 : 1000;
+  std::mt19937 rng(options.seed);
+  std::vector<Eigen::VectorXd> starts, goals;
+  for (int k = 0; k < samples; ++k) {
+    starts.push_back(uniformWithin(model, rng));
+    goals.push_back(uniformWithin(model, rng));
+  }
+  const auto targets = forward(model, goals);
+  std::ofstream csv = openCsv(options, "table34", kSampleHeader);
+  std::printf("table34: %d random start/goal pairs uniform within the limits (seed %u)\n", samples, options.seed);
+  for (const Method& m : table34Methods()) out.push_back(runClik(model, m, starts, targets, csv, "table34", m.setting));
+}
+
+void limitExperiment(const Options& options, const std::string& name, const std::vector<double>& amplitudes,
+                     std::vector<Summary>& out) {
+  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+  const int samples = options.quick ? 100 : 1000;
+  std::ofstream csv = openCsv(options, name, kSampleHeader);
+  for (double A : amplitudes) {
+    std::mt19937 rng(options.seed);
+    std::vector<Eigen::VectorXd> starts, goals;
+    for (int k = 0; k < samples; ++k) {
+      starts.push_back(uniformWithin(model, rng));
+      goals.push_back(uniformNear(model, starts.back(), A, rng));
+    }
+    const auto targets = forward(model, goals);
+    char setting[32];
+    std::snprintf(setting, sizeof(setting), "A=%.2f", A);
+    std::printf("%s: %d pairs with |q0 - qF| < %.2f per joint (seed %u)\n", name.c_str(), samples, A, options.seed);
+    for (const Method& m : table35Methods()) out.push_back(runClik(model, m, starts, targets, csv, name, setting));
+  }
+}
+
+/// A planar 4R arm (links of 0.25 m along x, joints about z, limits ±2 rad), as in the thesis' Figs. 3.2–3.4.
+bk::ChainModel planar4R() {
+  std::vector<bk::ChainJoint> joints;
+  for (int i = 0; i < 4; ++i) {
+    bk::ChainJoint joint;
+    joint.name = "joint" + std::to_string(i + 1);
+    joint.child_link = "link" + std::to_string(i + 1);
+    joint.origin.translation() << (i == 0 ? 0.0 : 0.25), 0.0, 0.0;
+    joint.lower = -2.0;
+    joint.upper = 2.0;
+    joints.push_back(joint);
+  }
+  Eigen::Isometry3d tip = Eigen::Isometry3d::Identity();
+  tip.translation().x() = 0.25;
+  return bk::ChainModel("base", "tip", joints, tip);
+}
+
+void fig32(const Options& options, std::vector<Summary>&) {
+  // Condition number κ = max g(σ)/min g(σ) of each operator's inverse along a straight joint path into the
+  // stretched (singular) configuration; parameters of the thesis' Fig. 3.2: λ = 1e-2, λ_max = 5λ, σ0 = 0.005, ν = 10.
+  const bk::ChainModel model = planar4R();
+  bk::ChainData data(model);
+  bk::ClikParameters p;
+  p.lambda = 1e-2;
+  p.lambda_max = 5e-2;
+  p.sigma0 = 0.005;
+  p.nu = 10.0;
+  p.pinv_tolerance = 0.0;
+  const std::vector<std::pair<std::string, InverseOperator>> ops = {{"JP", InverseOperator::Pseudoinverse},
+                                                                    {"JD", InverseOperator::Damping},
+                                                                    {"JF", InverseOperator::Filtering},
+                                                                    {"ED", InverseOperator::ErrorDamping},
+                                                                    {"IED", InverseOperator::ImprovedErrorDamping},
+                                                                    {"SVF", InverseOperator::SingularValueFilter}};
+  std::ofstream csv = openCsv(options, "fig32", "method,t,sigma_min,condition_number");
+  const Eigen::VectorXd q_start = (Eigen::VectorXd(4) << 0.9, -0.7, 0.6, -0.5).finished();
+  const Eigen::Vector2d target(1.0, 0.0);  // the stretched configuration q = 0
+  const int steps = options.quick ? 200 : 2000;
+  for (int k = 0; k <= steps; ++k) {
+    const double t = 1.0 - std::pow(10.0, -6.0 * k / steps);  // approach logarithmically: σ_min down to ~1e-6
+    const Eigen::VectorXd q = (1.0 - t) * q_start;
+    if (bk::computeJacobian(model, data, q) != bk::KinematicsStatus::Success) throw std::runtime_error("4R FK");
+    const Eigen::JacobiSVD<Eigen::MatrixXd> svd(data.jacobian.topRows(2));
+    const Eigen::Vector2d sigma = svd.singularValues();
+    const double E = 0.5 * (target - data.tipPose().translation().head<2>()).squaredNorm();
+    for (const auto& [name, op] : ops) {
+      const double g1 = bk::inverseOperatorGain(p, op, sigma[0], sigma[1], E);
+      const double g2 = bk::inverseOperatorGain(p, op, sigma[1], sigma[1], E);
+      csv << name << ',' << t << ',' << sigma[1] << ',' << std::max(g1, g2) / std::min(g1, g2) << '\n';
+    }
+  }
+  std::printf("fig32: condition numbers of 6 operators on %d points approaching the 4R singularity\n", steps + 1);
+}
+
+void fig33(const Options& options, std::vector<Summary>&) {
+  // CLIK runs on the 4R arm from the horizontal (singular) start to a reachable target; joint trajectories and arm
+  // drawings per method (Figs. 3.3 and 3.4).
+  const bk::ChainModel model = planar4R();
+  std::ofstream csv = openCsv(options, "fig33", "figure,method,iteration,q1,q2,q3,q4,x,y");
+  Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+  target.translation() << 0.15, 0.55, 0.0;
+  std::vector<std::pair<std::string, Method>> runs;
+  for (auto op : {InverseOperator::Pseudoinverse, InverseOperator::Transpose, InverseOperator::Filtering,
+                  InverseOperator::ImprovedErrorDamping, InverseOperator::SelectiveDamping,
+                  InverseOperator::SvfSelectiveDamping}) {
+    runs.emplace_back("3.3", method(op, LimitScheme::None, ""));
+  }
+  for (const Method& m : table35Methods()) runs.emplace_back("3.4", m);
+  bk::ChainData kinematics(model);
+  for (auto& [figure, m] : runs) {
+    m.parameters.mode = bk::TaskMode::PlanarPosition;
+    m.parameters.max_iterations = 1;
+    bk::ClikData data(model, m.parameters);
+    Eigen::VectorXd q = Eigen::VectorXd::Zero(4);
+    for (int iteration = 0; iteration <= 150; ++iteration) {
+      if (bk::forwardKinematics(model, kinematics, q) != bk::KinematicsStatus::Success) break;
+      const Eigen::Vector3d p = kinematics.tipPose().translation();
+      csv << figure << ',' << m.name << ',' << iteration << ',' << q[0] << ',' << q[1] << ',' << q[2] << ',' << q[3]
+          << ',' << p.x() << ',' << p.y() << '\n';
+      if (bk::step(model, m.parameters, data, q, target) != bk::IkStatus::Converged) break;
+      q += data.dq;
+    }
+  }
+  std::printf("fig33: %zu 4R CLIK trajectories from the horizontal start to (0.15, 0.55)\n", runs.size());
+}
+
+bool twistWithin(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double tolerance) {
+  Eigen::VectorXd e(6);
+  bk::poseError(a, b, bk::TaskMode::Pose, e);
+  return e.cwiseAbs().maxCoeff() <= tolerance;
+}
+
+void tracik(const Options& options, std::vector<Summary>& out) {
+  // TRAC-IK's protocol (trac_ik_examples ik_tests): random configurations within limits, FK, IK from the mid-limit
+  // nominal seed and from a random seed; success = every pose-error twist component ≤ 1e-5; 5 ms per solve,
+  // failures counted with their whole time.
+  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+  KDL::Tree tree;
+  KDL::Chain chain;
+  if (!kdl_parser::treeFromFile(kWamUrdf, tree) || !tree.getChain("wam_base", "wam_tool", chain)) {
+    throw std::runtime_error("KDL cannot load the WAM");
+  }
+  const unsigned n = chain.getNrOfJoints();
+  KDL::JntArray lower(n), upper(n);
+  lower.data = model.lowerLimits();
+  upper.data = model.upperLimits();
+  const int samples = options.quick ? 500 : 10000;
+  const double budget = 0.005, eps = 1e-5;
+  std::mt19937 rng(options.seed);
+  std::vector<Eigen::VectorXd> goals, random_seeds;
+  for (int k = 0; k < samples; ++k) goals.push_back(uniformWithin(model, rng));
+  for (int k = 0; k < samples; ++k) random_seeds.push_back(uniformWithin(model, rng));
+  const auto targets = forward(model, goals);
+  const Eigen::VectorXd nominal = 0.5 * (model.lowerLimits() + model.upperLimits());
+  std::ofstream csv = openCsv(options, "tracik", kSampleHeader);
+  std::printf("tracik: %d random poses, 5 ms budget, success = every twist component <= 1e-5 (seed %u)\n", samples,
+              options.seed);
+
+  KDL::ChainFkSolverPos_recursive fk(chain);
+  KDL::ChainIkSolverVel_pinv vik(chain);
+  KDL::ChainIkSolverPos_NR_JL nr_jl(chain, lower, upper, fk, vik, 1, eps);
+  Eigen::Matrix<double, 6, 1> weights = Eigen::Matrix<double, 6, 1>::Ones();
+  KDL::ChainIkSolverPos_LMA lma(chain, weights, eps, 500, 1e-15);
+
+  using Solver =
+      std::function<std::pair<bool, int>(const Eigen::VectorXd&, const Eigen::Isometry3d&, Eigen::VectorXd&)>;
+  const auto toKdl = [](const Eigen::Isometry3d& T) {
+    KDL::Frame f;
+    for (int r = 0; r < 3; ++r) {
+      f.p(r) = T.translation()[r];
+      for (int c = 0; c < 3; ++c) f.M(r, c) = T.linear()(r, c);
+    }
+    return f;
+  };
+  // KDL solvers looped from their last result until success or the budget, as TRAC-IK's test does.
+  const auto kdlLoop = [&](KDL::ChainIkSolverPos& solver) -> Solver {
+    return
+        [&solver, &toKdl, n, budget](const Eigen::VectorXd& seed, const Eigen::Isometry3d& target, Eigen::VectorXd& q) {
+          KDL::JntArray in(n), result(n);
+          result.data = seed;
+          const KDL::Frame goal = toKdl(target);
+          const auto start = Clock::now();
+          int calls = 0, rc = -1;
+          do {
+            in = result;
+            rc = solver.CartToJnt(in, goal, result);
+            ++calls;
+          } while (rc < 0 && std::chrono::duration<double>(Clock::now() - start).count() < budget);
+          q = result.data;
+          return std::make_pair(rc >= 0, calls);
+        };
+  };
+  std::vector<std::tuple<std::string, std::string, Solver>> solvers;
+  std::vector<std::unique_ptr<bk::GlobalIkSolver>> ours;
+  for (auto [op, scheme, label] :
+       {std::tuple{InverseOperator::ErrorDamping, LimitScheme::None, "global ED"},
+        std::tuple{InverseOperator::SvfSelectiveDamping, LimitScheme::ContinuousTaskPriority, "global CTP+SD+SVF"}}) {
+    bk::GlobalIkParameters parameters;
+    parameters.local.inverse = op;
+    parameters.local.limits = scheme;
+    parameters.timeout = budget;
+    parameters.seed = options.seed;
+    ours.push_back(std::make_unique<bk::GlobalIkSolver>(model, parameters));
+    bk::GlobalIkSolver* solver = ours.back().get();
+    solvers.emplace_back("ours", label,
+                         [solver](const Eigen::VectorXd& seed, const Eigen::Isometry3d& target, Eigen::VectorXd& q) {
+                           const bk::GlobalIkResult result = solver->solve(target, seed, q);
+                           return std::make_pair(result.status == bk::IkStatus::Converged, result.iterations);
+                         });
+  }
+  solvers.emplace_back("KDL", "NR_JL", kdlLoop(nr_jl));
+  solvers.emplace_back("KDL", "LMA", kdlLoop(lma));
+
+  bk::ChainData check(model);
+  for (const auto& [solver_name, label, solve] : solvers) {
+    for (const bool random_seed : {false, true}) {
+      const std::string setting = label + (random_seed ? " / random seed" : " / nominal seed");
+      Recorder recorder(csv, "tracik", solver_name, setting);
+      Eigen::VectorXd q(model.nq());
+      for (int k = 0; k < samples; ++k) {
+        const Eigen::VectorXd& seed = random_seed ? random_seeds[static_cast<std::size_t>(k)] : nominal;
+        const auto t0 = Clock::now();
+        const auto [reported, iterations] = solve(seed, targets[static_cast<std::size_t>(k)], q);
+        const double us = std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+        // Success is judged here, independently of what the solver reports.
+        (void)reported;
+        const bool fk_ok = bk::forwardKinematics(model, check, q) == bk::KinematicsStatus::Success;
+        const bool success = fk_ok && twistWithin(check.tipPose(), targets[static_cast<std::size_t>(k)], eps);
+        Eigen::VectorXd e(6);
+        bk::poseError(check.tipPose(), targets[static_cast<std::size_t>(k)], bk::TaskMode::Pose, e);
+        recorder.add(success, success && model.withinLimits(q), us, iterations, e.cwiseAbs().maxCoeff());
+        if ((k + 1) % (samples / 4) == 0 && k + 1 < samples) {
+          std::printf("    %s %s: %d/%d\n", solver_name.c_str(), setting.c_str(), k + 1, samples);
+          std::fflush(stdout);
+        }
+      }
+      out.push_back(recorder.finish());
+    }
+  }
+}
+
+void writeSummary(const Options& options, const std::vector<Summary>& rows) {
+  std::ofstream json(options.out + "/summary.json");
+  json.precision(10);
+  json << "{\n  \"program\": \"ik_benchmark\",\n  \"experiment\": \"" << options.experiment
+       << "\",\n  \"seed\": " << options.seed << ",\n  \"quick\": " << (options.quick ? "true" : "false")
+       << ",\n  \"results\": [\n";
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const Summary& r = rows[i];
+    json << "    {\"experiment\": \"" << r.experiment << "\", \"solver\": \"" << r.solver << "\", \"setting\": \""
+         << r.setting << "\", \"samples\": " << r.samples << ", \"success_rate\": " << r.success_rate
+         << ", \"within_limits_rate\": " << r.within_limits_rate << ", \"median_us\": " << r.median_us
+         << ", \"p99_us\": " << r.p99_us << ", \"mean_iterations\": " << r.mean_iterations
+         << ", \"mean_residual_failed\": " << r.mean_residual_failed << "}" << (i + 1 < rows.size() ? "," : "") << "\n";
+  }
+  json << "  ]\n}\n";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Options options = parse(argc, argv);
+  try {
+    std::filesystem::create_directories(options.out);
+    std::printf("ik_benchmark: experiment %s, seed %u%s, output %s\n", options.experiment.c_str(), options.seed,
+                options.quick ? " (quick)" : "", options.out.c_str());
+    std::vector<Summary> rows;
+    const auto wants = [&](const char* name) { return options.experiment == "all" || options.experiment == name; };
+    if (wants("fig32")) fig32(options, rows);
+    if (wants("fig33")) fig33(options, rows);
+    if (wants("table34")) table34(options, rows);
+    if (wants("table35")) limitExperiment(options, "table35", {1.0}, rows);
+    if (wants("fig35")) {
+      std::vector<double> amplitudes;
+      for (double A = 0.25; A <= 2.5 + 1e-9; A += 0.25) amplitudes.push_back(A);
+      limitExperiment(options, "fig35", amplitudes, rows);
+    }
+    if (wants("tracik")) tracik(options, rows);
+    writeSummary(options, rows);
+    const std::string plot = "/usr/bin/python3 " + kSourceDir + "/scripts/plot_ik_benchmark.py " + options.out;
+    if (std::system(plot.c_str()) != 0) {
+      std::fprintf(stderr, "ik_benchmark: plotting failed (%s); CSV and summary.json are written\n", plot.c_str());
+      return 1;
+    }
+    std::printf("ik_benchmark: wrote %s/summary.json, CSV, PNG and tables.md\n", options.out.c_str());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "ik_benchmark: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
