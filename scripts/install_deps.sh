@@ -6,7 +6,7 @@ set -euo pipefail
 PACKAGES=(
   # ROS 1 (Debian's ros_comm) and the command-line tools users run
   ros-base-dev catkin rosbash python3-roslaunch python3-rosservice python3-rostopic python3-rosnode
-  python3-rosparam python3-rosmaster python3-rostest librostest-dev ros-message-generation libroscpp-dev
+  python3-rosparam python3-rosmaster python3-rostest librostest-dev ros-message-generation ros-message-runtime libroscpp-dev
   # messages, with their Python modules for rosservice/rostopic from the shell
   libsensor-msgs-dev libgeometry-msgs-dev libtrajectory-msgs-dev libvisualization-msgs-dev libstd-srvs-dev
   python3-sensor-msgs python3-geometry-msgs python3-trajectory-msgs python3-visualization-msgs python3-std-srvs

@@ -52,6 +52,14 @@ TEST(ChainLoading, WamHasThesisLimitsAndNames) {
   EXPECT_EQ(model.frameIndex("no_such_link"), -1);
 }
 
+TEST(ChainLoading, WamReachBoundIsTheStretchedArm) {
+  const ChainModel model = ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+  // Joint origins after the first: (0.045, 0, 0.55), (-0.045, 0, 0), (0, 0, 0.3), then the 0.06 m tool offset.
+  EXPECT_NEAR(model.reachBound(), std::hypot(0.045, 0.55) + 0.045 + 0.3 + 0.06, 1e-12);
+  EXPECT_GE(model.reachBound(), 0.91);
+  EXPECT_EQ(model.firstJointOrigin().z(), 0.346);
+}
+
 TEST(ChainLoading, WithinLimitsRejectsWrongSizeNanAndOutside) {
   const ChainModel model = ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
   Eigen::VectorXd q = Eigen::VectorXd::Zero(7);

@@ -341,3 +341,76 @@ TEST(Clik, StepAndSolveDoNotAllocateForAnyMethod) {
     }
   }
 }
+
+TEST(Clik, MethodNamesRoundTrip) {
+  int parsed = 0;
+  for (LimitScheme scheme : kSchemes) {
+    for (InverseOperator op : kOperators) {
+      InverseOperator op_back;
+      LimitScheme scheme_back;
+      const std::string name = bk::methodName(op, scheme);
+      if (name == "CTP+other") continue;
+      ASSERT_TRUE(bk::parseMethodName(name, op_back, scheme_back)) << name;
+      EXPECT_EQ(bk::methodName(op_back, scheme_back), name);
+      ++parsed;
+    }
+  }
+  EXPECT_GE(parsed, 19);
+  InverseOperator op;
+  LimitScheme scheme;
+  EXPECT_FALSE(bk::parseMethodName("SVF+XX", op, scheme));
+  EXPECT_TRUE(bk::parseMethodName("CTP+SD+SVF", op, scheme));
+  EXPECT_EQ(op, InverseOperator::SvfSelectiveDamping);
+  EXPECT_EQ(scheme, LimitScheme::ContinuousTaskPriority);
+}
+
+namespace {
+
+/// (3.29)-(3.40) written out with Eigen's own SVD of J^⊕ = data.inverse, from the state a step leaves in data.
+Eigen::VectorXd referenceCtpSdStep(const bk::ClikParameters& p, const bk::ClikData& data, const Eigen::VectorXd& q,
+                                   const bk::ChainModel& model) {
+  const int n = model.nq();
+  Eigen::VectorXd h(n), centre(n);
+  for (int i = 0; i < n; ++i) {
+    h[i] = bk::limitActivation(q[i], model.lowerLimits()[i], model.upperLimits()[i], p.beta);
+    centre[i] = 0.5 * (model.lowerLimits()[i] + model.upperLimits()[i]);
+  }
+  const Eigen::VectorXd dq1 = -p.lambda_jl * h.cwiseProduct(q - centre);
+  const Eigen::MatrixXd& Jp = data.inverse;
+  const Eigen::MatrixXd& J = data.jacobian;
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(Jp, Eigen::ComputeThinU | Eigen::ComputeThinV);
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(n);
+  for (int s = 0; s < svd.singularValues().size(); ++s) {
+    const double tau = svd.singularValues()[s];
+    if (tau == 0.0) continue;
+    Eigen::VectorXd w = tau * svd.matrixU().col(s) * svd.matrixV().col(s).dot(data.task);  // (3.37)
+    double M = 0.0;                                                                        // (3.35)
+    for (int j = 0; j < n; ++j) M += tau * std::abs(svd.matrixU()(j, s)) * J.col(j).norm();
+    const double gamma = std::min(1.0, 1.0 / M) * p.gamma_max;                  // (3.36)
+    if (w.cwiseAbs().maxCoeff() > gamma) w *= gamma / w.cwiseAbs().maxCoeff();  // (3.38)
+    sum += w;
+  }
+  Eigen::VectorXd dq = dq1 - Jp * (J * dq1) + sum;                                           // (3.39)
+  if (dq.cwiseAbs().maxCoeff() > p.gamma_max) dq *= p.gamma_max / dq.cwiseAbs().maxCoeff();  // (3.40)
+  return dq;
+}
+
+}  // namespace
+
+TEST(Clik, CtpSelectiveDampingStepEqualsItsEquations) {
+  const bk::ChainModel model = wam();
+  std::mt19937 rng(kSeed + 6);
+  for (InverseOperator op : {InverseOperator::SelectiveDamping, InverseOperator::SvfSelectiveDamping}) {
+    bk::ClikParameters parameters;
+    parameters.inverse = op;
+    bk::ClikData data(model, parameters);
+    for (int trial = 0; trial < 20; ++trial) {
+      Eigen::VectorXd q = randomWithinLimits(model, rng);
+      if (trial % 2 == 1) q[3] = model.upperLimits()[3] - 0.3 * parameters.beta;  // a joint in transition
+      const Eigen::Isometry3d target = fk(model, randomWithinLimits(model, rng));
+      ASSERT_EQ(bk::step(model, parameters, data, q, target), bk::IkStatus::Converged);
+      EXPECT_LE((data.dq - referenceCtpSdStep(parameters, data, q, model)).cwiseAbs().maxCoeff(), 1e-10)
+          << bk::methodName(op, LimitScheme::ContinuousTaskPriority) << " trial " << trial;
+    }
+  }
+}

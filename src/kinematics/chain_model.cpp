@@ -73,6 +73,11 @@ ChainModel::ChainModel(std::string base_link, std::string tip_link, std::vector<
     frame_names_.push_back(joint.child_link);
   }
   frame_names_.push_back(tip_link_);
+  for (std::size_t i = 1; i < n; ++i) reach_bound_ += joints_[i].origin.translation().norm();
+  reach_bound_ += tip_offset.translation().norm();
+  for (const ChainJoint& joint : joints_) {
+    if (joint.type == JointType::Prismatic) reach_bound_ += std::max(std::abs(joint.lower), std::abs(joint.upper));
+  }
   tip_in_last_.setIdentity();
   tip_in_last_.linear() = previous_alignment.transpose() * tip_offset.linear();
   tip_in_last_.translation() = previous_alignment.transpose() * tip_offset.translation();

@@ -290,10 +290,24 @@ bool computeStep(const ChainModel& model, const ClikParameters& p, ClikData& dat
         break;
       }
       // (3.39): Δq̂ = (I − J^⊕ J) Δq1 + Σ_s clamp(w_s), the w_s from the SVD of J^⊕ (3.31–3.38); then (3.40).
-      if (!data.svd_inverse.compute(data.inverse)) return false;
       data.column_norms = data.jacobian.colwise().norm().transpose();
-      selectiveDampingSum(data.svd_inverse.singularValues(), data.svd_inverse.U(), data.svd_inverse.V(),
-                          data.column_norms, data.task, p.gamma_max, data.n3, data.n2);
+      if (data.transitional.empty() && !data.selected.empty()) {
+        // No joint in transition: J^⊕ = Σ g_i (scattered v_i) u_iᵀ is already an SVD (the scattered v_i stay
+        // orthonormal), so the one of J_Q serves and no second decomposition is needed.
+        const int c = static_cast<int>(data.selected.size());
+        const ThinSvd& svd = data.svd_by_columns[static_cast<std::size_t>(c - 1)];
+        const Eigen::Index r = svd.singularValues().size();
+        data.scattered.setZero();
+        for (int row = 0; row < c; ++row) {
+          data.scattered.row(data.selected[static_cast<std::size_t>(row)]).head(r) = svd.V().row(row);
+        }
+        selectiveDampingSum(data.gains.head(r), data.scattered.leftCols(r), svd.U(), data.column_norms, data.task,
+                            p.gamma_max, data.n3, data.n2);
+      } else {
+        if (!data.svd_inverse.compute(data.inverse)) return false;
+        selectiveDampingSum(data.svd_inverse.singularValues(), data.svd_inverse.U(), data.svd_inverse.V(),
+                            data.column_norms, data.task, p.gamma_max, data.n3, data.n2);
+      }
       data.m1.noalias() = data.jacobian * data.n1;
       dq = data.n1 + data.n2;
       dq.noalias() -= data.inverse * data.m1;
@@ -358,6 +372,39 @@ const char* methodName(InverseOperator op, LimitScheme scheme) noexcept {
       return "SVF+SD";
   }
   return "unknown";
+}
+
+bool parseMethodName(const std::string& name, InverseOperator& op, LimitScheme& scheme) noexcept {
+  constexpr InverseOperator kOperators[] = {InverseOperator::Pseudoinverse,
+                                            InverseOperator::Transpose,
+                                            InverseOperator::SelectiveDamping,
+                                            InverseOperator::Damping,
+                                            InverseOperator::Filtering,
+                                            InverseOperator::ErrorDamping,
+                                            InverseOperator::ImprovedErrorDamping,
+                                            InverseOperator::SingularValueFilter,
+                                            InverseOperator::SvfErrorDamping,
+                                            InverseOperator::SvfSelectiveDamping};
+  constexpr LimitScheme kSchemes[] = {LimitScheme::None,
+                                      LimitScheme::JointWeighting,
+                                      LimitScheme::GradientProjection,
+                                      LimitScheme::JointClamping,
+                                      LimitScheme::TaskAugmentation,
+                                      LimitScheme::TaskPriority,
+                                      LimitScheme::ContinuousTaskPriority};
+  // JW, GP, JC, TA and TP are named after their scheme alone: they pair with the pseudoinverse.
+  for (LimitScheme s : kSchemes) {
+    for (InverseOperator o : kOperators) {
+      const bool named_by_scheme = s != LimitScheme::None && s != LimitScheme::ContinuousTaskPriority;
+      if (named_by_scheme && o != InverseOperator::Pseudoinverse) continue;
+      if (name == methodName(o, s)) {
+        op = o;
+        scheme = s;
+        return true;
+      }
+    }
+  }
+  return false;
 }
 
 const char* toString(IkStatus status) noexcept {
@@ -431,7 +478,8 @@ ClikData::ClikData(const ChainModel& model, const ClikParameters& parameters)
       gains(taskDimension(parameters.mode) + model.nq()),
       rows(taskDimension(parameters.mode) + model.nq()),
       gram(taskDimension(parameters.mode), taskDimension(parameters.mode)),
-      gram_llt(taskDimension(parameters.mode)) {
+      gram_llt(taskDimension(parameters.mode)),
+      scattered(model.nq(), taskDimension(parameters.mode)) {
   parameters.validate();
   const int m = taskDimension(parameters.mode);
   const int n = model.nq();

@@ -14,6 +14,12 @@ constexpr double kTwoPi = 2.0 * M_PI;
 
 }  // namespace
 
+ClikParameters GlobalIkParameters::defaultLocal() {
+  ClikParameters local;
+  local.max_iterations = 40;
+  return local;
+}
+
 ClikParameters GlobalIkParameters::defaultRefine() {
   ClikParameters refine;
   refine.inverse = InverseOperator::ErrorDamping;
@@ -74,8 +80,9 @@ bool GlobalIkSolver::isKnownSolution(const Eigen::VectorXd& q) const noexcept {
 }
 
 GlobalIkResult GlobalIkSolver::solve(const Eigen::Isometry3d& target, const Eigen::Ref<const Eigen::VectorXd>& seed,
-                                     Eigen::Ref<Eigen::VectorXd> q) noexcept {
+                                     Eigen::Ref<Eigen::VectorXd> q, double timeout) noexcept {
   GlobalIkResult result;
+  const double budget = timeout > 0.0 && std::isfinite(timeout) ? timeout : parameters_.timeout;
   solution_count_ = 0;
   const int n = model_.nq();
   if (seed.size() != n || q.size() != n || !seed.allFinite() || !target.matrix().allFinite()) return result;
@@ -90,7 +97,7 @@ GlobalIkResult GlobalIkSolver::solve(const Eigen::Isometry3d& target, const Eige
   bool out_of_time = false;
 
   for (int attempt = 0; attempt < parameters_.max_attempts; ++attempt) {
-    const double remaining = parameters_.timeout - elapsed();
+    const double remaining = budget - elapsed();
     if (remaining <= 0.0) {
       out_of_time = true;
       break;
@@ -113,7 +120,7 @@ GlobalIkResult GlobalIkSolver::solve(const Eigen::Isometry3d& target, const Eige
     if (local.status == IkStatus::InvalidInput) return result;
     bool valid = local.status == IkStatus::Converged && wrapIntoLimits(candidate_);
     if (!valid && parameters_.refine_enabled && local.status != IkStatus::Timeout) {
-      refine_.timeout = std::max(parameters_.timeout - elapsed(), 1e-9);
+      refine_.timeout = std::max(budget - elapsed(), 1e-9);
       local = kinematics::solve(model_, refine_, refine_data_, candidate_, target);
       result.iterations += local.iterations;
       valid = local.status == IkStatus::Converged && wrapIntoLimits(candidate_);

@@ -67,6 +67,13 @@ class ChainModel {
   const Eigen::VectorXd& upperLimits() const noexcept { return upper_; }
   const Eigen::VectorXd& velocityLimits() const noexcept { return velocity_; }
   const Eigen::VectorXd& effortLimits() const noexcept { return effort_; }
+  /// Upper bound on the distance from the first joint's origin to the tip over all configurations (sum of the
+  /// link offsets after the first joint, plus the largest travel of prismatic joints). Targets farther than this
+  /// from the first joint are unreachable.
+  double reachBound() const noexcept { return reach_bound_; }
+  /// Origin of the first joint in the base frame (fixed: the first joint does not move itself).
+  Eigen::Vector3d firstJointOrigin() const noexcept { return joints_.front().origin.translation(); }
+
   /// True when q has size nq(), is finite and lies within [lower - tolerance, upper + tolerance].
   /// Real-time safe: no allocation, no exceptions.
   bool withinLimits(const Eigen::Ref<const Eigen::VectorXd>& q, double tolerance = 0.0) const noexcept;
@@ -91,6 +98,7 @@ class ChainModel {
   std::vector<AxisFrame> axis_frames_;
   Eigen::Isometry3d tip_in_last_;
   Eigen::VectorXd lower_, upper_, velocity_, effort_;
+  double reach_bound_ = 0.0;
 };
 
 }  // namespace bimanual_skills::kinematics

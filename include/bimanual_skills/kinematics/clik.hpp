@@ -10,6 +10,7 @@
 
 #include <Eigen/Cholesky>
 
+#include <string>
 #include <vector>
 
 namespace bimanual_skills::kinematics {
@@ -39,6 +40,9 @@ enum class LimitScheme {
   TaskPriority,            ///< TP (3.18, 3.25): limits first with the ordinary pseudoinverse of H_β, then the pose.
   ContinuousTaskPriority,  ///< CTP (3.26–3.28; with SD 3.29–3.40): limits first, continuous pseudoinverse (3.22).
 };
+
+/// Parses a thesis abbreviation as methodName() prints it ("JP", "SVF+ED", "CTP+SD+SVF", ...): false if unknown.
+bool parseMethodName(const std::string& name, InverseOperator& op, LimitScheme& scheme) noexcept;
 
 /// Human-readable thesis abbreviation ("JP", "SVF+SD", "CTP+SD+SVF", ...) of an (operator, scheme) pair.
 const char* methodName(InverseOperator op, LimitScheme scheme) noexcept;
@@ -107,24 +111,26 @@ struct ClikData {
   Eigen::VectorXd dq;        ///< Last step.
 
   // Internal workspaces.
-  std::vector<ThinSvd> svd_by_columns;              ///< SVD of m × c sub-Jacobians, c = 1..n (index c − 1).
-  ThinSvd svd_augmented;                            ///< (m + n) × n, task augmentation.
-  ThinSvd svd_inverse;                              ///< n × m, SVD of a continuous pseudoinverse (CTP+SD).
-  Eigen::MatrixXd columns;                          ///< m × n, sub-Jacobian of selected columns (left block used).
-  Eigen::MatrixXd augmented;                        ///< (m + n) × n.
-  Eigen::VectorXd augmented_task;                   ///< m + n.
-  Eigen::MatrixXd inverse;                          ///< n × m, an inverse operator as a matrix.
-  Eigen::VectorXd activation;                       ///< h_β(q_i).
-  Eigen::VectorXd centre;                           ///< Joint range centres (0 for unlimited joints).
-  Eigen::VectorXd column_norms;                     ///< ‖J^j‖ for selective damping.
-  Eigen::VectorXd scale;                            ///< Per-joint scaling (JW: W^{-1/2}; JC: 1 − h).
-  Eigen::VectorXd previous_gradient;                ///< JW: |∂H/∂q| at the previous step.
-  Eigen::VectorXd n1, n2, n3;                       ///< n-vectors.
-  Eigen::VectorXd m1;                               ///< m-vector.
-  Eigen::VectorXd gains;                            ///< Operator gains g(σ_i).
-  Eigen::VectorXd rows;                             ///< Task-row scratch (m + n).
-  Eigen::MatrixXd gram;                             ///< J Jᵀ + c I (m × m), damped operators.
-  Eigen::LLT<Eigen::MatrixXd> gram_llt;             ///< Its Cholesky factorisation.
+  std::vector<ThinSvd> svd_by_columns;  ///< SVD of m × c sub-Jacobians, c = 1..n (index c − 1).
+  ThinSvd svd_augmented;                ///< (m + n) × n, task augmentation.
+  ThinSvd svd_inverse;                  ///< n × m, SVD of a continuous pseudoinverse (CTP+SD).
+  Eigen::MatrixXd columns;              ///< m × n, sub-Jacobian of selected columns (left block used).
+  Eigen::MatrixXd augmented;            ///< (m + n) × n.
+  Eigen::VectorXd augmented_task;       ///< m + n.
+  Eigen::MatrixXd inverse;              ///< n × m, an inverse operator as a matrix.
+  Eigen::VectorXd activation;           ///< h_β(q_i).
+  Eigen::VectorXd centre;               ///< Joint range centres (0 for unlimited joints).
+  Eigen::VectorXd column_norms;         ///< ‖J^j‖ for selective damping.
+  Eigen::VectorXd scale;                ///< Per-joint scaling (JW: W^{-1/2}; JC: 1 − h).
+  Eigen::VectorXd previous_gradient;    ///< JW: |∂H/∂q| at the previous step.
+  Eigen::VectorXd n1, n2, n3;           ///< n-vectors.
+  Eigen::VectorXd m1;                   ///< m-vector.
+  Eigen::VectorXd gains;                ///< Operator gains g(σ_i).
+  Eigen::VectorXd rows;                 ///< Task-row scratch (m + n).
+  Eigen::MatrixXd gram;                 ///< J Jᵀ + c I (m × m), damped operators.
+  Eigen::LLT<Eigen::MatrixXd> gram_llt;
+  Eigen::MatrixXd scattered;  ///< n × m: right singular vectors of J_Q scattered to their joints (CTP+SD). ///< Its
+                              ///< Cholesky factorisation.
   std::vector<int> always, transitional, selected;  ///< Joint index lists (capacity n, never grown).
 };
 

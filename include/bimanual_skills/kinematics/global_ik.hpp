@@ -19,7 +19,10 @@ enum class SolutionMode {
 };
 
 struct GlobalIkParameters {
-  ClikParameters local;  ///< Local method (its own timeout is replaced by what is left of the budget).
+  /// Local method (its own timeout is replaced by what is left of the budget). Default CTP+SD+SVF with attempts
+  /// capped at 40 iterations: a stalled attempt costs less than a fresh start (WAM, TRAC-IK protocol, 5 ms, 500
+  /// poses: 89 %/61 % solved with 500 iterations from the nominal/random seed, 99.4 %/99.6 % with 40).
+  ClikParameters local = defaultLocal();
   /// Polish stage run from the end point of a local attempt that did not give a valid solution (stalled near a
   /// limit, or converged outside the limits): by default a damped Newton method (ED) clamped into the limits.
   /// CTP methods stall where a solution needs a joint inside its activation buffer β (the thesis' "algorithmic
@@ -36,6 +39,8 @@ struct GlobalIkParameters {
   /// Throws std::invalid_argument naming the first parameter out of range (and validates `local`).
   void validate() const;
 
+  /// ClikParameters' defaults (CTP+SD+SVF) with max_iterations = 40.
+  static ClikParameters defaultLocal();
   /// ED, no limit scheme, q clamped into the limits after each step, 100 iterations.
   static ClikParameters defaultRefine();
 };
@@ -58,10 +63,11 @@ class GlobalIkSolver {
   GlobalIkSolver(const ChainModel& model, const GlobalIkParameters& parameters);
 
   /// Solves for the tip pose `target` (base frame) from `seed` (size n, finite; may lie outside the limits).
-  /// The solution (or best attempt) is written to `q` (resized beforehand by the caller to n).
+  /// The solution (or best attempt) is written to `q` (resized beforehand by the caller to n). `timeout` > 0
+  /// replaces the configured budget for this call.
   /// Real-time safe in the sense of no allocation and no exceptions; it runs for up to the time budget.
   GlobalIkResult solve(const Eigen::Isometry3d& target, const Eigen::Ref<const Eigen::VectorXd>& seed,
-                       Eigen::Ref<Eigen::VectorXd> q) noexcept;
+                       Eigen::Ref<Eigen::VectorXd> q, double timeout = 0.0) noexcept;
 
   /// AllDistinct mode: the distinct solutions of the last solve() (ordered by discovery). Other modes: the returned
   /// one.
