@@ -1,0 +1,54 @@
+// Smoke test of the experiment programs in --quick mode: they run, write summary.json with every field, CSV, PNG
+// and tables.md, and reject bad arguments with exit code 2. No assertion on time.
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+int run(const std::string& command) {
+  const int status = std::system((command + " > /dev/null 2>&1").c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string readFile(const fs::path& path) {
+  std::ifstream file(path);
+  std::stringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+}  // namespace
+
+TEST(IkBenchmarkSmoke, QuickRunWritesEveryOutput) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_ik_benchmark_smoke";
+  fs::remove_all(out);
+  ASSERT_EQ(run(std::string(IK_BENCHMARK) + " --experiment all --seed 3 --quick --out " + out.string()), 0);
+  const std::string summary = readFile(out / "summary.json");
+  for (const char* field :
+       {"\"solver\"", "\"setting\"", "\"samples\"", "\"success_rate\"", "\"within_limits_rate\"", "\"median_us\"",
+        "\"p99_us\"", "\"mean_iterations\"", "\"mean_residual_failed\"", "\"seed\": 3", "\"CTP+SD+SVF\"", "\"KDL\""}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field;
+  }
+  for (const char* file :
+       {"table34.csv", "table35.csv", "fig35.csv", "fig32.csv", "fig33.csv", "tracik.csv", "table34.png", "table35.png",
+        "fig35.png", "fig32.png", "fig33.png", "fig34.png", "tracik.png", "tables.md"}) {
+    EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
+  }
+  fs::remove_all(out);
+}
+
+TEST(IkBenchmarkSmoke, BadArgumentsAreRejected) {
+  const std::string program = IK_BENCHMARK;
+  EXPECT_EQ(run(program + " --experiment nope --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(run(program + " --experiment table34 --seed -4 --out /tmp/x"), 2);
+  EXPECT_EQ(run(program + " --experiment table34 --seed 1"), 2);
+  EXPECT_EQ(run(program + " --experiment table34 --seed 1 --out /tmp/x --fast"), 2);
+}
