@@ -1,4 +1,5 @@
-// Forward kinematics and Jacobian of the WAM per call: the core library and KDL in the same run.
+// Forward kinematics and Jacobian of the WAM per call, the core library and KDL in the same run, and single CLIK
+// steps (JP, ED, CTP+SD+SVF).
 //
 //   kinematics_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
 //
@@ -6,6 +7,7 @@
 // iteration, counters give the per-call median, p99 and worst case (ns), each from batches of kBatch calls timed with
 // a steady clock (per-call = batch time / kBatch, so clock overhead is spread over the batch).
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/kinematics/clik.hpp"
 
 #include <benchmark/benchmark.h>
 #include <kdl/chainfksolverpos_recursive.hpp>
@@ -136,6 +138,36 @@ void BM_KdlFkJacobian(benchmark::State& state) {
   });
 }
 
+/// One CLIK step (FK, Jacobian, pose error and the method's Δq) from configuration k towards the pose of k + 1.
+void clikStep(benchmark::State& state, bk::InverseOperator op, bk::LimitScheme scheme) {
+  const Fixture& f = fixture();
+  bk::ClikParameters parameters;
+  parameters.inverse = op;
+  parameters.limits = scheme;
+  bk::ClikData data(f.model, parameters);
+  bk::ChainData kinematics(f.model);
+  std::vector<Eigen::Isometry3d> targets;
+  for (const auto& q : f.q) {
+    if (bk::forwardKinematics(f.model, kinematics, q) != bk::KinematicsStatus::Success) state.SkipWithError("FK");
+    targets.push_back(kinematics.tipPose());
+  }
+  timeBatches(state, [&](int k) {
+    const auto next = static_cast<std::size_t>((k + 1) % kConfigurations);
+    benchmark::DoNotOptimize(bk::step(f.model, parameters, data, f.q[static_cast<std::size_t>(k)], targets[next]));
+    benchmark::DoNotOptimize(data.dq.data());
+  });
+}
+
+void BM_ClikStepJp(benchmark::State& state) {
+  clikStep(state, bk::InverseOperator::Pseudoinverse, bk::LimitScheme::None);
+}
+void BM_ClikStepEd(benchmark::State& state) {
+  clikStep(state, bk::InverseOperator::ErrorDamping, bk::LimitScheme::None);
+}
+void BM_ClikStepCtpSdSvf(benchmark::State& state) {
+  clikStep(state, bk::InverseOperator::SvfSelectiveDamping, bk::LimitScheme::ContinuousTaskPriority);
+}
+
 }  // namespace
 
 BENCHMARK(BM_Fk);
@@ -143,6 +175,9 @@ BENCHMARK(BM_KdlFk);
 BENCHMARK(BM_FkJacobian);
 BENCHMARK(BM_KdlJacobian);
 BENCHMARK(BM_KdlFkJacobian);
+BENCHMARK(BM_ClikStepJp);
+BENCHMARK(BM_ClikStepEd);
+BENCHMARK(BM_ClikStepCtpSdSvf);
 
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);

@@ -6,6 +6,7 @@ Usage: plot_ik_benchmark.py DIR
 """
 import csv
 import json
+import math
 import os
 import sys
 from collections import OrderedDict, defaultdict
@@ -183,6 +184,7 @@ def fig33(out):
                 top.plot(its, [float(r[f"q{j}"]) for r in rows], label=f"q{j}")
             top.axhline(2.0, color="k", linewidth=0.6, linestyle="--")
             top.axhline(-2.0, color="k", linewidth=0.6, linestyle="--")
+            top.set_ylim(-8.0, 8.0)  # TP's discontinuous gains reach 1e12 rad; clipped so the limits stay visible
             top.set_title(key[1], fontsize=9)
             top.set_xlabel("iteration", fontsize=8)
             top.tick_params(labelsize=7)
@@ -192,8 +194,8 @@ def fig33(out):
                 xs, ys, angle = [0.0], [0.0], 0.0
                 for qi in q:
                     angle += qi
-                    xs.append(xs[-1] + 0.25 * __import__("math").cos(angle))
-                    ys.append(ys[-1] + 0.25 * __import__("math").sin(angle))
+                    xs.append(xs[-1] + 0.25 * math.cos(angle))
+                    ys.append(ys[-1] + 0.25 * math.sin(angle))
                 shade = 0.85 - 0.75 * k / max(1, len(rows[::stride]))
                 bottom.plot(xs, ys, color=(shade, shade, shade), linewidth=1)
             bottom.plot([float(r["x"]) for r in rows], [float(r["y"]) for r in rows], "k-", linewidth=0.5)
@@ -201,7 +203,8 @@ def fig33(out):
             bottom.set_aspect("equal")
             bottom.tick_params(labelsize=7)
         axes[0][0].legend(fontsize=7)
-        fig.suptitle(f"Fig. {figure} reproduction: 4R planar arm from the horizontal start to (0.15, 0.55)")
+        fig.suptitle(f"Fig. {figure} reproduction: 4R planar arm from the horizontal start to (0.15, 0.55); "
+                     "joint plots clipped to ±8 rad, limits ±2 rad dashed")
         fig.tight_layout()
         fig.savefig(os.path.join(out, "fig33.png" if figure == "3.3" else "fig34.png"), dpi=110)
         plt.close(fig)
