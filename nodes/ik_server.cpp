@@ -141,9 +141,10 @@ class ArmServices {
   }
 
  private:
-  /// The global solver for a tip and method, built on first use. Throws RequestError for unknown links/methods.
-  bk::GlobalIkSolver& solver(const std::string& tip, const std::string& method) {
-    const std::string key = tip + '\n' + method;
+  /// The global solver for a tip, method and mode, built on first use. Throws RequestError for unknown
+  /// links, methods or modes.
+  bk::GlobalIkSolver& solver(const std::string& tip, const std::string& method, const std::string& mode = "first") {
+    const std::string key = tip + '\n' + method + '\n' + mode;
     auto it = solvers_.find(key);
     if (it != solvers_.end()) return *it->second;
     bk::GlobalIkParameters parameters;
@@ -152,6 +153,15 @@ class ArmServices {
                          "unknown method '" + method +
                              "' (JP, JT, SD, JD, JF, ED, IED, SVF, SVF+ED, SVF+SD, JW, GP, "
                              "JC, TA, TP, CTP, CTP+SVF, CTP+SD, CTP+SD+SVF)"};
+    }
+    if (mode == "first") {
+      parameters.mode = bk::SolutionMode::FirstFound;
+    } else if (mode == "closest") {
+      parameters.mode = bk::SolutionMode::ClosestToSeed;
+    } else if (mode == "all") {
+      parameters.mode = bk::SolutionMode::AllDistinct;
+    } else {
+      throw RequestError{SolveIk::Response::INVALID_INPUT, "unknown mode '" + mode + "' (first, closest, all)"};
     }
     parameters.timeout = settings_.default_timeout;
     parameters.max_attempts = settings_.max_attempts;
@@ -180,7 +190,8 @@ class ArmServices {
     try {
       const std::string tip = request.tip_link.empty() ? tip_ : request.tip_link;
       const std::string method = request.method.empty() ? settings_.method : request.method;
-      bk::GlobalIkSolver& global = solver(tip, method);
+      const std::string mode = request.mode.empty() ? "first" : request.mode;
+      bk::GlobalIkSolver& global = solver(tip, method, mode);
       const bk::ChainModel& model = global.model();
       std::string note;
       double timeout = request.timeout;
@@ -220,6 +231,13 @@ class ArmServices {
       Eigen::VectorXd q(model.nq());
       const bk::GlobalIkResult result = global.solve(target, seed, q, timeout);
       response.solution.position.assign(q.data(), q.data() + q.size());
+      if (global.parameters().mode == bk::SolutionMode::AllDistinct && result.status == bk::IkStatus::Converged) {
+        for (int i = 0; i < global.solutionCount(); ++i) {
+          sensor_msgs::JointState other = response.solution;
+          other.position.assign(global.solution(i).data(), global.solution(i).data() + global.solution(i).size());
+          response.solutions.push_back(other);
+        }
+      }
       response.residual = result.residual;
       response.iterations = result.iterations;
       switch (result.status) {
@@ -235,8 +253,12 @@ class ArmServices {
         default:
           response.error_code = SolveIk::Response::INVALID_INPUT;
       }
-      response.message = std::string(method) + ": " + bk::toString(result.status) + " after " +
-                         std::to_string(result.attempts) + " attempt(s)" + note;
+      response.message =
+          std::string(method) + ": " + bk::toString(result.status) + " after " + std::to_string(result.attempts) +
+          " attempt(s)" +
+          (response.solutions.empty() ? ""
+                                      : ", " + std::to_string(response.solutions.size()) + " distinct solution(s)") +
+          note;
     } catch (const RequestError& error) {
       response.error_code = error.code;
       response.message = error.message;

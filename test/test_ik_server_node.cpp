@@ -197,6 +197,41 @@ TEST(IkServer, BadInputGetsACodeNotACrash) {
   EXPECT_LE(solutionError(right.model, response, target), 1e-5);
 }
 
+TEST(IkServer, ClosestAndAllModes) {
+  ASSERT_TRUE(ros::service::waitForService("/left/solve_ik", ros::Duration(30.0)));
+  ros::NodeHandle node;
+  auto client = node.serviceClient<SolveIk>("/left/solve_ik");
+  const Arm left = arm("left");
+  std::mt19937 rng(13);
+  Eigen::Isometry3d target;
+  SolveIk::Request request = validRequest(left.model, rng, target);
+  request.method = "ED";
+  request.timeout = 0.05;
+  request.seed.position = {0.5, -0.5, 0.5, 1.0, -0.5, 0.5, -0.5};
+  const Eigen::Map<const Eigen::VectorXd> seed(request.seed.position.data(), 7);
+  const SolveIk::Response first = call(client, request);
+  request.mode = "closest";
+  const SolveIk::Response closest = call(client, request);
+  request.mode = "all";
+  const SolveIk::Response all = call(client, request);
+  for (const SolveIk::Response* r : {&first, &closest, &all}) {
+    ASSERT_EQ(r->error_code, SolveIk::Response::SUCCESS) << r->message;
+    EXPECT_LE(solutionError(left.model, *r, target), 1e-5);
+  }
+  const auto distance = [&](const SolveIk::Response& r) {
+    return (Eigen::Map<const Eigen::VectorXd>(r.solution.position.data(), 7) - seed).norm();
+  };
+  EXPECT_LE(distance(closest), distance(first) + 1e-12);
+  EXPECT_GE(all.solutions.size(), 2U) << all.message;
+  for (const auto& solution : all.solutions) {
+    SolveIk::Response one;
+    one.solution = solution;
+    EXPECT_LE(solutionError(left.model, one, target), 1e-5);
+  }
+  request.mode = "fastest";
+  EXPECT_EQ(call(client, request).error_code, SolveIk::Response::INVALID_INPUT);
+}
+
 TEST(IkServer, ForwardKinematicsService) {
   ASSERT_TRUE(ros::service::waitForService("/left/solve_fk", ros::Duration(30.0)));
   ros::NodeHandle node;
