@@ -414,3 +414,32 @@ TEST(Clik, CtpSelectiveDampingStepEqualsItsEquations) {
     }
   }
 }
+
+TEST(Clik, BetaScheduleReleasesGoalsNextToALimit) {
+  // Goals whose elbow (joint 4) is 4 mm from its upper limit, deep inside the activation buffer.
+  const bk::ChainModel model = wam();
+  std::mt19937 rng(kSeed + 7);
+  std::uniform_real_distribution<double> offset(-0.5, 0.5);
+  bk::ClikParameters scheduled;
+  bk::ClikParameters fixed = scheduled;
+  fixed.beta_decay = 1.0;
+  bk::ClikData data(model, scheduled);
+  int solved_fixed = 0, solved_scheduled = 0, problems = 0;
+  while (problems < 30) {
+    Eigen::VectorXd goal = randomWithinLimits(model, rng);
+    goal[3] = model.upperLimits()[3] - 0.004;
+    Eigen::VectorXd start = goal;
+    for (int i = 0; i < 7; ++i) start[i] += offset(rng);
+    if (!model.withinLimits(start, -0.1)) continue;
+    ++problems;
+    const Eigen::Isometry3d target = fk(model, goal);
+    for (auto [parameters, solved] : {std::pair{&fixed, &solved_fixed}, std::pair{&scheduled, &solved_scheduled}}) {
+      Eigen::VectorXd q = start;
+      const bk::IkResult result = bk::solve(model, *parameters, data, q, target);
+      if (result.status == bk::IkStatus::Converged && model.withinLimits(q)) ++*solved;
+    }
+  }
+  EXPECT_GE(solved_scheduled, 27) << "fixed beta: " << solved_fixed;
+  std::printf("goals 4 mm from a limit: fixed beta %d/30, scheduled %d/30\n", solved_fixed, solved_scheduled);
+  EXPECT_GT(solved_scheduled, solved_fixed);
+}

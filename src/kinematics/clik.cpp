@@ -189,11 +189,11 @@ void jointWeights(const ChainModel& model, const Eigen::Ref<const Eigen::VectorX
   }
 }
 
-/// Activation h_β of every joint into data.activation (and centres, already in data.centre).
-void activations(const ChainModel& model, const ClikParameters& p, const Eigen::Ref<const Eigen::VectorXd>& q,
+/// Activation h_β of every joint into data.activation (the centres are in data.centre).
+void activations(const ChainModel& model, double beta, const Eigen::Ref<const Eigen::VectorXd>& q,
                  ClikData& data) noexcept {
   for (int i = 0; i < model.nq(); ++i) {
-    data.activation[i] = limitActivation(q[i], model.lowerLimits()[i], model.upperLimits()[i], p.beta);
+    data.activation[i] = limitActivation(q[i], model.lowerLimits()[i], model.upperLimits()[i], beta);
   }
 }
 
@@ -213,8 +213,9 @@ bool evaluate(const ChainModel& model, const ClikParameters& p, ClikData& data,
   return true;
 }
 
-/// The step of the configured scheme, from the state left by evaluate(). False on a numerical failure.
-bool computeStep(const ChainModel& model, const ClikParameters& p, ClikData& data,
+/// The step of the configured scheme with activation buffer `beta`, from the state left by evaluate(). False on a
+/// numerical failure.
+bool computeStep(const ChainModel& model, const ClikParameters& p, double beta, ClikData& data,
                  const Eigen::Ref<const Eigen::VectorXd>& q) noexcept {
   const int n = model.nq();
   const double E = 0.5 * data.task.squaredNorm();
@@ -241,14 +242,14 @@ bool computeStep(const ChainModel& model, const ClikParameters& p, ClikData& dat
       break;
     }
     case LimitScheme::JointClamping:
-      activations(model, p, q, data);
+      activations(model, beta, q, data);
       data.scale = Eigen::VectorXd::Ones(n) - data.activation;
       data.columns = data.jacobian * data.scale.asDiagonal();
       if (!applyInverse(p, p.inverse, full, data.columns, data.task, E, data, data.n1)) return false;
       dq = data.scale.cwiseProduct(data.n1);
       break;
     case LimitScheme::TaskAugmentation: {
-      activations(model, p, q, data);
+      activations(model, beta, q, data);
       const int m = static_cast<int>(data.task.size());
       data.augmented.topRows(m) = data.jacobian;
       data.augmented.bottomRows(n) = data.activation.asDiagonal();
@@ -261,7 +262,7 @@ bool computeStep(const ChainModel& model, const ClikParameters& p, ClikData& dat
     }
     case LimitScheme::TaskPriority: {
       // (3.18) with J1 = H_β, e1 = −λ_JL (q − q_c), ordinary pseudoinverses: J1^† = diag(1/h_i) on active joints.
-      activations(model, p, q, data);
+      activations(model, beta, q, data);
       for (int i = 0; i < n; ++i) {
         const double h = data.activation[i];
         data.n1[i] = h > 0.0 ? -p.lambda_jl * (q[i] - data.centre[i]) / h : 0.0;
@@ -274,7 +275,7 @@ bool computeStep(const ChainModel& model, const ClikParameters& p, ClikData& dat
       break;
     }
     case LimitScheme::ContinuousTaskPriority: {
-      activations(model, p, q, data);
+      activations(model, beta, q, data);
       data.n1 = -p.lambda_jl * data.activation.cwiseProduct(q - data.centre);  // Δq1 = H (−λ (q − q_c))
       data.scale = Eigen::VectorXd::Ones(n) - data.activation;                 // task activation I − H
       const InverseOperator inner = p.inverse == InverseOperator::SelectiveDamping ? InverseOperator::Pseudoinverse
@@ -438,6 +439,8 @@ void ClikParameters::validate() const {
   require(std::isfinite(gamma_max) && gamma_max > 0.0, "gamma_max must be positive");
   require(std::isfinite(gp_gain), "gp_gain must be finite");
   require(std::isfinite(beta) && beta > 0.0, "beta must be positive");
+  require(stall_window >= 1, "stall_window must be >= 1");
+  require(std::isfinite(beta_decay) && beta_decay > 0.0 && beta_decay <= 1.0, "beta_decay must be in (0, 1]");
   require(std::isfinite(lambda_jl) && lambda_jl >= 0.0, "lambda_jl must be >= 0");
   require(max_iterations >= 1, "max_iterations must be >= 1");
   require(!(limits == LimitScheme::ContinuousTaskPriority && inverse == InverseOperator::Transpose),
@@ -552,7 +555,7 @@ void continuousPseudoinverse(const ClikParameters& parameters, ClikData& data,
 IkStatus step(const ChainModel& model, const ClikParameters& parameters, ClikData& data,
               const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Isometry3d& target) noexcept {
   if (!evaluate(model, parameters, data, q, target)) return IkStatus::InvalidInput;
-  return computeStep(model, parameters, data, q) ? IkStatus::Converged : IkStatus::NumericalFailure;
+  return computeStep(model, parameters, parameters.beta, data, q) ? IkStatus::Converged : IkStatus::NumericalFailure;
 }
 
 IkResult solve(const ChainModel& model, const ClikParameters& parameters, ClikData& data, Eigen::Ref<Eigen::VectorXd> q,
@@ -560,6 +563,9 @@ IkResult solve(const ChainModel& model, const ClikParameters& parameters, ClikDa
   IkResult result;
   const auto start = std::chrono::steady_clock::now();
   data.previous_gradient.setZero();
+  double beta = parameters.beta;
+  double reference = std::numeric_limits<double>::infinity();  // residual at the start of the current window
+  int stalled = 0;
   for (int iteration = 0;; ++iteration) {
     if (!evaluate(model, parameters, data, q, target)) {
       result.status = IkStatus::InvalidInput;
@@ -571,6 +577,14 @@ IkResult solve(const ChainModel& model, const ClikParameters& parameters, ClikDa
       result.status = IkStatus::Converged;
       return result;
     }
+    if (result.residual < 0.9 * reference) {
+      reference = result.residual;
+      stalled = 0;
+    } else if (++stalled >= parameters.stall_window) {
+      beta *= parameters.beta_decay;
+      reference = result.residual;
+      stalled = 0;
+    }
     if (iteration >= parameters.max_iterations) {
       result.status = IkStatus::MaxIterations;
       return result;
@@ -580,7 +594,7 @@ IkResult solve(const ChainModel& model, const ClikParameters& parameters, ClikDa
       result.status = IkStatus::Timeout;
       return result;
     }
-    if (!computeStep(model, parameters, data, q)) {
+    if (!computeStep(model, parameters, beta, data, q)) {
       result.status = IkStatus::NumericalFailure;
       return result;
     }

@@ -74,6 +74,12 @@ struct ClikParameters {
   /// goals inside the buffer compete with the push to the centre, so smaller is better down to ~0.05 (CTP+SD+SVF on
   /// 300 Table 3.5 problems: 94.0 % at β = 0.1, 97.7 % at 0.05, 98.0 % at 0.02).
   double beta = 0.05;
+  /// solve(): β schedule. When the residual has not dropped by 10 % over `stall_window` iterations, β is
+  /// multiplied by `beta_decay` (1 disables). A goal a few millimetres from a limit lies deep in the buffer, where
+  /// h_β ≈ 1 all but removes the joint and the push to the centre balances the task: shrinking β releases it.
+  /// Measured on Table 3.5 (1000 problems, seed 1), CTP+SD+SVF: 98.1 % within limits without, 99.6 % with 10 / 0.5.
+  int stall_window = 10;
+  double beta_decay = 0.5;
   double lambda_jl = 0.1;    ///< Push-to-centre gain λ_JL (thesis: 0.1–0.5).
   int max_iterations = 500;  ///< solve(): iteration cap.
   double tolerance = 1e-5;   ///< solve(): converged when every error component ≤ tolerance [m, rad].
