@@ -20,6 +20,28 @@ Eigen::Matrix3d rotationFromZ(const Eigen::Vector3d& axis) {
 
 }  // namespace
 
+BodyInertia BodyInertia::combined(const BodyInertia& other) const {
+  BodyInertia out;
+  out.mass = mass + other.mass;
+  if (out.mass <= 0.0) return out;
+  out.com = (mass * com + other.mass * other.com) / out.mass;
+  // Parallel-axis theorem: I_c + m (|d|² 1 − d dᵀ) for each body's offset d from the common centre of mass.
+  const auto shifted = [&](const BodyInertia& body) -> Eigen::Matrix3d {
+    const Eigen::Vector3d d = body.com - out.com;
+    return body.inertia + body.mass * (d.squaredNorm() * Eigen::Matrix3d::Identity() - d * d.transpose());
+  };
+  out.inertia = shifted(*this) + shifted(other);
+  return out;
+}
+
+BodyInertia BodyInertia::expressedIn(const Eigen::Isometry3d& pose) const {
+  BodyInertia out;
+  out.mass = mass;
+  out.com = pose.inverse() * com;
+  out.inertia = pose.linear().transpose() * inertia * pose.linear();
+  return out;
+}
+
 ChainModel::ChainModel(std::string base_link, std::string tip_link, std::vector<ChainJoint> joints,
                        const Eigen::Isometry3d& tip_offset)
     : base_link_(std::move(base_link)), tip_link_(std::move(tip_link)), joints_(std::move(joints)) {
@@ -32,6 +54,7 @@ ChainModel::ChainModel(std::string base_link, std::string tip_link, std::vector<
   }
   const auto n = joints_.size();
   lower_.resize(static_cast<Eigen::Index>(n));
+  rotor_.resize(static_cast<Eigen::Index>(n));
   upper_.resize(static_cast<Eigen::Index>(n));
   velocity_.resize(static_cast<Eigen::Index>(n));
   effort_.resize(static_cast<Eigen::Index>(n));
@@ -54,11 +77,16 @@ ChainModel::ChainModel(std::string base_link, std::string tip_link, std::vector<
     if (!(joint.velocity > 0.0) || !(joint.effort > 0.0)) {
       throw std::invalid_argument(what + "velocity and effort limits must be positive");
     }
+    if (!std::isfinite(joint.body.mass) || joint.body.mass < 0.0 || !joint.body.com.allFinite() ||
+        !joint.body.inertia.allFinite() || !std::isfinite(joint.rotor_inertia) || joint.rotor_inertia < 0.0) {
+      throw std::invalid_argument(what + "mass, centre of mass, inertia and rotor inertia must be finite, mass >= 0");
+    }
     const auto k = static_cast<Eigen::Index>(i);
     lower_[k] = joint.lower;
     upper_[k] = joint.upper;
     velocity_[k] = joint.velocity;
     effort_[k] = joint.effort;
+    rotor_[k] = joint.rotor_inertia;
 
     // F_i = F_{i-1} (R_{i-1}^T O_i R_i) R(z, q_i): see the class comment.
     AxisFrame& frame = axis_frames_[i];
@@ -69,6 +97,10 @@ ChainModel::ChainModel(std::string base_link, std::string tip_link, std::vector<
     frame.translation = previous_alignment.transpose() * joint.origin.translation();
     frame.to_link = R_i.transpose();
     frame.prismatic = joint.type == JointType::Prismatic;
+    // F_i = L_i R_i: a body given in L_i is expressed in F_i through the pose of F_i in L_i, a pure rotation R_i.
+    Eigen::Isometry3d axis_in_link = Eigen::Isometry3d::Identity();
+    axis_in_link.linear() = R_i;
+    frame.body = joint.body.expressedIn(axis_in_link);
     previous_alignment = R_i;
     frame_names_.push_back(joint.child_link);
   }
@@ -81,6 +113,23 @@ ChainModel::ChainModel(std::string base_link, std::string tip_link, std::vector<
   tip_in_last_.setIdentity();
   tip_in_last_.linear() = previous_alignment.transpose() * tip_offset.linear();
   tip_in_last_.translation() = previous_alignment.transpose() * tip_offset.translation();
+}
+
+ChainModel ChainModel::withGravity(const Eigen::Vector3d& gravity) const {
+  if (!gravity.allFinite()) throw std::invalid_argument("ChainModel::withGravity: gravity must be finite");
+  ChainModel copy = *this;
+  copy.gravity_ = gravity;
+  return copy;
+}
+
+ChainModel ChainModel::withRotorInertia(const Eigen::VectorXd& rotor_inertia) const {
+  if (rotor_inertia.size() != nq() || !rotor_inertia.allFinite() || (rotor_inertia.array() < 0.0).any()) {
+    throw std::invalid_argument("ChainModel::withRotorInertia: need " + std::to_string(nq()) + " finite values >= 0");
+  }
+  ChainModel copy = *this;
+  copy.rotor_ = rotor_inertia;
+  for (int i = 0; i < nq(); ++i) copy.joints_[static_cast<std::size_t>(i)].rotor_inertia = rotor_inertia[i];
+  return copy;
 }
 
 std::vector<std::string> ChainModel::jointNames() const {

@@ -20,6 +20,20 @@ Eigen::Isometry3d toIsometry(const urdf::Pose& pose) {
   return out;
 }
 
+/// Mass properties of a URDF link in the link's frame (none when it has no <inertial>).
+BodyInertia linkInertia(const urdf::LinkConstSharedPtr& link) {
+  BodyInertia body;
+  if (!link || !link->inertial) return body;
+  const urdf::Inertial& in = *link->inertial;
+  const Eigen::Isometry3d frame = toIsometry(in.origin);  // the inertial frame in the link frame
+  body.mass = in.mass;
+  body.com = frame.translation();
+  Eigen::Matrix3d inertia;
+  inertia << in.ixx, in.ixy, in.ixz, in.ixy, in.iyy, in.iyz, in.ixz, in.iyz, in.izz;
+  body.inertia = frame.linear() * inertia * frame.linear().transpose();
+  return body;
+}
+
 std::string describe(const std::string& base_link, const std::string& tip_link) {
   return "URDF chain '" + base_link + "' -> '" + tip_link + "': ";
 }
@@ -58,6 +72,11 @@ ChainModel ChainModel::fromUrdfString(const std::string& urdf_xml, const std::st
     const Eigen::Isometry3d origin = fixed * toIsometry(joint->parent_to_joint_origin_transform);
     if (joint->type == urdf::Joint::FIXED) {
       fixed = origin;
+      // A link fixed to the last moving body moves with it (links before the first movable joint do not move).
+      if (!joints.empty()) {
+        const BodyInertia attached = linkInertia(urdf->getLink(joint->child_link_name)).expressedIn(fixed.inverse());
+        joints.back().body = joints.back().body.combined(attached);
+      }
       continue;
     }
     if (joint->type != urdf::Joint::REVOLUTE && joint->type != urdf::Joint::CONTINUOUS &&
@@ -85,6 +104,7 @@ ChainModel ChainModel::fromUrdfString(const std::string& urdf_xml, const std::st
       if (joint->limits->velocity > 0.0) out.velocity = joint->limits->velocity;
       if (joint->limits->effort > 0.0) out.effort = joint->limits->effort;
     }
+    out.body = linkInertia(urdf->getLink(joint->child_link_name));
     joints.push_back(out);
     fixed.setIdentity();
   }

@@ -15,6 +15,19 @@ namespace bimanual_skills::kinematics {
 /// Kind of a movable joint. URDF "continuous" joints are revolute joints with infinite position limits.
 enum class JointType { Revolute, Prismatic };
 
+/// Mass properties of a rigid body: mass [kg], centre of mass [m] and inertia about the centre of mass [kg m²], both
+/// expressed in the frame the body is attached to.
+struct BodyInertia {
+  double mass = 0.0;
+  Eigen::Vector3d com = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d inertia = Eigen::Matrix3d::Zero();
+
+  /// The union of this body and `other` (both in the same frame), by the parallel-axis theorem.
+  BodyInertia combined(const BodyInertia& other) const;
+  /// The same body expressed in a frame whose pose in the current one is `pose` (com' = pose⁻¹ com, I' = Rᵀ I R).
+  BodyInertia expressedIn(const Eigen::Isometry3d& pose) const;
+};
+
 /// One movable joint as read from a robot description, before the model preprocesses it.
 struct ChainJoint {
   std::string name;        ///< Joint name (URDF joint).
@@ -28,6 +41,9 @@ struct ChainJoint {
   double upper = std::numeric_limits<double>::infinity();   ///< Position limit [rad or m].
   double velocity = std::numeric_limits<double>::infinity();  ///< Speed limit [rad/s or m/s].
   double effort = std::numeric_limits<double>::infinity();    ///< Torque or force limit [N m or N].
+  /// Mass properties of the child link and of every link fixed to it along the chain, in the child link's frame.
+  BodyInertia body;
+  double rotor_inertia = 0.0;  ///< Reflected rotor inertia about the joint axis [kg m²] (adds J q̈ to the torque).
 };
 
 /// Immutable model of a serial chain. Build it once (it may allocate and throw), share it between any number of
@@ -78,6 +94,15 @@ class ChainModel {
   /// Real-time safe: no allocation, no exceptions.
   bool withinLimits(const Eigen::Ref<const Eigen::VectorXd>& q, double tolerance = 0.0) const noexcept;
 
+  /// Gravity acceleration in the base frame [m/s²] (default (0, 0, −9.81)).
+  const Eigen::Vector3d& gravity() const noexcept { return gravity_; }
+  /// A copy of this model with another gravity vector (base frame).
+  ChainModel withGravity(const Eigen::Vector3d& gravity) const;
+  /// A copy of this model with reflected rotor inertias (one per joint, ≥ 0) added to the dynamics.
+  /// \throws std::invalid_argument on a wrong size, negative or non-finite values.
+  ChainModel withRotorInertia(const Eigen::VectorXd& rotor_inertia) const;
+  const Eigen::VectorXd& rotorInertia() const noexcept { return rotor_; }
+
   /// Internal z-axis frame data (see class comment), for the kinematics functions.
   struct AxisFrame {
     Eigen::Matrix3d rotation;     ///< Rotation part of R_{i-1}^T O_i R_i.
@@ -85,6 +110,7 @@ class ChainModel {
     Eigen::Matrix3d to_link;      ///< R_i^T: L_i = F_i R_i^T (identity when the URDF axis is +z).
     bool axis_is_z = true;        ///< R_i is the identity.
     bool prismatic = false;
+    BodyInertia body;  ///< The joint's body in the internal frame F_i (for the dynamics).
   };
   const std::vector<AxisFrame>& axisFrames() const noexcept { return axis_frames_; }
   /// Pose of the tip in the internal frame of the last joint, R_n^T T_tip.
@@ -97,7 +123,8 @@ class ChainModel {
   std::vector<std::string> frame_names_;
   std::vector<AxisFrame> axis_frames_;
   Eigen::Isometry3d tip_in_last_;
-  Eigen::VectorXd lower_, upper_, velocity_, effort_;
+  Eigen::VectorXd lower_, upper_, velocity_, effort_, rotor_;
+  Eigen::Vector3d gravity_ = Eigen::Vector3d(0.0, 0.0, -9.81);
   double reach_bound_ = 0.0;
 };
 
