@@ -1,7 +1,7 @@
 # bimanual_skills: the two commands.
 #   make demo   install what is missing, build, run the most complete end-to-end job
 #   make test   install what is missing, build, run every gtest and rostest; non-zero exit on any failure
-# Also: make build, make bench (kinematics micro-benchmarks), make format, make deps.
+# Also: make build, make bench (kinematics and dynamics micro-benchmarks), make format, make deps.
 
 SHELL := /bin/bash
 # catkin needs Debian's python3 (with catkin_pkg), not a pyenv interpreter earlier on PATH.
@@ -27,8 +27,10 @@ test: build
 	@bash scripts/run_tests.sh
 
 bench: build
-	./build/bimanual_skills/devel/lib/bimanual_skills/kinematics_bench --benchmark_repetitions=5 \
-	  --benchmark_report_aggregates_only=true --benchmark_out=build/kinematics_bench.json --benchmark_out_format=json
+	for b in kinematics_bench control_bench; do \
+	  ./build/bimanual_skills/devel/lib/bimanual_skills/$$b --benchmark_repetitions=5 \
+	    --benchmark_report_aggregates_only=true --benchmark_out=build/$$b.json --benchmark_out_format=json || exit 1; \
+	done
 
 format:
 	clang-format -i $$(git ls-files '*.cpp' '*.hpp')

@@ -9,6 +9,8 @@
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/kinematics/clik.hpp"
 
+#include "bench_timing.hpp"
+
 #include <benchmark/benchmark.h>
 #include <kdl/chainfksolverpos_recursive.hpp>
 #include <kdl/chainjnttojacsolver.hpp>
@@ -21,12 +23,13 @@
 #include <vector>
 
 namespace bk = bimanual_skills::kinematics;
+using bimanual_skills::bench::kBatch;
+using bimanual_skills::bench::timeBatches;
 
 namespace {
 
 constexpr unsigned kSeed = 42;
 constexpr int kConfigurations = 1024;
-constexpr int kBatch = 8;
 const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
 
 struct Fixture {
@@ -59,37 +62,10 @@ const Fixture& fixture() {
   return instance;
 }
 
-/// Runs `call(k)` for configuration k in timed batches and reports per-call median, p99 and maximum.
-template <typename Call>
-void timeBatches(benchmark::State& state, Call call) {
-  std::vector<double> per_call_ns;
-  per_call_ns.reserve(1 << 22);
-  int k = 0;
-  for (auto _ : state) {
-    const auto start = std::chrono::steady_clock::now();
-    for (int b = 0; b < kBatch; ++b) {
-      call(k);
-      k = (k + 1) % kConfigurations;
-    }
-    const auto stop = std::chrono::steady_clock::now();
-    if (per_call_ns.size() < per_call_ns.capacity()) {
-      per_call_ns.push_back(std::chrono::duration<double, std::nano>(stop - start).count() / kBatch);
-    }
-  }
-  state.SetItemsProcessed(state.iterations() * kBatch);
-  std::sort(per_call_ns.begin(), per_call_ns.end());
-  const auto at = [&](double fraction) {
-    return per_call_ns[static_cast<std::size_t>(fraction * static_cast<double>(per_call_ns.size() - 1))];
-  };
-  state.counters["median_ns"] = at(0.5);
-  state.counters["p99_ns"] = at(0.99);
-  state.counters["max_ns"] = per_call_ns.back();
-}
-
 void BM_Fk(benchmark::State& state) {
   const Fixture& f = fixture();
   bk::ChainData data(f.model);
-  timeBatches(state, [&](int k) {
+  timeBatches(state, kConfigurations, [&](int k) {
     benchmark::DoNotOptimize(bk::forwardKinematics(f.model, data, f.q[static_cast<std::size_t>(k)]));
     benchmark::DoNotOptimize(data.tipPose().data());
   });
@@ -98,7 +74,7 @@ void BM_Fk(benchmark::State& state) {
 void BM_FkJacobian(benchmark::State& state) {
   const Fixture& f = fixture();
   bk::ChainData data(f.model);
-  timeBatches(state, [&](int k) {
+  timeBatches(state, kConfigurations, [&](int k) {
     benchmark::DoNotOptimize(bk::computeJacobian(f.model, data, f.q[static_cast<std::size_t>(k)]));
     benchmark::DoNotOptimize(data.jacobian.data());
   });
@@ -108,7 +84,7 @@ void BM_KdlFk(benchmark::State& state) {
   const Fixture& f = fixture();
   KDL::ChainFkSolverPos_recursive fk(f.chain);
   KDL::Frame tip;
-  timeBatches(state, [&](int k) {
+  timeBatches(state, kConfigurations, [&](int k) {
     benchmark::DoNotOptimize(fk.JntToCart(f.q_kdl[static_cast<std::size_t>(k)], tip));
     benchmark::DoNotOptimize(&tip);
   });
@@ -118,7 +94,7 @@ void BM_KdlJacobian(benchmark::State& state) {
   const Fixture& f = fixture();
   KDL::ChainJntToJacSolver jac(f.chain);
   KDL::Jacobian J(f.chain.getNrOfJoints());
-  timeBatches(state, [&](int k) {
+  timeBatches(state, kConfigurations, [&](int k) {
     benchmark::DoNotOptimize(jac.JntToJac(f.q_kdl[static_cast<std::size_t>(k)], J));
     benchmark::DoNotOptimize(J.data.data());
   });
@@ -131,7 +107,7 @@ void BM_KdlFkJacobian(benchmark::State& state) {
   KDL::ChainJntToJacSolver jac(f.chain);
   KDL::Frame tip;
   KDL::Jacobian J(f.chain.getNrOfJoints());
-  timeBatches(state, [&](int k) {
+  timeBatches(state, kConfigurations, [&](int k) {
     benchmark::DoNotOptimize(fk.JntToCart(f.q_kdl[static_cast<std::size_t>(k)], tip));
     benchmark::DoNotOptimize(jac.JntToJac(f.q_kdl[static_cast<std::size_t>(k)], J));
     benchmark::DoNotOptimize(J.data.data());
@@ -151,7 +127,7 @@ void clikStep(benchmark::State& state, bk::InverseOperator op, bk::LimitScheme s
     if (bk::forwardKinematics(f.model, kinematics, q) != bk::KinematicsStatus::Success) state.SkipWithError("FK");
     targets.push_back(kinematics.tipPose());
   }
-  timeBatches(state, [&](int k) {
+  timeBatches(state, kConfigurations, [&](int k) {
     const auto next = static_cast<std::size_t>((k + 1) % kConfigurations);
     benchmark::DoNotOptimize(bk::step(f.model, parameters, data, f.q[static_cast<std::size_t>(k)], targets[next]));
     benchmark::DoNotOptimize(data.dq.data());
