@@ -1,0 +1,208 @@
+#include "bimanual_skills/dynamics/friction_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <tuple>
+
+namespace bimanual_skills::dynamics {
+namespace {
+
+double sign(double x) noexcept {
+  return x > 0.0 ? 1.0 : x < 0.0 ? -1.0 : 0.0;
+}
+
+}  // namespace
+
+const char* toString(FrictionModelType type) noexcept {
+  switch (type) {
+    case FrictionModelType::Viscous:
+      return "viscous";
+    case FrictionModelType::Initial:
+      return "initial";
+    case FrictionModelType::Basic:
+      return "basic";
+    case FrictionModelType::Advanced:
+      return "advanced";
+  }
+  return "unknown";
+}
+
+bool parseFrictionModelType(const std::string& name, FrictionModelType& type) noexcept {
+  for (FrictionModelType t : {FrictionModelType::Viscous, FrictionModelType::Initial, FrictionModelType::Basic,
+                              FrictionModelType::Advanced}) {
+    if (name == toString(t)) {
+      type = t;
+      return true;
+    }
+  }
+  return false;
+}
+
+int linearParameterCount(FrictionModelType type) noexcept {
+  switch (type) {
+    case FrictionModelType::Viscous:
+      return 1;
+    case FrictionModelType::Initial:
+    case FrictionModelType::Basic:
+      return 2;
+    case FrictionModelType::Advanced:
+      return 13;
+  }
+  return 0;
+}
+
+void JointFriction::validate() const {
+  if (b.size() != linearParameterCount(type)) {
+    throw std::invalid_argument(std::string("friction model '") + toString(type) + "' needs " +
+                                std::to_string(linearParameterCount(type)) + " coefficients b, got " +
+                                std::to_string(b.size()));
+  }
+  if (!b.allFinite() || !std::isfinite(s) || !std::isfinite(z) || !std::isfinite(h)) {
+    throw std::invalid_argument(std::string("friction model '") + toString(type) + "': parameters must be finite");
+  }
+}
+
+void frictionRegressor(const JointFriction& joint, double q, double qd, double accel_sign,
+                       Eigen::Ref<Eigen::VectorXd> phi) noexcept {
+  switch (joint.type) {
+    case FrictionModelType::Viscous:
+      phi[0] = qd;
+      return;
+    case FrictionModelType::Initial:  // (2.13)
+      phi[0] = std::atan(joint.s * qd);
+      phi[1] = qd;
+      return;
+    case FrictionModelType::Basic:  // (2.14)
+      phi[0] = std::atan(joint.s * qd + joint.z * accel_sign);
+      phi[1] = qd;
+      return;
+    case FrictionModelType::Advanced: {  // (4.16)
+      phi[0] = q;
+      phi[1] = qd;
+      phi[2] = std::atan(joint.s * qd + joint.z * accel_sign);
+      const double positive = 0.5 * (1.0 + sign(qd));
+      const double negative = 0.5 * (1.0 - sign(qd));
+      for (int j = 1; j <= 5; ++j) {
+        const double k = 2.0 * j - 1.0;
+        const double f = 4.0 * std::sin(k * joint.h * q) / (M_PI * k);
+        phi[2 + j] = positive * f;
+        phi[7 + j] = negative * f;
+      }
+      return;
+    }
+  }
+}
+
+double frictionTorque(const JointFriction& joint, double q, double qd, double accel_sign) noexcept {
+  double phi_storage[13];
+  Eigen::Map<Eigen::VectorXd> phi(phi_storage, linearParameterCount(joint.type));
+  frictionRegressor(joint, q, qd, accel_sign, phi);
+  return joint.b.dot(phi);
+}
+
+void FrictionModel::validate() const {
+  for (std::size_t i = 0; i < joints.size(); ++i) {
+    try {
+      joints[i].validate();
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("joint " + std::to_string(i + 1) + ": " + e.what());
+    }
+  }
+  for (std::size_t k = 0; k < pairs.size(); ++k) {
+    const CoupledPair& pair = pairs[k];
+    const std::string where = "coupled pair " + std::to_string(k + 1) + ": ";
+    if (pair.first < 0 || pair.second < 0 || pair.first >= size() || pair.second >= size() ||
+        pair.first == pair.second) {
+      throw std::invalid_argument(where + "joint indices must be two different joints of the chain");
+    }
+    if (!(pair.epsilon >= 0.0) || !std::isfinite(pair.epsilon)) {
+      throw std::invalid_argument(where + "epsilon must be a finite number >= 0");
+    }
+    pair.reduced_first.validate();
+    pair.reduced_second.validate();
+  }
+}
+
+FrictionState::FrictionState(const FrictionModel& model) : reduced(static_cast<std::size_t>(model.size()), 0) {}
+
+bool frictionTorques(const FrictionModel& model, FrictionState& state, const Eigen::Ref<const Eigen::VectorXd>& q,
+                     const Eigen::Ref<const Eigen::VectorXd>& qd, const Eigen::Ref<const Eigen::VectorXd>& accel_sign,
+                     Eigen::Ref<Eigen::VectorXd> tau) noexcept {
+  const int n = model.size();
+  if (q.size() != n || qd.size() != n || accel_sign.size() != n || tau.size() != n ||
+      state.reduced.size() != static_cast<std::size_t>(n) || !q.allFinite() || !qd.allFinite() ||
+      !accel_sign.allFinite()) {
+    return false;
+  }
+  // Mode switching of the coupled pairs (Sec. 4.2.2), with the dead band ε.
+  for (const CoupledPair& pair : model.pairs) {
+    const double a = std::abs(qd[pair.first]);
+    const double b = std::abs(qd[pair.second]);
+    for (const auto& [i, vi, vj] : {std::tuple{pair.first, a, b}, std::tuple{pair.second, b, a}}) {
+      if (vi >= vj + pair.epsilon) {
+        state.reduced[static_cast<std::size_t>(i)] = 0;
+      } else if (vj >= vi + pair.epsilon) {
+        state.reduced[static_cast<std::size_t>(i)] = 1;
+      }
+    }
+  }
+  for (int i = 0; i < n; ++i) {
+    const JointFriction* joint = &model.joints[static_cast<std::size_t>(i)];
+    if (state.reduced[static_cast<std::size_t>(i)]) {
+      for (const CoupledPair& pair : model.pairs) {
+        if (pair.first == i) joint = &pair.reduced_first;
+        if (pair.second == i) joint = &pair.reduced_second;
+      }
+    }
+    tau[i] = frictionTorque(*joint, q[i], qd[i], accel_sign[i]);
+  }
+  return true;
+}
+
+AccelerationSign::AccelerationSign(int n, double period, double cutoff_hz, double dead_band)
+    : period_(period),
+      alpha_(0.0),
+      dead_band_(dead_band),
+      previous_(Eigen::VectorXd::Zero(std::max(n, 1))),
+      stage_(Eigen::VectorXd::Zero(std::max(n, 1))),
+      filtered_(Eigen::VectorXd::Zero(std::max(n, 1))),
+      sign_(Eigen::VectorXd::Zero(std::max(n, 1))) {
+  if (n < 1 || !(period > 0.0) || !(cutoff_hz > 0.0) || !(dead_band >= 0.0) || !std::isfinite(period) ||
+      !std::isfinite(cutoff_hz) || !std::isfinite(dead_band)) {
+    throw std::invalid_argument("AccelerationSign: need n >= 1, period > 0, cutoff_hz > 0, dead_band >= 0");
+  }
+  // Each stage a discretised first-order low-pass: y += α (x − y), α = 1 − exp(−2π f_c T).
+  alpha_ = 1.0 - std::exp(-2.0 * M_PI * cutoff_hz * period);
+}
+
+const Eigen::VectorXd& AccelerationSign::update(const Eigen::Ref<const Eigen::VectorXd>& qd) noexcept {
+  if (qd.size() != previous_.size() || !qd.allFinite()) return sign_;
+  if (!primed_) {
+    previous_ = qd;
+    primed_ = true;
+    return sign_;
+  }
+  for (Eigen::Index i = 0; i < qd.size(); ++i) {
+    const double raw = (qd[i] - previous_[i]) / period_;
+    stage_[i] += alpha_ * (raw - stage_[i]);
+    filtered_[i] += alpha_ * (stage_[i] - filtered_[i]);
+    if (filtered_[i] > dead_band_) {
+      sign_[i] = 1.0;
+    } else if (filtered_[i] < -dead_band_) {
+      sign_[i] = -1.0;
+    }
+  }
+  previous_ = qd;
+  return sign_;
+}
+
+void AccelerationSign::reset() noexcept {
+  primed_ = false;
+  previous_.setZero();
+  stage_.setZero();
+  filtered_.setZero();
+  sign_.setZero();
+}
+
+}  // namespace bimanual_skills::dynamics
