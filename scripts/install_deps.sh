@@ -14,7 +14,7 @@ PACKAGES=(
   libtf2-ros-dev libtf2-eigen-dev libkdl-parser-dev liborocos-kdl-dev liburdf-dev liburdfdom-dev
   ros-robot-state-publisher
   # numerics
-  libeigen3-dev libnlopt-cxx-dev
+  libeigen3-dev libnlopt-cxx-dev libyaml-cpp-dev
   # build and test
   cmake g++ make colcon python3-colcon-ros python3-colcon-cmake python3-colcon-test-result python3-colcon-bash
   libgtest-dev googletest libbenchmark-dev

@@ -126,16 +126,9 @@ void FrictionModel::validate() const {
 
 FrictionState::FrictionState(const FrictionModel& model) : reduced(static_cast<std::size_t>(model.size()), 0) {}
 
-bool frictionTorques(const FrictionModel& model, FrictionState& state, const Eigen::Ref<const Eigen::VectorXd>& q,
-                     const Eigen::Ref<const Eigen::VectorXd>& qd, const Eigen::Ref<const Eigen::VectorXd>& accel_sign,
-                     Eigen::Ref<Eigen::VectorXd> tau) noexcept {
-  const int n = model.size();
-  if (q.size() != n || qd.size() != n || accel_sign.size() != n || tau.size() != n ||
-      state.reduced.size() != static_cast<std::size_t>(n) || !q.allFinite() || !qd.allFinite() ||
-      !accel_sign.allFinite()) {
-    return false;
-  }
-  // Mode switching of the coupled pairs (Sec. 4.2.2), with the dead band ε.
+void updatePairModes(const FrictionModel& model, FrictionState& state,
+                     const Eigen::Ref<const Eigen::VectorXd>& qd) noexcept {
+  // Sec. 4.2.2: A while |q̇_i| ≥ |q̇_j| + ε, B while |q̇_j| ≥ |q̇_i| + ε, unchanged in between.
   for (const CoupledPair& pair : model.pairs) {
     const double a = std::abs(qd[pair.first]);
     const double b = std::abs(qd[pair.second]);
@@ -147,16 +140,29 @@ bool frictionTorques(const FrictionModel& model, FrictionState& state, const Eig
       }
     }
   }
-  for (int i = 0; i < n; ++i) {
-    const JointFriction* joint = &model.joints[static_cast<std::size_t>(i)];
-    if (state.reduced[static_cast<std::size_t>(i)]) {
-      for (const CoupledPair& pair : model.pairs) {
-        if (pair.first == i) joint = &pair.reduced_first;
-        if (pair.second == i) joint = &pair.reduced_second;
-      }
+}
+
+const JointFriction& activeJointModel(const FrictionModel& model, const FrictionState& state, int joint) noexcept {
+  if (state.reduced[static_cast<std::size_t>(joint)]) {
+    for (const CoupledPair& pair : model.pairs) {
+      if (pair.first == joint) return pair.reduced_first;
+      if (pair.second == joint) return pair.reduced_second;
     }
-    tau[i] = frictionTorque(*joint, q[i], qd[i], accel_sign[i]);
   }
+  return model.joints[static_cast<std::size_t>(joint)];
+}
+
+bool frictionTorques(const FrictionModel& model, FrictionState& state, const Eigen::Ref<const Eigen::VectorXd>& q,
+                     const Eigen::Ref<const Eigen::VectorXd>& qd, const Eigen::Ref<const Eigen::VectorXd>& accel_sign,
+                     Eigen::Ref<Eigen::VectorXd> tau) noexcept {
+  const int n = model.size();
+  if (q.size() != n || qd.size() != n || accel_sign.size() != n || tau.size() != n ||
+      state.reduced.size() != static_cast<std::size_t>(n) || !q.allFinite() || !qd.allFinite() ||
+      !accel_sign.allFinite()) {
+    return false;
+  }
+  updatePairModes(model, state, qd);
+  for (int i = 0; i < n; ++i) tau[i] = frictionTorque(activeJointModel(model, state, i), q[i], qd[i], accel_sign[i]);
   return true;
 }
 

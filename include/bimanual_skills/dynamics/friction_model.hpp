@@ -75,6 +75,14 @@ struct FrictionState {
   std::vector<char> reduced;  ///< 1 while joint i uses its modB.
 };
 
+/// Updates the A/B mode of every joint of a coupled pair from the joint velocities (the switching rule of
+/// CoupledPair). Real-time safe: no allocation, no exceptions; q̇ must have model.size() finite entries.
+void updatePairModes(const FrictionModel& model, FrictionState& state,
+                     const Eigen::Ref<const Eigen::VectorXd>& qd) noexcept;
+
+/// The model a joint uses in the given state: its own, or its pair's reduced one while in mode B.
+const JointFriction& activeJointModel(const FrictionModel& model, const FrictionState& state, int joint) noexcept;
+
 /// Friction torques of every joint at (q, q̇) with acceleration signs σ (see AccelerationSign), updating the pair
 /// modes in `state`. False on wrong sizes or non-finite input (then `tau` is left unchanged).
 /// Real-time safe: no allocation, no exceptions.
