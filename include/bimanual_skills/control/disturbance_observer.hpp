@@ -1,0 +1,72 @@
+/// \file
+/// Sensorless external-force estimation with the disturbance observer of thesis Sec. 4.1 (eqs. 4.5–4.15).
+#pragma once
+
+#include "bimanual_skills/control/fir_filter.hpp"
+#include "bimanual_skills/dynamics/friction_model.hpp"
+#include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+
+#include <Eigen/Cholesky>
+
+namespace bimanual_skills::control {
+
+struct ObserverGains {
+  Eigen::MatrixXd K11, K12, K21, K22, Sigma;  ///< n × n each.
+  double rate_hz = 500.0;                     ///< Update rate.
+  int fir_taps = 15;                          ///< Velocity FIR length (odd).
+  double fir_cutoff_hz = 40.0;                ///< Velocity FIR cut-off.
+  double wrench_damping = 1e-3;               ///< λ of F = (J Jᵀ + λ² I)⁻¹ J τ (near singularities).
+
+  /// Diagonal gains k11, k12, k21, k22, σ on every joint.
+  static ObserverGains diagonal(int n, double k11, double k12, double k21, double k22, double sigma);
+};
+
+/// State observer with disturbance estimate, discretised at rate_hz. With P = K11 + (I − K12)(Σ + K22)⁻¹ K21 and
+/// G = (Σ + K22)⁻¹ K21 (4.14):  x̂1 ← x̂1 + T (P (q − x̂1) + v),  x̂2 = G (q − x̂1) + v,  v the FIR-filtered measured
+/// velocity; then (4.15) d̂ = M(x̂1) (ẋ̂2 + Σ (v − x̂2)) + n̂(x̂1, x̂2) − u_c, with ẋ̂2 the backward difference of x̂2 and
+/// n̂ = C + G + F_f. With the robot obeying M q̈ + n = u_c + τ_ext, d̂ estimates τ_ext, the joint torque the environment
+/// applies on the robot (the thesis' d = −u_e, u_e being the robot's action on the environment); the tool wrench
+/// solves Jᵀ F = τ̂_ext in the least-squares sense (damped): the wrench the environment exerts on the tool.
+class DisturbanceObserver {
+ public:
+  /// \throws std::invalid_argument if gain sizes are wrong, Σ + K22 is singular, the symmetric part of P is not
+  /// positive definite (no convergence, 4.14), T times P's largest eigenvalue reaches 1 (the discretisation would
+  /// not converge at this rate), or the friction model does not fit the chain. Messages name the failing check.
+  DisturbanceObserver(const kinematics::ChainModel& model, const dynamics::FrictionModel& friction,
+                      const ObserverGains& gains);
+
+  /// Starts the estimate at a measured state.
+  void reset(const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd) noexcept;
+
+  /// One observer step with the measured q, q̇, the applied command u_c and sign(q̈) for the friction term.
+  /// False (estimates unchanged) on NaN/Inf or wrong sizes. Real-time safe: no allocation, no exceptions.
+  bool update(const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd,
+              const Eigen::Ref<const Eigen::VectorXd>& u, const Eigen::Ref<const Eigen::VectorXd>& accel_sign) noexcept;
+
+  void setPayload(const dynamics::Payload& payload) noexcept { payload_ = payload; }
+  const Eigen::VectorXd& externalTorque() const noexcept { return external_torque_; }
+  /// Estimated wrench [f; m] the environment exerts on the tip, in the base frame, at the tip's origin.
+  const Eigen::Matrix<double, 6, 1>& wrench() const noexcept { return wrench_; }
+  const Eigen::VectorXd& positionEstimate() const noexcept { return x1_; }
+  const Eigen::VectorXd& velocityEstimate() const noexcept { return x2_; }
+  const Eigen::MatrixXd& convergenceMatrix() const noexcept { return P_; }
+
+ private:
+  kinematics::ChainModel model_;
+  dynamics::FrictionModel friction_;
+  double period_, wrench_damping_;
+  Eigen::MatrixXd P_, P_period_, G_, Sigma_;
+  FirFilter velocity_filter_;
+  dynamics::DynamicsData dynamics_;
+  dynamics::FrictionState friction_state_;
+  kinematics::ChainData kinematics_;
+  dynamics::Payload payload_;
+  Eigen::VectorXd x1_, x2_, x2_previous_, e1_, accel_, velocity_error_, tau_model_, friction_torque_, external_torque_;
+  Eigen::Matrix<double, 6, 6> gram_;
+  Eigen::LLT<Eigen::Matrix<double, 6, 6>> gram_llt_;
+  Eigen::Matrix<double, 6, 1> wrench_;
+  bool started_ = false;
+};
+
+}  // namespace bimanual_skills::control
