@@ -27,10 +27,10 @@ test: build
 	@bash scripts/run_tests.sh
 
 bench: build
-	for b in kinematics_bench control_bench; do \
-	  ./build/bimanual_skills/devel/lib/bimanual_skills/$$b --benchmark_repetitions=5 \
-	    --benchmark_report_aggregates_only=true --benchmark_out=build/$$b.json --benchmark_out_format=json || exit 1; \
-	done
+	./build/bimanual_skills/devel/lib/bimanual_skills/kinematics_bench --benchmark_repetitions=5 \
+	  --benchmark_report_aggregates_only=true --benchmark_out=build/kinematics_bench.json --benchmark_out_format=json
+	./build/bimanual_skills/devel/lib/bimanual_skills/control_bench --realtime --benchmark_repetitions=5 \
+	  --benchmark_report_aggregates_only=true --benchmark_out=build/control_bench.json --benchmark_out_format=json
 
 format:
 	clang-format -i $$(git ls-files '*.cpp' '*.hpp')

@@ -1,10 +1,13 @@
-// Dynamics for one WAM per call: the core library's RNEA and mass matrix and KDL's in the same run.
+// Dynamics and the control cycle for one WAM per call: the core library's RNEA and mass matrix and KDL's in the same
+// run, and a whole controller + observer cycle.
 //
 //   control_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
 //
 // Counters median_ns, p99_ns, p999_ns and max_ns are per call (batches of 8 timed with a steady clock); the
 // configurations, velocities and accelerations are seeded random states within the joint limits.
 #include "bench_timing.hpp"
+#include "bimanual_skills/control/computed_torque_controller.hpp"
+#include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 
 #include <benchmark/benchmark.h>
@@ -12,10 +15,15 @@
 #include <kdl/chainidsolver_recursive_newton_euler.hpp>
 #include <kdl_parser/kdl_parser.hpp>
 
+#include <sched.h>
+#include <sys/mman.h>
+
+#include <cstring>
 #include <random>
 #include <string>
 #include <vector>
 
+namespace bc = bimanual_skills::control;
 namespace bd = bimanual_skills::dynamics;
 namespace bk = bimanual_skills::kinematics;
 using bimanual_skills::bench::timeBatches;
@@ -118,6 +126,56 @@ void BM_ForwardDynamics(benchmark::State& state) {
   });
 }
 
+/// One 500 Hz control cycle of one WAM: the acceleration-sign filter on the measured velocity, the computed-torque
+/// controller (RNEA + advanced friction with coupled pairs + PD + saturation) and the disturbance observer (FIR,
+/// RNEA, friction, Jacobian and wrench), as a controller node runs them.
+void BM_Cycle(benchmark::State& state) {
+  const Fixture& f = fixture();
+  bd::FrictionModel friction;
+  for (int j = 0; j < 7; ++j) {
+    bd::JointFriction joint;
+    joint.type = bd::FrictionModelType::Advanced;
+    joint.b = Eigen::VectorXd::Constant(13, 0.1);
+    joint.s = 20.0;
+    joint.z = 0.5;
+    friction.joints.push_back(joint);
+  }
+  for (auto [a, b] : {std::pair{1, 2}, std::pair{4, 5}}) {
+    friction.pairs.push_back(bd::CoupledPair{a, b, friction.joints[1], friction.joints[2], 0.05});
+  }
+  bc::ComputedTorqueGains gains;
+  gains.kp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
+  gains.kv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
+  bc::ComputedTorqueController controller(f.model, friction, gains);
+  bc::DisturbanceObserver observer(f.model, friction, bc::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0));
+  bd::AccelerationSign sign(7, 0.002);
+  Eigen::VectorXd u(7);
+  timeBatches(
+      state, kStates,
+      [&](int k) {
+        const auto i = static_cast<std::size_t>(k);
+        const Eigen::VectorXd& s = sign.update(f.qd[i]);
+        benchmark::DoNotOptimize(controller.update(f.q[i], f.qd[i], f.q[i], f.qd[i], f.qdd[i], u));
+        benchmark::DoNotOptimize(observer.update(f.q[i], f.qd[i], u, s));
+        benchmark::DoNotOptimize(observer.wrench().data());
+      },
+      1);
+}
+
+/// The machine's own jitter floor: a fixed arithmetic loop of about the cycle's duration, timed the same way. Tail
+/// percentiles above this one's come from the code; up to it, from the machine (scheduling, hypervisor).
+void BM_CycleJitterFloor(benchmark::State& state) {
+  volatile double sink = 1.0;
+  timeBatches(
+      state, kStates,
+      [&](int) {
+        double x = sink;
+        for (int i = 0; i < 1400; ++i) x = x * 0.999999 + 1e-9;
+        sink = x;
+      },
+      1);
+}
+
 }  // namespace
 
 BENCHMARK(BM_Rnea);
@@ -125,12 +183,34 @@ BENCHMARK(BM_KdlRnea);
 BENCHMARK(BM_MassMatrix);
 BENCHMARK(BM_KdlMassMatrix);
 BENCHMARK(BM_ForwardDynamics);
+BENCHMARK(BM_Cycle);
+BENCHMARK(BM_CycleJitterFloor);
 
 int main(int argc, char** argv) {
+  // --realtime: run as a real-time controller would, SCHED_FIFO priority 80 with memory locked (needs root or
+  // CAP_SYS_NICE; reported in the context either way).
+  bool realtime = false;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--realtime") == 0) {
+      realtime = true;
+      for (int j = i; j + 1 < argc; ++j) argv[j] = argv[j + 1];
+      --argc;
+      break;
+    }
+  }
+  std::string scheduling = "SCHED_OTHER";
+  if (realtime) {
+    sched_param parameters{};
+    parameters.sched_priority = 80;
+    const bool fifo = sched_setscheduler(0, SCHED_FIFO, &parameters) == 0;
+    const bool locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
+    scheduling = std::string(fifo ? "SCHED_FIFO 80" : "SCHED_FIFO refused") + (locked ? ", memory locked" : "");
+  }
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::AddCustomContext("seed", std::to_string(kSeed));
   benchmark::AddCustomContext("model", kWamUrdf + " (wam_base -> wam_tool)");
+  benchmark::AddCustomContext("scheduling", scheduling);
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;
