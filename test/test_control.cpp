@@ -6,6 +6,8 @@
 #include "bimanual_skills/testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
+#include <kdl/chainexternalwrenchestimator.hpp>
+#include <kdl_parser/kdl_parser.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -52,7 +54,19 @@ struct LoopResult {
   double max_tracking_error_free = 0.0;                        ///< t ∈ [0.5, 2) s, no wrench
   double force_error_median_early = 0.0;                       ///< t ∈ [2.2, 2.5) s, 0.2 s after the wrench step
   double force_error_median = 0.0, moment_error_median = 0.0;  ///< t ∈ [2.5, 5) s
+  double kdl_force_error_median = 0.0;    ///< KDL's momentum observer on the same run, t ∈ [2.5, 5) s
+  double ours_vs_kdl_force_median = 0.0;  ///< |ours − KDL|, t ∈ [2.5, 5) s
 };
+
+/// KDL's chain of the same arm (without rotor inertias: its dynamics-parameter solver rejects joint inertias).
+KDL::Chain kdlWam() {
+  KDL::Tree tree;
+  KDL::Chain chain;
+  if (!kdl_parser::treeFromFile(kWamUrdf, tree) || !tree.getChain("wam_base", "wam_tool", chain)) {
+    throw std::runtime_error("KDL cannot load the WAM");
+  }
+  return chain;
+}
 
 /// 5 s at 500 Hz (plant at 5 kHz, semi-implicit Euler): sinusoidal reference on every joint, the wrench F applied
 /// to the tool from t = 2 s, velocity measurements with 1 mrad/s noise.
@@ -62,6 +76,15 @@ LoopResult runLoop(bool friction_compensation) {
   bc::ComputedTorqueController controller(model, friction, lowGains());
   controller.setFrictionCompensation(friction_compensation);
   bc::DisturbanceObserver observer(model, friction, bc::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0));
+  // KDL's momentum observer (Haddadin et al.) as a cross-check: it models neither friction nor rotor inertia, so it
+  // is given u − F̂_f − J_m q̈_d.
+  // The chain must outlive the estimator: its solvers keep references to the chain they were given.
+  const KDL::Chain kdl_chain = kdlWam();
+  KDL::ChainExternalWrenchEstimator kdl(kdl_chain, KDL::Vector(0, 0, -9.81), 500.0, 30.0, 0.5);
+  bd::FrictionState kdl_friction_state(friction);
+  KDL::JntArray kdl_q(7), kdl_qd(7), kdl_tau(7);
+  KDL::Wrench kdl_wrench;
+  std::vector<double> kdl_force, difference;
   const double T = 0.002, dt = 0.0002;
   const Eigen::VectorXd q0 = (Eigen::VectorXd(7) << 0.2, 0.6, -0.3, 1.7, 0.3, -0.4, 0.2).finished();
   Eigen::VectorXd q = q0, qd = Eigen::VectorXd::Zero(7), qdd = Eigen::VectorXd::Zero(7), u(7), friction_torque(7);
@@ -88,6 +111,15 @@ LoopResult runLoop(bool friction_compensation) {
     for (int j = 0; j < 7; ++j) qd_measured[j] += noise(rng);
     EXPECT_NE(controller.update(q, qd_measured, q_des, qd_des, qdd_des, u), bc::ControlStatus::InvalidInput);
     EXPECT_TRUE(observer.update(q, qd_measured, u, sign));
+    Eigen::VectorXd model_friction(7);
+    EXPECT_TRUE(bd::frictionTorques(friction, kdl_friction_state, q, qd_des, sign, model_friction));
+    kdl_q.data = q;
+    kdl_qd.data = qd_measured;
+    kdl_tau.data = u - model_friction - model.rotorInertia().cwiseProduct(qdd_des);
+    if (k == 0) {
+      EXPECT_GE(kdl.setInitialMomentum(kdl_q, kdl_qd), 0);
+    }
+    EXPECT_GE(kdl.JntToExtWrench(kdl_q, kdl_qd, kdl_tau, kdl_wrench), 0);
     if (t >= 0.5 && t < 2.0) {
       result.max_tracking_error_free = std::max(result.max_tracking_error_free, (q_des - q).cwiseAbs().maxCoeff());
     }
@@ -96,6 +128,12 @@ LoopResult runLoop(bool friction_compensation) {
     if (t >= 2.5) {
       force.push_back(force_error);
       moment.push_back((observer.wrench().tail<3>() - F.tail<3>()).norm());
+      // KDL's wrench is in the tip frame: rotate ours and the truth into it.
+      EXPECT_EQ(bk::forwardKinematics(model, kinematics, q), bk::KinematicsStatus::Success);
+      const Eigen::Matrix3d Rt = kinematics.tipPose().linear().transpose();
+      const Eigen::Vector3d kdl_f(kdl_wrench.force.x(), kdl_wrench.force.y(), kdl_wrench.force.z());
+      kdl_force.push_back((kdl_f - Rt * F.head<3>()).norm());
+      difference.push_back((kdl_f - Rt * observer.wrench().head<3>()).norm());
     }
     for (int s = 0; s < 10; ++s) {
       EXPECT_EQ(bk::computeJacobian(model, kinematics, q), bk::KinematicsStatus::Success);
@@ -116,6 +154,8 @@ LoopResult runLoop(bool friction_compensation) {
   result.force_error_median_early = median(early);
   result.force_error_median = median(force);
   result.moment_error_median = median(moment);
+  result.kdl_force_error_median = median(kdl_force);
+  result.ours_vs_kdl_force_median = median(difference);
   return result;
 }
 
@@ -162,6 +202,14 @@ TEST(DisturbanceObserver, WrenchEstimateConvergesToTheAppliedWrench) {
   EXPECT_LE(result.force_error_median_early, 1.0);
   EXPECT_LE(result.force_error_median, 0.6);
   EXPECT_LE(result.moment_error_median, 0.1);
+}
+
+TEST(DisturbanceObserver, AgreesWithKdlsMomentumObserver) {
+  const LoopResult result = runLoop(true);
+  std::printf("KDL ChainExternalWrenchEstimator: force error median %.3f N; ours vs KDL %.3f N\n",
+              result.kdl_force_error_median, result.ours_vs_kdl_force_median);
+  EXPECT_LE(result.kdl_force_error_median, 1.0);
+  EXPECT_LE(result.ours_vs_kdl_force_median, 1.0);
 }
 
 TEST(DisturbanceObserver, RejectsGainsThatDoNotConverge) {
