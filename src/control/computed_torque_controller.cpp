@@ -20,13 +20,17 @@ const char* toString(ControlStatus status) noexcept {
 ComputedTorqueController::ComputedTorqueController(const kinematics::ChainModel& model,
                                                    const dynamics::FrictionModel& friction, ComputedTorqueGains gains)
     : model_(model),
+      inertial_model_(model.withGravity(Eigen::Vector3d::Zero())),
       friction_(friction),
       gains_(std::move(gains)),
       dynamics_(model),
       friction_state_(friction),
       feedforward_(Eigen::VectorXd::Zero(model.nq())),
       friction_torque_(Eigen::VectorXd::Zero(model.nq())),
-      sign_(Eigen::VectorXd::Zero(model.nq())) {
+      sign_(Eigen::VectorXd::Zero(model.nq())),
+      state_(Eigen::VectorXd::Zero(2 * model.nq())),
+      learned_n_(Eigen::VectorXd::Zero(model.nq())),
+      zeros_(Eigen::VectorXd::Zero(model.nq())) {
   const int n = model.nq();
   if (gains_.torque_limit.size() == 0) gains_.torque_limit = model.effortLimits();
   if (gains_.kp.size() != n || gains_.kv.size() != n || gains_.torque_limit.size() != n) {
@@ -55,12 +59,22 @@ ControlStatus ComputedTorqueController::update(const Eigen::Ref<const Eigen::Vec
   for (const auto* v : {&q, &qd, &q_desired, &qd_desired, &qdd_desired}) {
     if (v->size() != n || !v->allFinite()) return ControlStatus::InvalidInput;
   }
-  // M(q) q̈_d + C(q, q̇) q̇ + G(q) in one Newton–Euler pass.
-  if (dynamics::inverseDynamics(model_, dynamics_, q, qd, qdd_desired, feedforward_, payload_) !=
-      dynamics::DynamicsStatus::Success) {
+  bool learned = false;
+  if (learned_ != nullptr && learned_->inputDim() == 2 * n && learned_->outputDim() == n) {
+    // M(q) q̈_d from the rigid-body model, n(q, q̇) from the learned one.
+    state_.head(n) = q;
+    state_.tail(n) = qd;
+    learned = learned_->predict(state_, learned_n_) &&
+              dynamics::inverseDynamics(inertial_model_, dynamics_, q, zeros_, qdd_desired, feedforward_, payload_) ==
+                  dynamics::DynamicsStatus::Success;
+    if (learned) feedforward_ += learned_n_;
+  }
+  // Analytic: M(q) q̈_d + C(q, q̇) q̇ + G(q) in one Newton–Euler pass, then the friction model.
+  if (!learned && dynamics::inverseDynamics(model_, dynamics_, q, qd, qdd_desired, feedforward_, payload_) !=
+                      dynamics::DynamicsStatus::Success) {
     return ControlStatus::InvalidInput;
   }
-  if (friction_enabled_) {
+  if (friction_enabled_ && !learned) {
     for (int i = 0; i < n; ++i) sign_[i] = qdd_desired[i] > 0.0 ? 1.0 : qdd_desired[i] < 0.0 ? -1.0 : 0.0;
     if (dynamics::frictionTorques(friction_, friction_state_, q, qd_desired, sign_, friction_torque_)) {
       feedforward_ += friction_torque_;

@@ -22,6 +22,7 @@ ObserverGains ObserverGains::diagonal(int n, double k11, double k12, double k21,
 DisturbanceObserver::DisturbanceObserver(const kinematics::ChainModel& model, const dynamics::FrictionModel& friction,
                                          const ObserverGains& gains)
     : model_(model),
+      inertial_model_(model.withGravity(Eigen::Vector3d::Zero())),
       friction_(friction),
       period_(1.0 / gains.rate_hz),
       wrench_damping_(gains.wrench_damping),
@@ -38,6 +39,9 @@ DisturbanceObserver::DisturbanceObserver(const kinematics::ChainModel& model, co
       tau_model_(Eigen::VectorXd::Zero(model.nq())),
       friction_torque_(Eigen::VectorXd::Zero(model.nq())),
       external_torque_(Eigen::VectorXd::Zero(model.nq())),
+      state_(Eigen::VectorXd::Zero(2 * model.nq())),
+      learned_n_(Eigen::VectorXd::Zero(model.nq())),
+      zeros_(Eigen::VectorXd::Zero(model.nq())),
       wrench_(Eigen::Matrix<double, 6, 1>::Zero()) {
   const int n = model.nq();
   for (const Eigen::MatrixXd* K : {&gains.K11, &gains.K12, &gains.K21, &gains.K22, &gains.Sigma}) {
@@ -107,12 +111,23 @@ bool DisturbanceObserver::update(const Eigen::Ref<const Eigen::VectorXd>& q,
   accel_ = (x2_ - x2_previous_) / period_;
   velocity_error_ = v - x2_;  // a plain vector: a product with an expression would allocate its temporary
   accel_.noalias() += Sigma_ * velocity_error_;
-  if (dynamics::inverseDynamics(model_, dynamics_, x1_, x2_, accel_, tau_model_, payload_) !=
-      dynamics::DynamicsStatus::Success) {
-    return false;
+  bool learned = false;
+  if (learned_ != nullptr && learned_->inputDim() == 2 * n && learned_->outputDim() == n) {
+    state_.head(n) = x1_;
+    state_.tail(n) = x2_;
+    learned = learned_->predict(state_, learned_n_) &&
+              dynamics::inverseDynamics(inertial_model_, dynamics_, x1_, zeros_, accel_, tau_model_, payload_) ==
+                  dynamics::DynamicsStatus::Success;
+    if (learned) tau_model_ += learned_n_;
   }
-  if (dynamics::frictionTorques(friction_, friction_state_, x1_, x2_, accel_sign, friction_torque_)) {
-    tau_model_ += friction_torque_;
+  if (!learned) {
+    if (dynamics::inverseDynamics(model_, dynamics_, x1_, x2_, accel_, tau_model_, payload_) !=
+        dynamics::DynamicsStatus::Success) {
+      return false;
+    }
+    if (dynamics::frictionTorques(friction_, friction_state_, x1_, x2_, accel_sign, friction_torque_)) {
+      tau_model_ += friction_torque_;
+    }
   }
   // d̂ = M q̈ + n − u_c: with M q̈ + n = u_c + τ_ext for a torque τ_ext the environment applies on the robot, this is
   // τ_ext (the thesis writes d = −u_e, u_e the robot's action on the environment).

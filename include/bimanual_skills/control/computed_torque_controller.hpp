@@ -4,6 +4,7 @@
 
 #include "bimanual_skills/dynamics/friction_model.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
+#include "bimanual_skills/learning/locally_weighted_regression.hpp"
 
 namespace bimanual_skills::control {
 
@@ -35,6 +36,11 @@ class ComputedTorqueController {
   /// Real-time safe switches.
   void setFrictionCompensation(bool enabled) noexcept { friction_enabled_ = enabled; }
   void setPayload(const dynamics::Payload& payload) noexcept { payload_ = payload; }
+  /// Learned alternative (thesis Sec. 2.3.1): with a model of n(q, q̇) = C q̇ + G + F_f (inputs [q; q̇], n outputs),
+  /// the feed-forward becomes M(q) q̈_d + n̂(q, q̇), only M coming from the rigid-body model; where the learned model
+  /// has no active field the analytic feed-forward is used. nullptr returns to the analytic model. The model is
+  /// not owned and must outlive its use. Real-time safe.
+  void setLearnedModel(learning::LocallyWeightedRegression* model) noexcept { learned_ = model; }
 
   const kinematics::ChainModel& model() const noexcept { return model_; }
   const dynamics::FrictionModel& friction() const noexcept { return friction_; }
@@ -43,13 +49,15 @@ class ComputedTorqueController {
 
  private:
   kinematics::ChainModel model_;
+  kinematics::ChainModel inertial_model_;  ///< model_ without gravity: RNEA(q, 0, q̈) = M(q) q̈
   dynamics::FrictionModel friction_;
   ComputedTorqueGains gains_;
   dynamics::DynamicsData dynamics_;
   dynamics::FrictionState friction_state_;
   dynamics::Payload payload_;
   bool friction_enabled_ = true;
-  Eigen::VectorXd feedforward_, friction_torque_, sign_;
+  learning::LocallyWeightedRegression* learned_ = nullptr;
+  Eigen::VectorXd feedforward_, friction_torque_, sign_, state_, learned_n_, zeros_;
 };
 
 }  // namespace bimanual_skills::control

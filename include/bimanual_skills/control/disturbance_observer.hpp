@@ -6,6 +6,7 @@
 #include "bimanual_skills/dynamics/friction_model.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/learning/locally_weighted_regression.hpp"
 
 #include <Eigen/Cholesky>
 
@@ -45,6 +46,9 @@ class DisturbanceObserver {
               const Eigen::Ref<const Eigen::VectorXd>& u, const Eigen::Ref<const Eigen::VectorXd>& accel_sign) noexcept;
 
   void setPayload(const dynamics::Payload& payload) noexcept { payload_ = payload; }
+  /// Learned n̂(q, q̇) = C q̇ + G + F_f (inputs [q; q̇]) in place of the analytic terms of (4.15), as in the
+  /// controller; where it has no active field the analytic model is used. Not owned. Real-time safe.
+  void setLearnedModel(learning::LocallyWeightedRegression* model) noexcept { learned_ = model; }
   const Eigen::VectorXd& externalTorque() const noexcept { return external_torque_; }
   /// Estimated wrench [f; m] the environment exerts on the tip, in the base frame, at the tip's origin.
   const Eigen::Matrix<double, 6, 1>& wrench() const noexcept { return wrench_; }
@@ -54,7 +58,9 @@ class DisturbanceObserver {
 
  private:
   kinematics::ChainModel model_;
+  kinematics::ChainModel inertial_model_;  ///< model_ without gravity: RNEA(q, 0, a) = M(q) a
   dynamics::FrictionModel friction_;
+  learning::LocallyWeightedRegression* learned_ = nullptr;
   double period_, wrench_damping_;
   Eigen::MatrixXd P_, P_period_, G_, Sigma_;
   FirFilter velocity_filter_;
@@ -63,6 +69,7 @@ class DisturbanceObserver {
   kinematics::ChainData kinematics_;
   dynamics::Payload payload_;
   Eigen::VectorXd x1_, x2_, x2_previous_, e1_, accel_, velocity_error_, tau_model_, friction_torque_, external_torque_;
+  Eigen::VectorXd state_, learned_n_, zeros_;
   Eigen::Matrix<double, 6, 6> gram_;
   Eigen::LLT<Eigen::Matrix<double, 6, 6>> gram_llt_;
   Eigen::Matrix<double, 6, 1> wrench_;

@@ -1,0 +1,136 @@
+// Incremental locally weighted regression: a noisy 1-D function, and the thesis' use (Sec. 2.3.1): learning
+// n(q, q̇) = u − M(q_d) q̈_d along a task on a simulated WAM, then controlling with it instead of C q̇ + G + F_f.
+#include "bimanual_skills/control/computed_torque_controller.hpp"
+#include "bimanual_skills/control/disturbance_observer.hpp"
+#include "bimanual_skills/learning/locally_weighted_regression.hpp"
+#include "bimanual_skills/testing/no_alloc_guard.hpp"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <vector>
+
+namespace bc = bimanual_skills::control;
+namespace bd = bimanual_skills::dynamics;
+namespace bk = bimanual_skills::kinematics;
+namespace bl = bimanual_skills::learning;
+using bimanual_skills::testing::NoAllocGuard;
+
+namespace {
+
+const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
+
+}  // namespace
+
+TEST(LocallyWeightedRegression, FitsANoisyFunction) {
+  bl::LwrParameters parameters;
+  parameters.width = Eigen::VectorXd::Constant(1, 0.2);
+  bl::LocallyWeightedRegression lwr(1, 1, parameters);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-2.0, 2.0);
+  std::normal_distribution<double> noise(0.0, 0.05);
+  for (int k = 0; k < 5000; ++k) {
+    const double x = u(rng);
+    ASSERT_TRUE(
+        lwr.update(Eigen::VectorXd::Constant(1, x), Eigen::VectorXd::Constant(1, std::sin(2 * x) + noise(rng))));
+  }
+  double squared = 0.0;
+  int count = 0;
+  Eigen::VectorXd y(1);
+  for (double x = -1.9; x <= 1.9; x += 0.01) {
+    ASSERT_TRUE(lwr.predict(Eigen::VectorXd::Constant(1, x), y));
+    squared += std::pow(y[0] - std::sin(2 * x), 2);
+    ++count;
+  }
+  EXPECT_LE(std::sqrt(squared / count), 0.03);
+  EXPECT_LE(lwr.fields(), 100);
+  EXPECT_FALSE(lwr.predict(Eigen::VectorXd::Constant(1, 10.0), y));  // nothing learned there
+  EXPECT_FALSE(lwr.update(Eigen::VectorXd::Constant(1, std::nan("")), Eigen::VectorXd::Zero(1)));
+  bl::LwrParameters bad = parameters;
+  bad.forgetting = 1.5;
+  EXPECT_THROW(bl::LocallyWeightedRegression(1, 1, bad), std::invalid_argument);
+}
+
+TEST(LocallyWeightedRegression, LearnedDynamicsTrackLikeTheAnalyticModel) {
+  const Eigen::VectorXd rotor = (Eigen::VectorXd(7) << 0.164, 0.148, 0.053, 0.030, 0.0028, 0.0028, 0.0003).finished();
+  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool").withRotorInertia(rotor);
+  const bk::ChainModel inertial = model.withGravity(Eigen::Vector3d::Zero());
+  bd::FrictionModel friction;
+  for (int j = 0; j < 7; ++j) {
+    bd::JointFriction f;
+    f.type = bd::FrictionModelType::Basic;
+    f.b = Eigen::Vector2d(1.0 - 0.12 * j, 0.3);
+    f.s = 20.0;
+    f.z = 0.6;
+    friction.joints.push_back(f);
+  }
+  bc::ComputedTorqueGains gains;
+  gains.kp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
+  gains.kv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
+  bc::ComputedTorqueController controller(model, friction, gains);
+  bc::DisturbanceObserver observer(model, friction, bc::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0));
+  std::vector<double> force_learned;
+  bl::LwrParameters parameters;
+  parameters.width =
+      (Eigen::VectorXd(14) << Eigen::VectorXd::Constant(7, 0.1), Eigen::VectorXd::Constant(7, 0.15)).finished();
+  parameters.max_fields = 2000;
+  bl::LocallyWeightedRegression lwr(14, 7, parameters);
+  const double T = 0.002, dt = 0.0002, w = 2.0 * M_PI * 0.25;
+  const Eigen::VectorXd q0 = (Eigen::VectorXd(7) << 0.2, 0.6, -0.3, 1.7, 0.3, -0.4, 0.2).finished();
+  Eigen::VectorXd q = q0, qd = Eigen::VectorXd::Zero(7), qdd = Eigen::VectorXd::Zero(7), u(7), f(7);
+  Eigen::VectorXd q_des(7), qd_des(7), qdd_des(7), inertia_torque(7), x(14);
+  bd::DynamicsData plant(model), data(inertial);
+  bd::FrictionState plant_friction(friction);
+  double max_error_analytic = 0.0, max_error_learned = 0.0;
+  for (int k = 0; k < 8000; ++k) {  // 16 s: learn during 4–12 s (two periods), control with it during 12–16 s
+    const double t = k * T;
+    for (int j = 0; j < 7; ++j) {
+      q_des[j] = q0[j] + 0.3 * std::sin(w * t);
+      qd_des[j] = 0.3 * w * std::cos(w * t);
+      qdd_des[j] = -0.3 * w * w * std::sin(w * t);
+    }
+    if (k == 6000) {
+      controller.setLearnedModel(&lwr);
+      observer.setLearnedModel(&lwr);
+    }
+    ASSERT_NE(controller.update(q, qd, q_des, qd_des, qdd_des, u), bc::ControlStatus::InvalidInput);
+    const Eigen::VectorXd desired_sign = qdd_des.unaryExpr([](double a) { return (a > 0) - (a < 0) + 0.0; });
+    ASSERT_TRUE(observer.update(q, qd, u, desired_sign));
+    if (t >= 12.5) force_learned.push_back(observer.wrench().head<3>().norm());
+    const double error = (q_des - q).cwiseAbs().maxCoeff();
+    if (t >= 8.0 && t < 12.0) max_error_analytic = std::max(max_error_analytic, error);
+    if (t >= 12.0) max_error_learned = std::max(max_error_learned, error);
+    if (t >= 4.0 && t < 12.0) {
+      // Training target n = u − M(q_d) q̈_d at the measured state (thesis Sec. 2.3.1).
+      ASSERT_EQ(bd::inverseDynamics(inertial, data, q_des, Eigen::VectorXd::Zero(7), qdd_des, inertia_torque),
+                bd::DynamicsStatus::Success);
+      x << q, qd;
+      ASSERT_TRUE(lwr.update(x, u - inertia_torque));
+    }
+    for (int s = 0; s < 10; ++s) {
+      const Eigen::VectorXd sign = qdd.unaryExpr([](double a) { return (a > 0) - (a < 0) + 0.0; });
+      ASSERT_TRUE(bd::frictionTorques(friction, plant_friction, q, qd, sign, f));
+      ASSERT_EQ(bd::forwardDynamics(model, plant, q, qd, u - f, qdd), bd::DynamicsStatus::Success);
+      qd += dt * qdd;
+      q += dt * qd;
+    }
+  }
+  std::printf("tracking: analytic model %.4f rad, learned model %.4f rad (%d fields)\n", max_error_analytic,
+              max_error_learned, lwr.fields());
+  EXPECT_LE(max_error_learned, 0.03);
+  // Without contact, the observer on the learned model sees no external force.
+  std::nth_element(force_learned.begin(), force_learned.begin() + static_cast<long>(force_learned.size() / 2),
+                   force_learned.end());
+  const double median_force = force_learned[force_learned.size() / 2];
+  std::printf("observer on the learned model, no contact: median |f| = %.3f N\n", median_force);
+  EXPECT_LE(median_force, 0.5);
+  // Update and prediction are real-time safe.
+  Eigen::VectorXd y(7);
+  x << q, qd;
+  NoAllocGuard guard;
+  EXPECT_TRUE(lwr.update(x, u));
+  EXPECT_TRUE(lwr.predict(x, y));
+  EXPECT_NE(controller.update(q, qd, q_des, qd_des, qdd_des, u), bc::ControlStatus::InvalidInput);
+}
