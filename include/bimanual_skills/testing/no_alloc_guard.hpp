@@ -11,25 +11,9 @@
 /// \endcode
 #pragma once
 
-#include <cstddef>
+#include "bimanual_skills/testing/allocation_counter.hpp"
 
 namespace bimanual_skills::testing {
-
-/// Counts heap allocations made by the current thread while it is alive. Nestable.
-class AllocationCounter {
- public:
-  AllocationCounter() noexcept;
-  ~AllocationCounter();
-  AllocationCounter(const AllocationCounter&) = delete;
-  AllocationCounter& operator=(const AllocationCounter&) = delete;
-
-  /// Allocations (operator new or the malloc family) by this thread since construction.
-  std::size_t allocations() const noexcept;
-
- private:
-  std::size_t start_;
-  bool eigen_was_allowed_;
-};
 
 /// Fails the current gtest (non-fatally, naming file and line) if its scope allocates on the heap.
 class NoAllocGuard {
