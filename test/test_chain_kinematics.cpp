@@ -2,6 +2,7 @@
 // differences of FK, and the WAM's known poses. Real-time calls are checked for heap allocations.
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 #include <kdl/chainfksolverpos_recursive.hpp>
@@ -20,9 +21,12 @@
 namespace bk = bimanual_skills::kinematics;
 using bimanual_skills::testing::NoAllocGuard;
 
+using bimanual_skills::test_support::kWamUrdf;
+using bimanual_skills::test_support::randomWithinLimits;
+using bimanual_skills::test_support::readFile;
+
 namespace {
 
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
 const std::string kBimanualUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/bimanual_wam.urdf";
 constexpr unsigned kSeed = 20170601;
 
@@ -62,13 +66,6 @@ struct KdlReference {
   }
 };
 
-std::string readFile(const std::string& path) {
-  std::ifstream file(path);
-  std::stringstream text;
-  text << file.rdbuf();
-  return text.str();
-}
-
 Eigen::Isometry3d toEigen(const KDL::Frame& frame) {
   Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
   for (int r = 0; r < 3; ++r) {
@@ -76,17 +73,6 @@ Eigen::Isometry3d toEigen(const KDL::Frame& frame) {
     for (int c = 0; c < 3; ++c) out.linear()(r, c) = frame.M(r, c);
   }
   return out;
-}
-
-/// Uniform configuration within limits (±pi for unlimited joints).
-Eigen::VectorXd randomConfiguration(const bk::ChainModel& model, std::mt19937& rng) {
-  Eigen::VectorXd q(model.nq());
-  for (int i = 0; i < model.nq(); ++i) {
-    const double lo = std::isfinite(model.lowerLimits()[i]) ? model.lowerLimits()[i] : -M_PI;
-    const double hi = std::isfinite(model.upperLimits()[i]) ? model.upperLimits()[i] : M_PI;
-    q[i] = std::uniform_real_distribution<double>(lo, hi)(rng);
-  }
-  return q;
 }
 
 double maxAbsDiff(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
@@ -107,7 +93,7 @@ void expectEqualToKdl(const std::string& urdf_xml, const std::string& base, cons
   double worst_pose = 0.0;
   double worst_jacobian = 0.0;
   for (int sample = 0; sample < samples; ++sample) {
-    const Eigen::VectorXd q = randomConfiguration(model, rng);
+    const Eigen::VectorXd q = randomWithinLimits(model, rng);
     q_kdl.data = q;
     ASSERT_EQ(bk::computeJacobian(model, data, q), bk::KinematicsStatus::Success);
     // Every named frame against the KDL segment of the same name.
@@ -159,7 +145,7 @@ TEST(ChainKinematics, JacobianEqualsCentralFiniteDifferencesOfFk) {
     const double h = 1e-6;
     double worst = 0.0;
     for (int sample = 0; sample < 200; ++sample) {
-      const Eigen::VectorXd q = randomConfiguration(model, rng);
+      const Eigen::VectorXd q = randomWithinLimits(model, rng);
       ASSERT_EQ(bk::computeJacobian(model, data, q), bk::KinematicsStatus::Success);
       for (int j = 0; j < model.nq(); ++j) {
         Eigen::VectorXd q_plus = q;
@@ -216,7 +202,7 @@ TEST(ChainKinematics, ManipulabilityAndConditionNumberMatchTheirDefinitions) {
   bk::ChainData data(model);
   std::mt19937 rng(kSeed + 2);
   for (int sample = 0; sample < 100; ++sample) {
-    const Eigen::VectorXd q = randomConfiguration(model, rng);
+    const Eigen::VectorXd q = randomWithinLimits(model, rng);
     ASSERT_EQ(bk::computeJacobian(model, data, q), bk::KinematicsStatus::Success);
     const Eigen::Matrix<double, 6, 6> JJt = data.jacobian * data.jacobian.transpose();
     EXPECT_NEAR(bk::manipulability(data), std::sqrt(JJt.determinant()), 1e-9);
@@ -236,7 +222,7 @@ TEST(ChainKinematics, LinkJacobianIgnoresLaterJoints) {
   const KdlReference kdl(kMixedUrdf, "base", "l2");
   KDL::ChainJntToJacSolver jac(kdl.chain);
   std::mt19937 rng(kSeed + 3);
-  const Eigen::VectorXd q = randomConfiguration(model, rng);
+  const Eigen::VectorXd q = randomWithinLimits(model, rng);
   ASSERT_EQ(bk::forwardKinematics(model, data, q), bk::KinematicsStatus::Success);
   bk::Matrix6Xd J(6, model.nq());
   ASSERT_EQ(bk::frameJacobian(model, data, model.frameIndex("l2"), bk::JacobianFrame::Base, J),

@@ -2,6 +2,7 @@
 // power-set sum, convergence on the WAM, bad input, and allocation-free steps for every method.
 #include "bimanual_skills/kinematics/clik.hpp"
 #include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 #include <Eigen/Dense>
@@ -16,9 +17,12 @@ using bimanual_skills::testing::NoAllocGuard;
 using bk::InverseOperator;
 using bk::LimitScheme;
 
+using bimanual_skills::test_support::randomWithinLimits;
+using bimanual_skills::test_support::tipPose;
+using bimanual_skills::test_support::wam;
+
 namespace {
 
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
 constexpr unsigned kSeed = 31415;
 
 const std::vector<InverseOperator> kOperators = {InverseOperator::Pseudoinverse,
@@ -38,24 +42,6 @@ const std::vector<LimitScheme> kSchemes = {LimitScheme::None,
                                            LimitScheme::TaskAugmentation,
                                            LimitScheme::TaskPriority,
                                            LimitScheme::ContinuousTaskPriority};
-
-bk::ChainModel wam() {
-  return bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
-}
-
-Eigen::VectorXd randomWithinLimits(const bk::ChainModel& model, std::mt19937& rng) {
-  Eigen::VectorXd q(model.nq());
-  for (int i = 0; i < model.nq(); ++i) {
-    q[i] = std::uniform_real_distribution<double>(model.lowerLimits()[i], model.upperLimits()[i])(rng);
-  }
-  return q;
-}
-
-Eigen::Isometry3d fk(const bk::ChainModel& model, const Eigen::VectorXd& q) {
-  bk::ChainData data(model);
-  EXPECT_EQ(bk::forwardKinematics(model, data, q), bk::KinematicsStatus::Success);
-  return data.tipPose();
-}
 
 Eigen::MatrixXd pinv(const Eigen::MatrixXd& A) {
   return A.completeOrthogonalDecomposition().pseudoInverse();
@@ -131,7 +117,7 @@ TEST(InverseOperators, StepsEqualTheirClosedForms) {
   const bk::ChainModel model = wam();
   std::mt19937 rng(kSeed + 2);
   const Eigen::VectorXd q = randomWithinLimits(model, rng);
-  const Eigen::Isometry3d target = fk(model, randomWithinLimits(model, rng));
+  const Eigen::Isometry3d target = tipPose(model, randomWithinLimits(model, rng));
   bk::ClikParameters parameters;
   parameters.limits = LimitScheme::None;
   parameters.pinv_tolerance = 0.0;
@@ -171,7 +157,7 @@ TEST(InverseOperators, SingularValueFilterBoundsTheConditionNumber) {
   parameters.limits = LimitScheme::None;
   Eigen::VectorXd q = Eigen::VectorXd::Zero(7);
   q[1] = 1e-9;
-  Eigen::Isometry3d target = fk(model, q);
+  Eigen::Isometry3d target = tipPose(model, q);
   target.translation().x() += 0.01;
   parameters.inverse = InverseOperator::SingularValueFilter;
   bk::ClikData data(model, parameters);
@@ -210,7 +196,7 @@ TEST(Clik, EveryMethodConvergesOnNearbyTargets) {
     Eigen::VectorXd q1 = q0;
     for (int i = 0; i < 7; ++i) q1[i] += offset(rng);
     if (!model.withinLimits(q1, -0.3) || !model.withinLimits(q0, -0.3)) continue;
-    problems.emplace_back(q0, fk(model, q1));
+    problems.emplace_back(q0, tipPose(model, q1));
   }
   for (LimitScheme scheme : kSchemes) {
     for (InverseOperator op : kOperators) {
@@ -230,14 +216,14 @@ TEST(Clik, EveryMethodConvergesOnNearbyTargets) {
         const bk::IkResult result = bk::solve(model, parameters, data, q, target);
         if (op == InverseOperator::Transpose) {
           Eigen::VectorXd initial_error(6);
-          bk::poseError(fk(model, q0), target, bk::TaskMode::Pose, initial_error);
+          bk::poseError(tipPose(model, q0), target, bk::TaskMode::Pose, initial_error);
           EXPECT_LT(result.residual, 0.5 * initial_error.cwiseAbs().maxCoeff()) << bk::methodName(op, scheme);
           ++converged;
           continue;
         }
         if (result.status == bk::IkStatus::Converged) {
           ++converged;
-          EXPECT_LE((fk(model, q).translation() - target.translation()).cwiseAbs().maxCoeff(), 1e-5);
+          EXPECT_LE((tipPose(model, q).translation() - target.translation()).cwiseAbs().maxCoeff(), 1e-5);
         }
       }
       // TP is discontinuous by design (thesis Table 3.5: 33.6 %); the others must mostly succeed.
@@ -254,12 +240,12 @@ TEST(Clik, PositionOnlyModeIgnoresOrientation) {
   bk::ClikData data(model, parameters);
   std::mt19937 rng(kSeed + 4);
   Eigen::VectorXd q = randomWithinLimits(model, rng);
-  Eigen::Isometry3d target = fk(model, q);
+  Eigen::Isometry3d target = tipPose(model, q);
   target.translation() += Eigen::Vector3d(0.05, -0.03, 0.02);
   target.linear() = Eigen::AngleAxisd(1.0, Eigen::Vector3d::UnitX()).toRotationMatrix() * target.linear();
   const bk::IkResult result = bk::solve(model, parameters, data, q, target);
   ASSERT_EQ(result.status, bk::IkStatus::Converged) << bk::toString(result.status);
-  EXPECT_LE((fk(model, q).translation() - target.translation()).norm(), 2e-5);
+  EXPECT_LE((tipPose(model, q).translation() - target.translation()).norm(), 2e-5);
   EXPECT_EQ(data.error.size(), 3);
 }
 
@@ -316,7 +302,7 @@ TEST(Clik, StepAndSolveDoNotAllocateForAnyMethod) {
   Eigen::VectorXd q0 = randomWithinLimits(model, rng);
   q0[3] = model.upperLimits()[3] - 0.05;  // one joint in its activation buffer
   q0[5] = model.lowerLimits()[5] + 0.1;   // and another: the continuous pseudoinverse branches
-  const Eigen::Isometry3d target = fk(model, randomWithinLimits(model, rng));
+  const Eigen::Isometry3d target = tipPose(model, randomWithinLimits(model, rng));
   for (bk::TaskMode mode : {bk::TaskMode::Pose, bk::TaskMode::Position}) {
     for (LimitScheme scheme : kSchemes) {
       for (InverseOperator op : kOperators) {
@@ -407,7 +393,7 @@ TEST(Clik, CtpSelectiveDampingStepEqualsItsEquations) {
     for (int trial = 0; trial < 20; ++trial) {
       Eigen::VectorXd q = randomWithinLimits(model, rng);
       if (trial % 2 == 1) q[3] = model.upperLimits()[3] - 0.3 * parameters.beta;  // a joint in transition
-      const Eigen::Isometry3d target = fk(model, randomWithinLimits(model, rng));
+      const Eigen::Isometry3d target = tipPose(model, randomWithinLimits(model, rng));
       ASSERT_EQ(bk::step(model, parameters, data, q, target), bk::IkStatus::Converged);
       EXPECT_LE((data.dq - referenceCtpSdStep(parameters, data, q, model)).cwiseAbs().maxCoeff(), 1e-10)
           << bk::methodName(op, LimitScheme::ContinuousTaskPriority) << " trial " << trial;
@@ -432,7 +418,7 @@ TEST(Clik, BetaScheduleReleasesGoalsNextToALimit) {
     for (int i = 0; i < 7; ++i) start[i] += offset(rng);
     if (!model.withinLimits(start, -0.1)) continue;
     ++problems;
-    const Eigen::Isometry3d target = fk(model, goal);
+    const Eigen::Isometry3d target = tipPose(model, goal);
     for (auto [parameters, solved] : {std::pair{&fixed, &solved_fixed}, std::pair{&scheduled, &solved_scheduled}}) {
       Eigen::VectorXd q = start;
       const bk::IkResult result = bk::solve(model, *parameters, data, q, target);

@@ -4,6 +4,7 @@
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 #include <kdl/chainexternalwrenchestimator.hpp>
@@ -20,35 +21,12 @@ namespace bd = bimanual_skills::dynamics;
 namespace bk = bimanual_skills::kinematics;
 using bimanual_skills::testing::NoAllocGuard;
 
+using bimanual_skills::test_support::hystereticFriction;
+using bimanual_skills::test_support::kWamUrdf;
+using bimanual_skills::test_support::lowGains;
+using bimanual_skills::test_support::wamWithRotors;
+
 namespace {
-
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
-
-bk::ChainModel wamWithRotors() {
-  const Eigen::VectorXd rotor = (Eigen::VectorXd(7) << 0.164, 0.148, 0.053, 0.030, 0.0028, 0.0028, 0.0003).finished();
-  return bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool").withRotorInertia(rotor);
-}
-
-bd::FrictionModel hystereticFriction() {
-  bd::FrictionModel friction;
-  for (int j = 0; j < 7; ++j) {
-    bd::JointFriction f;
-    f.type = bd::FrictionModelType::Basic;
-    f.b = Eigen::Vector2d(1.0 - 0.12 * j, 0.3);
-    f.s = 20.0;
-    f.z = 0.6;
-    friction.joints.push_back(f);
-  }
-  return friction;
-}
-
-bc::ComputedTorqueGains lowGains() {
-  // About a tenth of libbarrett's stiff position gains (900, 2500, 600, 500, 50, 50, 8).
-  bc::ComputedTorqueGains gains;
-  gains.kp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
-  gains.kv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
-  return gains;
-}
 
 struct LoopResult {
   double max_tracking_error_free = 0.0;                        ///< t ∈ [0.5, 2) s, no wrench

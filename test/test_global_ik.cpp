@@ -2,6 +2,7 @@
 // unreachable targets, and no allocation during a solve.
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,27 +12,11 @@
 namespace bk = bimanual_skills::kinematics;
 using bimanual_skills::testing::NoAllocGuard;
 
+using bimanual_skills::test_support::randomWithinLimits;
+using bimanual_skills::test_support::tipPose;
+using bimanual_skills::test_support::wam;
+
 namespace {
-
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
-
-bk::ChainModel wam() {
-  return bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
-}
-
-Eigen::VectorXd randomWithinLimits(const bk::ChainModel& model, std::mt19937& rng) {
-  Eigen::VectorXd q(model.nq());
-  for (int i = 0; i < model.nq(); ++i) {
-    q[i] = std::uniform_real_distribution<double>(model.lowerLimits()[i], model.upperLimits()[i])(rng);
-  }
-  return q;
-}
-
-Eigen::Isometry3d fk(const bk::ChainModel& model, const Eigen::VectorXd& q) {
-  bk::ChainData data(model);
-  EXPECT_EQ(bk::forwardKinematics(model, data, q), bk::KinematicsStatus::Success);
-  return data.tipPose();
-}
 
 double poseErrorMax(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   Eigen::VectorXd e(6);
@@ -55,11 +40,11 @@ TEST_P(GlobalIkRoundTrip, SolvesRandomReachablePosesWithinLimits) {
   const Eigen::VectorXd nominal = 0.5 * (model.lowerLimits() + model.upperLimits());
   Eigen::VectorXd q(7);
   for (int sample = 0; sample < 100; ++sample) {
-    const Eigen::Isometry3d target = fk(model, randomWithinLimits(model, rng));
+    const Eigen::Isometry3d target = tipPose(model, randomWithinLimits(model, rng));
     const bk::GlobalIkResult result = solver.solve(target, nominal, q);
     ASSERT_EQ(result.status, bk::IkStatus::Converged) << "sample " << sample;
     EXPECT_TRUE(model.withinLimits(q));
-    EXPECT_LE(poseErrorMax(fk(model, q), target), 1e-5);
+    EXPECT_LE(poseErrorMax(tipPose(model, q), target), 1e-5);
   }
 }
 
@@ -74,7 +59,7 @@ TEST(GlobalIk, SameInputsGiveTheSameAnswer) {
   parameters.local.limits = bk::LimitScheme::None;
   parameters.timeout = 1.0;
   std::mt19937 rng(5);
-  const Eigen::Isometry3d target = fk(model, randomWithinLimits(model, rng));
+  const Eigen::Isometry3d target = tipPose(model, randomWithinLimits(model, rng));
   const Eigen::VectorXd seed = Eigen::VectorXd::Constant(7, 2.5);  // outside some limits: forces restarts
   bk::GlobalIkSolver a(model, parameters);
   bk::GlobalIkSolver b(model, parameters);
@@ -96,7 +81,7 @@ TEST(GlobalIk, ClosestToSeedIsNoFartherThanFirstFound) {
   parameters.max_attempts = 200;
   parameters.timeout = 10.0;
   std::mt19937 rng(6);
-  const Eigen::Isometry3d target = fk(model, randomWithinLimits(model, rng));
+  const Eigen::Isometry3d target = tipPose(model, randomWithinLimits(model, rng));
   const Eigen::VectorXd seed = randomWithinLimits(model, rng);
   Eigen::VectorXd first(7), closest(7);
   bk::GlobalIkSolver first_solver(model, parameters);
@@ -107,7 +92,7 @@ TEST(GlobalIk, ClosestToSeedIsNoFartherThanFirstFound) {
   ASSERT_EQ(result.status, bk::IkStatus::Converged);
   EXPECT_EQ(result.attempts, 200);
   EXPECT_LE((closest - seed).norm(), (first - seed).norm() + 1e-12);
-  EXPECT_LE(poseErrorMax(fk(model, closest), target), 1e-5);
+  EXPECT_LE(poseErrorMax(tipPose(model, closest), target), 1e-5);
 }
 
 TEST(GlobalIk, AllDistinctFindsSeveralValidSolutions) {
@@ -120,13 +105,13 @@ TEST(GlobalIk, AllDistinctFindsSeveralValidSolutions) {
   parameters.timeout = 10.0;
   bk::GlobalIkSolver solver(model, parameters);
   const Eigen::VectorXd q_goal = (Eigen::VectorXd(7) << 0.3, 0.5, -0.2, 1.4, 0.2, 0.4, 0.1).finished();
-  const Eigen::Isometry3d target = fk(model, q_goal);
+  const Eigen::Isometry3d target = tipPose(model, q_goal);
   Eigen::VectorXd q(7);
   ASSERT_EQ(solver.solve(target, q_goal, q).status, bk::IkStatus::Converged);
   ASSERT_GE(solver.solutionCount(), 5);  // a 7-DoF arm has a continuum of solutions
   for (int i = 0; i < solver.solutionCount(); ++i) {
     EXPECT_TRUE(model.withinLimits(solver.solution(i)));
-    EXPECT_LE(poseErrorMax(fk(model, solver.solution(i)), target), 1e-5);
+    EXPECT_LE(poseErrorMax(tipPose(model, solver.solution(i)), target), 1e-5);
     for (int j = 0; j < i; ++j) {
       EXPECT_GE((solver.solution(i) - solver.solution(j)).cwiseAbs().maxCoeff(), parameters.distinct_tolerance);
     }
@@ -149,7 +134,7 @@ TEST(GlobalIk, UnreachableTargetReturnsTheBestAttempt) {
   EXPECT_GT(result.residual, 0.5);
   EXPECT_TRUE(q.allFinite());
   // The best attempt is reported: its residual is what FK of q gives.
-  EXPECT_NEAR(poseErrorMax(fk(model, q), target), result.residual, 1e-9);
+  EXPECT_NEAR(poseErrorMax(tipPose(model, q), target), result.residual, 1e-9);
   parameters.timeout = 1e-4;
   parameters.max_attempts = 1000000;
   bk::GlobalIkSolver quick(model, parameters);
@@ -178,7 +163,7 @@ TEST(GlobalIk, SolveDoesNotAllocate) {
     parameters.timeout = 10.0;
     bk::GlobalIkSolver solver(model, parameters);
     std::mt19937 rng(8);
-    const Eigen::Isometry3d target = fk(model, randomWithinLimits(model, rng));
+    const Eigen::Isometry3d target = tipPose(model, randomWithinLimits(model, rng));
     const Eigen::VectorXd seed = randomWithinLimits(model, rng);
     Eigen::VectorXd q(7);
     bk::GlobalIkResult result;

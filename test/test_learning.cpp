@@ -1,5 +1,7 @@
 // Incremental locally weighted regression: a noisy 1-D function, and the thesis' use (Sec. 2.3.1): learning
 // n(q, q̇) = u − M(q_d) q̈_d along a task on a simulated WAM, then controlling with it instead of C q̇ + G + F_f.
+#include "test_support.hpp"
+
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/learning/locally_weighted_regression.hpp"
@@ -16,13 +18,10 @@ namespace bc = bimanual_skills::control;
 namespace bd = bimanual_skills::dynamics;
 namespace bk = bimanual_skills::kinematics;
 namespace bl = bimanual_skills::learning;
+using bimanual_skills::test_support::hystereticFriction;
+using bimanual_skills::test_support::lowGains;
+using bimanual_skills::test_support::wamWithRotors;
 using bimanual_skills::testing::NoAllocGuard;
-
-namespace {
-
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
-
-}  // namespace
 
 TEST(LocallyWeightedRegression, FitsANoisyFunction) {
   bl::LwrParameters parameters;
@@ -54,21 +53,10 @@ TEST(LocallyWeightedRegression, FitsANoisyFunction) {
 }
 
 TEST(LocallyWeightedRegression, LearnedDynamicsTrackLikeTheAnalyticModel) {
-  const Eigen::VectorXd rotor = (Eigen::VectorXd(7) << 0.164, 0.148, 0.053, 0.030, 0.0028, 0.0028, 0.0003).finished();
-  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool").withRotorInertia(rotor);
+  const bk::ChainModel model = wamWithRotors();
   const bk::ChainModel inertial = model.withGravity(Eigen::Vector3d::Zero());
-  bd::FrictionModel friction;
-  for (int j = 0; j < 7; ++j) {
-    bd::JointFriction f;
-    f.type = bd::FrictionModelType::Basic;
-    f.b = Eigen::Vector2d(1.0 - 0.12 * j, 0.3);
-    f.s = 20.0;
-    f.z = 0.6;
-    friction.joints.push_back(f);
-  }
-  bc::ComputedTorqueGains gains;
-  gains.kp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
-  gains.kv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
+  const bd::FrictionModel friction = hystereticFriction();
+  const bc::ComputedTorqueGains gains = lowGains();
   bc::ComputedTorqueController controller(model, friction, gains);
   bc::DisturbanceObserver observer(model, friction, bc::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0));
   std::vector<double> force_learned;

@@ -4,6 +4,7 @@
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>
@@ -20,9 +21,11 @@ namespace bd = bimanual_skills::dynamics;
 namespace bk = bimanual_skills::kinematics;
 using bimanual_skills::testing::NoAllocGuard;
 
+using bimanual_skills::test_support::kWamUrdf;
+using bimanual_skills::test_support::readFile;
+
 namespace {
 
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
 constexpr unsigned kSeed = 424242;
 
 // Skewed axes, a prismatic joint, inertial frames rotated off the link frames, and a heavy link fixed to a moving
@@ -52,13 +55,6 @@ const char* const kMixedUrdf = R"(<?xml version="1.0"?>
     <origin xyz="0 0.05 0.2" rpy="0.2 0 0.3"/><axis xyz="0.2 -0.5 0.4"/><limit lower="-2" upper="2" effort="100" velocity="2"/></joint>
   <joint name="tool_joint" type="fixed"><parent link="l4"/><child link="tool"/><origin xyz="0 0 0.1" rpy="0 0 0"/></joint>
 </robot>)";
-
-std::string readFile(const std::string& path) {
-  std::ifstream file(path);
-  std::stringstream text;
-  text << file.rdbuf();
-  return text.str();
-}
 
 KDL::Chain kdlChain(const std::string& xml, const std::string& base, const std::string& tip) {
   KDL::Tree tree;

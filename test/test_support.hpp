@@ -1,0 +1,78 @@
+/// \file
+/// Helpers shared by the tests: the WAM models, seeded random configurations, FK, and the closed-loop test setup.
+#pragma once
+
+#include "bimanual_skills/control/computed_torque_controller.hpp"
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+
+namespace bimanual_skills::test_support {
+
+inline const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
+
+inline std::string readFile(const std::string& path) {
+  std::ifstream file(path);
+  std::stringstream text;
+  text << file.rdbuf();
+  return text.str();
+}
+
+/// The single-arm WAM, base to tool.
+inline kinematics::ChainModel wam() {
+  return kinematics::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+}
+
+/// The WAM with its reflected rotor inertias (reference/wam.md).
+inline kinematics::ChainModel wamWithRotors() {
+  const Eigen::VectorXd rotor = (Eigen::VectorXd(7) << 0.164, 0.148, 0.053, 0.030, 0.0028, 0.0028, 0.0003).finished();
+  return wam().withRotorInertia(rotor);
+}
+
+/// Uniform configuration within the limits (±π for unlimited joints).
+inline Eigen::VectorXd randomWithinLimits(const kinematics::ChainModel& model, std::mt19937& rng) {
+  Eigen::VectorXd q(model.nq());
+  for (int i = 0; i < model.nq(); ++i) {
+    const double lo = std::isfinite(model.lowerLimits()[i]) ? model.lowerLimits()[i] : -M_PI;
+    const double hi = std::isfinite(model.upperLimits()[i]) ? model.upperLimits()[i] : M_PI;
+    q[i] = std::uniform_real_distribution<double>(lo, hi)(rng);
+  }
+  return q;
+}
+
+/// Pose of the chain's tip at q.
+inline Eigen::Isometry3d tipPose(const kinematics::ChainModel& model, const Eigen::VectorXd& q) {
+  kinematics::ChainData data(model);
+  EXPECT_EQ(kinematics::forwardKinematics(model, data, q), kinematics::KinematicsStatus::Success);
+  return data.tipPose();
+}
+
+/// The closed-loop tests' "true" friction: a basic hysteretic model on every joint.
+inline dynamics::FrictionModel hystereticFriction() {
+  dynamics::FrictionModel friction;
+  for (int j = 0; j < 7; ++j) {
+    dynamics::JointFriction f;
+    f.type = dynamics::FrictionModelType::Basic;
+    f.b = Eigen::Vector2d(1.0 - 0.12 * j, 0.3);
+    f.s = 20.0;
+    f.z = 0.6;
+    friction.joints.push_back(f);
+  }
+  return friction;
+}
+
+/// Computed-torque gains about a tenth of libbarrett's stiff position gains (900, 2500, 600, 500, 50, 50, 8).
+inline control::ComputedTorqueGains lowGains() {
+  control::ComputedTorqueGains gains;
+  gains.kp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
+  gains.kv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
+  return gains;
+}
+
+}  // namespace bimanual_skills::test_support
