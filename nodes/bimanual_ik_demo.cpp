@@ -1,0 +1,158 @@
+// bimanual_ik_demo: asks ik_server for a pose of each arm's tool (<arm>/solve_ik), commands the solutions on
+// /joint_states, and checks the tool poses robot_state_publisher then publishes against the targets.
+// Exits 0 when every arm was solved and reached its target within 1e-4 (m and rad), unless ~hold is true.
+#include "bimanual_skills/SolveIk.h"
+
+#include <ros/ros.h>
+#include <sensor_msgs/JointState.h>
+#include <tf2_ros/transform_listener.h>
+
+#include <Eigen/Geometry>
+
+#include <cstdio>
+#include <string>
+#include <vector>
+
+namespace {
+
+struct Arm {
+  std::string name;
+  geometry_msgs::PoseStamped target;
+  sensor_msgs::JointState solution;
+  bool solved = false;
+};
+
+/// ~target_<arm>: {position: [x, y, z], orientation: [x, y, z, w]}; false with a message if malformed.
+bool readTarget(const ros::NodeHandle& node, const std::string& arm, const std::string& world,
+                geometry_msgs::PoseStamped& out) {
+  XmlRpc::XmlRpcValue value;
+  if (!node.getParam("target_" + arm, value) || value.getType() != XmlRpc::XmlRpcValue::TypeStruct ||
+      !value.hasMember("position") || !value.hasMember("orientation") || value["position"].size() != 3 ||
+      value["orientation"].size() != 4) {
+    ROS_FATAL("bimanual_ik_demo: ~target_%s must be {position: [x, y, z], orientation: [x, y, z, w]}", arm.c_str());
+    return false;
+  }
+  const auto number = [](XmlRpc::XmlRpcValue& v) {
+    return v.getType() == XmlRpc::XmlRpcValue::TypeInt ? static_cast<double>(static_cast<int>(v))
+                                                       : static_cast<double>(v);
+  };
+  out.header.frame_id = world;
+  out.pose.position.x = number(value["position"][0]);
+  out.pose.position.y = number(value["position"][1]);
+  out.pose.position.z = number(value["position"][2]);
+  out.pose.orientation.x = number(value["orientation"][0]);
+  out.pose.orientation.y = number(value["orientation"][1]);
+  out.pose.orientation.z = number(value["orientation"][2]);
+  out.pose.orientation.w = number(value["orientation"][3]);
+  return true;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ros::init(argc, argv, "bimanual_ik_demo");
+  ros::NodeHandle node("~");
+  ros::NodeHandle root;
+  const std::string world = node.param<std::string>("world_frame", "world");
+  const std::string method = node.param<std::string>("method", "CTP+SD+SVF");
+  const double timeout = node.param("timeout", 0.05);
+  const double tf_timeout = node.param("tf_timeout", 5.0);
+  const double rate_hz = node.param("publish_rate", 50.0);
+  const bool hold = node.param("hold", false);
+  std::vector<std::string> names;
+  node.param("arms", names, std::vector<std::string>{"left", "right"});
+
+  std::vector<Arm> arms;
+  for (const std::string& name : names) {
+    Arm arm;
+    arm.name = name;
+    if (!readTarget(node, name, world, arm.target)) return 2;
+    arms.push_back(arm);
+  }
+  std::printf("bimanual_ik_demo: IK of %zu arms through ik_server (%s, %.0f ms per request), targets in '%s'\n",
+              arms.size(), method.c_str(), 1e3 * timeout, world.c_str());
+  sensor_msgs::JointState command;
+  for (Arm& arm : arms) {
+    const std::string service = "/" + arm.name + "/solve_ik";
+    if (!ros::service::waitForService(service, ros::Duration(10.0))) {
+      std::printf("  %-5s %s is not available (is ik_server running?)\n", arm.name.c_str(), service.c_str());
+      continue;
+    }
+    bimanual_skills::SolveIk srv;
+    srv.request.target = arm.target;
+    srv.request.method = method;
+    srv.request.timeout = timeout;
+    const ros::WallTime start = ros::WallTime::now();
+    if (!ros::service::call(service, srv)) {
+      std::printf("  %-5s call to %s failed\n", arm.name.c_str(), service.c_str());
+      continue;
+    }
+    const double ms = 1e3 * (ros::WallTime::now() - start).toSec();
+    const auto& p = arm.target.pose.position;
+    std::printf("  %-5s target (%.3f, %.3f, %.3f): error_code %d, %s, residual %.1e, %.1f ms round trip\n",
+                arm.name.c_str(), p.x, p.y, p.z, srv.response.error_code, srv.response.message.c_str(),
+                srv.response.residual, ms);
+    if (srv.response.error_code != bimanual_skills::SolveIk::Response::SUCCESS) continue;
+    arm.solved = true;
+    arm.solution = srv.response.solution;
+    std::printf("        q = [");
+    for (std::size_t i = 0; i < arm.solution.position.size(); ++i) {
+      std::printf("%s%.3f", i ? ", " : "", arm.solution.position[i]);
+    }
+    std::printf("] rad\n");
+    command.name.insert(command.name.end(), arm.solution.name.begin(), arm.solution.name.end());
+    command.position.insert(command.position.end(), arm.solution.position.begin(), arm.solution.position.end());
+  }
+
+  // Command the solutions and read back the tool poses robot_state_publisher derives from them.
+  ros::Publisher publisher = root.advertise<sensor_msgs::JointState>("joint_states", 1);
+  tf2_ros::Buffer buffer;
+  tf2_ros::TransformListener listener(buffer);
+  ros::Rate rate(rate_hz > 0.0 ? rate_hz : 50.0);
+  bool all_reached = true;
+  for (Arm& arm : arms) {
+    if (!arm.solved) {
+      all_reached = false;
+      continue;
+    }
+    const std::string tool = arm.name + "_wam_tool";
+    const ros::Time deadline = ros::Time::now() + ros::Duration(tf_timeout);
+    geometry_msgs::TransformStamped tf;
+    bool received = false;
+    while (ros::ok() && ros::Time::now() < deadline) {
+      command.header.stamp = ros::Time::now();
+      publisher.publish(command);
+      try {
+        tf = buffer.lookupTransform(world, tool, ros::Time(0));
+        // Wait until the transform reflects the commanded joints (a stale one still shows the zero pose).
+        if (std::abs(tf.transform.translation.x - arm.target.pose.position.x) < 1e-4 &&
+            std::abs(tf.transform.translation.y - arm.target.pose.position.y) < 1e-4 &&
+            std::abs(tf.transform.translation.z - arm.target.pose.position.z) < 1e-4) {
+          received = true;
+          break;
+        }
+      } catch (const tf2::TransformException&) {
+      }
+      rate.sleep();
+    }
+    const auto& o = arm.target.pose.orientation;
+    const Eigen::Quaterniond want(o.w, o.x, o.y, o.z);
+    const Eigen::Quaterniond got(tf.transform.rotation.w, tf.transform.rotation.x, tf.transform.rotation.y,
+                                 tf.transform.rotation.z);
+    const double angle = want.normalized().angularDistance(got.normalized());
+    const bool reached = received && angle < 1e-4;
+    all_reached = all_reached && reached;
+    std::printf("  %-5s tf %s -> %s: (%.4f, %.4f, %.4f), orientation error %.1e rad: %s\n", arm.name.c_str(),
+                world.c_str(), tool.c_str(), tf.transform.translation.x, tf.transform.translation.y,
+                tf.transform.translation.z, angle, reached ? "target reached" : "TARGET NOT REACHED");
+  }
+  std::fflush(stdout);
+  if (hold) {
+    while (ros::ok()) {
+      command.header.stamp = ros::Time::now();
+      publisher.publish(command);
+      rate.sleep();
+    }
+  }
+  return all_reached ? 0 : 1;
+}
