@@ -1,0 +1,48 @@
+// Movement primitives per call: one DMP integration step of 7 DoF x 25 kernels.
+//
+//   primitives_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
+#include "bench_timing.hpp"
+#include "bimanual_skills/primitives/dmp.hpp"
+
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <string>
+
+namespace bp = bimanual_skills::primitives;
+using bimanual_skills::bench::timeBatches;
+
+namespace {
+
+constexpr int kSteps = 1000;
+
+/// A 7-DoF DMP fitted to minimum-jerk motions (2 s at 500 Hz), stepped along its own rollout.
+void BM_DmpStep(benchmark::State& state) {
+  Eigen::MatrixXd demo(1001, 7);
+  for (int r = 0; r < demo.rows(); ++r) {
+    const double s = r / 1000.0;
+    for (int j = 0; j < 7; ++j)
+      demo(r, j) = (0.5 - 0.1 * j) * (10 * std::pow(s, 3) - 15 * std::pow(s, 4) + 6 * std::pow(s, 5));
+  }
+  const bp::Dmp dmp = bp::Dmp::fit(bp::DmpParameters(), demo, 0.002);
+  bp::DmpState start = dmp.initialState();
+  bp::DmpState running = start;
+  timeBatches(state, kSteps, [&](int k) {
+    if (k == 0) running = start;  // restart the rollout (a copy of equally sized vectors: no allocation)
+    benchmark::DoNotOptimize(dmp.step(running, 0.002));
+    benchmark::DoNotOptimize(running.y.data());
+  });
+}
+
+}  // namespace
+
+BENCHMARK(BM_DmpStep);
+
+int main(int argc, char** argv) {
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::AddCustomContext("dmp", "7 DoF x 25 kernels, dt = 2 ms");
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

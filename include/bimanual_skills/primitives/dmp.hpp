@@ -1,0 +1,75 @@
+/// \file
+/// Dynamic movement primitives (thesis eqs. 5.14–5.15), multi-DoF with a shared phase.
+#pragma once
+
+#include <Eigen/Core>
+
+namespace bimanual_skills::primitives {
+
+/// Shape of a DMP. With τ the movement's duration [s] (the thesis' (5.14), written with one consistent τ):
+///   τ² ÿ = α_z (β_z (g − y) − τ ẏ) + f(x),   τ ẋ = −α_x x,   f_j(x) = g(x)ᵀ ω_j (5.15),
+///   g_i(x) = φ_i(x) / Σ_k φ_k(x) · x,  φ_i(x) = exp(−½ (x − c_i)² / d_i),
+/// the centres c_i uniform in time (x = exp(−α_x t/τ)) and widths d_i from the spacing. With goal_scaled_forcing,
+/// g_i(x) is also multiplied by (g_j − y0_j) per DoF (footnote 3), so a new goal rescales the whole movement.
+struct DmpParameters {
+  int kernels = 25;
+  double alpha_z = 25.0;
+  double beta_z = 6.25;  ///< α_z / 4: critically damped
+  double alpha_x = 4.0;  ///< x(τ) = e^{−4} ≈ 0.018
+  bool goal_scaled_forcing = false;
+  double regularisation = 1e-8;  ///< Ridge term of the least-squares fit.
+
+  void validate() const;
+};
+
+/// The DMP's state while it runs (the "Data" of the model): position, velocity, phase, time, and the goal in use.
+struct DmpState {
+  Eigen::VectorXd y, yd, ydd;
+  Eigen::VectorXd goal;
+  double x = 1.0;
+  double t = 0.0;
+};
+
+/// Immutable DMP: weights, kernels, start, goal and duration. Build with fit() or from weights.
+class Dmp {
+ public:
+  /// \throws std::invalid_argument for inconsistent sizes, non-finite values or τ ≤ 0.
+  Dmp(const DmpParameters& parameters, const Eigen::MatrixXd& weights, const Eigen::VectorXd& start,
+      const Eigen::VectorXd& goal, double duration);
+
+  /// Least-squares fit to a demonstration sampled every dt (rows = samples, columns = DoF): positions are smoothed
+  /// by a zero-phase low-pass FIR (cut-off `smoothing_hz`, 0 = none) before velocities and accelerations are taken by
+  /// central differences; the forcing term f = τ² ÿ − α_z (β_z (g − y) − τ ẏ) is then regressed on g(x).
+  /// \throws std::invalid_argument for fewer than 10 samples, dt ≤ 0 or non-finite data.
+  static Dmp fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, double dt,
+                 double smoothing_hz = 20.0);
+
+  int dofs() const noexcept { return static_cast<int>(start_.size()); }
+  const DmpParameters& parameters() const noexcept { return parameters_; }
+  const Eigen::MatrixXd& weights() const noexcept { return weights_; }  ///< dofs × kernels (ω as rows per DoF)
+  const Eigen::VectorXd& start() const noexcept { return start_; }
+  const Eigen::VectorXd& goal() const noexcept { return goal_; }
+  double duration() const noexcept { return duration_; }
+
+  /// A copy with another duration (time scaling) or other weights (as a policy-search sample).
+  Dmp withDuration(double duration) const;
+  Dmp withWeights(const Eigen::MatrixXd& weights) const;
+
+  /// A state at the start: y = start, ẏ = 0, x = 1, goal = the model's goal (change it at any time).
+  DmpState initialState() const;
+
+  /// Basis values g(x) (kernels), written into `basis`. Real-time safe.
+  void basis(double x, Eigen::Ref<Eigen::VectorXd> basis) const noexcept;
+
+  /// One integration step of dt (semi-implicit Euler on y, exact on the phase). Returns false (state unchanged) for
+  /// a state of the wrong size, non-finite values or dt ≤ 0. Real-time safe: no allocation, no exceptions.
+  bool step(DmpState& state, double dt) const noexcept;
+
+ private:
+  DmpParameters parameters_;
+  Eigen::MatrixXd weights_;
+  Eigen::VectorXd start_, goal_, centres_, widths_;
+  double duration_;
+};
+
+}  // namespace bimanual_skills::primitives

@@ -1,0 +1,165 @@
+#include "bimanual_skills/primitives/dmp.hpp"
+
+#include "bimanual_skills/control/fir_filter.hpp"
+
+#include <Eigen/Cholesky>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace bimanual_skills::primitives {
+namespace {
+
+constexpr int kMaxKernels = 256;
+
+/// Zero-phase low-pass of every column: the linear-phase FIR applied with its delay removed, ends padded with the
+/// end values.
+Eigen::MatrixXd smooth(const Eigen::MatrixXd& data, double dt, double cutoff_hz) {
+  const double rate = 1.0 / dt;
+  if (cutoff_hz <= 0.0 || cutoff_hz >= 0.5 * rate) return data;
+  int taps = static_cast<int>(std::ceil(4.0 * rate / cutoff_hz)) | 1;  // transition width ≈ 4 f_s / N (Blackman)
+  taps = std::min(taps, 2 * static_cast<int>(data.rows()) - 1) | 1;
+  if (taps < 3) return data;
+  const Eigen::VectorXd h = control::designLowPassFir(taps, cutoff_hz, rate);
+  const int half = taps / 2;
+  const auto n = static_cast<int>(data.rows());
+  Eigen::MatrixXd out(data.rows(), data.cols());
+  for (int r = 0; r < n; ++r) {
+    out.row(r).setZero();
+    for (int k = 0; k < taps; ++k) {
+      const int source = std::clamp(r + k - half, 0, n - 1);
+      out.row(r) += h[k] * data.row(source);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+void DmpParameters::validate() const {
+  if (kernels < 1 || kernels > kMaxKernels) {
+    throw std::invalid_argument("DmpParameters: kernels must be in [1, " + std::to_string(kMaxKernels) + "]");
+  }
+  if (!(alpha_z > 0.0) || !(beta_z > 0.0) || !(alpha_x > 0.0) || !(regularisation >= 0.0)) {
+    throw std::invalid_argument("DmpParameters: alpha_z, beta_z, alpha_x must be > 0, regularisation >= 0");
+  }
+}
+
+Dmp::Dmp(const DmpParameters& parameters, const Eigen::MatrixXd& weights, const Eigen::VectorXd& start,
+         const Eigen::VectorXd& goal, double duration)
+    : parameters_(parameters), weights_(weights), start_(start), goal_(goal), duration_(duration) {
+  parameters_.validate();
+  const auto d = start_.size();
+  if (d < 1 || goal_.size() != d || weights_.rows() != d || weights_.cols() != parameters_.kernels) {
+    throw std::invalid_argument("Dmp: weights must be dofs x kernels and start/goal have dofs entries");
+  }
+  if (!weights_.allFinite() || !start_.allFinite() || !goal_.allFinite() || !(duration_ > 0.0) ||
+      !std::isfinite(duration_)) {
+    throw std::invalid_argument("Dmp: weights, start, goal must be finite and the duration > 0");
+  }
+  // Centres uniform in time t_i = i/(N−1) τ, i.e. c_i = exp(−α_x t_i/τ); widths from the spacing to the next centre.
+  const int n = parameters_.kernels;
+  centres_.resize(n);
+  widths_.resize(n);
+  for (int i = 0; i < n; ++i) centres_[i] = std::exp(-parameters_.alpha_x * (n == 1 ? 0.0 : double(i) / (n - 1)));
+  for (int i = 0; i < n; ++i) {
+    const double spacing =
+        n == 1 ? 0.5 : std::abs(centres_[std::min(i + 1, n - 1)] - centres_[std::max(i - 1, 0)]) * 0.5;
+    widths_[i] = std::max(0.5 * spacing * spacing, 1e-10);
+  }
+}
+
+void Dmp::basis(double x, Eigen::Ref<Eigen::VectorXd> g) const noexcept {
+  double sum = 0.0;
+  for (int i = 0; i < parameters_.kernels; ++i) {
+    const double delta = x - centres_[i];
+    g[i] = std::exp(-0.5 * delta * delta / widths_[i]);
+    sum += g[i];
+  }
+  g *= sum > 0.0 ? x / sum : 0.0;
+}
+
+Dmp Dmp::fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, double dt, double smoothing_hz) {
+  parameters.validate();
+  const auto samples = positions.rows();
+  const auto d = positions.cols();
+  if (samples < 10 || d < 1 || !(dt > 0.0) || !positions.allFinite()) {
+    throw std::invalid_argument("Dmp::fit: need >= 10 finite samples of >= 1 DoF and dt > 0");
+  }
+  const Eigen::MatrixXd y = smooth(positions, dt, smoothing_hz);
+  Eigen::MatrixXd yd = Eigen::MatrixXd::Zero(samples, d), ydd = Eigen::MatrixXd::Zero(samples, d);
+  for (Eigen::Index r = 1; r + 1 < samples; ++r) {
+    yd.row(r) = (y.row(r + 1) - y.row(r - 1)) / (2.0 * dt);
+    ydd.row(r) = (y.row(r + 1) - 2.0 * y.row(r) + y.row(r - 1)) / (dt * dt);
+  }
+  const double tau = dt * static_cast<double>(samples - 1);
+  const Eigen::VectorXd start = positions.row(0).transpose();
+  const Eigen::VectorXd goal = positions.row(samples - 1).transpose();
+  const Dmp shape(parameters, Eigen::MatrixXd::Zero(d, parameters.kernels), start, goal, tau);
+  // Regress f = τ² ÿ − α_z (β_z (g − y) − τ ẏ) on the basis (times (g − y0) for the goal-scaled variant).
+  Eigen::MatrixXd G(samples, parameters.kernels);
+  Eigen::VectorXd g(parameters.kernels);
+  for (Eigen::Index r = 0; r < samples; ++r) {
+    shape.basis(std::exp(-parameters.alpha_x * static_cast<double>(r) * dt / tau), g);
+    G.row(r) = g.transpose();
+  }
+  const Eigen::MatrixXd gram =
+      G.transpose() * G + parameters.regularisation * Eigen::MatrixXd::Identity(parameters.kernels, parameters.kernels);
+  const Eigen::LDLT<Eigen::MatrixXd> solver(gram);
+  Eigen::MatrixXd weights(d, parameters.kernels);
+  for (Eigen::Index j = 0; j < d; ++j) {
+    Eigen::VectorXd f =
+        tau * tau * ydd.col(j) -
+        parameters.alpha_z * (parameters.beta_z * (goal[j] - y.col(j).array()).matrix() - tau * yd.col(j));
+    if (parameters.goal_scaled_forcing) {
+      const double amplitude = goal[j] - start[j];
+      f /= std::abs(amplitude) > 1e-9 ? amplitude : 1.0;
+    }
+    weights.row(j) = solver.solve(G.transpose() * f).transpose();
+  }
+  return Dmp(parameters, weights, start, goal, tau);
+}
+
+Dmp Dmp::withDuration(double duration) const {
+  return Dmp(parameters_, weights_, start_, goal_, duration);
+}
+
+Dmp Dmp::withWeights(const Eigen::MatrixXd& weights) const {
+  return Dmp(parameters_, weights, start_, goal_, duration_);
+}
+
+DmpState Dmp::initialState() const {
+  DmpState state;
+  state.y = start_;
+  state.yd = Eigen::VectorXd::Zero(dofs());
+  state.ydd = Eigen::VectorXd::Zero(dofs());
+  state.goal = goal_;
+  return state;
+}
+
+bool Dmp::step(DmpState& state, double dt) const noexcept {
+  const int d = dofs();
+  if (state.y.size() != d || state.yd.size() != d || state.ydd.size() != d || state.goal.size() != d || !(dt > 0.0) ||
+      !state.y.allFinite() || !state.yd.allFinite() || !state.goal.allFinite() || !std::isfinite(state.x)) {
+    return false;
+  }
+  double g_storage[kMaxKernels];
+  Eigen::Map<Eigen::VectorXd> g(g_storage, parameters_.kernels);
+  basis(state.x, g);
+  const double tau = duration_;
+  for (int j = 0; j < d; ++j) {
+    double f = weights_.row(j).dot(g);
+    if (parameters_.goal_scaled_forcing) f *= state.goal[j] - start_[j];
+    state.ydd[j] = (parameters_.alpha_z * (parameters_.beta_z * (state.goal[j] - state.y[j]) - tau * state.yd[j]) + f) /
+                   (tau * tau);
+  }
+  state.yd += dt * state.ydd;
+  state.y += dt * state.yd;
+  state.x *= std::exp(-parameters_.alpha_x * dt / tau);
+  state.t += dt;
+  return true;
+}
+
+}  // namespace bimanual_skills::primitives
