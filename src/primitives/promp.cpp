@@ -1,0 +1,171 @@
+#include "bimanual_skills/primitives/promp.hpp"
+
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace bimanual_skills::primitives {
+
+void ProMpParameters::validate() const {
+  if (kernels < 2) throw std::invalid_argument("ProMpParameters: kernels must be >= 2");
+  if (!(width >= 0.0) || !(ridge >= 0.0) || !(covariance_prior >= 0.0)) {
+    throw std::invalid_argument("ProMpParameters: width, ridge and covariance_prior must be >= 0");
+  }
+}
+
+ProMp::ProMp(const ProMpParameters& parameters, int dofs, const Eigen::VectorXd& mean,
+             const Eigen::MatrixXd& covariance, const Eigen::VectorXd& observation_variance, double duration)
+    : parameters_(parameters),
+      dofs_(dofs),
+      mean_(mean),
+      observation_variance_(observation_variance),
+      covariance_(covariance),
+      duration_(duration) {
+  parameters_.validate();
+  const int n = dofs * parameters_.kernels;
+  if (dofs < 1 || mean_.size() != n || covariance_.rows() != n || covariance_.cols() != n ||
+      observation_variance_.size() != dofs) {
+    throw std::invalid_argument(
+        "ProMp: mean needs dofs*kernels entries, the covariance that square size, and the "
+        "observation variance dofs entries");
+  }
+  if (!mean_.allFinite() || !covariance_.allFinite() || !observation_variance_.allFinite() || !(duration_ > 0.0)) {
+    throw std::invalid_argument("ProMp: parameters must be finite and the duration > 0");
+  }
+  if ((covariance_ - covariance_.transpose()).cwiseAbs().maxCoeff() >
+      1e-9 * (1.0 + covariance_.cwiseAbs().maxCoeff())) {
+    throw std::invalid_argument("ProMp: the weight covariance must be symmetric");
+  }
+  const int k = parameters_.kernels;
+  centres_ = Eigen::VectorXd::LinSpaced(k, 0.0, 1.0);
+  const double spacing = 1.0 / (k - 1);
+  width_ = parameters_.width > 0.0 ? parameters_.width : 0.5 * spacing * spacing;
+  // Sampling factor of Σ_ω (+ a tiny jitter so a rank-deficient covariance still factorises).
+  sampler_.compute(covariance_ + 1e-12 * Eigen::MatrixXd::Identity(n, n));
+  if (sampler_.info() != Eigen::Success) {
+    throw std::invalid_argument("ProMp: the weight covariance is not positive semidefinite");
+  }
+  b_ = Eigen::VectorXd::Zero(k);
+  db_ = Eigen::VectorXd::Zero(k);
+  psi_ = Eigen::MatrixXd::Zero(n, 2 * dofs);
+  scratch_ = Eigen::MatrixXd::Zero(n, 2 * dofs);
+}
+
+void ProMp::basis(double z, Eigen::Ref<Eigen::VectorXd> b, Eigen::Ref<Eigen::VectorXd> db) const noexcept {
+  // b_i = φ_i / Σ φ, φ_i = exp(−(z − c_i)² / (2 w)); db_i/dz = b_i (φ_i'/φ_i − Σ φ' / Σ φ), φ_i'/φ_i = −(z − c_i)/w.
+  double sum = 0.0, dsum = 0.0;
+  for (int i = 0; i < parameters_.kernels; ++i) {
+    const double delta = z - centres_[i];
+    const double phi = std::exp(-0.5 * delta * delta / width_);
+    b[i] = phi;
+    db[i] = -delta / width_ * phi;
+    sum += phi;
+    dsum += db[i];
+  }
+  for (int i = 0; i < parameters_.kernels; ++i) {
+    db[i] = (db[i] * sum - b[i] * dsum) / (sum * sum);
+    b[i] /= sum;
+  }
+}
+
+void ProMp::blockBasis(double z) const noexcept {
+  basis(std::clamp(z, 0.0, 1.0), b_, db_);
+  const int k = parameters_.kernels;
+  psi_.setZero();
+  for (int j = 0; j < dofs_; ++j) {
+    psi_.block(j * k, j, k, 1) = b_;
+    psi_.block(j * k, dofs_ + j, k, 1) = db_ / duration_;  // d/dt = (d/dz) / duration
+  }
+}
+
+void ProMp::mean(double z, Eigen::Ref<Eigen::VectorXd> position, Eigen::Ref<Eigen::VectorXd> velocity) const noexcept {
+  basis(std::clamp(z, 0.0, 1.0), b_, db_);
+  const int k = parameters_.kernels;
+  for (int j = 0; j < dofs_; ++j) {
+    position[j] = b_.dot(mean_.segment(j * k, k));
+    velocity[j] = db_.dot(mean_.segment(j * k, k)) / duration_;
+  }
+}
+
+void ProMp::covariance(double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept {
+  blockBasis(z);
+  const auto positions = psi_.leftCols(dofs_);
+  scratch_.leftCols(dofs_).noalias() = covariance_ * positions;
+  out.noalias() = positions.transpose() * scratch_.leftCols(dofs_);
+}
+
+Eigen::VectorXd ProMp::sample(std::mt19937& rng) const {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::VectorXd e(mean_.size());
+  for (Eigen::Index i = 0; i < e.size(); ++i) e[i] = normal(rng);
+  return mean_ + sampler_.matrixL() * e;
+}
+
+ProMp ProMp::fit(const ProMpParameters& parameters, const std::vector<Eigen::MatrixXd>& demonstrations,
+                 double duration) {
+  parameters.validate();
+  if (demonstrations.size() < 2) throw std::invalid_argument("ProMp::fit: needs at least 2 demonstrations");
+  const auto dofs = static_cast<int>(demonstrations.front().cols());
+  const int k = parameters.kernels;
+  const int n = dofs * k;
+  // A model with zero parameters gives the basis.
+  const ProMp shape(parameters, dofs, Eigen::VectorXd::Zero(n), Eigen::MatrixXd::Zero(n, n),
+                    Eigen::VectorXd::Zero(dofs), duration);
+  Eigen::MatrixXd weights(n, static_cast<Eigen::Index>(demonstrations.size()));
+  Eigen::VectorXd squared_residual = Eigen::VectorXd::Zero(dofs);
+  double residual_samples = 0.0;
+  Eigen::VectorXd b(k), db(k);
+  for (std::size_t d = 0; d < demonstrations.size(); ++d) {
+    const Eigen::MatrixXd& y = demonstrations[d];
+    if (y.cols() != dofs || y.rows() < k || !y.allFinite()) {
+      throw std::invalid_argument("ProMp::fit: demonstration " + std::to_string(d + 1) +
+                                  " must be finite, with the same DoF and at least `kernels` samples");
+    }
+    Eigen::MatrixXd B(y.rows(), k);
+    for (Eigen::Index r = 0; r < y.rows(); ++r) {
+      shape.basis(static_cast<double>(r) / static_cast<double>(y.rows() - 1), b, db);
+      B.row(r) = b.transpose();
+    }
+    const Eigen::LDLT<Eigen::MatrixXd> solver(B.transpose() * B + parameters.ridge * Eigen::MatrixXd::Identity(k, k));
+    for (int j = 0; j < dofs; ++j) {
+      const Eigen::VectorXd w = solver.solve(B.transpose() * y.col(j));
+      weights.block(j * k, static_cast<Eigen::Index>(d), k, 1) = w;
+      squared_residual[j] += (B * w - y.col(j)).squaredNorm();
+    }
+    residual_samples += static_cast<double>(y.rows());
+  }
+  const Eigen::VectorXd mean = weights.rowwise().mean();
+  const Eigen::MatrixXd centred = weights.colwise() - mean;
+  Eigen::MatrixXd covariance = centred * centred.transpose() / static_cast<double>(weights.cols());
+  covariance.diagonal().array() += parameters.covariance_prior;
+  return ProMp(parameters, dofs, mean, covariance, squared_residual / residual_samples, duration);
+}
+
+ProMp ProMp::conditioned(double z, const Eigen::VectorXd& position, const Eigen::MatrixXd& observation_covariance,
+                         const Eigen::VectorXd& velocity) const {
+  const bool with_velocity = velocity.size() == dofs_;
+  const int m = with_velocity ? 2 * dofs_ : dofs_;
+  if (position.size() != dofs_ || (velocity.size() != 0 && !with_velocity) || observation_covariance.rows() != m ||
+      observation_covariance.cols() != m || !position.allFinite() || !observation_covariance.allFinite() ||
+      !velocity.allFinite()) {
+    throw std::invalid_argument(
+        "ProMp::conditioned: the observation must have dofs positions (and optionally dofs "
+        "velocities) with a matching square covariance");
+  }
+  blockBasis(z);
+  const Eigen::MatrixXd H = psi_.leftCols(m);
+  Eigen::VectorXd observed(m);
+  observed.head(dofs_) = position;
+  if (with_velocity) observed.tail(dofs_) = velocity;
+  const Eigen::MatrixXd SH = covariance_ * H;
+  const Eigen::MatrixXd K = SH * (observation_covariance + H.transpose() * SH).inverse();
+  const Eigen::VectorXd mean = mean_ + K * (observed - H.transpose() * mean_);
+  Eigen::MatrixXd covariance = covariance_ - K * SH.transpose();
+  covariance = 0.5 * (covariance + covariance.transpose());
+  return ProMp(parameters_, dofs_, mean, covariance, observation_variance_, duration_);
+}
+
+}  // namespace bimanual_skills::primitives

@@ -1,0 +1,118 @@
+// ProMPs (thesis 5.16–5.18): the fitted distribution matches the demonstrations' mean and spread, conditioning
+// passes through its via-point, samples follow the distribution, bad input throws, evaluation does not allocate.
+#include "bimanual_skills/primitives/promp.hpp"
+#include "bimanual_skills/testing/no_alloc_guard.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+namespace bp = bimanual_skills::primitives;
+using bimanual_skills::testing::NoAllocGuard;
+
+namespace {
+
+constexpr int kSamples = 200;
+constexpr double kSpread = 0.1;  // standard deviation of the bump amplitude across demonstrations
+
+double base(double z, int j) {
+  return (0.3 + 0.2 * j) * std::sin(M_PI * z) + 0.1 * j * z;
+}
+double bump(double z) {
+  return std::exp(-std::pow((z - 0.5) / 0.15, 2));
+}
+
+/// 30 demonstrations of 2 DoF: a base path plus a bump whose amplitude varies with σ = kSpread.
+std::vector<Eigen::MatrixXd> demonstrations(std::vector<double>& amplitudes) {
+  std::mt19937 rng(21);
+  std::normal_distribution<double> amplitude(0.0, kSpread);
+  std::vector<Eigen::MatrixXd> out;
+  for (int d = 0; d < 30; ++d) {
+    const double a = amplitude(rng);
+    amplitudes.push_back(a);
+    Eigen::MatrixXd y(kSamples, 2);
+    for (int r = 0; r < kSamples; ++r) {
+      const double z = r / double(kSamples - 1);
+      for (int j = 0; j < 2; ++j) y(r, j) = base(z, j) + a * bump(z);
+    }
+    out.push_back(y);
+  }
+  return out;
+}
+
+}  // namespace
+
+TEST(ProMp, FitMatchesTheDemonstrationsMeanAndSpread) {
+  std::vector<double> amplitudes;
+  const bp::ProMp promp = bp::ProMp::fit(bp::ProMpParameters(), demonstrations(amplitudes), 2.0);
+  double mean_a = 0.0, var_a = 0.0;
+  for (double a : amplitudes) mean_a += a / amplitudes.size();
+  for (double a : amplitudes) var_a += (a - mean_a) * (a - mean_a) / amplitudes.size();
+  Eigen::VectorXd y(2), yd(2);
+  Eigen::MatrixXd cov(2, 2);
+  for (double z : {0.1, 0.3, 0.5, 0.7, 0.9}) {
+    promp.mean(z, y, yd);
+    for (int j = 0; j < 2; ++j) EXPECT_NEAR(y[j], base(z, j) + mean_a * bump(z), 5e-3) << "z " << z;
+    promp.covariance(z, cov);
+    EXPECT_NEAR(std::sqrt(cov(0, 0)), std::sqrt(var_a) * bump(z), 0.1 * std::sqrt(var_a) + 2e-3) << "z " << z;
+  }
+  // Velocity: d/dt of the mean path (duration 2 s), inside the phase range (normalised bases are poor at its ends).
+  const double z = 0.25;
+  const double bump_slope = -2.0 * (z - 0.5) / (0.15 * 0.15) * bump(z);
+  promp.mean(z, y, yd);
+  EXPECT_NEAR(yd[0], (0.3 * M_PI * std::cos(M_PI * z) + mean_a * bump_slope) / 2.0, 0.02);
+  EXPECT_LT(promp.observationVariance().maxCoeff(), 1e-4);
+}
+
+TEST(ProMp, ConditioningPassesThroughTheViaPoint) {
+  std::vector<double> amplitudes;
+  const bp::ProMp promp = bp::ProMp::fit(bp::ProMpParameters(), demonstrations(amplitudes), 2.0);
+  Eigen::VectorXd y(2), yd(2);
+  Eigen::MatrixXd cov(2, 2), cov_after(2, 2);
+  promp.mean(0.4, y, yd);
+  promp.covariance(0.4, cov);
+  const Eigen::VectorXd via = y + Eigen::VectorXd::Constant(2, 0.08);
+  const bp::ProMp through = promp.conditioned(0.4, via, 1e-8 * Eigen::MatrixXd::Identity(2, 2));
+  through.mean(0.4, y, yd);
+  EXPECT_LE((y - via).cwiseAbs().maxCoeff(), 1e-3);
+  through.covariance(0.4, cov_after);
+  EXPECT_LT(cov_after(0, 0), 1e-2 * cov(0, 0));
+  // With a velocity too.
+  const Eigen::VectorXd via_velocity = Eigen::VectorXd::Constant(2, 0.1);
+  const bp::ProMp both = promp.conditioned(0.6, via, 1e-8 * Eigen::MatrixXd::Identity(4, 4), via_velocity);
+  both.mean(0.6, y, yd);
+  EXPECT_LE((y - via).cwiseAbs().maxCoeff(), 2e-3);
+  EXPECT_LE((yd - via_velocity).cwiseAbs().maxCoeff(), 2e-2);
+}
+
+TEST(ProMp, SamplesFollowTheDistribution) {
+  std::vector<double> amplitudes;
+  const bp::ProMp promp = bp::ProMp::fit(bp::ProMpParameters(), demonstrations(amplitudes), 2.0);
+  std::mt19937 rng(3);
+  const int n = 4000;
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(promp.weightMean().size());
+  for (int k = 0; k < n; ++k) sum += promp.sample(rng);
+  const Eigen::VectorXd sd = promp.weightCovariance().diagonal().cwiseSqrt();
+  EXPECT_LE(((sum / n - promp.weightMean()).array() / sd.array()).abs().maxCoeff(), 5.0 / std::sqrt(double(n)));
+}
+
+TEST(ProMp, BadInputAndNoAllocation) {
+  std::vector<double> amplitudes;
+  std::vector<Eigen::MatrixXd> demos = demonstrations(amplitudes);
+  EXPECT_THROW(bp::ProMp::fit(bp::ProMpParameters(), {demos[0]}, 2.0), std::invalid_argument);
+  demos[3](5, 1) = std::nan("");
+  EXPECT_THROW(bp::ProMp::fit(bp::ProMpParameters(), demos, 2.0), std::invalid_argument);
+  demos = demonstrations(amplitudes);
+  const bp::ProMp promp = bp::ProMp::fit(bp::ProMpParameters(), demos, 2.0);
+  EXPECT_THROW(promp.conditioned(0.5, Eigen::VectorXd::Zero(3), Eigen::MatrixXd::Identity(3, 3)),
+               std::invalid_argument);
+  Eigen::VectorXd y(2), yd(2);
+  Eigen::MatrixXd cov(2, 2);
+  NoAllocGuard guard;
+  for (double z = 0.0; z <= 1.0; z += 0.1) {
+    promp.mean(z, y, yd);
+    promp.covariance(z, cov);
+  }
+}
