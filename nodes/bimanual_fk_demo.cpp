@@ -5,6 +5,7 @@
 
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
+#include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
 
 #include <cstdio>
@@ -34,13 +35,6 @@ std::string formatVector(const Eigen::Ref<const Eigen::VectorXd>& v, int precisi
     out += buffer;
   }
   return out + "]";
-}
-
-Eigen::Isometry3d toEigen(const geometry_msgs::Transform& t) {
-  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.translation() << t.translation.x, t.translation.y, t.translation.z;
-  out.linear() = Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z).toRotationMatrix();
-  return out;
 }
 
 /// Parses "[a, b, c]" (roscpp hands `_name:=[...]` command-line parameters over as strings).
@@ -185,7 +179,7 @@ int main(int argc, char** argv) {
       all_agree = false;
       continue;
     }
-    const Eigen::Isometry3d tf = toEigen(buffer.lookupTransform(world, tip_frame, ros::Time(0)).transform);
+    const Eigen::Isometry3d tf = tf2::transformToEigen(buffer.lookupTransform(world, tip_frame, ros::Time(0)));
     const double difference = (tf.matrix() - pose.matrix()).cwiseAbs().maxCoeff();
     const bool agree = difference < 1e-6;
     all_agree = all_agree && agree;

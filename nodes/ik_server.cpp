@@ -8,6 +8,7 @@
 #include "bimanual_skills/kinematics/global_ik.hpp"
 
 #include <ros/ros.h>
+#include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
 
 #include <algorithm>
@@ -38,26 +39,6 @@ struct RequestError {
   int code;
   std::string message;
 };
-
-Eigen::Isometry3d toEigen(const geometry_msgs::Transform& t) {
-  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.translation() << t.translation.x, t.translation.y, t.translation.z;
-  out.linear() = Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z).toRotationMatrix();
-  return out;
-}
-
-geometry_msgs::Pose toPose(const Eigen::Isometry3d& T) {
-  geometry_msgs::Pose pose;
-  pose.position.x = T.translation().x();
-  pose.position.y = T.translation().y();
-  pose.position.z = T.translation().z();
-  const Eigen::Quaterniond q(T.linear());
-  pose.orientation.x = q.x();
-  pose.orientation.y = q.y();
-  pose.orientation.z = q.z();
-  pose.orientation.w = q.w();
-  return pose;
-}
 
 /// Pose message to a rigid transform; rejects NaN/Inf and zero or unnormalised quaternions (|‖q‖ − 1| > 1e-3).
 Eigen::Isometry3d checkedPose(const geometry_msgs::Pose& pose, int invalid_code) {
@@ -179,7 +160,8 @@ class ArmServices {
   Eigen::Isometry3d baseFrom(const std::string& frame) const {
     if (frame.empty() || frame == base_) return Eigen::Isometry3d::Identity();
     try {
-      return toEigen(tf_.lookupTransform(base_, frame, ros::Time(0), ros::Duration(settings_.tf_timeout)).transform);
+      return tf2::transformToEigen(
+          tf_.lookupTransform(base_, frame, ros::Time(0), ros::Duration(settings_.tf_timeout)));
     } catch (const tf2::TransformException& e) {
       throw RequestError{SolveIk::Response::FRAME_TRANSFORM_FAILURE,
                          "no transform from '" + frame + "' to '" + base_ + "': " + e.what()};
@@ -280,7 +262,7 @@ class ArmServices {
       const std::string frame = request.frame_id.empty() ? base_ : request.frame_id;
       response.pose.header.frame_id = frame;
       response.pose.header.stamp = ros::Time::now();
-      response.pose.pose = toPose(baseFrom(frame).inverse() * data.tipPose());
+      response.pose.pose = tf2::toMsg(Eigen::Isometry3d(baseFrom(frame).inverse() * data.tipPose()));
       response.error_code = SolveFk::Response::SUCCESS;
       response.message = "pose of '" + tip + "' in '" + frame + "'";
     } catch (const RequestError& error) {

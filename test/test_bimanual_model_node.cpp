@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
+#include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
 
 #include <string>
@@ -11,16 +12,7 @@
 
 namespace bk = bimanual_skills::kinematics;
 
-namespace {
-
-Eigen::Isometry3d toEigen(const geometry_msgs::Transform& t) {
-  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.translation() << t.translation.x, t.translation.y, t.translation.z;
-  out.linear() = Eigen::Quaterniond(t.rotation.w, t.rotation.x, t.rotation.y, t.rotation.z).toRotationMatrix();
-  return out;
-}
-
-}  // namespace
+namespace {}  // namespace
 
 TEST(BimanualModel, JointStatesCarryBothArmsCommandedConfigurations) {
   const auto msg = ros::topic::waitForMessage<sensor_msgs::JointState>("joint_states", ros::Duration(20.0));
@@ -48,10 +40,12 @@ TEST(BimanualModel, PublishedTransformsEqualCoreForwardKinematics) {
               bk::KinematicsStatus::Success);
     std::string error;
     ASSERT_TRUE(buffer.canTransform("world", arm + "_wam_tool", ros::Time(0), ros::Duration(20.0), &error)) << error;
-    const Eigen::Isometry3d tf = toEigen(buffer.lookupTransform("world", arm + "_wam_tool", ros::Time(0)).transform);
+    const Eigen::Isometry3d tf =
+        tf2::transformToEigen(buffer.lookupTransform("world", arm + "_wam_tool", ros::Time(0)));
     EXPECT_LE((tf.matrix() - data.tipPose().matrix()).cwiseAbs().maxCoeff(), 1e-9) << arm;
     // Each arm's mounting plate stands where config/bimanual.yaml puts it.
-    const Eigen::Isometry3d base = toEigen(buffer.lookupTransform("world", arm + "_wam_base", ros::Time(0)).transform);
+    const Eigen::Isometry3d base =
+        tf2::transformToEigen(buffer.lookupTransform("world", arm + "_wam_base", ros::Time(0)));
     EXPECT_NEAR(base.translation().y(), arm == "left" ? 0.4 : -0.4, 1e-12);
   }
 }

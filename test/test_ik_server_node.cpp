@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 #include <ros/ros.h>
+#include <tf2_eigen/tf2_eigen.h>
 
 #include <atomic>
 #include <chrono>
@@ -44,14 +45,7 @@ Eigen::VectorXd randomWithinLimits(const bk::ChainModel& model, std::mt19937& rn
 geometry_msgs::PoseStamped poseMsg(const Eigen::Isometry3d& T, const std::string& frame) {
   geometry_msgs::PoseStamped msg;
   msg.header.frame_id = frame;
-  msg.pose.position.x = T.translation().x();
-  msg.pose.position.y = T.translation().y();
-  msg.pose.position.z = T.translation().z();
-  const Eigen::Quaterniond q(T.linear());
-  msg.pose.orientation.x = q.x();
-  msg.pose.orientation.y = q.y();
-  msg.pose.orientation.z = q.z();
-  msg.pose.orientation.w = q.w();
+  msg.pose = tf2::toMsg(T);
   return msg;
 }
 
