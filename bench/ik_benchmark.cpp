@@ -6,6 +6,7 @@
 // Writes DIR/summary.json (one object per solver x setting), DIR/<experiment>.csv (one row per sample, written as
 // samples complete), then runs scripts/plot_ik_benchmark.py for the PNG plots and DIR/tables.md.
 #include "bimanual_skills/kinematics/global_ik.hpp"
+#include "experiment_cli.hpp"
 
 #include <kdl/chainfksolverpos_recursive.hpp>
 #include <kdl/chainiksolverpos_lma.hpp>
@@ -37,51 +38,7 @@ namespace {
 const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
 const std::string kWamUrdf = kSourceDir + "/urdf/wam.urdf";
 
-struct Options {
-  std::string experiment;
-  std::string out;
-  std::uint32_t seed = 1;
-  bool quick = false;
-};
-
-[[noreturn]] void usage(const std::string& error) {
-  std::cerr << "ik_benchmark: " << error << "\n"
-            << "usage: ik_benchmark --experiment table34|table35|fig35|fig32|fig33|tracik|all --seed S --out DIR "
-               "[--quick]\n";
-  std::exit(2);
-}
-
-Options parse(int argc, char** argv) {
-  Options options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    const auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usage(arg + " needs a value");
-      return argv[++i];
-    };
-    if (arg == "--experiment") {
-      options.experiment = value();
-    } else if (arg == "--out") {
-      options.out = value();
-    } else if (arg == "--seed") {
-      const std::string text = value();
-      char* end = nullptr;
-      const unsigned long seed = std::strtoul(text.c_str(), &end, 10);
-      if (text.empty() || *end != '\0' || seed > 0xffffffffUL) usage("--seed must be a non-negative integer");
-      options.seed = static_cast<std::uint32_t>(seed);
-    } else if (arg == "--quick") {
-      options.quick = true;
-    } else {
-      usage("unknown argument '" + arg + "'");
-    }
-  }
-  const std::vector<std::string> known = {"table34", "table35", "fig35", "fig32", "fig33", "tracik", "all"};
-  if (std::find(known.begin(), known.end(), options.experiment) == known.end()) {
-    usage("--experiment must be one of table34, table35, fig35, fig32, fig33, tracik, all");
-  }
-  if (options.out.empty()) usage("--out DIR is required");
-  return options;
-}
+using Options = bimanual_skills::bench::ExperimentOptions;
 
 /// One row of summary.json.
 struct Summary {
@@ -492,7 +449,8 @@ void writeSummary(const Options& options, const std::vector<Summary>& rows) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const Options options = parse(argc, argv);
+  const Options options = bimanual_skills::bench::parseExperimentOptions(
+      argc, argv, "ik_benchmark", {"table34", "table35", "fig35", "fig32", "fig33", "tracik", "all"}, false);
   try {
     std::filesystem::create_directories(options.out);
     std::printf("ik_benchmark: experiment %s, seed %u%s, output %s\n", options.experiment.c_str(), options.seed,
@@ -510,12 +468,10 @@ int main(int argc, char** argv) {
     }
     if (wants("tracik")) tracik(options, rows);
     writeSummary(options, rows);
-    const std::string plot = "/usr/bin/python3 " + kSourceDir + "/scripts/plot_ik_benchmark.py " + options.out;
-    if (std::system(plot.c_str()) != 0) {
-      std::fprintf(stderr, "ik_benchmark: plotting failed (%s); CSV and summary.json are written\n", plot.c_str());
+    if (!bimanual_skills::bench::runPlotScript("ik_benchmark", kSourceDir + "/scripts/plot_ik_benchmark.py",
+                                               options.out)) {
       return 1;
     }
-    std::printf("ik_benchmark: wrote %s/summary.json, CSV, PNG and tables.md\n", options.out.c_str());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "ik_benchmark: %s\n", e.what());
     return 1;

@@ -1,5 +1,5 @@
-// Smoke test of the experiment programs in --quick mode: they run, write summary.json with every field, CSV, PNG
-// and tables.md, and reject bad arguments with exit code 2. No assertion on time.
+// Smoke test of the experiment programs (ik_benchmark, ps_benchmark) in --quick mode: they run, write summary.json with
+// every field, CSV, PNG and tables.md, and reject bad arguments with exit code 2. No assertion on time.
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -51,4 +51,32 @@ TEST(IkBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(run(program + " --experiment table34 --seed -4 --out /tmp/x"), 2);
   EXPECT_EQ(run(program + " --experiment table34 --seed 1"), 2);
   EXPECT_EQ(run(program + " --experiment table34 --seed 1 --out /tmp/x --fast"), 2);
+}
+
+TEST(PsBenchmarkSmoke, QuickRunWritesEveryOutput) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_ps_benchmark_smoke";
+  fs::remove_all(out);
+  ASSERT_EQ(run(std::string(PS_BENCHMARK) + " --experiment all --runs 2 --seed 3 --quick --out " + out.string()), 0);
+  const std::string summary = readFile(out / "summary.json");
+  for (const char* field : {"\"algorithm\": \"REPS\"", "\"algorithm\": \"DREPS\"", "\"algorithm\": \"nDREPS\"",
+                            "\"algorithm\": \"PI2-CMA\"", "\"runs\": 2", "\"satisfactory_runs\"",
+                            "\"mean_unsatisfactory_reward\"", "\"plateau_runs\"", "\"seed\": 3"}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field;
+  }
+  for (const char* experiment : {"multimodal2d", "bottles", "circle", "pi2viapoint"}) {
+    for (const char* extension : {".csv", ".png"}) {
+      const fs::path file = out / (std::string(experiment) + extension);
+      EXPECT_TRUE(fs::exists(file) && fs::file_size(file) > 0) << file;
+    }
+  }
+  EXPECT_TRUE(fs::exists(out / "tables.md"));
+  fs::remove_all(out);
+}
+
+TEST(PsBenchmarkSmoke, BadArgumentsAreRejected) {
+  const std::string program = PS_BENCHMARK;
+  EXPECT_EQ(run(program + " --experiment nope --runs 2 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(run(program + " --experiment bottles --runs 0 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(run(program + " --experiment bottles --runs -3 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(run(program + " --experiment bottles --seed 1"), 2);
 }

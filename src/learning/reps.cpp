@@ -1,33 +1,72 @@
 #include "bimanual_skills/learning/reps.hpp"
 
+#include <Eigen/Cholesky>
 #include <nlopt.hpp>
 
 #include <cmath>
 #include <stdexcept>
-#include <vector>
+#include <string>
+#include <tuple>
 
 namespace bimanual_skills::learning {
 namespace {
 
-/// Dual (6.15) and its derivative, with the maximum reward factored out of the exponentials for stability:
-/// h(η) = η ε + r_max + η log((1/N) Σ exp((r_k − r_max)/η)),
-/// h'(η) = ε + log((1/N) Σ e_k) − Σ e_k (r_k − r_max) / (η Σ e_k),  e_k = exp((r_k − r_max)/η).
+/// The dual (6.12) written in κ = η + ω − ν instead of η (κ > 0 by its bounds, so the exponentials stay finite;
+/// η = κ + ν − ω ≥ 0 is the one linear constraint), with the largest exponent factored out for stability:
+///   h = (κ + ν − ω) ε + Σ_high ω_i χ − Σ_low ν_i ξ + a_max + κ log((1/N) Σ_k e_k),  e_k = exp((a_k − a_max)/κ),
+///   ∂h/∂κ = ε + log((1/N) Σ e_k) − Σ_k p_k (a_k − a_max)/κ,
+///   ∂h/∂ν_i = ε − ξ − E_p[log g_i − log q],  ∂h/∂ω_i = χ − ε + E_p[log g_i − log q],  p_k = e_k / Σ e.
+/// With no constraints, κ = η and this is the REPS dual (6.15).
 struct Dual {
   const Eigen::VectorXd* rewards;
   double epsilon;
+  const Eigen::VectorXd* log_q;
+  const std::vector<DualConstraint>* constraints;
+  Eigen::VectorXd a, e;
 };
 
 double dual(unsigned n, const double* x, double* gradient, void* data) {
   (void)n;
-  const auto* d = static_cast<const Dual*>(data);
-  const double eta = x[0];
-  const double r_max = d->rewards->maxCoeff();
-  const Eigen::ArrayXd shifted = d->rewards->array() - r_max;
-  const Eigen::ArrayXd e = (shifted / eta).exp();
-  const double sum = e.sum();
-  const double count = static_cast<double>(d->rewards->size());
-  const double value = eta * d->epsilon + r_max + eta * std::log(sum / count);
-  if (gradient != nullptr) gradient[0] = d->epsilon + std::log(sum / count) - (e * shifted).sum() / (eta * sum);
+  auto* d = static_cast<Dual*>(data);
+  const double kappa = x[0];
+  double repulsion = 0.0, attraction = 0.0, bounds = 0.0;
+  d->a = *d->rewards;
+  for (std::size_t i = 0; i < d->constraints->size(); ++i) {
+    const DualConstraint& c = (*d->constraints)[i];
+    const double m = x[1 + i];
+    const double sign = c.attractive ? 1.0 : -1.0;
+    d->a += sign * m * (c.log_density - *d->log_q);
+    (c.attractive ? attraction : repulsion) += m;
+    bounds += sign * m * c.bound;
+  }
+  const double eta = kappa + (repulsion - attraction);
+  const double a_max = d->a.maxCoeff();
+  const Eigen::ArrayXd shifted = d->a.array() - a_max;
+  d->e = (shifted / kappa).exp().matrix();
+  const double sum = d->e.sum();
+  const double count = static_cast<double>(d->a.size());
+  const double value = eta * d->epsilon + bounds + a_max + kappa * std::log(sum / count);
+  if (gradient != nullptr) {
+    gradient[0] = d->epsilon + std::log(sum / count) - (d->e.array() * shifted).sum() / (kappa * sum);
+    for (std::size_t i = 0; i < d->constraints->size(); ++i) {
+      const DualConstraint& c = (*d->constraints)[i];
+      const double expected = d->e.dot(c.log_density - *d->log_q) / sum;
+      gradient[1 + i] = c.attractive ? c.bound - d->epsilon + expected : d->epsilon - c.bound - expected;
+    }
+  }
+  return value;
+}
+
+/// η = κ + ν − ω ≥ 0, as ω − ν − κ ≤ 0.
+double etaNonNegative(unsigned n, const double* x, double* gradient, void* data) {
+  const auto* constraints = static_cast<const std::vector<DualConstraint>*>(data);
+  double value = -x[0];
+  if (gradient != nullptr) gradient[0] = -1.0;
+  for (unsigned i = 1; i < n; ++i) {
+    const double sign = (*constraints)[i - 1].attractive ? 1.0 : -1.0;
+    value += sign * x[i];
+    if (gradient != nullptr) gradient[i] = sign;
+  }
   return value;
 }
 
@@ -39,19 +78,35 @@ void RepsParameters::validate() const {
   }
 }
 
-Reps::Reps(const RepsParameters& parameters) : parameters_(parameters) {
-  parameters_.validate();
-}
-
-Eigen::VectorXd Reps::weights(const Eigen::VectorXd& rewards, double epsilon, double& eta, double& kl) {
-  Dual data{&rewards, epsilon};
+DualSolution solveRepsDual(const Eigen::VectorXd& rewards, double epsilon, const Eigen::VectorXd& log_q,
+                           const std::vector<DualConstraint>& constraints) {
+  for (const DualConstraint& c : constraints) {
+    if (c.log_density.size() != rewards.size() || log_q.size() != rewards.size() || !c.log_density.allFinite() ||
+        !std::isfinite(c.bound) || !(c.minimum_multiplier >= 0.0)) {
+      throw std::invalid_argument("solveRepsDual: every constraint needs one finite log-density per sample (" +
+                                  std::to_string(rewards.size()) + "), a finite bound and a minimum multiplier >= 0");
+    }
+  }
+  if (!constraints.empty() && !log_q.allFinite()) throw std::invalid_argument("solveRepsDual: log q not finite");
+  Dual data{&rewards, epsilon, &log_q, &constraints, {}, {}};
   const double spread = rewards.maxCoeff() - rewards.minCoeff();
-  std::vector<double> x = {spread > 0.0 ? spread : 1.0};
-  if (spread > 0.0) {
-    nlopt::opt optimiser(nlopt::LD_MMA, 1);
-    optimiser.set_lower_bounds(std::vector<double>{1e-10 * spread});
-    optimiser.set_upper_bounds(std::vector<double>{1e10 * spread});
+  const double scale = spread > 0.0 ? spread : 1.0;
+  const auto variables = static_cast<unsigned>(1 + constraints.size());
+  std::vector<double> x(variables, 0.0), lower(variables, 0.0), upper(variables, 1e10 * scale);
+  x[0] = scale;
+  lower[0] = 1e-10 * scale;
+  for (std::size_t i = 0; i < constraints.size(); ++i) {
+    if (!constraints[i].attractive) lower[1 + i] = x[1 + i] = constraints[i].minimum_multiplier;
+  }
+  if (spread > 0.0 || !constraints.empty()) {
+    nlopt::opt optimiser(nlopt::LD_MMA, variables);
+    optimiser.set_lower_bounds(lower);
+    optimiser.set_upper_bounds(upper);
     optimiser.set_min_objective(dual, &data);
+    if (!constraints.empty()) {
+      optimiser.add_inequality_constraint(etaNonNegative, const_cast<std::vector<DualConstraint>*>(&constraints),
+                                          1e-12);
+    }
     optimiser.set_xtol_rel(1e-10);
     optimiser.set_maxeval(1000);
     double value = 0.0;
@@ -61,26 +116,52 @@ Eigen::VectorXd Reps::weights(const Eigen::VectorXd& rewards, double epsilon, do
       // MMA may stop on round-off near the optimum: the last iterate stands.
     }
   }
-  eta = x[0];
-  const Eigen::ArrayXd d = ((rewards.array() - rewards.maxCoeff()) / eta).exp();
-  const Eigen::VectorXd p = (d / d.sum()).matrix();
-  const double n = static_cast<double>(rewards.size());
-  kl = 0.0;
-  for (Eigen::Index k = 0; k < p.size(); ++k) {
-    if (p[k] > 0.0) kl += p[k] * std::log(n * p[k]);
+  DualSolution out;
+  dual(variables, x.data(), nullptr, &data);
+  out.weights = data.e / data.e.sum();
+  out.multipliers = Eigen::Map<const Eigen::VectorXd>(x.data() + 1, static_cast<Eigen::Index>(constraints.size()));
+  double repulsion_minus_attraction = 0.0;
+  for (std::size_t i = 0; i < constraints.size(); ++i) {
+    repulsion_minus_attraction += constraints[i].attractive ? -x[1 + i] : x[1 + i];
   }
-  return p;
+  out.eta = x[0] + repulsion_minus_attraction;
+  const double n = static_cast<double>(rewards.size());
+  for (Eigen::Index k = 0; k < out.weights.size(); ++k) {
+    if (out.weights[k] > 0.0) out.kl += out.weights[k] * std::log(n * out.weights[k]);
+  }
+  return out;
 }
 
-RepsUpdate Reps::update(const Eigen::MatrixXd& samples, const Eigen::VectorXd& rewards) {
+std::pair<Eigen::VectorXd, Eigen::MatrixXd> weightedGaussian(const Eigen::MatrixXd& samples,
+                                                             const Eigen::VectorXd& weights, double regularisation) {
+  Eigen::VectorXd mean = samples.transpose() * weights;
+  const Eigen::MatrixXd centred = samples.rowwise() - mean.transpose();
+  Eigen::MatrixXd covariance = centred.transpose() * weights.asDiagonal() * centred;
+  covariance.diagonal().array() += regularisation;
+  return {std::move(mean), std::move(covariance)};
+}
+
+Eigen::VectorXd gaussianLogDensity(const Eigen::MatrixXd& samples, const Eigen::VectorXd& mean,
+                                   const Eigen::MatrixXd& covariance) {
+  const Eigen::LLT<Eigen::MatrixXd> llt(covariance);
+  if (llt.info() != Eigen::Success || covariance.rows() != mean.size() || samples.cols() != mean.size()) {
+    throw std::invalid_argument("gaussianLogDensity: the covariance must be positive definite, sizes consistent");
+  }
+  const Eigen::MatrixXd whitened = llt.matrixL().solve((samples.rowwise() - mean.transpose()).transpose());
+  const double log_det = 2.0 * llt.matrixL().toDenseMatrix().diagonal().array().log().sum();
+  const double constant = -0.5 * (static_cast<double>(mean.size()) * std::log(2.0 * M_PI) + log_det);
+  return (constant - 0.5 * whitened.colwise().squaredNorm().array()).matrix().transpose();
+}
+
+std::pair<Eigen::MatrixXd, Eigen::VectorXd> RolloutBuffer::gather(const Eigen::MatrixXd& samples,
+                                                                  const Eigen::VectorXd& rewards) const {
   if (samples.rows() != rewards.size() || samples.rows() < 2 || samples.cols() < 1 || !samples.allFinite() ||
       !rewards.allFinite()) {
-    throw std::invalid_argument("Reps::update: need >= 2 finite samples (rows) with one reward each");
+    throw std::invalid_argument("policy update: need >= 2 finite samples (rows) with one finite reward each");
   }
   if (!kept_.empty() && kept_.front().first.size() != samples.cols()) {
-    throw std::invalid_argument("Reps::update: the parameter dimension changed between updates");
+    throw std::invalid_argument("policy update: the parameter dimension changed between updates");
   }
-  // All samples in use: those kept from earlier updates, then this batch.
   const auto kept = static_cast<Eigen::Index>(kept_.size());
   const Eigen::Index n = kept + samples.rows();
   Eigen::MatrixXd theta(n, samples.cols());
@@ -91,20 +172,38 @@ RepsUpdate Reps::update(const Eigen::MatrixXd& samples, const Eigen::VectorXd& r
   }
   theta.bottomRows(samples.rows()) = samples;
   r.tail(samples.rows()) = rewards;
-  if (parameters_.normalise_rewards) {
-    const double spread = r.maxCoeff() - r.minCoeff();
-    r = spread > 0.0 ? Eigen::VectorXd((r.array() - r.minCoeff()) / spread) : Eigen::VectorXd::Zero(n);
-  }
+  return {std::move(theta), std::move(r)};
+}
+
+void RolloutBuffer::keep(const Eigen::MatrixXd& samples, const Eigen::VectorXd& rewards) {
+  for (Eigen::Index k = 0; k < samples.rows(); ++k) kept_.emplace_back(samples.row(k).transpose(), rewards[k]);
+  while (static_cast<int>(kept_.size()) > reuse_) kept_.pop_front();
+}
+
+Eigen::VectorXd normalisedRewards(const Eigen::VectorXd& rewards) {
+  const double spread = rewards.maxCoeff() - rewards.minCoeff();
+  return spread > 0.0 ? Eigen::VectorXd((rewards.array() - rewards.minCoeff()) / spread)
+                      : Eigen::VectorXd::Zero(rewards.size());
+}
+
+Reps::Reps(const RepsParameters& parameters) : parameters_(parameters), buffer_(parameters.reuse) {
+  parameters_.validate();
+}
+
+Eigen::VectorXd Reps::weights(const Eigen::VectorXd& rewards, double epsilon, double& eta, double& kl) {
+  DualSolution solution = solveRepsDual(rewards, epsilon, Eigen::VectorXd(), {});
+  eta = solution.eta;
+  kl = solution.kl;
+  return std::move(solution.weights);
+}
+
+RepsUpdate Reps::update(const Eigen::MatrixXd& samples, const Eigen::VectorXd& rewards) {
+  auto [theta, r] = buffer_.gather(samples, rewards);
+  if (parameters_.normalise_rewards) r = normalisedRewards(r);
   RepsUpdate out;
   out.weights = weights(r, parameters_.epsilon, out.eta, out.kl);
-  // Weighted maximum likelihood of the Gaussian.
-  out.mean = theta.transpose() * out.weights;
-  const Eigen::MatrixXd centred = theta.rowwise() - out.mean.transpose();
-  out.covariance = centred.transpose() * out.weights.asDiagonal() * centred;
-  out.covariance.diagonal().array() += parameters_.covariance_regularisation;
-  // Keep the newest `reuse` rollouts for the next update.
-  for (Eigen::Index k = 0; k < samples.rows(); ++k) kept_.emplace_back(samples.row(k).transpose(), rewards[k]);
-  while (static_cast<int>(kept_.size()) > parameters_.reuse) kept_.pop_front();
+  std::tie(out.mean, out.covariance) = weightedGaussian(theta, out.weights, parameters_.covariance_regularisation);
+  buffer_.keep(samples, rewards);
   return out;
 }
 

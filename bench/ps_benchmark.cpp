@@ -1,0 +1,601 @@
+// The thesis' policy-search experiments (Ch. 6: Figs. 6.5–6.7, 6.10–6.12, 6.14) and the classic PI2 via-point task,
+// as one seeded program.
+//
+//   ps_benchmark --experiment multimodal2d|bottles|circle|pi2viapoint|all --runs R --seed S --out DIR [--quick]
+//
+// Writes DIR/<experiment>.csv (one row per run and update, appended as each run ends), DIR/summary.json, then runs
+// scripts/plot_ps_benchmark.py for the learning-curve PNGs (mean ± 2 std over runs) and DIR/tables.md.
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/learning/dual_reps.hpp"
+#include "bimanual_skills/learning/pi2.hpp"
+#include "bimanual_skills/primitives/dmp.hpp"
+#include "experiment_cli.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <optional>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace bl = bimanual_skills::learning;
+namespace bp = bimanual_skills::primitives;
+namespace bk = bimanual_skills::kinematics;
+
+namespace {
+
+const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
+
+using Options = bimanual_skills::bench::ExperimentOptions;
+
+/// An episodic task: the reward of a parameter vector (higher is better).
+using Reward = std::function<double(const Eigen::VectorXd&)>;
+
+/// A learner: REPS, DREPS variants or PI2 variants, updating N(mean, covariance) from rollouts.
+struct Algorithm {
+  std::string name;
+  std::function<void(std::mt19937&)> reset;  ///< New learner state for a run.
+  /// New policy from this update's samples and rewards (per-step costs for PI2 come through `costs`).
+  std::function<void(Eigen::VectorXd& mean, Eigen::MatrixXd& covariance, const Eigen::MatrixXd& samples,
+                     const Eigen::VectorXd& rewards, const Eigen::MatrixXd& costs)>
+      update;
+};
+
+struct Protocol {
+  int runs = 50;
+  int updates = 50;
+  int rollouts = 50;
+  Eigen::VectorXd mean;
+  Eigen::MatrixXd covariance;
+};
+
+/// One run's learning curve: the reward of the mean policy before the first update and after each one, and the
+/// mean reward of each update's rollouts.
+struct Curve {
+  std::vector<double> policy_reward;
+  std::vector<double> rollout_reward;
+  std::vector<Eigen::VectorXd> means;
+  double seconds = 0.0;
+};
+
+/// Rollouts of every update of one run; per-step costs only when `step_costs` is given (PI2).
+Curve learn(const Protocol& protocol, const Algorithm& algorithm, const Reward& reward, std::mt19937& rng,
+            const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& step_costs = {}) {
+  Curve curve;
+  Eigen::VectorXd mean = protocol.mean;
+  Eigen::MatrixXd covariance = protocol.covariance;
+  std::normal_distribution<double> normal(0.0, 1.0);
+  algorithm.reset(rng);
+  curve.policy_reward.push_back(reward(mean));
+  curve.means.push_back(mean);
+  const auto start = std::chrono::steady_clock::now();
+  for (int u = 0; u < protocol.updates; ++u) {
+    const Eigen::LLT<Eigen::MatrixXd> llt(covariance);
+    const Eigen::MatrixXd L = llt.matrixL();
+    Eigen::MatrixXd samples(protocol.rollouts, mean.size());
+    Eigen::VectorXd rewards(protocol.rollouts);
+    Eigen::MatrixXd costs;
+    for (int k = 0; k < protocol.rollouts; ++k) {
+      Eigen::VectorXd e(mean.size());
+      for (Eigen::Index i = 0; i < e.size(); ++i) e[i] = normal(rng);
+      samples.row(k) = (mean + L * e).transpose();
+      if (step_costs) {
+        const Eigen::VectorXd c = step_costs(samples.row(k).transpose());
+        if (costs.size() == 0) costs.resize(protocol.rollouts, c.size());
+        costs.row(k) = c.transpose();
+        rewards[k] = -c.sum();
+      } else {
+        rewards[k] = reward(samples.row(k).transpose());
+      }
+    }
+    algorithm.update(mean, covariance, samples, rewards, costs);
+    curve.policy_reward.push_back(reward(mean));
+    curve.rollout_reward.push_back(rewards.mean());
+    curve.means.push_back(mean);
+  }
+  curve.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return curve;
+}
+
+Algorithm repsAlgorithm(const std::string& name, const bl::DualRepsParameters& parameters) {
+  auto learner = std::make_shared<std::optional<bl::DualReps>>();
+  return {name, [learner, parameters](std::mt19937&) { learner->emplace(parameters); },
+          [learner](Eigen::VectorXd& mean, Eigen::MatrixXd& covariance, const Eigen::MatrixXd& samples,
+                    const Eigen::VectorXd& rewards, const Eigen::MatrixXd&) {
+            const bl::DualRepsUpdate update = (*learner)->update(mean, covariance, samples, rewards);
+            mean = update.policy.mean;
+            covariance = update.policy.covariance;
+          }};
+}
+
+/// The three algorithms of the thesis' comparisons (Sec. 6.1.3): REPS, nDREPS (3 repulsive clusters, no attractive)
+/// and DREPS (1 attractive, up to 4 repulsive chosen by the 2-cluster split), ξ = 5, χ = 2ε.
+std::vector<Algorithm> repsFamily(double epsilon, int reuse, bool with_ndreps) {
+  bl::DualRepsParameters reps;
+  reps.reps.epsilon = epsilon;
+  reps.reps.reuse = reuse;
+  reps.clusters = 0;
+  bl::DualRepsParameters dreps = reps;
+  dreps.clusters = 5;
+  dreps.max_attractive = 1;
+  dreps.max_repulsive = 4;
+  dreps.split_repulsive = true;
+  dreps.xi = 5.0;
+  dreps.chi = 2.0 * epsilon;
+  std::vector<Algorithm> out = {repsAlgorithm("REPS", reps)};
+  if (with_ndreps) {
+    bl::DualRepsParameters ndreps = dreps;
+    ndreps.clusters = 4;
+    ndreps.max_attractive = 0;
+    ndreps.max_repulsive = 3;
+    ndreps.split_repulsive = false;
+    out.push_back(repsAlgorithm("nDREPS", ndreps));
+  }
+  out.push_back(repsAlgorithm("DREPS", dreps));
+  return out;
+}
+
+/// Row of summary.json: one algorithm of one experiment.
+struct Summary {
+  std::string experiment, algorithm;
+  int runs = 0, updates = 0, rollouts = 0;
+  double final_reward_mean = 0.0, final_reward_std = 0.0, seconds_per_update = 0.0;
+  std::vector<std::pair<std::string, double>> extra;  ///< Experiment-specific fields.
+};
+
+class Writer {
+ public:
+  Writer(const Options& options, const std::string& experiment)
+      : csv_(options.out + "/" + experiment + ".csv"), experiment_(experiment) {
+    csv_ << "experiment,algorithm,run,update,policy_reward,rollout_reward\n";
+  }
+  void add(const std::string& algorithm, int run, const Curve& curve) {
+    for (std::size_t u = 0; u < curve.policy_reward.size(); ++u) {
+      csv_ << experiment_ << ',' << algorithm << ',' << run << ',' << u << ',' << curve.policy_reward[u] << ','
+           << (u > 0 ? curve.rollout_reward[u - 1] : curve.policy_reward[0]) << '\n';
+    }
+    csv_.flush();
+  }
+
+ private:
+  std::ofstream csv_;
+  std::string experiment_;
+};
+
+Summary summarise(const std::string& experiment, const std::string& algorithm, const Protocol& protocol,
+                  const std::vector<Curve>& curves) {
+  Summary s;
+  s.experiment = experiment;
+  s.algorithm = algorithm;
+  s.runs = static_cast<int>(curves.size());
+  s.updates = protocol.updates;
+  s.rollouts = protocol.rollouts;
+  double sum = 0.0, squares = 0.0, seconds = 0.0;
+  for (const Curve& c : curves) {
+    sum += c.policy_reward.back();
+    squares += c.policy_reward.back() * c.policy_reward.back();
+    seconds += c.seconds;
+  }
+  const double n = static_cast<double>(curves.size());
+  s.final_reward_mean = sum / n;
+  s.final_reward_std = std::sqrt(std::max(0.0, squares / n - s.final_reward_mean * s.final_reward_mean));
+  s.seconds_per_update = seconds / (n * protocol.updates);
+  return s;
+}
+
+std::mt19937 runGenerator(const Options& options, const std::string& experiment, int run) {
+  std::seed_seq seq{options.seed, static_cast<std::uint32_t>(std::hash<std::string>{}(experiment)&0xffffffffu),
+                    static_cast<std::uint32_t>(run)};
+  return std::mt19937(seq);
+}
+
+void progress(const std::string& experiment, const std::string& algorithm, int run, int runs, const Curve& curve) {
+  if ((run + 1) % std::max(1, runs / 10) == 0 || run + 1 == runs) {
+    std::printf("  %s %s: run %d/%d, final policy reward %.3f (%.2f s)\n", experiment.c_str(), algorithm.c_str(),
+                run + 1, runs, curve.policy_reward.back(), curve.seconds);
+    std::fflush(stdout);
+  }
+}
+
+/// Every run of one algorithm (each with its own generator, the same for every algorithm): learns, appends the CSV,
+/// prints progress; `each` sees every finished curve.
+std::vector<Curve> runAll(const Options& options, const std::string& experiment, const Protocol& protocol,
+                          const Algorithm& algorithm, const Reward& reward, Writer& writer,
+                          const std::function<void(const Curve&)>& each,
+                          const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& step_costs = {}) {
+  std::vector<Curve> curves;
+  for (int run = 0; run < protocol.runs; ++run) {
+    std::mt19937 rng = runGenerator(options, experiment, run);
+    curves.push_back(learn(protocol, algorithm, reward, rng, step_costs));
+    writer.add(algorithm.name, run, curves.back());
+    progress(experiment, algorithm.name, run, protocol.runs, curves.back());
+    each(curves.back());
+  }
+  return curves;
+}
+
+// ---- multimodal2d: the 3-optimum reward (6.16) ----
+
+void multimodal2d(const Options& options, std::vector<Summary>& out) {
+  // Three optima around the initial mean (their centroid is the origin, the worst point).
+  const std::vector<Eigen::Vector2d> psi = {{2.0, 1.0}, {-2.0, 1.0}, {0.0, -2.0}};
+  const Eigen::Vector2d centroid = (psi[0] + psi[1] + psi[2]) / 3.0;
+  const Reward reward = [&](const Eigen::VectorXd& theta) {
+    const Eigen::Vector2d t = theta.head<2>();
+    double r = 10.0 * (centroid - t).norm();
+    for (const auto& p : psi) r -= 5.0 * (p - t).norm();
+    return r;
+  };
+  double best = -1e300;
+  for (const auto& p : psi) best = std::max(best, reward(p));
+  const double threshold = best - 0.5;
+  Protocol protocol;
+  protocol.runs = options.runs > 0 ? options.runs : (options.quick ? 3 : 50);
+  protocol.updates = options.quick ? 8 : 40;
+  protocol.rollouts = 100;
+  protocol.mean = Eigen::VectorXd::Zero(2);
+  protocol.covariance = Eigen::MatrixXd::Identity(2, 2);
+  Writer writer(options, "multimodal2d");
+  for (const Algorithm& algorithm : repsFamily(0.5, 400, true)) {
+    int plateau_runs = 0, reached = 0;
+    double updates_to_threshold = 0.0;
+    const auto each = [&](const Curve& c) {
+      // Plateau: the mean stays >= 3 updates between two optima (> 0.5 from each of its two nearest, whose
+      // distances differ by < 50 %) before the reward threshold is reached.
+      int between = 0, longest = 0;
+      for (std::size_t u = 0; u < c.means.size(); ++u) {
+        if (c.policy_reward[u] >= threshold) {
+          reached += 1;
+          updates_to_threshold += static_cast<double>(u);
+          break;
+        }
+        std::vector<double> d;
+        for (const auto& p : psi) d.push_back((c.means[u].head<2>() - p).norm());
+        std::sort(d.begin(), d.end());
+        between = (d[0] > 0.5 && d[1] < 1.5 * d[0]) ? between + 1 : 0;
+        longest = std::max(longest, between);
+      }
+      if (longest >= 3) ++plateau_runs;
+    };
+    const std::vector<Curve> curves = runAll(options, "multimodal2d", protocol, algorithm, reward, writer, each);
+    Summary s = summarise("multimodal2d", algorithm.name, protocol, curves);
+    s.extra = {{"plateau_runs", plateau_runs},
+               {"runs_reaching_threshold", reached},
+               {"reward_threshold", threshold},
+               {"mean_updates_to_threshold", reached > 0 ? updates_to_threshold / reached : -1.0}};
+    out.push_back(s);
+  }
+}
+
+// ---- DMP helpers for the trajectory tasks ----
+
+/// A DMP fitted to `demonstration` and the means of its weights as a parameter vector (DoF-major).
+struct DmpTask {
+  bp::Dmp dmp;
+  double dt;
+  int steps;
+
+  Eigen::VectorXd parameters() const {
+    const Eigen::MatrixXd& w = dmp.weights();
+    Eigen::VectorXd theta(w.size());
+    for (Eigen::Index d = 0; d < w.rows(); ++d) theta.segment(d * w.cols(), w.cols()) = w.row(d).transpose();
+    return theta;
+  }
+  /// Positions (steps + 1 × DoF) and accelerations of the DMP with parameters θ.
+  void rollout(const Eigen::VectorXd& theta, Eigen::MatrixXd& y, Eigen::MatrixXd& ydd) const {
+    const Eigen::Index dofs = dmp.dofs(), kernels = dmp.parameters().kernels;
+    Eigen::MatrixXd w(dofs, kernels);
+    for (Eigen::Index d = 0; d < dofs; ++d) w.row(d) = theta.segment(d * kernels, kernels).transpose();
+    const bp::Dmp sample = dmp.withWeights(w);
+    bp::DmpState state = sample.initialState();
+    y.resize(steps + 1, dofs);
+    ydd.resize(steps + 1, dofs);
+    y.row(0) = state.y.transpose();
+    ydd.row(0).setZero();
+    for (int i = 1; i <= steps; ++i) {
+      sample.step(state, dt);
+      y.row(i) = state.y.transpose();
+      ydd.row(i) = state.ydd.transpose();
+    }
+  }
+};
+
+DmpTask fitDmp(const Eigen::MatrixXd& demonstration, double dt, int kernels) {
+  bp::DmpParameters parameters;
+  parameters.kernels = kernels;
+  return {bp::Dmp::fit(parameters, demonstration, dt), dt, static_cast<int>(demonstration.rows()) - 1};
+}
+
+// ---- bottles: the planar bottle-avoidance task (Figs. 6.8–6.12, rewards 6.17 and 6.18) ----
+
+struct Bottles {
+  std::vector<Eigen::Vector2d> centres = {{0.3, 0.0}, {0.7, 0.0}};
+  double radius = 0.08;  ///< 4 cm bottle radius widened by a 4 cm tool.
+  bool crossing_term = true;
+
+  /// (6.18) (or 6.17 without the crossing term) of a planar path; `satisfactory`: between the bottles, none down.
+  double reward(const Eigen::MatrixXd& y, bool* satisfactory = nullptr) const {
+    double length = 0.0;
+    for (Eigen::Index i = 1; i < y.rows(); ++i) length += (y.row(i) - y.row(i - 1)).norm();
+    int down = 0;
+    std::vector<double> side;
+    for (const auto& c : centres) {
+      double nearest = 1e300;
+      double side_at = 0.0;
+      bool passed = false;
+      for (Eigen::Index i = 0; i < y.rows(); ++i) {
+        const Eigen::Vector2d p = y.row(i).transpose();
+        nearest = std::min(nearest, segmentDistance(y, i, c));
+        if (!passed && p.x() >= c.x()) {
+          side_at = p.y();
+          passed = true;
+        }
+      }
+      if (nearest < radius) ++down;
+      side.push_back(side_at);
+    }
+    const bool crossed = side[0] * side[1] < 0.0;
+    if (satisfactory != nullptr) *satisfactory = down == 0 && crossed;
+    return -2.0 * down - 0.15 * length - (crossing_term && !crossed ? 4.0 : 0.0);
+  }
+
+ private:
+  /// Distance from c to the path segment ending at sample i.
+  static double segmentDistance(const Eigen::MatrixXd& y, Eigen::Index i, const Eigen::Vector2d& c) {
+    const Eigen::Vector2d b = y.row(i).transpose();
+    if (i == 0) return (b - c).norm();
+    const Eigen::Vector2d a = y.row(i - 1).transpose();
+    const Eigen::Vector2d ab = b - a;
+    const double t = ab.squaredNorm() > 0.0 ? std::clamp((c - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+    return (a + t * ab - c).norm();
+  }
+};
+
+void bottles(const Options& options, std::vector<Summary>& out) {
+  // The initial policy: a DMP with 10 Gaussians per DoF fitted to the straight line from start to goal
+  // (minimum-jerk timing, 1 s at 100 Hz).
+  const double dt = 0.01;
+  const int samples = 101;
+  Eigen::MatrixXd line(samples, 2);
+  for (int i = 0; i < samples; ++i) {
+    const double s = static_cast<double>(i) / (samples - 1);
+    line(i, 0) = 1.0 * (10 * std::pow(s, 3) - 15 * std::pow(s, 4) + 6 * std::pow(s, 5));
+    line(i, 1) = 0.0;
+  }
+  const DmpTask task = fitDmp(line, dt, 10);
+  const Bottles world;
+  Eigen::MatrixXd y, ydd;
+  const Reward reward = [&](const Eigen::VectorXd& theta) {
+    task.rollout(theta, y, ydd);
+    return world.reward(y);
+  };
+  Protocol protocol;
+  protocol.runs = options.runs > 0 ? options.runs : (options.quick ? 3 : 50);
+  protocol.updates = options.quick ? 10 : 100;
+  protocol.rollouts = 50;
+  protocol.mean = task.parameters();
+  protocol.covariance = Eigen::MatrixXd::Identity(20, 20) * 60.0 * 60.0;
+  Writer writer(options, "bottles");
+  for (const Algorithm& algorithm : repsFamily(0.5, 200, false)) {
+    int satisfactory_runs = 0;
+    double unsatisfactory_sum = 0.0;
+    const auto each = [&](const Curve& c) {
+      bool satisfactory = false;
+      task.rollout(c.means.back(), y, ydd);
+      const double final_reward = world.reward(y, &satisfactory);
+      if (satisfactory) {
+        ++satisfactory_runs;
+      } else {
+        unsatisfactory_sum += final_reward;
+      }
+    };
+    const std::vector<Curve> curves = runAll(options, "bottles", protocol, algorithm, reward, writer, each);
+    Summary s = summarise("bottles", algorithm.name, protocol, curves);
+    const int unsatisfactory = protocol.runs - satisfactory_runs;
+    s.extra = {{"satisfactory_runs", satisfactory_runs},
+               {"mean_unsatisfactory_reward", unsatisfactory > 0 ? unsatisfactory_sum / unsatisfactory : 0.0}};
+    out.push_back(s);
+  }
+}
+
+// ---- circle: a unimodal 7-DoF task with the WAM's kinematics (Fig. 6.14) ----
+
+void circle(const Options& options, std::vector<Summary>& out) {
+  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool");
+  bk::ChainData data(model);
+  // An inaccurate "kinesthetic" demonstration: a joint-space ellipse around a nominal posture, with noise; the task
+  // is to make the tool trace the circle that best fits the demonstration's tool path.
+  const double duration = 20.0, dt = 0.04;
+  const int samples = static_cast<int>(duration / dt) + 1;
+  Eigen::VectorXd q0(7), a(7), b(7);
+  q0 << 0.0, 0.6, 0.0, 1.6, 0.0, 0.4, 0.0;
+  a << 0.25, 0.0, 0.1, 0.15, 0.0, 0.1, 0.0;
+  b << 0.0, 0.2, 0.0, -0.2, 0.1, 0.0, 0.0;
+  std::mt19937 demo_rng(options.seed);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  Eigen::MatrixXd demonstration(samples, 7);
+  for (int i = 0; i < samples; ++i) {
+    const double phase = 2.0 * M_PI * i / (samples - 1);
+    for (int j = 0; j < 7; ++j) demonstration(i, j) = q0[j] + a[j] * std::sin(phase) + b[j] * (1.0 - std::cos(phase));
+    if (i > 0 && i < samples - 1) {
+      for (int j = 0; j < 7; ++j) demonstration(i, j) += noise(demo_rng);
+    }
+  }
+  const DmpTask task = fitDmp(demonstration, dt, 12);
+  // Best-fit circle of the demonstrated tool path: plane by SVD, circle in the plane by the algebraic (Kåsa) fit.
+  Eigen::MatrixXd tool(samples, 3);
+  for (int i = 0; i < samples; ++i) {
+    if (bk::forwardKinematics(model, data, demonstration.row(i).transpose()) != bk::KinematicsStatus::Success) {
+      throw std::runtime_error("circle: forward kinematics failed on the demonstration");
+    }
+    tool.row(i) = data.tipPose().translation().transpose();
+  }
+  const Eigen::Vector3d centroid = tool.colwise().mean().transpose();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(tool.rowwise() - centroid.transpose(), Eigen::ComputeThinV);
+  const Eigen::Vector3d u = svd.matrixV().col(0), v = svd.matrixV().col(1);
+  Eigen::MatrixXd A(samples, 3);
+  Eigen::VectorXd rhs(samples);
+  for (int i = 0; i < samples; ++i) {
+    const Eigen::Vector3d p = tool.row(i).transpose() - centroid;
+    const double x = p.dot(u), z = p.dot(v);
+    A.row(i) << x, z, 1.0;
+    rhs[i] = x * x + z * z;
+  }
+  const Eigen::Vector3d fit = A.colPivHouseholderQr().solve(rhs);
+  const Eigen::Vector3d centre = centroid + 0.5 * fit[0] * u + 0.5 * fit[1] * v;
+  const double radius = std::sqrt(fit[2] + 0.25 * (fit[0] * fit[0] + fit[1] * fit[1]));
+  const Eigen::Vector3d normal = u.cross(v);
+  Eigen::MatrixXd y, ydd;
+  // Reward: −(mean distance of the tool from the circle [mm] + 1e-3 · mean squared joint acceleration).
+  const Reward reward = [&](const Eigen::VectorXd& theta) {
+    task.rollout(theta, y, ydd);
+    double distance = 0.0;
+    for (Eigen::Index i = 0; i < y.rows(); ++i) {
+      if (bk::forwardKinematics(model, data, y.row(i).transpose()) != bk::KinematicsStatus::Success) return -1e9;
+      const Eigen::Vector3d p = data.tipPose().translation() - centre;
+      const Eigen::Vector3d in_plane = p - p.dot(normal) * normal;
+      distance += std::hypot(p.dot(normal), in_plane.norm() - radius);
+    }
+    return -(1000.0 * distance / static_cast<double>(y.rows()) +
+             1e-3 * ydd.squaredNorm() / static_cast<double>(y.rows()));
+  };
+  Protocol protocol;
+  protocol.runs = options.runs > 0 ? options.runs : (options.quick ? 2 : 20);
+  protocol.updates = options.quick ? 5 : 50;
+  protocol.rollouts = 50;
+  protocol.mean = task.parameters();
+  protocol.covariance = Eigen::MatrixXd::Identity(84, 84) * 2.0 * 2.0;
+  Writer writer(options, "circle");
+  for (const Algorithm& algorithm : repsFamily(0.5, 100, false)) {
+    const std::vector<Curve> curves =
+        runAll(options, "circle", protocol, algorithm, reward, writer, [](const Curve&) {});
+    Summary s = summarise("circle", algorithm.name, protocol, curves);
+    s.extra = {{"initial_reward", curves.front().policy_reward.front()}, {"circle_radius_m", radius}};
+    out.push_back(s);
+  }
+}
+
+// ---- pi2viapoint: a 1-D DMP through a via-point, PI2 vs PI2-CMA vs REPS ----
+
+void pi2viapoint(const Options& options, std::vector<Summary>& out) {
+  const double dt = 0.01, t_via = 0.3, y_via = 0.5;
+  const int samples = 101;
+  Eigen::MatrixXd demonstration(samples, 1);
+  for (int i = 0; i < samples; ++i) {
+    const double s = static_cast<double>(i) / (samples - 1);
+    demonstration(i, 0) = 10 * std::pow(s, 3) - 15 * std::pow(s, 4) + 6 * std::pow(s, 5);
+  }
+  const DmpTask task = fitDmp(demonstration, dt, 10);
+  const int via_step = static_cast<int>(std::lround(t_via / dt));
+  // Basis activations per step, for PI2's projection (5.8).
+  Eigen::MatrixXd basis(task.steps, task.dmp.parameters().kernels);
+  {
+    bp::DmpState state = task.dmp.initialState();
+    for (int i = 0; i < task.steps; ++i) {
+      Eigen::VectorXd g(basis.cols());
+      task.dmp.basis(state.x, g);
+      basis.row(i) = g.transpose();
+      task.dmp.step(state, dt);
+    }
+  }
+  Eigen::MatrixXd y, ydd;
+  // Immediate cost 1e-6 ÿ² per step, and 1e4 (y − y_via)² at the via-point's step (Stulp's classic via-point task).
+  const auto step_costs = [&](const Eigen::VectorXd& theta) {
+    task.rollout(theta, y, ydd);
+    Eigen::VectorXd c = 1e-6 * ydd.col(0).tail(task.steps).array().square().matrix();
+    c[via_step - 1] += 1e4 * std::pow(y(via_step, 0) - y_via, 2);
+    return c;
+  };
+  const Reward reward = [&](const Eigen::VectorXd& theta) { return -step_costs(theta).sum(); };
+  Protocol protocol;
+  protocol.runs = options.runs > 0 ? options.runs : (options.quick ? 3 : 20);
+  protocol.updates = options.quick ? 10 : 60;
+  protocol.rollouts = 10;
+  protocol.mean = task.parameters();
+  protocol.covariance = Eigen::MatrixXd::Identity(10, 10) * 30.0 * 30.0;
+  std::vector<Algorithm> algorithms;
+  for (const bool cma : {false, true}) {
+    bl::Pi2Parameters parameters;
+    parameters.covariance_adaptation = cma;
+    algorithms.push_back(
+        {cma ? "PI2-CMA" : "PI2", [](std::mt19937&) {},
+         [parameters, &basis](Eigen::VectorXd& mean, Eigen::MatrixXd& covariance, const Eigen::MatrixXd& samples,
+                              const Eigen::VectorXd&, const Eigen::MatrixXd& costs) {
+           const bl::Pi2Update update = bl::pi2Update(parameters, mean, covariance, samples, costs, basis);
+           mean = update.mean;
+           covariance = update.covariance;
+         }});
+  }
+  algorithms.push_back(repsFamily(0.5, 40, false).front());
+  Writer writer(options, "pi2viapoint");
+  for (const Algorithm& algorithm : algorithms) {
+    double via_error = 0.0;
+    const auto each = [&](const Curve& c) {
+      task.rollout(c.means.back(), y, ydd);
+      via_error += std::abs(y(via_step, 0) - y_via);
+    };
+    const std::vector<Curve> curves =
+        runAll(options, "pi2viapoint", protocol, algorithm, reward, writer, each, step_costs);
+    Summary s = summarise("pi2viapoint", algorithm.name, protocol, curves);
+    s.extra = {{"initial_reward", curves.front().policy_reward.front()},
+               {"mean_final_via_point_error", via_error / protocol.runs}};
+    out.push_back(s);
+  }
+}
+
+void writeSummary(const Options& options, const std::vector<Summary>& rows) {
+  std::ofstream json(options.out + "/summary.json");
+  json.precision(10);
+  json << "{\n  \"program\": \"ps_benchmark\",\n  \"experiment\": \"" << options.experiment
+       << "\",\n  \"seed\": " << options.seed << ",\n  \"quick\": " << (options.quick ? "true" : "false")
+       << ",\n  \"results\": [\n";
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const Summary& r = rows[i];
+    json << "    {\"experiment\": \"" << r.experiment << "\", \"algorithm\": \"" << r.algorithm
+         << "\", \"runs\": " << r.runs << ", \"updates\": " << r.updates << ", \"rollouts_per_update\": " << r.rollouts
+         << ", \"final_reward_mean\": " << r.final_reward_mean << ", \"final_reward_std\": " << r.final_reward_std
+         << ", \"seconds_per_update\": " << r.seconds_per_update;
+    for (const auto& [key, value] : r.extra) json << ", \"" << key << "\": " << value;
+    json << "}" << (i + 1 < rows.size() ? "," : "") << "\n";
+  }
+  json << "  ]\n}\n";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Options options = bimanual_skills::bench::parseExperimentOptions(
+      argc, argv, "ps_benchmark", {"multimodal2d", "bottles", "circle", "pi2viapoint", "all"}, true);
+  try {
+    std::filesystem::create_directories(options.out);
+    std::printf("ps_benchmark: experiment %s, seed %u%s, output %s\n", options.experiment.c_str(), options.seed,
+                options.quick ? " (quick)" : "", options.out.c_str());
+    std::vector<Summary> rows;
+    const auto wants = [&](const char* name) { return options.experiment == "all" || options.experiment == name; };
+    if (wants("multimodal2d")) multimodal2d(options, rows);
+    if (wants("bottles")) bottles(options, rows);
+    if (wants("circle")) circle(options, rows);
+    if (wants("pi2viapoint")) pi2viapoint(options, rows);
+    writeSummary(options, rows);
+    if (!bimanual_skills::bench::runPlotScript("ps_benchmark", kSourceDir + "/scripts/plot_ps_benchmark.py",
+                                               options.out)) {
+      return 1;
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "ps_benchmark: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,113 @@
+#!/usr/bin/env python3
+"""Learning curves and markdown tables for ps_benchmark output: reads DIR/*.csv and DIR/summary.json, writes
+DIR/<experiment>.png (reward of the mean policy per update, mean ± 2 std over runs, per algorithm) and DIR/tables.md
+(measured figures next to the thesis' Sec. 6.1.3 numbers).
+
+Usage: plot_ps_benchmark.py DIR
+"""
+import csv
+import json
+import math
+import os
+import sys
+from collections import defaultdict
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+TITLES = {
+    "multimodal2d": "Multimodal 2-D reward (6.16), 100 rollouts/update (cf. Fig. 6.7)",
+    "bottles": "Bottle avoidance, reward (6.18), 50 rollouts/update (cf. Fig. 6.12)",
+    "circle": "Circle with a 7-DoF WAM DMP, 50 rollouts/update (cf. Fig. 6.14)",
+    "pi2viapoint": "1-D DMP via-point task, 10 rollouts/update",
+}
+# Thesis Sec. 6.1.3, bottle task with (6.18): satisfactory runs of 50 and mean reward of the others.
+THESIS_BOTTLES = {"REPS": (35, -4.12), "DREPS": (47, -2.80)}
+
+
+def curves(path):
+    by = defaultdict(lambda: defaultdict(dict))
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            by[row["algorithm"]][int(row["run"])][int(row["update"])] = float(row["policy_reward"])
+    return by
+
+
+def plot(directory, experiment):
+    path = os.path.join(directory, experiment + ".csv")
+    if not os.path.exists(path):
+        return
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for algorithm, runs in curves(path).items():
+        updates = sorted(next(iter(runs.values())).keys())
+        mean, std = [], []
+        for u in updates:
+            values = [run[u] for run in runs.values() if u in run]
+            m = sum(values) / len(values)
+            mean.append(m)
+            std.append(math.sqrt(sum((v - m) ** 2 for v in values) / len(values)))
+        ax.plot(updates, mean, label="%s (%d runs)" % (algorithm, len(runs)))
+        ax.fill_between(updates, [m - 2 * s for m, s in zip(mean, std)], [m + 2 * s for m, s in zip(mean, std)],
+                        alpha=0.2)
+    ax.set_xlabel("policy update")
+    ax.set_ylabel("reward of the mean policy")
+    ax.set_title(TITLES.get(experiment, experiment), fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, experiment + ".png"), dpi=110)
+    plt.close(fig)
+
+
+def tables(summary):
+    rows = summary["results"]
+    lines = ["ps_benchmark, seed %d%s\n" % (summary["seed"], " (quick)" if summary["quick"] else "")]
+    by = defaultdict(list)
+    for r in rows:
+        by[r["experiment"]].append(r)
+    if "multimodal2d" in by:
+        lines += ["### multimodal2d\n", "| algorithm | runs | plateau runs | runs reaching threshold | mean updates to "
+                  "threshold | final reward (mean ± std) |", "|---|---:|---:|---:|---:|---:|"]
+        for r in by["multimodal2d"]:
+            lines.append("| %s | %d | %d | %d | %.1f | %.3f ± %.3f |" % (
+                r["algorithm"], r["runs"], r["plateau_runs"], r["runs_reaching_threshold"],
+                r["mean_updates_to_threshold"], r["final_reward_mean"], r["final_reward_std"]))
+        lines.append("")
+    if "bottles" in by:
+        lines += ["### bottles\n", "| algorithm | runs | satisfactory runs | mean reward of the others | thesis "
+                  "(of 50) | thesis mean of the others | s per update |", "|---|---:|---:|---:|---:|---:|---:|"]
+        for r in by["bottles"]:
+            thesis = THESIS_BOTTLES.get(r["algorithm"], (None, None))
+            lines.append("| %s | %d | %d | %.2f | %s | %s | %.4f |" % (
+                r["algorithm"], r["runs"], r["satisfactory_runs"], r["mean_unsatisfactory_reward"],
+                thesis[0] if thesis[0] is not None else "–", thesis[1] if thesis[1] is not None else "–",
+                r["seconds_per_update"]))
+        lines.append("")
+    for experiment, extra in (("circle", "initial_reward"), ("pi2viapoint", "mean_final_via_point_error")):
+        if experiment in by:
+            lines += ["### %s\n" % experiment, "| algorithm | runs | updates | final reward (mean ± std) | %s |"
+                      % extra.replace("_", " "), "|---|---:|---:|---:|---:|"]
+            for r in by[experiment]:
+                lines.append("| %s | %d | %d | %.4g ± %.3g | %.4g |" % (
+                    r["algorithm"], r["runs"], r["updates"], r["final_reward_mean"], r["final_reward_std"],
+                    r[extra]))
+            lines.append("")
+    return "\n".join(lines) + "\n"
+
+
+def main():
+    if len(sys.argv) != 2:
+        sys.exit(__doc__)
+    directory = sys.argv[1]
+    with open(os.path.join(directory, "summary.json")) as f:
+        summary = json.load(f)
+    for experiment in ("multimodal2d", "bottles", "circle", "pi2viapoint"):
+        plot(directory, experiment)
+    with open(os.path.join(directory, "tables.md"), "w") as f:
+        f.write(tables(summary))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,171 @@
+// Dual REPS (thesis Ch. 6) and its k-means: deterministic clustering, no clusters == REPS bit for bit, the KL bound
+// after the repair, clusters where the bad and good rollouts are, escape from the REPS plateau of (6.16).
+#include "bimanual_skills/learning/dual_reps.hpp"
+#include "bimanual_skills/learning/kmeans.hpp"
+
+#include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+namespace bl = bimanual_skills::learning;
+
+namespace {
+
+Eigen::MatrixXd gaussianSamples(std::mt19937& rng, const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance,
+                                int n) {
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const Eigen::MatrixXd L = covariance.llt().matrixL();
+  Eigen::MatrixXd out(n, mean.size());
+  for (int k = 0; k < n; ++k) {
+    Eigen::VectorXd e(mean.size());
+    for (Eigen::Index i = 0; i < e.size(); ++i) e[i] = normal(rng);
+    out.row(k) = (mean + L * e).transpose();
+  }
+  return out;
+}
+
+/// (6.16) with optima at (2, 1), (−2, 1), (0, −2) around the origin.
+double threeOptima(const Eigen::VectorXd& t) {
+  const std::vector<Eigen::Vector2d> psi = {{2.0, 1.0}, {-2.0, 1.0}, {0.0, -2.0}};
+  double r = 10.0 * t.head<2>().norm();
+  for (const auto& p : psi) r -= 5.0 * (p - t.head<2>()).norm();
+  return r;
+}
+
+}  // namespace
+
+TEST(KMeans, SeparatesBlobsDeterministically) {
+  std::mt19937 rng(3);
+  const std::vector<Eigen::Vector3d> centres = {{0, 0, 0}, {10, 0, 0}, {0, 10, 5}};
+  Eigen::MatrixXd points(90, 3);
+  for (int c = 0; c < 3; ++c) {
+    points.middleRows(30 * c, 30) = gaussianSamples(rng, centres[c], Eigen::Matrix3d::Identity(), 30);
+  }
+  const bl::KMeansResult a = bl::kMeans(points, 3);
+  const bl::KMeansResult b = bl::kMeans(points, 3);
+  EXPECT_EQ(a.labels, b.labels);
+  EXPECT_EQ(a.centres, b.centres);
+  for (int c = 0; c < 3; ++c) {  // every blob in one cluster, and the three clusters distinct
+    for (int k = 1; k < 30; ++k) EXPECT_EQ(a.labels[30 * c + k], a.labels[30 * c]);
+  }
+  EXPECT_NE(a.labels[0], a.labels[30]);
+  EXPECT_NE(a.labels[0], a.labels[60]);
+  EXPECT_NE(a.labels[30], a.labels[60]);
+  EXPECT_THROW(bl::kMeans(points, 0), std::invalid_argument);
+  EXPECT_THROW(bl::kMeans(points, 91), std::invalid_argument);
+}
+
+TEST(DualReps, WithoutClustersItIsRepsBitForBit) {
+  bl::RepsParameters reps_parameters;
+  reps_parameters.reuse = 100;
+  bl::Reps reps(reps_parameters);
+  bl::DualRepsParameters dual_parameters;
+  dual_parameters.reps = reps_parameters;
+  dual_parameters.clusters = 0;
+  bl::DualReps dreps(dual_parameters);
+  std::mt19937 rng(5);
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(4);
+  Eigen::MatrixXd covariance = Eigen::MatrixXd::Identity(4, 4);
+  for (int update = 0; update < 15; ++update) {
+    const Eigen::MatrixXd samples = gaussianSamples(rng, mean, covariance, 40);
+    Eigen::VectorXd rewards(40);
+    for (int k = 0; k < 40; ++k) rewards[k] = -(samples.row(k).array() - 1.0).square().sum();
+    const bl::RepsUpdate a = reps.update(samples, rewards);
+    const bl::DualRepsUpdate b = dreps.update(mean, covariance, samples, rewards);
+    ASSERT_EQ(a.mean, b.policy.mean) << "update " << update;
+    ASSERT_EQ(a.covariance, b.policy.covariance);
+    ASSERT_EQ(a.weights, b.policy.weights);
+    ASSERT_EQ(a.eta, b.policy.eta);
+    EXPECT_TRUE(b.clusters.empty());
+    mean = a.mean;
+    covariance = a.covariance;
+  }
+}
+
+TEST(DualReps, ClustersSitOnBadAndGoodRolloutsAndTheKlBoundHolds) {
+  std::mt19937 rng(9);
+  const Eigen::VectorXd mean = Eigen::VectorXd::Zero(2);
+  const Eigen::MatrixXd covariance = Eigen::MatrixXd::Identity(2, 2);
+  const Eigen::MatrixXd samples = gaussianSamples(rng, mean, covariance, 200);
+  Eigen::VectorXd rewards(200);
+  for (int k = 0; k < 200; ++k) rewards[k] = threeOptima(samples.row(k).transpose());
+  bl::DualRepsParameters parameters;
+  const std::vector<bl::DualRepsCluster> clusters =
+      bl::dualRepsClusters(samples, bl::normalisedRewards(rewards), mean, covariance, parameters);
+  int attractive = 0, repulsive = 0;
+  for (const auto& c : clusters) {
+    // The reward at a repulsive cluster's mean is below the batch's mean reward, at an attractive one above.
+    const double at_mean = threeOptima(c.mean);
+    if (c.attractive) {
+      ++attractive;
+      EXPECT_GT(at_mean, rewards.mean());
+    } else {
+      ++repulsive;
+      EXPECT_LT(at_mean, rewards.mean());
+    }
+    EXPECT_GT(c.covariance.llt().matrixL().toDenseMatrix().diagonal().minCoeff(), 0.0);
+  }
+  EXPECT_EQ(attractive, 1);
+  EXPECT_GE(repulsive, 1);
+  EXPECT_LE(repulsive, 4);
+  bl::DualReps dreps(parameters);
+  const bl::DualRepsUpdate update = dreps.update(mean, covariance, samples, rewards);
+  EXPECT_LE(update.policy.kl, parameters.reps.epsilon * 1.001);
+  EXPECT_NEAR(update.policy.weights.sum(), 1.0, 1e-12);
+  EXPECT_EQ(update.clusters.size(), clusters.size());
+}
+
+TEST(DualReps, LeavesThePlateauBetweenOptimaThatHoldsReps) {
+  // 40 updates of 100 rollouts (reusing 400) from N(0, I) on (6.16), 5 seeds: DREPS ends within 0.3 of an optimum
+  // in every run; REPS, which averages between optima, in fewer.
+  const auto run = [](bool dual, unsigned seed) {
+    bl::DualRepsParameters parameters;
+    parameters.reps.reuse = 400;
+    if (!dual) parameters.clusters = 0;
+    parameters.chi = 2.0 * parameters.reps.epsilon;
+    bl::DualReps learner(parameters);
+    std::mt19937 rng(seed);
+    Eigen::VectorXd mean = Eigen::VectorXd::Zero(2);
+    Eigen::MatrixXd covariance = Eigen::MatrixXd::Identity(2, 2);
+    for (int update = 0; update < 40; ++update) {
+      const Eigen::MatrixXd samples = gaussianSamples(rng, mean, covariance, 100);
+      Eigen::VectorXd rewards(100);
+      for (int k = 0; k < 100; ++k) rewards[k] = threeOptima(samples.row(k).transpose());
+      const bl::DualRepsUpdate u = learner.update(mean, covariance, samples, rewards);
+      mean = u.policy.mean;
+      covariance = u.policy.covariance;
+    }
+    double nearest = 1e9;
+    for (const Eigen::Vector2d& p : {Eigen::Vector2d(2, 1), Eigen::Vector2d(-2, 1), Eigen::Vector2d(0, -2)}) {
+      nearest = std::min(nearest, (mean - p).norm());
+    }
+    return nearest;
+  };
+  int dreps_near = 0, reps_near = 0;
+  for (unsigned seed = 1; seed <= 5; ++seed) {
+    dreps_near += run(true, seed) < 0.3 ? 1 : 0;
+    reps_near += run(false, seed) < 0.3 ? 1 : 0;
+  }
+  std::printf("(6.16), 5 runs of 40 updates: within 0.3 of an optimum: DREPS %d, REPS %d\n", dreps_near, reps_near);
+  EXPECT_EQ(dreps_near, 5);
+  EXPECT_LT(reps_near, dreps_near);
+}
+
+TEST(DualReps, BadInputThrows) {
+  bl::DualRepsParameters bad;
+  bad.chi = 0.0;
+  EXPECT_THROW(bl::DualReps{bad}, std::invalid_argument);
+  bl::DualReps dreps(bl::DualRepsParameters{});
+  const Eigen::MatrixXd samples = Eigen::MatrixXd::Random(20, 3);
+  const Eigen::VectorXd rewards = Eigen::VectorXd::Random(20);
+  EXPECT_THROW(dreps.update(Eigen::VectorXd::Zero(2), Eigen::MatrixXd::Identity(2, 2), samples, rewards),
+               std::invalid_argument);
+  Eigen::VectorXd nan = rewards;
+  nan[4] = std::nan("");
+  EXPECT_THROW(dreps.update(Eigen::VectorXd::Zero(3), Eigen::MatrixXd::Identity(3, 3), samples, nan),
+               std::invalid_argument);
+}
