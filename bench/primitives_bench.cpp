@@ -1,13 +1,16 @@
-// Movement primitives per call: one DMP integration step of 7 DoF x 25 kernels.
+// Movement primitives per call: one DMP integration step of 7 DoF x 25 kernels, and one Cartesian DMP step (position
+// and orientation, 25 kernels) with either orientation encoding.
 //
 //   primitives_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
 #include "bench_timing.hpp"
+#include "bimanual_skills/primitives/cartesian_dmp.hpp"
 #include "bimanual_skills/primitives/dmp.hpp"
 
 #include <benchmark/benchmark.h>
 
 #include <cmath>
 #include <string>
+#include <vector>
 
 namespace bp = bimanual_skills::primitives;
 using bimanual_skills::bench::timeBatches;
@@ -34,14 +37,39 @@ void BM_DmpStep(benchmark::State& state) {
   });
 }
 
+/// A Cartesian DMP fitted to a minimum-jerk pose motion (0.3 m, 80° about a turning axis; 2 s at 500 Hz), stepped
+/// along its own rollout; range(0) = 0: unit-quaternion DMP, 1: quaternion-vector encoding.
+void BM_CartesianDmpStep(benchmark::State& state) {
+  std::vector<bp::Pose> demo(1001);
+  for (int r = 0; r < 1001; ++r) {
+    const double s = r / 1000.0;
+    const double m = 10 * std::pow(s, 3) - 15 * std::pow(s, 4) + 6 * std::pow(s, 5);
+    demo[r].position = Eigen::Vector3d(0.5, 0.0, 0.3) + m * Eigen::Vector3d(0.1, 0.25, -0.15);
+    const Eigen::Vector3d axis(std::cos(s), std::sin(s), 0.5);
+    demo[r].orientation = Eigen::Quaterniond(Eigen::AngleAxisd(1.4 * m, axis.normalized()));
+  }
+  const auto encoding =
+      state.range(0) == 0 ? bp::OrientationEncoding::UnitQuaternion : bp::OrientationEncoding::QuaternionVector;
+  const bp::CartesianDmp dmp = bp::CartesianDmp::fit(bp::DmpParameters(), encoding, demo, 0.002);
+  const bp::CartesianDmpState start = dmp.initialState();
+  bp::CartesianDmpState running = start;
+  timeBatches(state, kSteps, [&](int k) {
+    if (k == 0) running = start;  // restart the rollout (equally sized vectors: no allocation)
+    benchmark::DoNotOptimize(dmp.step(running, 0.002));
+    benchmark::DoNotOptimize(running.orientation.coeffs().data());
+  });
+}
+
 }  // namespace
 
 BENCHMARK(BM_DmpStep);
+BENCHMARK(BM_CartesianDmpStep)->Arg(0)->Arg(1)->ArgName("quaternion_vector");
 
 int main(int argc, char** argv) {
   benchmark::Initialize(&argc, argv);
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::AddCustomContext("dmp", "7 DoF x 25 kernels, dt = 2 ms");
+  benchmark::AddCustomContext("cartesian_dmp", "position + orientation, 25 kernels, dt = 2 ms");
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;

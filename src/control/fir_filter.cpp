@@ -1,5 +1,6 @@
 #include "bimanual_skills/control/fir_filter.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -20,6 +21,26 @@ Eigen::VectorXd designLowPassFir(int taps, double cutoff_hz, double rate_hz) {
     h[k] = sinc * w;
   }
   return h / h.sum();
+}
+
+Eigen::MatrixXd zeroPhaseLowPass(const Eigen::MatrixXd& data, double dt, double cutoff_hz) {
+  const double rate = 1.0 / dt;
+  if (cutoff_hz <= 0.0 || cutoff_hz >= 0.5 * rate) return data;
+  int taps = static_cast<int>(std::ceil(4.0 * rate / cutoff_hz)) | 1;  // transition width ≈ 4 f_s / N (Blackman)
+  taps = std::min(taps, 2 * static_cast<int>(data.rows()) - 1) | 1;
+  if (taps < 3) return data;
+  const Eigen::VectorXd h = designLowPassFir(taps, cutoff_hz, rate);
+  const int half = taps / 2;
+  const auto n = static_cast<int>(data.rows());
+  Eigen::MatrixXd out(data.rows(), data.cols());
+  for (int r = 0; r < n; ++r) {
+    out.row(r).setZero();
+    for (int k = 0; k < taps; ++k) {
+      const int source = std::clamp(r + k - half, 0, n - 1);
+      out.row(r) += h[k] * data.row(source);
+    }
+  }
+  return out;
 }
 
 FirFilter::FirFilter(const Eigen::VectorXd& coefficients, int channels)

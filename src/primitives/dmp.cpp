@@ -10,37 +10,9 @@
 #include <string>
 
 namespace bimanual_skills::primitives {
-namespace {
-
-constexpr int kMaxKernels = 256;
-
-/// Zero-phase low-pass of every column: the linear-phase FIR applied with its delay removed, ends padded with the
-/// end values.
-Eigen::MatrixXd smooth(const Eigen::MatrixXd& data, double dt, double cutoff_hz) {
-  const double rate = 1.0 / dt;
-  if (cutoff_hz <= 0.0 || cutoff_hz >= 0.5 * rate) return data;
-  int taps = static_cast<int>(std::ceil(4.0 * rate / cutoff_hz)) | 1;  // transition width ≈ 4 f_s / N (Blackman)
-  taps = std::min(taps, 2 * static_cast<int>(data.rows()) - 1) | 1;
-  if (taps < 3) return data;
-  const Eigen::VectorXd h = control::designLowPassFir(taps, cutoff_hz, rate);
-  const int half = taps / 2;
-  const auto n = static_cast<int>(data.rows());
-  Eigen::MatrixXd out(data.rows(), data.cols());
-  for (int r = 0; r < n; ++r) {
-    out.row(r).setZero();
-    for (int k = 0; k < taps; ++k) {
-      const int source = std::clamp(r + k - half, 0, n - 1);
-      out.row(r) += h[k] * data.row(source);
-    }
-  }
-  return out;
-}
-
-}  // namespace
-
 void DmpParameters::validate() const {
-  if (kernels < 1 || kernels > kMaxKernels) {
-    throw std::invalid_argument("DmpParameters: kernels must be in [1, " + std::to_string(kMaxKernels) + "]");
+  if (kernels < 1 || kernels > kDmpMaxKernels) {
+    throw std::invalid_argument("DmpParameters: kernels must be in [1, " + std::to_string(kDmpMaxKernels) + "]");
   }
   if (!(alpha_z > 0.0) || !(beta_z > 0.0) || !(alpha_x > 0.0) || !(regularisation >= 0.0)) {
     throw std::invalid_argument("DmpParameters: alpha_z, beta_z, alpha_x must be > 0, regularisation >= 0");
@@ -88,7 +60,7 @@ Dmp Dmp::fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, 
   if (samples < 10 || d < 1 || !(dt > 0.0) || !positions.allFinite()) {
     throw std::invalid_argument("Dmp::fit: need >= 10 finite samples of >= 1 DoF and dt > 0");
   }
-  const Eigen::MatrixXd y = smooth(positions, dt, smoothing_hz);
+  const Eigen::MatrixXd y = control::zeroPhaseLowPass(positions, dt, smoothing_hz);
   Eigen::MatrixXd yd = Eigen::MatrixXd::Zero(samples, d), ydd = Eigen::MatrixXd::Zero(samples, d);
   for (Eigen::Index r = 1; r + 1 < samples; ++r) {
     yd.row(r) = (y.row(r + 1) - y.row(r - 1)) / (2.0 * dt);
@@ -98,28 +70,35 @@ Dmp Dmp::fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, 
   const Eigen::VectorXd start = positions.row(0).transpose();
   const Eigen::VectorXd goal = positions.row(samples - 1).transpose();
   const Dmp shape(parameters, Eigen::MatrixXd::Zero(d, parameters.kernels), start, goal, tau);
-  // Regress f = τ² ÿ − α_z (β_z (g − y) − τ ẏ) on the basis (times (g − y0) for the goal-scaled variant).
-  Eigen::MatrixXd G(samples, parameters.kernels);
-  Eigen::VectorXd g(parameters.kernels);
-  for (Eigen::Index r = 0; r < samples; ++r) {
-    shape.basis(std::exp(-parameters.alpha_x * static_cast<double>(r) * dt / tau), g);
-    G.row(r) = g.transpose();
-  }
-  const Eigen::MatrixXd gram =
-      G.transpose() * G + parameters.regularisation * Eigen::MatrixXd::Identity(parameters.kernels, parameters.kernels);
-  const Eigen::LDLT<Eigen::MatrixXd> solver(gram);
-  Eigen::MatrixXd weights(d, parameters.kernels);
+  // f = τ² ÿ − α_z (β_z (g − y) − τ ẏ), divided by (g − y0) for the goal-scaled variant, regressed on g(x).
+  Eigen::MatrixXd forcing(samples, d);
   for (Eigen::Index j = 0; j < d; ++j) {
-    Eigen::VectorXd f =
-        tau * tau * ydd.col(j) -
-        parameters.alpha_z * (parameters.beta_z * (goal[j] - y.col(j).array()).matrix() - tau * yd.col(j));
+    forcing.col(j) = tau * tau * ydd.col(j) -
+                     parameters.alpha_z * (parameters.beta_z * (goal[j] - y.col(j).array()).matrix() - tau * yd.col(j));
     if (parameters.goal_scaled_forcing) {
       const double amplitude = goal[j] - start[j];
-      f /= std::abs(amplitude) > 1e-9 ? amplitude : 1.0;
+      forcing.col(j) /= std::abs(amplitude) > 1e-9 ? amplitude : 1.0;
     }
-    weights.row(j) = solver.solve(G.transpose() * f).transpose();
   }
+  const Eigen::MatrixXd weights = shape.fitWeights(forcing, dt);
   return Dmp(parameters, weights, start, goal, tau);
+}
+
+Eigen::MatrixXd Dmp::fitWeights(const Eigen::MatrixXd& forcing, double dt) const {
+  if (forcing.cols() != dofs() || forcing.rows() < 1 || !(dt > 0.0) || !forcing.allFinite()) {
+    throw std::invalid_argument("Dmp::fitWeights: need finite forcing values with one column per DoF and dt > 0");
+  }
+  const int n = parameters_.kernels;
+  Eigen::MatrixXd G(forcing.rows(), n);
+  Eigen::VectorXd g(n);
+  for (Eigen::Index r = 0; r < forcing.rows(); ++r) {
+    basis(std::exp(-parameters_.alpha_x * static_cast<double>(r) * dt / duration_), g);
+    G.row(r) = g.transpose();
+  }
+  Eigen::MatrixXd gram = G.transpose() * G;
+  gram.diagonal().array() += parameters_.regularisation;
+  const Eigen::LDLT<Eigen::MatrixXd> solver(gram);
+  return solver.solve(G.transpose() * forcing).transpose();
 }
 
 Dmp Dmp::withDuration(double duration) const {
@@ -145,7 +124,7 @@ bool Dmp::step(DmpState& state, double dt) const noexcept {
       !state.y.allFinite() || !state.yd.allFinite() || !state.goal.allFinite() || !std::isfinite(state.x)) {
     return false;
   }
-  double g_storage[kMaxKernels];
+  double g_storage[kDmpMaxKernels];
   Eigen::Map<Eigen::VectorXd> g(g_storage, parameters_.kernels);
   basis(state.x, g);
   const double tau = duration_;

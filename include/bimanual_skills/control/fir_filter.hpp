@@ -13,6 +13,11 @@ namespace bimanual_skills::control {
 /// \throws std::invalid_argument for even or too few taps, or a cut-off not in (0, rate/2).
 Eigen::VectorXd designLowPassFir(int taps, double cutoff_hz, double rate_hz);
 
+/// Offline zero-phase low-pass of every column of `data` (rows = samples every dt [s]): the FIR of designLowPassFir
+/// with about 4 f_s / f_c taps (at most 2 · rows − 1) applied with its delay removed, the ends padded with the end
+/// values. Returns `data` unchanged for cutoff_hz ≤ 0, at or above f_s / 2, or too few samples. Allocates.
+Eigen::MatrixXd zeroPhaseLowPass(const Eigen::MatrixXd& data, double dt, double cutoff_hz);
+
 /// Filters n channels with the same FIR, one sample vector per call (ring buffer sized at construction).
 class FirFilter {
  public:

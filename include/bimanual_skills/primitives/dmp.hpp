@@ -6,6 +6,9 @@
 
 namespace bimanual_skills::primitives {
 
+/// Most kernels per DoF: the real-time steps keep the basis values on the stack.
+inline constexpr int kDmpMaxKernels = 256;
+
 /// Shape of a DMP. With τ the movement's duration [s] (the thesis' (5.14), written with one consistent τ):
 ///   τ² ÿ = α_z (β_z (g − y) − τ ẏ) + f(x),   τ ẋ = −α_x x,   f_j(x) = g(x)ᵀ ω_j (5.15),
 ///   g_i(x) = φ_i(x) / Σ_k φ_k(x) · x,  φ_i(x) = exp(−½ (x − c_i)² / d_i),
@@ -43,6 +46,12 @@ class Dmp {
   /// \throws std::invalid_argument for fewer than 10 samples, dt ≤ 0 or non-finite data.
   static Dmp fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, double dt,
                  double smoothing_hz = 20.0);
+
+  /// Ridge least-squares weights W (dofs × kernels) of forcing values sampled every dt from the movement's start
+  /// (rows = samples, columns = DoF): minimises Σ_k ‖f_k − W g(x_k)‖² + λ ‖W‖², x_k = exp(−α_x k dt / τ), with
+  /// this DMP's kernels (5.15) and duration τ. Used by fit() and by other DMPs that build their own forcing term.
+  /// \throws std::invalid_argument for a wrong number of columns, non-finite values or dt ≤ 0.
+  Eigen::MatrixXd fitWeights(const Eigen::MatrixXd& forcing, double dt) const;
 
   int dofs() const noexcept { return static_cast<int>(start_.size()); }
   const DmpParameters& parameters() const noexcept { return parameters_; }
