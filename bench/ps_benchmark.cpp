@@ -375,38 +375,57 @@ void bottles(const Options& options, std::vector<Summary>& out) {
     line(i, 1) = 0.0;
   }
   const DmpTask task = fitDmp(line, dt, 10);
-  const Bottles world;
-  Eigen::MatrixXd y, ydd;
-  const Reward reward = [&](const Eigen::VectorXd& theta) {
-    task.rollout(theta, y, ydd);
-    return world.reward(y);
-  };
   Protocol protocol;
   protocol.runs = options.runs > 0 ? options.runs : (options.quick ? 3 : 50);
   protocol.updates = options.quick ? 10 : 100;
   protocol.rollouts = 50;
   protocol.mean = task.parameters();
   protocol.covariance = Eigen::MatrixXd::Identity(20, 20) * 60.0 * 60.0;
-  Writer writer(options, "bottles");
-  for (const Algorithm& algorithm : repsFamily(0.5, 200, false)) {
-    int satisfactory_runs = 0;
-    double unsatisfactory_sum = 0.0;
-    const auto each = [&](const Curve& c) {
-      bool satisfactory = false;
-      task.rollout(c.means.back(), y, ydd);
-      const double final_reward = world.reward(y, &satisfactory);
-      if (satisfactory) {
-        ++satisfactory_runs;
-      } else {
-        unsatisfactory_sum += final_reward;
-      }
+  Eigen::MatrixXd y, ydd;
+  // First with (6.17) (Fig. 6.10: any path that knocks no bottle down is a solution), then with (6.18).
+  for (const bool crossing_term : {false, true}) {
+    Bottles world;
+    world.crossing_term = crossing_term;
+    const std::string experiment = crossing_term ? "bottles" : "bottles617";
+    const Reward reward = [&](const Eigen::VectorXd& theta) {
+      task.rollout(theta, y, ydd);
+      return world.reward(y);
     };
-    const std::vector<Curve> curves = runAll(options, "bottles", protocol, algorithm, reward, writer, each);
-    Summary s = summarise("bottles", algorithm.name, protocol, curves);
-    const int unsatisfactory = protocol.runs - satisfactory_runs;
-    s.extra = {{"satisfactory_runs", satisfactory_runs},
-               {"mean_unsatisfactory_reward", unsatisfactory > 0 ? unsatisfactory_sum / unsatisfactory : 0.0}};
-    out.push_back(s);
+    Writer writer(options, experiment);
+    for (const Algorithm& algorithm : repsFamily(0.5, 200, false)) {
+      int satisfactory_runs = 0, clear_runs = 0;
+      double unsatisfactory_sum = 0.0, updates_to_clear = 0.0;
+      const auto each = [&](const Curve& c) {
+        // Clear: the mean policy knocks no bottle down (reward > −1 under 6.17); the first update where it is.
+        const bool reached = c.policy_reward.back() > -1.0;
+        for (std::size_t u = 0; reached && u < c.policy_reward.size(); ++u) {
+          if (c.policy_reward[u] > -1.0) {
+            updates_to_clear += static_cast<double>(u);
+            break;
+          }
+        }
+        clear_runs += reached ? 1 : 0;
+        bool satisfactory = false;
+        task.rollout(c.means.back(), y, ydd);
+        const double final_reward = world.reward(y, &satisfactory);
+        if (satisfactory) {
+          ++satisfactory_runs;
+        } else {
+          unsatisfactory_sum += final_reward;
+        }
+      };
+      const std::vector<Curve> curves = runAll(options, experiment, protocol, algorithm, reward, writer, each);
+      Summary s = summarise(experiment, algorithm.name, protocol, curves);
+      if (crossing_term) {
+        const int unsatisfactory = protocol.runs - satisfactory_runs;
+        s.extra = {{"satisfactory_runs", satisfactory_runs},
+                   {"mean_unsatisfactory_reward", unsatisfactory > 0 ? unsatisfactory_sum / unsatisfactory : 0.0}};
+      } else {
+        s.extra = {{"runs_knocking_no_bottle", clear_runs},
+                   {"mean_updates_to_knock_no_bottle", clear_runs > 0 ? updates_to_clear / clear_runs : -1.0}};
+      }
+      out.push_back(s);
+    }
   }
 }
 

@@ -19,6 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 TITLES = {
     "multimodal2d": "Multimodal 2-D reward (6.16), 100 rollouts/update (cf. Fig. 6.7)",
+    "bottles617": "Bottle avoidance, reward (6.17), 50 rollouts/update (cf. Fig. 6.10)",
     "bottles": "Bottle avoidance, reward (6.18), 50 rollouts/update (cf. Fig. 6.12)",
     "circle": "Circle with a 7-DoF WAM DMP, 50 rollouts/update (cf. Fig. 6.14)",
     "pi2viapoint": "1-D DMP via-point task, 10 rollouts/update",
@@ -75,6 +76,14 @@ def tables(summary):
                 r["algorithm"], r["runs"], r["plateau_runs"], r["runs_reaching_threshold"],
                 r["mean_updates_to_threshold"], r["final_reward_mean"], r["final_reward_std"]))
         lines.append("")
+    if "bottles617" in by:
+        lines += ["### bottles617\n", "| algorithm | runs | runs knocking no bottle | mean updates until the mean "
+                  "policy knocks none | final reward (mean ± std) |", "|---|---:|---:|---:|---:|"]
+        for r in by["bottles617"]:
+            lines.append("| %s | %d | %d | %.1f | %.3f ± %.3f |" % (
+                r["algorithm"], r["runs"], r["runs_knocking_no_bottle"], r["mean_updates_to_knock_no_bottle"],
+                r["final_reward_mean"], r["final_reward_std"]))
+        lines.append("")
     if "bottles" in by:
         lines += ["### bottles\n", "| algorithm | runs | satisfactory runs | mean reward of the others | thesis "
                   "(of 50) | thesis mean of the others | s per update |", "|---|---:|---:|---:|---:|---:|---:|"]
@@ -103,7 +112,7 @@ def main():
     directory = sys.argv[1]
     with open(os.path.join(directory, "summary.json")) as f:
         summary = json.load(f)
-    for experiment in ("multimodal2d", "bottles", "circle", "pi2viapoint"):
+    for experiment in ("multimodal2d", "bottles617", "bottles", "circle", "pi2viapoint"):
         plot(directory, experiment)
     with open(os.path.join(directory, "tables.md"), "w") as f:
         f.write(tables(summary))

@@ -63,7 +63,7 @@ TEST(PsBenchmarkSmoke, QuickRunWritesEveryOutput) {
                             "\"mean_unsatisfactory_reward\"", "\"plateau_runs\"", "\"seed\": 3"}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field;
   }
-  for (const char* experiment : {"multimodal2d", "bottles", "circle", "pi2viapoint"}) {
+  for (const char* experiment : {"multimodal2d", "bottles617", "bottles", "circle", "pi2viapoint"}) {
     for (const char* extension : {".csv", ".png"}) {
       const fs::path file = out / (std::string(experiment) + extension);
       EXPECT_TRUE(fs::exists(file) && fs::file_size(file) > 0) << file;
