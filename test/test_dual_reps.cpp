@@ -59,6 +59,54 @@ TEST(KMeans, SeparatesBlobsDeterministically) {
   EXPECT_THROW(bl::kMeans(points, 91), std::invalid_argument);
 }
 
+TEST(DualReps, DualGradientMatchesFiniteDifferencesAndTheSolutionIsAMinimum) {
+  // (6.12) with one repulsive and one attractive Gaussian on random samples.
+  std::mt19937 rng(13);
+  const Eigen::MatrixXd samples = gaussianSamples(rng, Eigen::VectorXd::Zero(3), Eigen::MatrixXd::Identity(3, 3), 60);
+  Eigen::VectorXd rewards(60);
+  for (int k = 0; k < 60; ++k) rewards[k] = -samples.row(k).squaredNorm();
+  rewards = bl::normalisedRewards(rewards);
+  const Eigen::VectorXd log_q =
+      bl::gaussianLogDensity(samples, Eigen::VectorXd::Zero(3), Eigen::MatrixXd::Identity(3, 3));
+  std::vector<bl::DualConstraint> constraints(2);
+  constraints[0].log_density =
+      bl::gaussianLogDensity(samples, Eigen::VectorXd::Constant(3, 1.0), 0.5 * Eigen::MatrixXd::Identity(3, 3));
+  constraints[0].bound = 5.0;
+  constraints[0].minimum_multiplier = 0.01;
+  constraints[1].log_density =
+      bl::gaussianLogDensity(samples, Eigen::VectorXd::Constant(3, -0.2), 0.5 * Eigen::MatrixXd::Identity(3, 3));
+  constraints[1].attractive = true;
+  constraints[1].bound = 1.0;
+  for (const Eigen::Vector3d& x : {Eigen::Vector3d(0.3, 0.02, 0.01), Eigen::Vector3d(1.5, 0.1, 0.3)}) {
+    Eigen::VectorXd gradient;
+    bl::repsDualObjective(rewards, 0.5, log_q, constraints, x, &gradient);
+    for (int i = 0; i < 3; ++i) {
+      const double h = 1e-6;
+      Eigen::VectorXd plus = x, minus = x;
+      plus[i] += h;
+      minus[i] -= h;
+      const double fd = (bl::repsDualObjective(rewards, 0.5, log_q, constraints, plus, nullptr) -
+                         bl::repsDualObjective(rewards, 0.5, log_q, constraints, minus, nullptr)) /
+                        (2 * h);
+      EXPECT_NEAR(gradient[i], fd, 1e-6 * std::max(1.0, std::abs(fd))) << "component " << i;
+    }
+  }
+  // The solution: no feasible nearby point (η ≥ 0, ν ≥ its bound, ω ≥ 0) has a lower dual.
+  const bl::DualSolution solution = bl::solveRepsDual(rewards, 0.5, log_q, constraints);
+  Eigen::VectorXd best(3);
+  best << solution.eta + solution.multipliers[1] - solution.multipliers[0], solution.multipliers;
+  const double value = bl::repsDualObjective(rewards, 0.5, log_q, constraints, best, nullptr);
+  std::mt19937 perturb(2);
+  std::normal_distribution<double> normal(0.0, 1e-3);
+  for (int trial = 0; trial < 200; ++trial) {
+    Eigen::VectorXd x = best;
+    for (int i = 0; i < 3; ++i) x[i] += normal(perturb);
+    const double eta = x[0] + x[1] - x[2];
+    if (x[0] <= 0.0 || eta < 0.0 || x[1] < 0.01 || x[2] < 0.0) continue;
+    EXPECT_GE(bl::repsDualObjective(rewards, 0.5, log_q, constraints, x, nullptr), value - 1e-9);
+  }
+}
+
 TEST(DualReps, WithoutClustersItIsRepsBitForBit) {
   bl::RepsParameters reps_parameters;
   reps_parameters.reuse = 100;

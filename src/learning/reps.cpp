@@ -132,6 +132,17 @@ DualSolution solveRepsDual(const Eigen::VectorXd& rewards, double epsilon, const
   return out;
 }
 
+double repsDualObjective(const Eigen::VectorXd& rewards, double epsilon, const Eigen::VectorXd& log_q,
+                         const std::vector<DualConstraint>& constraints, const Eigen::VectorXd& x,
+                         Eigen::VectorXd* gradient) {
+  if (x.size() != static_cast<Eigen::Index>(constraints.size()) + 1 || !(x[0] > 0.0)) {
+    throw std::invalid_argument("repsDualObjective: x = [kappa > 0, one multiplier per constraint]");
+  }
+  Dual data{&rewards, epsilon, &log_q, &constraints, {}, {}};
+  if (gradient != nullptr) gradient->resize(x.size());
+  return dual(static_cast<unsigned>(x.size()), x.data(), gradient != nullptr ? gradient->data() : nullptr, &data);
+}
+
 std::pair<Eigen::VectorXd, Eigen::MatrixXd> weightedGaussian(const Eigen::MatrixXd& samples,
                                                              const Eigen::VectorXd& weights, double regularisation) {
   Eigen::VectorXd mean = samples.transpose() * weights;

@@ -56,6 +56,12 @@ struct DualSolution {
 DualSolution solveRepsDual(const Eigen::VectorXd& rewards, double epsilon, const Eigen::VectorXd& log_q,
                            const std::vector<DualConstraint>& constraints);
 
+/// The dual of solveRepsDual() at x = [κ, m_1, …, m_c] (κ = η + ω − ν > 0, m_i = ν_i or ω_i), with its gradient
+/// with respect to x when `gradient` is given (resized to c + 1). Exposed for tests and analysis.
+double repsDualObjective(const Eigen::VectorXd& rewards, double epsilon, const Eigen::VectorXd& log_q,
+                         const std::vector<DualConstraint>& constraints, const Eigen::VectorXd& x,
+                         Eigen::VectorXd* gradient);
+
 /// Weighted maximum-likelihood Gaussian of the rows of `samples` with normalised `weights`:
 /// μ = Σ p_k θ_k, Σ = Σ p_k (θ_k − μ)(θ_k − μ)ᵀ + regularisation·I.
 std::pair<Eigen::VectorXd, Eigen::MatrixXd> weightedGaussian(const Eigen::MatrixXd& samples,
