@@ -1,5 +1,6 @@
 // ProMPs (thesis 5.16–5.18): the fitted distribution matches the demonstrations' mean and spread, conditioning
-// passes through its via-point, samples follow the distribution, bad input throws, evaluation does not allocate.
+// passes through its via-point, samples follow the distribution, the state covariance matches finite differences
+// of sampled paths, bad input throws or is a status, evaluation does not allocate.
 #include "bimanual_skills/primitives/promp.hpp"
 #include "bimanual_skills/testing/no_alloc_guard.hpp"
 
@@ -47,21 +48,22 @@ std::vector<Eigen::MatrixXd> demonstrations(std::vector<double>& amplitudes) {
 TEST(ProMp, FitMatchesTheDemonstrationsMeanAndSpread) {
   std::vector<double> amplitudes;
   const bp::ProMp promp = bp::ProMp::fit(bp::ProMpParameters(), demonstrations(amplitudes), 2.0);
+  bp::ProMpData data(promp);
   double mean_a = 0.0, var_a = 0.0;
   for (double a : amplitudes) mean_a += a / amplitudes.size();
   for (double a : amplitudes) var_a += (a - mean_a) * (a - mean_a) / amplitudes.size();
   Eigen::VectorXd y(2), yd(2);
   Eigen::MatrixXd cov(2, 2);
   for (double z : {0.1, 0.3, 0.5, 0.7, 0.9}) {
-    promp.mean(z, y, yd);
+    ASSERT_TRUE(promp.mean(data, z, y, yd));
     for (int j = 0; j < 2; ++j) EXPECT_NEAR(y[j], base(z, j) + mean_a * bump(z), 5e-3) << "z " << z;
-    promp.covariance(z, cov);
+    ASSERT_TRUE(promp.covariance(data, z, cov));
     EXPECT_NEAR(std::sqrt(cov(0, 0)), std::sqrt(var_a) * bump(z), 0.1 * std::sqrt(var_a) + 2e-3) << "z " << z;
   }
   // Velocity: d/dt of the mean path (duration 2 s), inside the phase range (normalised bases are poor at its ends).
   const double z = 0.25;
   const double bump_slope = -2.0 * (z - 0.5) / (0.15 * 0.15) * bump(z);
-  promp.mean(z, y, yd);
+  ASSERT_TRUE(promp.mean(data, z, y, yd));
   EXPECT_NEAR(yd[0], (0.3 * M_PI * std::cos(M_PI * z) + mean_a * bump_slope) / 2.0, 0.02);
   EXPECT_LT(promp.observationVariance().maxCoeff(), 1e-4);
 }
@@ -69,20 +71,21 @@ TEST(ProMp, FitMatchesTheDemonstrationsMeanAndSpread) {
 TEST(ProMp, ConditioningPassesThroughTheViaPoint) {
   std::vector<double> amplitudes;
   const bp::ProMp promp = bp::ProMp::fit(bp::ProMpParameters(), demonstrations(amplitudes), 2.0);
+  bp::ProMpData data(promp);
   Eigen::VectorXd y(2), yd(2);
   Eigen::MatrixXd cov(2, 2), cov_after(2, 2);
-  promp.mean(0.4, y, yd);
-  promp.covariance(0.4, cov);
+  ASSERT_TRUE(promp.mean(data, 0.4, y, yd));
+  ASSERT_TRUE(promp.covariance(data, 0.4, cov));
   const Eigen::VectorXd via = y + Eigen::VectorXd::Constant(2, 0.08);
   const bp::ProMp through = promp.conditioned(0.4, via, 1e-8 * Eigen::MatrixXd::Identity(2, 2));
-  through.mean(0.4, y, yd);
+  ASSERT_TRUE(through.mean(data, 0.4, y, yd));
   EXPECT_LE((y - via).cwiseAbs().maxCoeff(), 1e-3);
-  through.covariance(0.4, cov_after);
+  ASSERT_TRUE(through.covariance(data, 0.4, cov_after));
   EXPECT_LT(cov_after(0, 0), 1e-2 * cov(0, 0));
   // With a velocity too.
   const Eigen::VectorXd via_velocity = Eigen::VectorXd::Constant(2, 0.1);
   const bp::ProMp both = promp.conditioned(0.6, via, 1e-8 * Eigen::MatrixXd::Identity(4, 4), via_velocity);
-  both.mean(0.6, y, yd);
+  ASSERT_TRUE(both.mean(data, 0.6, y, yd));
   EXPECT_LE((y - via).cwiseAbs().maxCoeff(), 2e-3);
   EXPECT_LE((yd - via_velocity).cwiseAbs().maxCoeff(), 2e-2);
 }
@@ -106,13 +109,54 @@ TEST(ProMp, BadInputAndNoAllocation) {
   EXPECT_THROW(bp::ProMp::fit(bp::ProMpParameters(), demos, 2.0), std::invalid_argument);
   demos = demonstrations(amplitudes);
   const bp::ProMp promp = bp::ProMp::fit(bp::ProMpParameters(), demos, 2.0);
+  bp::ProMpData data(promp);
   EXPECT_THROW(promp.conditioned(0.5, Eigen::VectorXd::Zero(3), Eigen::MatrixXd::Identity(3, 3)),
                std::invalid_argument);
-  Eigen::VectorXd y(2), yd(2);
-  Eigen::MatrixXd cov(2, 2);
+  EXPECT_THROW(promp.withMean(Eigen::VectorXd::Zero(3)), std::invalid_argument);
+  Eigen::VectorXd y(2), yd(2), wrong(3);
+  Eigen::MatrixXd cov(2, 2), state_cov(4, 4);
   NoAllocGuard guard;
   for (double z = 0.0; z <= 1.0; z += 0.1) {
-    promp.mean(z, y, yd);
-    promp.covariance(z, cov);
+    ASSERT_TRUE(promp.mean(data, z, y, yd));
+    ASSERT_TRUE(promp.covariance(data, z, cov));
+    ASSERT_TRUE(promp.stateCovariance(data, z, state_cov));
+  }
+  // Bad input is a status: wrong output sizes, a non-finite phase.
+  EXPECT_FALSE(promp.mean(data, 0.5, wrong, yd));
+  EXPECT_FALSE(promp.covariance(data, 0.5, state_cov));
+  EXPECT_FALSE(promp.stateCovariance(data, 0.5, cov));
+  EXPECT_FALSE(promp.covariance(data, std::nan(""), cov));
+}
+
+TEST(ProMp, StateCovarianceMatchesFiniteDifferencesOfSampledPaths) {
+  // Reference: sample weights, take each sample's mean path (positions only) and its central difference in time;
+  // the empirical covariance of [q; q̇] must match stateCovariance within its sampling error.
+  std::vector<double> amplitudes;
+  const bp::ProMp promp = bp::ProMp::fit(bp::ProMpParameters(), demonstrations(amplitudes), 2.0);
+  bp::ProMpData data(promp);
+  const double z = 0.4, h = 1e-5;
+  const int n = 4000;
+  std::mt19937 rng(11);
+  Eigen::MatrixXd states(4, n);
+  Eigen::VectorXd y(2), yd(2), ahead(2), behind(2);
+  for (int s = 0; s < n; ++s) {
+    const bp::ProMp path = promp.withMean(promp.sample(rng));
+    ASSERT_TRUE(path.mean(data, z, y, yd));
+    ASSERT_TRUE(path.mean(data, z + h, ahead, yd));
+    ASSERT_TRUE(path.mean(data, z - h, behind, yd));
+    states.col(s) << y, (ahead - behind) / (2.0 * h * promp.duration());
+  }
+  const Eigen::MatrixXd centred = states.colwise() - states.rowwise().mean();
+  const Eigen::MatrixXd empirical = centred * centred.transpose() / n;
+  Eigen::MatrixXd expected(4, 4), positions(2, 2);
+  ASSERT_TRUE(promp.stateCovariance(data, z, expected));
+  ASSERT_TRUE(promp.covariance(data, z, positions));
+  EXPECT_LE((expected.topLeftCorner(2, 2) - positions).cwiseAbs().maxCoeff(), 1e-12);
+  // Standard error of a sample covariance entry: sqrt((σ_ii σ_jj + σ_ij²) / n); 5 of them.
+  for (int i = 0; i < 4; ++i) {
+    for (int j = 0; j < 4; ++j) {
+      const double se = std::sqrt((expected(i, i) * expected(j, j) + expected(i, j) * expected(i, j)) / n);
+      EXPECT_NEAR(empirical(i, j), expected(i, j), 5.0 * se) << "entry " << i << ", " << j;
+    }
   }
 }
