@@ -1,7 +1,9 @@
 // ProMPs (thesis 5.16–5.18): the fitted distribution matches the demonstrations' mean and spread, conditioning
 // passes through its via-point, samples follow the distribution, the state covariance matches finite differences
-// of sampled paths, bad input throws or is a status, evaluation does not allocate.
+// of sampled paths, bad input throws or is a status, evaluation does not allocate. Blending by the product of
+// Gaussians reduces to its active ProMP, averages equal-covariance means and switches with the activations.
 #include "bimanual_skills/primitives/promp.hpp"
+#include "bimanual_skills/primitives/promp_blending.hpp"
 #include "bimanual_skills/testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
@@ -159,4 +161,108 @@ TEST(ProMp, StateCovarianceMatchesFiniteDifferencesOfSampledPaths) {
       EXPECT_NEAR(empirical(i, j), expected(i, j), 5.0 * se) << "entry " << i << ", " << j;
     }
   }
+}
+
+TEST(ProMpBlending, OneActiveProMpIsThatProMp) {
+  std::vector<double> amplitudes;
+  const bp::ProMp a = bp::ProMp::fit(bp::ProMpParameters(), demonstrations(amplitudes), 2.0);
+  // A second ProMP with another mean and a very different covariance: a through a via-point.
+  const bp::ProMp b = a.conditioned(0.5, Eigen::VectorXd::Constant(2, 0.6), 1e-4 * Eigen::MatrixXd::Identity(2, 2));
+  const Eigen::VectorXd phases = Eigen::VectorXd::LinSpaced(11, 0.0, 1.0);
+  for (int active = 0; active < 2; ++active) {
+    Eigen::MatrixXd activations = Eigen::MatrixXd::Zero(phases.size(), 2);
+    activations.col(active).setOnes();
+    const bp::TrajectoryDistribution blended = bp::blend({a, b}, phases, activations);
+    const bp::ProMp& reference = active == 0 ? a : b;
+    bp::ProMpData data(reference);
+    Eigen::VectorXd mean(4);
+    Eigen::MatrixXd covariance(4, 4);
+    for (Eigen::Index t = 0; t < phases.size(); ++t) {
+      ASSERT_TRUE(reference.mean(data, phases[t], mean.head(2), mean.tail(2)));
+      ASSERT_TRUE(reference.stateCovariance(data, phases[t], covariance));
+      EXPECT_LE((blended.means[t] - mean).cwiseAbs().maxCoeff(), 1e-9) << "phase " << phases[t];
+      EXPECT_LE((blended.covariances[t] - covariance).cwiseAbs().maxCoeff(), 1e-9 * covariance.cwiseAbs().maxCoeff())
+          << "phase " << phases[t];
+    }
+  }
+}
+
+TEST(ProMpBlending, EqualCovariancesAverageTheMeans) {
+  // b = a shifted by 0.5 on every weight: the normalised bases sum to 1, so b's positions are a's + 0.5, its
+  // velocities a's, and both have the same covariance. The product with activations α_a, α_b then has the
+  // activation-weighted mean and the covariance Σ / (α_a + α_b).
+  std::vector<double> amplitudes;
+  const bp::ProMp a = bp::ProMp::fit(bp::ProMpParameters(), demonstrations(amplitudes), 2.0);
+  const bp::ProMp b = a.withMean((a.weightMean().array() + 0.5).matrix());
+  const Eigen::VectorXd phases = Eigen::VectorXd::LinSpaced(21, 0.0, 1.0);
+  Eigen::MatrixXd halves = Eigen::MatrixXd::Constant(phases.size(), 2, 0.5);
+  Eigen::MatrixXd switching(phases.size(), 2);  // a smooth switch from a to b around z = 0.5
+  for (Eigen::Index t = 0; t < phases.size(); ++t) {
+    switching(t, 1) = 1.0 / (1.0 + std::exp(-(phases[t] - 0.5) / 0.05));
+    switching(t, 0) = 1.0 - switching(t, 1);
+  }
+  bp::ProMpData data(a);
+  Eigen::VectorXd mean(4);
+  Eigen::MatrixXd covariance(4, 4);
+  for (const Eigen::MatrixXd& activations : {halves, switching, Eigen::MatrixXd(2.0 * halves)}) {
+    const bp::TrajectoryDistribution blended = bp::blend({a, b}, phases, activations);
+    for (Eigen::Index t = 0; t < phases.size(); ++t) {
+      ASSERT_TRUE(a.mean(data, phases[t], mean.head(2), mean.tail(2)));
+      ASSERT_TRUE(a.stateCovariance(data, phases[t], covariance));
+      const double total = activations.row(t).sum();
+      mean.head(2).array() += 0.5 * activations(t, 1) / total;
+      EXPECT_LE((blended.means[t] - mean).cwiseAbs().maxCoeff(), 1e-8) << "phase " << phases[t];
+      EXPECT_LE((blended.covariances[t] - covariance / total).cwiseAbs().maxCoeff(),
+                1e-8 * covariance.cwiseAbs().maxCoeff())
+          << "phase " << phases[t];
+    }
+  }
+}
+
+TEST(ProMpBlending, PassesFromOneToTheOtherWhereActivationsSwitch) {
+  std::vector<double> amplitudes;
+  const bp::ProMp a = bp::ProMp::fit(bp::ProMpParameters(), demonstrations(amplitudes), 2.0);
+  const bp::ProMp b = a.withMean((a.weightMean().array() - 0.4).matrix())
+                          .conditioned(0.9, Eigen::VectorXd::Constant(2, -0.5), 1e-4 * Eigen::MatrixXd::Identity(2, 2));
+  const Eigen::VectorXd phases = Eigen::VectorXd::LinSpaced(101, 0.0, 1.0);
+  Eigen::MatrixXd activations(phases.size(), 2);
+  for (Eigen::Index t = 0; t < phases.size(); ++t) {
+    activations(t, 1) = 1.0 / (1.0 + std::exp(-(phases[t] - 0.5) / 0.03));
+    activations(t, 0) = 1.0 - activations(t, 1);
+  }
+  const bp::TrajectoryDistribution blended = bp::blend({a, b}, phases, activations);
+  bp::ProMpData data(a);
+  Eigen::VectorXd mean_a(4), mean_b(4);
+  for (Eigen::Index t = 0; t < phases.size(); ++t) {
+    ASSERT_TRUE(a.mean(data, phases[t], mean_a.head(2), mean_a.tail(2)));
+    ASSERT_TRUE(b.mean(data, phases[t], mean_b.head(2), mean_b.tail(2)));
+    const double gap = (mean_a.head(2) - mean_b.head(2)).cwiseAbs().maxCoeff();
+    // Away from the switch (activation of the other below ~1e-3) the blend is that ProMP, to 1 % of the gap.
+    if (phases[t] <= 0.3) {
+      EXPECT_LE((blended.means[t] - mean_a).head(2).cwiseAbs().maxCoeff(), 0.01 * gap) << "phase " << phases[t];
+    }
+    if (phases[t] >= 0.7) {
+      EXPECT_LE((blended.means[t] - mean_b).head(2).cwiseAbs().maxCoeff(), 0.01 * gap) << "phase " << phases[t];
+    }
+    // Without jumps: the switch takes several steps of 0.01.
+    if (t > 0) {
+      EXPECT_LE((blended.means[t] - blended.means[t - 1]).head(2).cwiseAbs().maxCoeff(), 0.2 * gap);
+    }
+  }
+}
+
+TEST(ProMpBlending, BadInput) {
+  std::vector<double> amplitudes;
+  const bp::ProMp a = bp::ProMp::fit(bp::ProMpParameters(), demonstrations(amplitudes), 2.0);
+  const Eigen::VectorXd phases = Eigen::VectorXd::LinSpaced(3, 0.0, 1.0);
+  EXPECT_THROW(bp::blend({}, phases, Eigen::MatrixXd::Ones(3, 0)), std::invalid_argument);
+  EXPECT_THROW(bp::blend({a, a}, phases, Eigen::MatrixXd::Ones(3, 1)), std::invalid_argument);
+  EXPECT_THROW(bp::blend({a, a}, phases, Eigen::MatrixXd::Zero(3, 2)), std::invalid_argument);
+  EXPECT_THROW(bp::blend({a, a}, phases, -Eigen::MatrixXd::Ones(3, 2)), std::invalid_argument);
+  const bp::ProMp rigid(bp::ProMpParameters(), 2, a.weightMean(), Eigen::MatrixXd::Zero(40, 40),
+                        a.observationVariance(), 2.0);
+  EXPECT_THROW(bp::blend({a, rigid}, phases, Eigen::MatrixXd::Ones(3, 2)), std::invalid_argument);
+  Eigen::MatrixXd only_a = Eigen::MatrixXd::Zero(3, 2);
+  only_a.col(0).setOnes();
+  EXPECT_NO_THROW(bp::blend({a, rigid}, phases, only_a));  // a singular ProMP with no activation does not enter
 }
