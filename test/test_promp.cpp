@@ -1,7 +1,9 @@
 // ProMPs (thesis 5.16–5.18): the fitted distribution matches the demonstrations' mean and spread, conditioning
 // passes through its via-point, samples follow the distribution, the state covariance matches finite differences
 // of sampled paths, bad input throws or is a status, evaluation does not allocate. Blending by the product of
-// Gaussians reduces to its active ProMP, averages equal-covariance means and switches with the activations.
+// Gaussians reduces to its active ProMP, averages equal-covariance means and switches with the activations. The
+// contextual ProMP (Sec. 7.1.1) recovers a known linear context mapping.
+#include "bimanual_skills/primitives/contextual_promp.hpp"
 #include "bimanual_skills/primitives/promp.hpp"
 #include "bimanual_skills/primitives/promp_blending.hpp"
 #include "bimanual_skills/testing/no_alloc_guard.hpp"
@@ -265,4 +267,73 @@ TEST(ProMpBlending, BadInput) {
   Eigen::MatrixXd only_a = Eigen::MatrixXd::Zero(3, 2);
   only_a.col(0).setOnes();
   EXPECT_NO_THROW(bp::blend({a, rigid}, phases, only_a));  // a singular ProMP with no activation does not enter
+}
+
+namespace {
+
+double minimumJerk(double z) {
+  return z * z * z * (10.0 - 15.0 * z + 6.0 * z * z);
+}
+
+}  // namespace
+
+TEST(ContextualProMp, RecoversTheContextMappingForAnUnseenContext) {
+  // 30 demonstrations: the base path of the tests above, shifted by a minimum-jerk ramp to a goal offset s_j per
+  // DoF (the context s ∈ ℝ², so the true K_ω maps s_j onto DoF j's ramp), plus the random bump of σ = kSpread that
+  // the context does not explain.
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> goal(-0.3, 0.3);
+  std::normal_distribution<double> amplitude(0.0, kSpread);
+  std::vector<Eigen::MatrixXd> demos;
+  std::vector<Eigen::VectorXd> contexts;
+  std::vector<double> amplitudes;
+  for (int d = 0; d < 30; ++d) {
+    const Eigen::Vector2d s(goal(rng), goal(rng));
+    const double a = amplitude(rng);
+    Eigen::MatrixXd y(kSamples, 2);
+    for (int r = 0; r < kSamples; ++r) {
+      const double z = r / double(kSamples - 1);
+      for (int j = 0; j < 2; ++j) y(r, j) = base(z, j) + s[j] * minimumJerk(z) + a * bump(z);
+    }
+    demos.push_back(y);
+    contexts.emplace_back(s);
+    amplitudes.push_back(a);
+  }
+  const bp::ContextualProMp contextual = bp::ContextualProMp::fit(bp::ProMpParameters(), demos, contexts, 2.0);
+  EXPECT_EQ(contextual.contextSize(), 2);
+  // In 30 samples the bump amplitudes correlate with the contexts by chance, and the least-squares fit attributes
+  // that to K_ω. The reference is the same regression on the scalar amplitudes, a_k ≈ β_0 + β_sᵀ s_k (its residual
+  // variance is what Σ_ω must hold).
+  Eigen::MatrixXd X(30, 3);
+  for (int d = 0; d < 30; ++d) X.row(d) << 1.0, contexts[d].transpose();
+  const Eigen::VectorXd a = Eigen::Map<const Eigen::VectorXd>(amplitudes.data(), 30);
+  const Eigen::Vector3d beta = (X.transpose() * X).ldlt().solve(X.transpose() * a);
+  const double var_a = (a - X * beta).squaredNorm() / 30.0;
+  const Eigen::Vector2d unseen(0.25, -0.35);  // the second entry outside the demonstrated range
+  const double mean_a = beta[0] + beta.tail(2).dot(unseen);
+  const bp::ProMp promp = contextual.forContext(unseen);
+  bp::ProMpData data(promp);
+  Eigen::VectorXd y(2), yd(2);
+  Eigen::MatrixXd cov(2, 2);
+  for (double z : {0.1, 0.3, 0.5, 0.7, 0.9, 1.0}) {
+    ASSERT_TRUE(promp.mean(data, z, y, yd));
+    for (int j = 0; j < 2; ++j) {
+      EXPECT_NEAR(y[j], base(z, j) + unseen[j] * minimumJerk(z) + mean_a * bump(z), 5e-3) << "z " << z;
+    }
+    // Σ_ω from the residuals holds only the unexplained bump (a plain ProMP would also hold the goals' spread).
+    ASSERT_TRUE(promp.covariance(data, z, cov));
+    EXPECT_NEAR(std::sqrt(cov(0, 0)), std::sqrt(var_a) * bump(z), 0.1 * std::sqrt(var_a) + 2e-3) << "z " << z;
+  }
+  // Bad input.
+  EXPECT_THROW(contextual.forContext(Eigen::VectorXd::Zero(3)), std::invalid_argument);
+  EXPECT_THROW(contextual.forContext(Eigen::Vector2d(0.0, std::nan(""))), std::invalid_argument);
+  std::vector<Eigen::VectorXd> short_contexts(contexts.begin(), contexts.end() - 1);
+  EXPECT_THROW(bp::ContextualProMp::fit(bp::ProMpParameters(), demos, short_contexts, 2.0), std::invalid_argument);
+  contexts[4] = Eigen::VectorXd::Zero(3);
+  EXPECT_THROW(bp::ContextualProMp::fit(bp::ProMpParameters(), demos, contexts, 2.0), std::invalid_argument);
+  contexts[4] = Eigen::Vector2d(std::nan(""), 0.0);
+  EXPECT_THROW(bp::ContextualProMp::fit(bp::ProMpParameters(), demos, contexts, 2.0), std::invalid_argument);
+  EXPECT_THROW(bp::ContextualProMp(bp::ProMpParameters(), 2, promp.weightMean(), Eigen::MatrixXd::Zero(39, 2),
+                                   promp.weightCovariance(), promp.observationVariance(), 2.0),
+               std::invalid_argument);
 }

@@ -11,8 +11,8 @@ namespace bimanual_skills::primitives {
 
 void ProMpParameters::validate() const {
   if (kernels < 2) throw std::invalid_argument("ProMpParameters: kernels must be >= 2");
-  if (!(width >= 0.0) || !(ridge >= 0.0) || !(covariance_prior >= 0.0)) {
-    throw std::invalid_argument("ProMpParameters: width, ridge and covariance_prior must be >= 0");
+  if (!(width >= 0.0) || !(ridge >= 0.0) || !(covariance_prior >= 0.0) || !(context_ridge >= 0.0)) {
+    throw std::invalid_argument("ProMpParameters: width, ridge, covariance_prior and context_ridge must be >= 0");
   }
 }
 

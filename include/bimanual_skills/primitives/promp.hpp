@@ -16,6 +16,7 @@ struct ProMpParameters {
   double width = 0.0;              ///< Basis variance in z²; 0: (spacing)² / 2.
   double ridge = 1e-6;             ///< Ridge of each demonstration's least-squares weights.
   double covariance_prior = 1e-6;  ///< Added to Σ_ω's diagonal (few demonstrations give a singular sample covariance).
+  double context_ridge = 1e-9;     ///< Ridge on K_ω in the contextual fit (ContextualProMp::fit); the mean is free.
 
   void validate() const;
 };
