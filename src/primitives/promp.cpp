@@ -11,8 +11,8 @@ namespace bimanual_skills::primitives {
 
 void ProMpParameters::validate() const {
   if (kernels < 2) throw std::invalid_argument("ProMpParameters: kernels must be >= 2");
-  if (!(width >= 0.0) || !(ridge >= 0.0) || !(covariance_prior >= 0.0)) {
-    throw std::invalid_argument("ProMpParameters: width, ridge and covariance_prior must be >= 0");
+  if (!(width >= 0.0) || !(ridge >= 0.0) || !(covariance_prior >= 0.0) || !(context_ridge >= 0.0)) {
+    throw std::invalid_argument("ProMpParameters: width, ridge, covariance_prior and context_ridge must be >= 0");
   }
 }
 
@@ -48,10 +48,21 @@ ProMp::ProMp(const ProMpParameters& parameters, int dofs, const Eigen::VectorXd&
   if (sampler_.info() != Eigen::Success) {
     throw std::invalid_argument("ProMp: the weight covariance is not positive semidefinite");
   }
-  b_ = Eigen::VectorXd::Zero(k);
-  db_ = Eigen::VectorXd::Zero(k);
-  psi_ = Eigen::MatrixXd::Zero(n, 2 * dofs);
-  scratch_ = Eigen::MatrixXd::Zero(n, 2 * dofs);
+}
+
+ProMpData::ProMpData(const ProMp& promp)
+    : b(Eigen::VectorXd::Zero(promp.kernels())),
+      db(Eigen::VectorXd::Zero(promp.kernels())),
+      psi(Eigen::MatrixXd::Zero(promp.dofs() * promp.kernels(), 2 * promp.dofs())),
+      sigma_psi(Eigen::MatrixXd::Zero(promp.dofs() * promp.kernels(), 2 * promp.dofs())) {}
+
+ProMp ProMp::withMean(const Eigen::VectorXd& mean) const {
+  if (mean.size() != mean_.size() || !mean.allFinite()) {
+    throw std::invalid_argument("ProMp::withMean: the mean needs dofs*kernels finite entries");
+  }
+  ProMp out = *this;
+  out.mean_ = mean;
+  return out;
 }
 
 void ProMp::basis(double z, Eigen::Ref<Eigen::VectorXd> b, Eigen::Ref<Eigen::VectorXd> db) const noexcept {
@@ -71,30 +82,52 @@ void ProMp::basis(double z, Eigen::Ref<Eigen::VectorXd> b, Eigen::Ref<Eigen::Vec
   }
 }
 
-void ProMp::blockBasis(double z) const noexcept {
-  basis(std::clamp(z, 0.0, 1.0), b_, db_);
+bool ProMp::blockBasis(ProMpData& data, double z) const noexcept {
   const int k = parameters_.kernels;
-  psi_.setZero();
-  for (int j = 0; j < dofs_; ++j) {
-    psi_.block(j * k, j, k, 1) = b_;
-    psi_.block(j * k, dofs_ + j, k, 1) = db_ / duration_;  // d/dt = (d/dz) / duration
+  if (data.b.size() != k || data.psi.rows() != dofs_ * k || data.psi.cols() != 2 * dofs_ ||
+      data.sigma_psi.rows() != data.psi.rows() || data.sigma_psi.cols() != data.psi.cols() || !std::isfinite(z)) {
+    return false;
   }
+  basis(std::clamp(z, 0.0, 1.0), data.b, data.db);
+  data.psi.setZero();
+  for (int j = 0; j < dofs_; ++j) {
+    data.psi.block(j * k, j, k, 1) = data.b;
+    data.psi.block(j * k, dofs_ + j, k, 1) = data.db / duration_;  // d/dt = (d/dz) / duration
+  }
+  return true;
 }
 
-void ProMp::mean(double z, Eigen::Ref<Eigen::VectorXd> position, Eigen::Ref<Eigen::VectorXd> velocity) const noexcept {
-  basis(std::clamp(z, 0.0, 1.0), b_, db_);
+bool ProMp::mean(ProMpData& data, double z, Eigen::Ref<Eigen::VectorXd> position,
+                 Eigen::Ref<Eigen::VectorXd> velocity) const noexcept {
   const int k = parameters_.kernels;
-  for (int j = 0; j < dofs_; ++j) {
-    position[j] = b_.dot(mean_.segment(j * k, k));
-    velocity[j] = db_.dot(mean_.segment(j * k, k)) / duration_;
+  if (position.size() != dofs_ || velocity.size() != dofs_ || data.b.size() != k || data.db.size() != k ||
+      !std::isfinite(z)) {
+    return false;
   }
+  basis(std::clamp(z, 0.0, 1.0), data.b, data.db);
+  for (int j = 0; j < dofs_; ++j) {
+    position[j] = data.b.dot(mean_.segment(j * k, k));
+    velocity[j] = data.db.dot(mean_.segment(j * k, k)) / duration_;
+  }
+  return true;
 }
 
-void ProMp::covariance(double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept {
-  blockBasis(z);
-  const auto positions = psi_.leftCols(dofs_);
-  scratch_.leftCols(dofs_).noalias() = covariance_ * positions;
-  out.noalias() = positions.transpose() * scratch_.leftCols(dofs_);
+void ProMp::projectCovariance(ProMpData& data, int columns, Eigen::Ref<Eigen::MatrixXd> out) const noexcept {
+  const auto psi = data.psi.leftCols(columns);
+  data.sigma_psi.leftCols(columns).noalias() = covariance_ * psi;
+  out.noalias() = psi.transpose() * data.sigma_psi.leftCols(columns);
+}
+
+bool ProMp::covariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept {
+  if (out.rows() != dofs_ || out.cols() != dofs_ || !blockBasis(data, z)) return false;
+  projectCovariance(data, dofs_, out);
+  return true;
+}
+
+bool ProMp::stateCovariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept {
+  if (out.rows() != 2 * dofs_ || out.cols() != 2 * dofs_ || !blockBasis(data, z)) return false;
+  projectCovariance(data, 2 * dofs_, out);
+  return true;
 }
 
 Eigen::VectorXd ProMp::sample(std::mt19937& rng) const {
@@ -104,24 +137,25 @@ Eigen::VectorXd ProMp::sample(std::mt19937& rng) const {
   return mean_ + sampler_.matrixL() * e;
 }
 
-ProMp ProMp::fit(const ProMpParameters& parameters, const std::vector<Eigen::MatrixXd>& demonstrations,
-                 double duration) {
+DemonstrationWeights ProMp::demonstrationWeights(const ProMpParameters& parameters,
+                                                 const std::vector<Eigen::MatrixXd>& demonstrations) {
   parameters.validate();
-  if (demonstrations.size() < 2) throw std::invalid_argument("ProMp::fit: needs at least 2 demonstrations");
+  if (demonstrations.empty()) throw std::invalid_argument("ProMp::demonstrationWeights: no demonstrations");
   const auto dofs = static_cast<int>(demonstrations.front().cols());
   const int k = parameters.kernels;
   const int n = dofs * k;
+  if (dofs < 1) throw std::invalid_argument("ProMp::demonstrationWeights: demonstrations need at least one DoF");
   // A model with zero parameters gives the basis.
   const ProMp shape(parameters, dofs, Eigen::VectorXd::Zero(n), Eigen::MatrixXd::Zero(n, n),
-                    Eigen::VectorXd::Zero(dofs), duration);
-  Eigen::MatrixXd weights(n, static_cast<Eigen::Index>(demonstrations.size()));
-  Eigen::VectorXd squared_residual = Eigen::VectorXd::Zero(dofs);
+                    Eigen::VectorXd::Zero(dofs), 1.0);
+  DemonstrationWeights out{Eigen::MatrixXd(n, static_cast<Eigen::Index>(demonstrations.size())),
+                           Eigen::VectorXd::Zero(dofs)};
   double residual_samples = 0.0;
   Eigen::VectorXd b(k), db(k);
   for (std::size_t d = 0; d < demonstrations.size(); ++d) {
     const Eigen::MatrixXd& y = demonstrations[d];
     if (y.cols() != dofs || y.rows() < k || !y.allFinite()) {
-      throw std::invalid_argument("ProMp::fit: demonstration " + std::to_string(d + 1) +
+      throw std::invalid_argument("ProMp::demonstrationWeights: demonstration " + std::to_string(d + 1) +
                                   " must be finite, with the same DoF and at least `kernels` samples");
     }
     Eigen::MatrixXd B(y.rows(), k);
@@ -132,16 +166,26 @@ ProMp ProMp::fit(const ProMpParameters& parameters, const std::vector<Eigen::Mat
     const Eigen::LDLT<Eigen::MatrixXd> solver(B.transpose() * B + parameters.ridge * Eigen::MatrixXd::Identity(k, k));
     for (int j = 0; j < dofs; ++j) {
       const Eigen::VectorXd w = solver.solve(B.transpose() * y.col(j));
-      weights.block(j * k, static_cast<Eigen::Index>(d), k, 1) = w;
-      squared_residual[j] += (B * w - y.col(j)).squaredNorm();
+      out.weights.block(j * k, static_cast<Eigen::Index>(d), k, 1) = w;
+      out.observation_variance[j] += (B * w - y.col(j)).squaredNorm();
     }
     residual_samples += static_cast<double>(y.rows());
   }
+  out.observation_variance /= residual_samples;
+  return out;
+}
+
+ProMp ProMp::fit(const ProMpParameters& parameters, const std::vector<Eigen::MatrixXd>& demonstrations,
+                 double duration) {
+  if (demonstrations.size() < 2) throw std::invalid_argument("ProMp::fit: needs at least 2 demonstrations");
+  const DemonstrationWeights fitted = demonstrationWeights(parameters, demonstrations);
+  const Eigen::MatrixXd& weights = fitted.weights;
   const Eigen::VectorXd mean = weights.rowwise().mean();
   const Eigen::MatrixXd centred = weights.colwise() - mean;
   Eigen::MatrixXd covariance = centred * centred.transpose() / static_cast<double>(weights.cols());
   covariance.diagonal().array() += parameters.covariance_prior;
-  return ProMp(parameters, dofs, mean, covariance, squared_residual / residual_samples, duration);
+  return ProMp(parameters, static_cast<int>(demonstrations.front().cols()), mean, covariance,
+               fitted.observation_variance, duration);
 }
 
 ProMp ProMp::conditioned(double z, const Eigen::VectorXd& position, const Eigen::MatrixXd& observation_covariance,
@@ -155,8 +199,9 @@ ProMp ProMp::conditioned(double z, const Eigen::VectorXd& position, const Eigen:
         "ProMp::conditioned: the observation must have dofs positions (and optionally dofs "
         "velocities) with a matching square covariance");
   }
-  blockBasis(z);
-  const Eigen::MatrixXd H = psi_.leftCols(m);
+  ProMpData data(*this);
+  if (!blockBasis(data, z)) throw std::invalid_argument("ProMp::conditioned: the phase must be finite");
+  const Eigen::MatrixXd H = data.psi.leftCols(m);
   Eigen::VectorXd observed(m);
   observed.head(dofs_) = position;
   if (with_velocity) observed.tail(dofs_) = velocity;

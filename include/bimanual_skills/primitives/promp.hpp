@@ -16,13 +16,24 @@ struct ProMpParameters {
   double width = 0.0;              ///< Basis variance in z²; 0: (spacing)² / 2.
   double ridge = 1e-6;             ///< Ridge of each demonstration's least-squares weights.
   double covariance_prior = 1e-6;  ///< Added to Σ_ω's diagonal (few demonstrations give a singular sample covariance).
+  double context_ridge = 1e-9;     ///< Ridge on K_ω in the contextual fit (ContextualProMp::fit); the mean is free.
 
   void validate() const;
 };
 
+struct ProMpData;
+
+/// Per-demonstration least-squares weights: one column ω_k (dofs·kernels) per demonstration, and Σ_y, the mean
+/// squared fitting residual per DoF.
+struct DemonstrationWeights {
+  Eigen::MatrixXd weights;
+  Eigen::VectorXd observation_variance;
+};
+
 /// y_t = Ψ_tᵀ ω + ε_y (5.16), ω ~ N(μ_ω, Σ_ω) (5.17), with ω = [ω_1; …; ω_d] (one block of `kernels` per DoF), Ψ_t
-/// block-diagonal with the normalised Gaussian basis b(z) evaluated at the phase z = t / duration. Evaluation uses
-/// internal scratch buffers: one ProMp object per thread.
+/// block-diagonal with the normalised Gaussian basis b(z) evaluated at the phase z = t / duration, and the state
+/// y_t = [q_t; q̇_t] (positions of every DoF, then velocities). The model is immutable; evaluation writes into a
+/// ProMpData sized from it (one per thread).
 class ProMp {
  public:
   /// \throws std::invalid_argument for inconsistent sizes, a Σ_ω that is not symmetric positive semidefinite,
@@ -37,20 +48,42 @@ class ProMp {
   static ProMp fit(const ProMpParameters& parameters, const std::vector<Eigen::MatrixXd>& demonstrations,
                    double duration);
 
+  /// The ridge least-squares weights of every demonstration (the ω_k of 5.18), fitted one DoF at a time:
+  /// ω_{k,j} = (BᵀB + ridge I)⁻¹ Bᵀ y_{k,j}, B the basis at each sample's phase.
+  /// \throws std::invalid_argument for no demonstrations, unequal DoF, too few samples or non-finite data.
+  static DemonstrationWeights demonstrationWeights(const ProMpParameters& parameters,
+                                                   const std::vector<Eigen::MatrixXd>& demonstrations);
+
+  /// The same ProMP with another weight mean μ_ω (Σ_ω, Σ_y and the basis unchanged).
+  /// \throws std::invalid_argument for a wrong size or non-finite entries.
+  ProMp withMean(const Eigen::VectorXd& mean) const;
+
   int dofs() const noexcept { return dofs_; }
   int kernels() const noexcept { return parameters_.kernels; }
+  const ProMpParameters& parameters() const noexcept { return parameters_; }
   double duration() const noexcept { return duration_; }
   const Eigen::VectorXd& weightMean() const noexcept { return mean_; }
   const Eigen::MatrixXd& weightCovariance() const noexcept { return covariance_; }
   const Eigen::VectorXd& observationVariance() const noexcept { return observation_variance_; }
 
-  /// Basis b(z) (kernels) and its derivative db/dz. Real-time safe.
+  /// Basis b(z) (kernels) and its derivative db/dz. Real-time safe: no allocation, no exceptions.
   void basis(double z, Eigen::Ref<Eigen::VectorXd> b, Eigen::Ref<Eigen::VectorXd> db) const noexcept;
 
-  /// Mean position Ψ_zᵀ μ_ω and velocity at phase z (clamped to [0, 1]). Real-time safe: no allocation.
-  void mean(double z, Eigen::Ref<Eigen::VectorXd> position, Eigen::Ref<Eigen::VectorXd> velocity) const noexcept;
-  /// Position covariance Ψ_zᵀ Σ_ω Ψ_z (dofs × dofs) at phase z, without Σ_y. Real-time safe: no allocation.
-  void covariance(double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept;
+  /// Ψ_z (dofs·kernels × 2 dofs, positions then velocities d/dt = (d/dz) / duration) at z clamped to [0, 1], into
+  /// data.psi. False (data unchanged) for data of another model or a non-finite z.
+  /// Real-time safe: no allocation, no exceptions.
+  [[nodiscard]] bool blockBasis(ProMpData& data, double z) const noexcept;
+
+  /// Mean position Ψ_zᵀ μ_ω and velocity at phase z (clamped to [0, 1]). False (outputs unchanged) for wrong sizes
+  /// or a non-finite z. Real-time safe: no allocation, no exceptions.
+  [[nodiscard]] bool mean(ProMpData& data, double z, Eigen::Ref<Eigen::VectorXd> position,
+                          Eigen::Ref<Eigen::VectorXd> velocity) const noexcept;
+  /// Position covariance Ψ_zᵀ Σ_ω Ψ_z (dofs × dofs) at phase z, without Σ_y. False (output unchanged) for a wrong
+  /// size or a non-finite z. Real-time safe: no allocation, no exceptions.
+  [[nodiscard]] bool covariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept;
+  /// Covariance of the state [q; q̇] (2 dofs × 2 dofs) at phase z, without Σ_y. False (output unchanged) for a wrong
+  /// size or a non-finite z. Real-time safe: no allocation, no exceptions.
+  [[nodiscard]] bool stateCovariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept;
 
   /// Weights drawn from N(μ_ω, Σ_ω).
   Eigen::VectorXd sample(std::mt19937& rng) const;
@@ -62,8 +95,8 @@ class ProMp {
                     const Eigen::VectorXd& velocity = Eigen::VectorXd()) const;
 
  private:
-  /// Ψ_z (dofs·kernels × dofs) positions, and the velocity one, into the scratch members.
-  void blockBasis(double z) const noexcept;
+  /// Σ_ω Ψ_z for the first `columns` columns of data.psi (written by blockBasis), then out = Ψ_zᵀ Σ_ω Ψ_z.
+  void projectCovariance(ProMpData& data, int columns, Eigen::Ref<Eigen::MatrixXd> out) const noexcept;
 
   ProMpParameters parameters_;
   int dofs_;
@@ -71,8 +104,15 @@ class ProMp {
   Eigen::MatrixXd covariance_;
   double duration_, width_;
   Eigen::LLT<Eigen::MatrixXd> sampler_;
-  mutable Eigen::VectorXd b_, db_;
-  mutable Eigen::MatrixXd psi_, scratch_;
+};
+
+/// Scratch buffers of a ProMp's evaluation, sized once from the model: `ProMpData data(promp);`.
+struct ProMpData {
+  explicit ProMpData(const ProMp& promp);
+
+  Eigen::VectorXd b, db;      ///< Basis b(z) and db/dz (kernels).
+  Eigen::MatrixXd psi;        ///< Ψ_z (dofs·kernels × 2 dofs): position columns, then velocity columns.
+  Eigen::MatrixXd sigma_psi;  ///< Σ_ω Ψ_z (dofs·kernels × 2 dofs).
 };
 
 }  // namespace bimanual_skills::primitives
