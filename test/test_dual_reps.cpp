@@ -36,6 +36,26 @@ double threeOptima(const Eigen::VectorXd& t) {
   return r;
 }
 
+/// The policy mean after each of `updates` updates of `rollouts` rollouts on (6.16), from N(0, I).
+std::vector<Eigen::VectorXd> learnThreeOptima(const bl::DualRepsParameters& parameters, unsigned seed, int updates,
+                                              int rollouts) {
+  bl::DualReps learner(parameters);
+  std::mt19937 rng(seed);
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(2);
+  Eigen::MatrixXd covariance = Eigen::MatrixXd::Identity(2, 2);
+  std::vector<Eigen::VectorXd> means;
+  for (int update = 0; update < updates; ++update) {
+    const Eigen::MatrixXd samples = gaussianSamples(rng, mean, covariance, rollouts);
+    Eigen::VectorXd rewards(rollouts);
+    for (int k = 0; k < rollouts; ++k) rewards[k] = threeOptima(samples.row(k).transpose());
+    const bl::DualRepsUpdate u = learner.update(mean, covariance, samples, rewards);
+    mean = u.policy.mean;
+    covariance = u.policy.covariance;
+    means.push_back(mean);
+  }
+  return means;
+}
+
 }  // namespace
 
 TEST(KMeans, SeparatesBlobsDeterministically) {
@@ -170,33 +190,22 @@ TEST(DualReps, ClustersSitOnBadAndGoodRolloutsAndTheKlBoundHolds) {
 TEST(DualReps, LeavesThePlateauBetweenOptimaThatHoldsReps) {
   // 40 updates of 100 rollouts (reusing 400) from N(0, I) on (6.16), 5 seeds: DREPS ends within 0.3 of an optimum
   // in every run; REPS, which averages between optima, in fewer.
-  const auto run = [](bool dual, unsigned seed) {
+  const auto nearest = [](bool dual, unsigned seed) {
     bl::DualRepsParameters parameters;
     parameters.reps.reuse = 400;
     if (!dual) parameters.clusters = 0;
     parameters.chi = 2.0 * parameters.reps.epsilon;
-    bl::DualReps learner(parameters);
-    std::mt19937 rng(seed);
-    Eigen::VectorXd mean = Eigen::VectorXd::Zero(2);
-    Eigen::MatrixXd covariance = Eigen::MatrixXd::Identity(2, 2);
-    for (int update = 0; update < 40; ++update) {
-      const Eigen::MatrixXd samples = gaussianSamples(rng, mean, covariance, 100);
-      Eigen::VectorXd rewards(100);
-      for (int k = 0; k < 100; ++k) rewards[k] = threeOptima(samples.row(k).transpose());
-      const bl::DualRepsUpdate u = learner.update(mean, covariance, samples, rewards);
-      mean = u.policy.mean;
-      covariance = u.policy.covariance;
-    }
-    double nearest = 1e9;
+    const Eigen::VectorXd mean = learnThreeOptima(parameters, seed, 40, 100).back();
+    double distance = 1e9;
     for (const Eigen::Vector2d& p : {Eigen::Vector2d(2, 1), Eigen::Vector2d(-2, 1), Eigen::Vector2d(0, -2)}) {
-      nearest = std::min(nearest, (mean - p).norm());
+      distance = std::min(distance, (mean - p).norm());
     }
-    return nearest;
+    return distance;
   };
   int dreps_near = 0, reps_near = 0;
   for (unsigned seed = 1; seed <= 5; ++seed) {
-    dreps_near += run(true, seed) < 0.3 ? 1 : 0;
-    reps_near += run(false, seed) < 0.3 ? 1 : 0;
+    dreps_near += nearest(true, seed) < 0.3 ? 1 : 0;
+    reps_near += nearest(false, seed) < 0.3 ? 1 : 0;
   }
   std::printf("(6.16), 5 runs of 40 updates: within 0.3 of an optimum: DREPS %d, REPS %d\n", dreps_near, reps_near);
   EXPECT_EQ(dreps_near, 5);
@@ -206,26 +215,11 @@ TEST(DualReps, LeavesThePlateauBetweenOptimaThatHoldsReps) {
 TEST(DualReps, TheSameSeedGivesTheSameLearningCurve) {
   // Clustering (k-means from its deterministic start), dual, repair and reuse: nothing depends on anything but the
   // samples, so two learners fed from equally seeded generators agree bit for bit.
-  const auto curve = [](unsigned seed) {
-    bl::DualRepsParameters parameters;
-    parameters.reps.reuse = 200;
-    bl::DualReps learner(parameters);
-    std::mt19937 rng(seed);
-    Eigen::VectorXd mean = Eigen::VectorXd::Zero(2);
-    Eigen::MatrixXd covariance = Eigen::MatrixXd::Identity(2, 2);
-    std::vector<Eigen::VectorXd> means;
-    for (int update = 0; update < 10; ++update) {
-      const Eigen::MatrixXd samples = gaussianSamples(rng, mean, covariance, 50);
-      Eigen::VectorXd rewards(50);
-      for (int k = 0; k < 50; ++k) rewards[k] = threeOptima(samples.row(k).transpose());
-      const bl::DualRepsUpdate u = learner.update(mean, covariance, samples, rewards);
-      mean = u.policy.mean;
-      covariance = u.policy.covariance;
-      means.push_back(mean);
-    }
-    return means;
-  };
-  const auto a = curve(21), b = curve(21), c = curve(22);
+  bl::DualRepsParameters parameters;
+  parameters.reps.reuse = 200;
+  const auto a = learnThreeOptima(parameters, 21, 10, 50);
+  const auto b = learnThreeOptima(parameters, 21, 10, 50);
+  const auto c = learnThreeOptima(parameters, 22, 10, 50);
   for (std::size_t k = 0; k < a.size(); ++k) EXPECT_EQ(a[k], b[k]) << "update " << k;
   EXPECT_NE(a.back(), c.back());
 }
