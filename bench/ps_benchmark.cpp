@@ -61,6 +61,24 @@ struct Protocol {
   Eigen::MatrixXd covariance;
 };
 
+/// The protocol of an experiment: `runs` (or --runs) runs of `updates` updates of `rollouts` rollouts, or the
+/// `quick_runs` × `quick_updates` smoke version, from N(mean, σ² I).
+Protocol makeProtocol(const Options& options, int runs, int quick_runs, int updates, int quick_updates, int rollouts,
+                      const Eigen::VectorXd& mean, double sigma) {
+  Protocol protocol;
+  protocol.runs = options.runs > 0 ? options.runs : (options.quick ? quick_runs : runs);
+  protocol.updates = options.quick ? quick_updates : updates;
+  protocol.rollouts = rollouts;
+  protocol.mean = mean;
+  protocol.covariance = sigma * sigma * Eigen::MatrixXd::Identity(mean.size(), mean.size());
+  return protocol;
+}
+
+/// Minimum-jerk profile 10 s³ − 15 s⁴ + 6 s⁵ from 0 to 1 over s ∈ [0, 1].
+double minimumJerk(double s) {
+  return 10 * std::pow(s, 3) - 15 * std::pow(s, 4) + 6 * std::pow(s, 5);
+}
+
 /// One run's learning curve: the reward of the mean policy before the first update and after each one, and the
 /// mean reward of each update's rollouts.
 struct Curve {
@@ -241,12 +259,7 @@ void multimodal2d(const Options& options, std::vector<Summary>& out) {
   double best = -1e300;
   for (const auto& p : psi) best = std::max(best, reward(p));
   const double threshold = best - 0.5;
-  Protocol protocol;
-  protocol.runs = options.runs > 0 ? options.runs : (options.quick ? 3 : 50);
-  protocol.updates = options.quick ? 8 : 40;
-  protocol.rollouts = 100;
-  protocol.mean = Eigen::VectorXd::Zero(2);
-  protocol.covariance = Eigen::MatrixXd::Identity(2, 2);
+  const Protocol protocol = makeProtocol(options, 50, 3, 40, 8, 100, Eigen::VectorXd::Zero(2), 1.0);
   Writer writer(options, "multimodal2d");
   for (const Algorithm& algorithm : repsFamily(0.5, 400, true)) {
     int plateau_runs = 0, reached = 0;
@@ -371,16 +384,11 @@ void bottles(const Options& options, std::vector<Summary>& out) {
   Eigen::MatrixXd line(samples, 2);
   for (int i = 0; i < samples; ++i) {
     const double s = static_cast<double>(i) / (samples - 1);
-    line(i, 0) = 1.0 * (10 * std::pow(s, 3) - 15 * std::pow(s, 4) + 6 * std::pow(s, 5));
+    line(i, 0) = minimumJerk(s);
     line(i, 1) = 0.0;
   }
   const DmpTask task = fitDmp(line, dt, 10);
-  Protocol protocol;
-  protocol.runs = options.runs > 0 ? options.runs : (options.quick ? 3 : 50);
-  protocol.updates = options.quick ? 10 : 100;
-  protocol.rollouts = 50;
-  protocol.mean = task.parameters();
-  protocol.covariance = Eigen::MatrixXd::Identity(20, 20) * 60.0 * 60.0;
+  const Protocol protocol = makeProtocol(options, 50, 3, 100, 10, 50, task.parameters(), 60.0);
   Eigen::MatrixXd y, ydd;
   // First with (6.17) (Fig. 6.10: any path that knocks no bottle down is a solution), then with (6.18).
   for (const bool crossing_term : {false, true}) {
@@ -490,12 +498,7 @@ void circle(const Options& options, std::vector<Summary>& out) {
     return -(1000.0 * distance / static_cast<double>(y.rows()) +
              1e-3 * ydd.squaredNorm() / static_cast<double>(y.rows()));
   };
-  Protocol protocol;
-  protocol.runs = options.runs > 0 ? options.runs : (options.quick ? 2 : 20);
-  protocol.updates = options.quick ? 5 : 50;
-  protocol.rollouts = 50;
-  protocol.mean = task.parameters();
-  protocol.covariance = Eigen::MatrixXd::Identity(84, 84) * 2.0 * 2.0;
+  const Protocol protocol = makeProtocol(options, 20, 2, 50, 5, 50, task.parameters(), 2.0);
   Writer writer(options, "circle");
   for (const Algorithm& algorithm : repsFamily(0.5, 100, false)) {
     const std::vector<Curve> curves =
@@ -514,7 +517,7 @@ void pi2viapoint(const Options& options, std::vector<Summary>& out) {
   Eigen::MatrixXd demonstration(samples, 1);
   for (int i = 0; i < samples; ++i) {
     const double s = static_cast<double>(i) / (samples - 1);
-    demonstration(i, 0) = 10 * std::pow(s, 3) - 15 * std::pow(s, 4) + 6 * std::pow(s, 5);
+    demonstration(i, 0) = minimumJerk(s);
   }
   const DmpTask task = fitDmp(demonstration, dt, 10);
   const int via_step = static_cast<int>(std::lround(t_via / dt));
@@ -538,12 +541,7 @@ void pi2viapoint(const Options& options, std::vector<Summary>& out) {
     return c;
   };
   const Reward reward = [&](const Eigen::VectorXd& theta) { return -step_costs(theta).sum(); };
-  Protocol protocol;
-  protocol.runs = options.runs > 0 ? options.runs : (options.quick ? 3 : 20);
-  protocol.updates = options.quick ? 10 : 60;
-  protocol.rollouts = 10;
-  protocol.mean = task.parameters();
-  protocol.covariance = Eigen::MatrixXd::Identity(10, 10) * 30.0 * 30.0;
+  const Protocol protocol = makeProtocol(options, 20, 3, 60, 10, 10, task.parameters(), 30.0);
   std::vector<Algorithm> algorithms;
   for (const bool cma : {false, true}) {
     bl::Pi2Parameters parameters;
