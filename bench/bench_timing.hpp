@@ -2,7 +2,7 @@
 /// Per-call timing for Google Benchmark programs: median, p99 and worst case from timed batches.
 #pragma once
 
-#include "bimanual_skills/testing/allocation_counter.hpp"
+#include "testing/allocation_counter.hpp"
 
 #include <benchmark/benchmark.h>
 

@@ -9,6 +9,7 @@
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
+#include "bimanual_skills/signal/acceleration_sign.hpp"
 
 #include <benchmark/benchmark.h>
 #include <kdl/chaindynparam.hpp>
@@ -148,15 +149,15 @@ void BM_Cycle(benchmark::State& state) {
   gains.kv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
   bc::ComputedTorqueController controller(f.model, friction, gains);
   bc::DisturbanceObserver observer(f.model, friction, bc::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0));
-  bd::AccelerationSign sign(7, 0.002);
+  bimanual_skills::signal::AccelerationSign sign(7, 0.002);
   Eigen::VectorXd u(7);
   timeBatches(
       state, kStates,
       [&](int k) {
         const auto i = static_cast<std::size_t>(k);
-        const Eigen::VectorXd& s = sign.update(f.qd[i]);
+        benchmark::DoNotOptimize(sign.update(f.qd[i]));
         benchmark::DoNotOptimize(controller.update(f.q[i], f.qd[i], f.q[i], f.qd[i], f.qdd[i], u));
-        benchmark::DoNotOptimize(observer.update(f.q[i], f.qd[i], u, s));
+        benchmark::DoNotOptimize(observer.update(f.q[i], f.qd[i], u, sign.sign()));
         benchmark::DoNotOptimize(observer.wrench().data());
       },
       1);

@@ -7,6 +7,7 @@
 // samples complete), then runs scripts/plot_ik_benchmark.py for the PNG plots and DIR/tables.md.
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "experiment_cli.hpp"
+#include "summary_json.hpp"
 
 #include <kdl/chainfksolverpos_recursive.hpp>
 #include <kdl/chainiksolverpos_lma.hpp>
@@ -307,7 +308,7 @@ void fig33(const Options& options, std::vector<Summary>&) {
       const Eigen::Vector3d p = kinematics.tipPose().translation();
       csv << figure << ',' << m.name << ',' << iteration << ',' << q[0] << ',' << q[1] << ',' << q[2] << ',' << q[3]
           << ',' << p.x() << ',' << p.y() << '\n';
-      if (bk::step(model, m.parameters, data, q, target) != bk::IkStatus::Converged) break;
+      if (bk::step(model, m.parameters, data, q, target) != bk::IkStatus::StepComputed) break;
       q += data.dq;
     }
   }
@@ -430,20 +431,21 @@ void tracik(const Options& options, std::vector<Summary>& out) {
 }
 
 void writeSummary(const Options& options, const std::vector<Summary>& rows) {
-  std::ofstream json(options.out + "/summary.json");
-  json.precision(10);
-  json << "{\n  \"program\": \"ik_benchmark\",\n  \"experiment\": \"" << options.experiment
-       << "\",\n  \"seed\": " << options.seed << ",\n  \"quick\": " << (options.quick ? "true" : "false")
-       << ",\n  \"results\": [\n";
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    const Summary& r = rows[i];
-    json << "    {\"experiment\": \"" << r.experiment << "\", \"solver\": \"" << r.solver << "\", \"setting\": \""
-         << r.setting << "\", \"samples\": " << r.samples << ", \"success_rate\": " << r.success_rate
-         << ", \"within_limits_rate\": " << r.within_limits_rate << ", \"median_us\": " << r.median_us
-         << ", \"p99_us\": " << r.p99_us << ", \"mean_iterations\": " << r.mean_iterations
-         << ", \"mean_residual_failed\": " << r.mean_residual_failed << "}" << (i + 1 < rows.size() ? "," : "") << "\n";
+  std::vector<bimanual_skills::bench::JsonRow> json;
+  for (const Summary& r : rows) {
+    json.emplace_back()
+        .add("experiment", r.experiment)
+        .add("solver", r.solver)
+        .add("setting", r.setting)
+        .add("samples", r.samples)
+        .add("success_rate", r.success_rate)
+        .add("within_limits_rate", r.within_limits_rate)
+        .add("median_us", r.median_us)
+        .add("p99_us", r.p99_us)
+        .add("mean_iterations", r.mean_iterations)
+        .add("mean_residual_failed", r.mean_residual_failed);
   }
-  json << "  ]\n}\n";
+  bimanual_skills::bench::writeSummaryJson(options, "ik_benchmark", json);
 }
 
 }  // namespace

@@ -26,9 +26,8 @@ struct Batch {
 
   Batch() {
     std::mt19937 rng(kSeed);
-    std::normal_distribution<double> normal(0.0, 1.0);
+    samples = bimanual_skills::learning::GaussianSampler().draw(mean, covariance, 50, rng);
     for (Eigen::Index k = 0; k < samples.rows(); ++k) {
-      for (Eigen::Index i = 0; i < samples.cols(); ++i) samples(k, i) = normal(rng);
       const Eigen::VectorXd theta = samples.row(k).transpose();
       rewards[k] = -std::min((theta.array() - 1.0).matrix().norm(), (theta.array() + 1.0).matrix().norm());
     }

@@ -1,14 +1,17 @@
-// Movement primitives per call: one DMP integration step of 7 DoF x 25 kernels, and one Cartesian DMP step (position
-// and orientation, 25 kernels) with either orientation encoding.
+// Movement primitives per call: one DMP integration step of 7 DoF x 25 kernels, one Cartesian DMP step (position
+// and orientation, 25 kernels) with either orientation encoding, and the state covariance of a 7-DoF ProMP with 20
+// kernels per DoF, block by block (ours) against the dense product Ψᵀ Σ_ω Ψ (the naive form) in the same run.
 //
 //   primitives_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
 #include "bench_timing.hpp"
 #include "bimanual_skills/primitives/cartesian_dmp.hpp"
 #include "bimanual_skills/primitives/dmp.hpp"
+#include "bimanual_skills/primitives/promp.hpp"
 
 #include <benchmark/benchmark.h>
 
 #include <cmath>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -60,8 +63,47 @@ void BM_CartesianDmpStep(benchmark::State& state) {
   });
 }
 
+/// A 7-DoF ProMP with 20 kernels per DoF and a dense random Σ_ω (seed 11), evaluated at 200 phases.
+bp::ProMp sevenDofProMp() {
+  const int dofs = 7, kernels = 20, n = dofs * kernels;
+  std::mt19937 rng(11);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  Eigen::MatrixXd A(n, n);
+  for (Eigen::Index i = 0; i < A.size(); ++i) A.data()[i] = normal(rng);
+  bp::ProMpParameters parameters;
+  parameters.kernels = kernels;
+  return bp::ProMp(parameters, dofs, Eigen::VectorXd::Zero(n), A * A.transpose() / n, Eigen::VectorXd::Ones(dofs),
+                   2.0);
+}
+
+/// ProMp::stateCovariance: 14 × 14 from Σ_ω's block columns (allocation-free).
+void BM_ProMpStateCovariance(benchmark::State& state) {
+  const bp::ProMp promp = sevenDofProMp();
+  bp::ProMpData data(promp);
+  Eigen::MatrixXd covariance(14, 14);
+  timeBatches(state, 200, [&](int k) {
+    benchmark::DoNotOptimize(promp.stateCovariance(data, k / 199.0, covariance));
+    benchmark::DoNotOptimize(covariance.data());
+  });
+}
+
+/// The naive form of the same: Ψ_z from blockBasis(), then the dense Ψ_zᵀ Σ_ω Ψ_z (Eigen's blocked product).
+void BM_ProMpStateCovarianceDense(benchmark::State& state) {
+  const bp::ProMp promp = sevenDofProMp();
+  bp::ProMpData data(promp);
+  Eigen::MatrixXd covariance(14, 14);
+  timeBatches(state, 200, [&](int k) {
+    benchmark::DoNotOptimize(promp.blockBasis(data, k / 199.0));
+    data.sigma_psi.noalias() = promp.weightCovariance() * data.psi;
+    covariance.noalias() = data.psi.transpose() * data.sigma_psi;
+    benchmark::DoNotOptimize(covariance.data());
+  });
+}
+
 }  // namespace
 
+BENCHMARK(BM_ProMpStateCovariance);
+BENCHMARK(BM_ProMpStateCovarianceDense);
 BENCHMARK(BM_DmpStep);
 BENCHMARK(BM_CartesianDmpStep)->Arg(0)->Arg(1)->ArgName("quaternion_vector");
 
@@ -70,6 +112,7 @@ int main(int argc, char** argv) {
   if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::AddCustomContext("dmp", "7 DoF x 25 kernels, dt = 2 ms");
   benchmark::AddCustomContext("cartesian_dmp", "position + orientation, 25 kernels, dt = 2 ms");
+  benchmark::AddCustomContext("promp", "7 DoF x 20 kernels, state covariance 14 x 14, dense random Sigma_w (seed 11)");
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;

@@ -5,14 +5,12 @@
 //
 // Writes DIR/<experiment>.csv (one row per run and update, appended as each run ends), DIR/summary.json, then runs
 // scripts/plot_ps_benchmark.py for the learning-curve PNGs (mean ± 2 std over runs) and DIR/tables.md.
-#include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/learning/dual_reps.hpp"
+#include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/learning/pi2.hpp"
-#include "bimanual_skills/primitives/dmp.hpp"
+#include "bimanual_skills/tasks/policy_search_tasks.hpp"
 #include "experiment_cli.hpp"
-
-#include <Eigen/Cholesky>
-#include <Eigen/SVD>
+#include "summary_json.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -30,9 +28,9 @@
 #include <string>
 #include <vector>
 
-namespace bl = bimanual_skills::learning;
-namespace bp = bimanual_skills::primitives;
 namespace bk = bimanual_skills::kinematics;
+namespace bl = bimanual_skills::learning;
+namespace bt = bimanual_skills::tasks;
 
 namespace {
 
@@ -74,11 +72,6 @@ Protocol makeProtocol(const Options& options, int runs, int quick_runs, int upda
   return protocol;
 }
 
-/// Minimum-jerk profile 10 s³ − 15 s⁴ + 6 s⁵ from 0 to 1 over s ∈ [0, 1].
-double minimumJerk(double s) {
-  return 10 * std::pow(s, 3) - 15 * std::pow(s, 4) + 6 * std::pow(s, 5);
-}
-
 /// One run's learning curve: the reward of the mean policy before the first update and after each one, and the
 /// mean reward of each update's rollouts.
 struct Curve {
@@ -94,21 +87,18 @@ Curve learn(const Protocol& protocol, const Algorithm& algorithm, const Reward& 
   Curve curve;
   Eigen::VectorXd mean = protocol.mean;
   Eigen::MatrixXd covariance = protocol.covariance;
-  std::normal_distribution<double> normal(0.0, 1.0);
+  bl::GaussianSampler sampler;
   algorithm.reset(rng);
   curve.policy_reward.push_back(reward(mean));
   curve.means.push_back(mean);
   const auto start = std::chrono::steady_clock::now();
   for (int u = 0; u < protocol.updates; ++u) {
-    const Eigen::LLT<Eigen::MatrixXd> llt(covariance);
-    const Eigen::MatrixXd L = llt.matrixL();
+    const Eigen::MatrixXd L = bl::choleskyFactor(covariance);
     Eigen::MatrixXd samples(protocol.rollouts, mean.size());
     Eigen::VectorXd rewards(protocol.rollouts);
     Eigen::MatrixXd costs;
     for (int k = 0; k < protocol.rollouts; ++k) {
-      Eigen::VectorXd e(mean.size());
-      for (Eigen::Index i = 0; i < e.size(); ++i) e[i] = normal(rng);
-      samples.row(k) = (mean + L * e).transpose();
+      samples.row(k) = sampler.draw(mean, L, rng).transpose();
       if (step_costs) {
         const Eigen::VectorXd c = step_costs(samples.row(k).transpose());
         if (costs.size() == 0) costs.resize(protocol.rollouts, c.size());
@@ -248,14 +238,8 @@ std::vector<Curve> runAll(const Options& options, const std::string& experiment,
 
 void multimodal2d(const Options& options, std::vector<Summary>& out) {
   // Three optima around the initial mean (their centroid is the origin, the worst point).
-  const std::vector<Eigen::Vector2d> psi = {{2.0, 1.0}, {-2.0, 1.0}, {0.0, -2.0}};
-  const Eigen::Vector2d centroid = (psi[0] + psi[1] + psi[2]) / 3.0;
-  const Reward reward = [&](const Eigen::VectorXd& theta) {
-    const Eigen::Vector2d t = theta.head<2>();
-    double r = 10.0 * (centroid - t).norm();
-    for (const auto& p : psi) r -= 5.0 * (p - t).norm();
-    return r;
-  };
+  const bt::MultimodalReward reward;
+  const std::vector<Eigen::Vector2d>& psi = reward.optima;
   double best = -1e300;
   for (const auto& p : psi) best = std::max(best, reward(p));
   const double threshold = best - 0.5;
@@ -292,107 +276,15 @@ void multimodal2d(const Options& options, std::vector<Summary>& out) {
   }
 }
 
-// ---- DMP helpers for the trajectory tasks ----
-
-/// A DMP fitted to `demonstration` and the means of its weights as a parameter vector (DoF-major).
-struct DmpTask {
-  bp::Dmp dmp;
-  double dt;
-  int steps;
-
-  Eigen::VectorXd parameters() const {
-    const Eigen::MatrixXd& w = dmp.weights();
-    Eigen::VectorXd theta(w.size());
-    for (Eigen::Index d = 0; d < w.rows(); ++d) theta.segment(d * w.cols(), w.cols()) = w.row(d).transpose();
-    return theta;
-  }
-  /// Positions (steps + 1 × DoF) and accelerations of the DMP with parameters θ.
-  void rollout(const Eigen::VectorXd& theta, Eigen::MatrixXd& y, Eigen::MatrixXd& ydd) const {
-    const Eigen::Index dofs = dmp.dofs(), kernels = dmp.parameters().kernels;
-    Eigen::MatrixXd w(dofs, kernels);
-    for (Eigen::Index d = 0; d < dofs; ++d) w.row(d) = theta.segment(d * kernels, kernels).transpose();
-    const bp::Dmp sample = dmp.withWeights(w);
-    bp::DmpState state = sample.initialState();
-    y.resize(steps + 1, dofs);
-    ydd.resize(steps + 1, dofs);
-    y.row(0) = state.y.transpose();
-    ydd.row(0).setZero();
-    for (int i = 1; i <= steps; ++i) {
-      sample.step(state, dt);
-      y.row(i) = state.y.transpose();
-      ydd.row(i) = state.ydd.transpose();
-    }
-  }
-};
-
-DmpTask fitDmp(const Eigen::MatrixXd& demonstration, double dt, int kernels) {
-  bp::DmpParameters parameters;
-  parameters.kernels = kernels;
-  return {bp::Dmp::fit(parameters, demonstration, dt), dt, static_cast<int>(demonstration.rows()) - 1};
-}
-
 // ---- bottles: the planar bottle-avoidance task (Figs. 6.8–6.12, rewards 6.17 and 6.18) ----
 
-struct Bottles {
-  std::vector<Eigen::Vector2d> centres = {{0.3, 0.0}, {0.7, 0.0}};
-  double radius = 0.08;  ///< 4 cm bottle radius widened by a 4 cm tool.
-  bool crossing_term = true;
-
-  /// (6.18) (or 6.17 without the crossing term) of a planar path; `satisfactory`: between the bottles, none down.
-  double reward(const Eigen::MatrixXd& y, bool* satisfactory = nullptr) const {
-    double length = 0.0;
-    for (Eigen::Index i = 1; i < y.rows(); ++i) length += (y.row(i) - y.row(i - 1)).norm();
-    int down = 0;
-    std::vector<double> side;
-    for (const auto& c : centres) {
-      double nearest = 1e300;
-      double side_at = 0.0;
-      bool passed = false;
-      for (Eigen::Index i = 0; i < y.rows(); ++i) {
-        const Eigen::Vector2d p = y.row(i).transpose();
-        nearest = std::min(nearest, segmentDistance(y, i, c));
-        if (!passed && p.x() >= c.x()) {
-          side_at = p.y();
-          passed = true;
-        }
-      }
-      if (nearest < radius) ++down;
-      side.push_back(side_at);
-    }
-    const bool crossed = side[0] * side[1] < 0.0;
-    if (satisfactory != nullptr) *satisfactory = down == 0 && crossed;
-    return -2.0 * down - 0.15 * length - (crossing_term && !crossed ? 4.0 : 0.0);
-  }
-
- private:
-  /// Distance from c to the path segment ending at sample i.
-  static double segmentDistance(const Eigen::MatrixXd& y, Eigen::Index i, const Eigen::Vector2d& c) {
-    const Eigen::Vector2d b = y.row(i).transpose();
-    if (i == 0) return (b - c).norm();
-    const Eigen::Vector2d a = y.row(i - 1).transpose();
-    const Eigen::Vector2d ab = b - a;
-    const double t = ab.squaredNorm() > 0.0 ? std::clamp((c - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
-    return (a + t * ab - c).norm();
-  }
-};
-
 void bottles(const Options& options, std::vector<Summary>& out) {
-  // The initial policy: a DMP with 10 Gaussians per DoF fitted to the straight line from start to goal
-  // (minimum-jerk timing, 1 s at 100 Hz).
-  const double dt = 0.01;
-  const int samples = 101;
-  Eigen::MatrixXd line(samples, 2);
-  for (int i = 0; i < samples; ++i) {
-    const double s = static_cast<double>(i) / (samples - 1);
-    line(i, 0) = minimumJerk(s);
-    line(i, 1) = 0.0;
-  }
-  const DmpTask task = fitDmp(line, dt, 10);
+  const bt::DmpRollout task = bt::BottleTask::initialPolicy();
   const Protocol protocol = makeProtocol(options, 50, 3, 100, 10, 50, task.parameters(), 60.0);
   Eigen::MatrixXd y, ydd;
   // First with (6.17) (Fig. 6.10: any path that knocks no bottle down is a solution), then with (6.18).
   for (const bool crossing_term : {false, true}) {
-    Bottles world;
+    bt::BottleTask world;
     world.crossing_term = crossing_term;
     const std::string experiment = crossing_term ? "bottles" : "bottles617";
     const Reward reward = [&](const Eigen::VectorXd& theta) {
@@ -440,71 +332,16 @@ void bottles(const Options& options, std::vector<Summary>& out) {
 // ---- circle: a unimodal 7-DoF task with the WAM's kinematics (Fig. 6.14) ----
 
 void circle(const Options& options, std::vector<Summary>& out) {
-  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool");
-  bk::ChainData data(model);
-  // An inaccurate "kinesthetic" demonstration: a joint-space ellipse around a nominal posture, with noise; the task
-  // is to make the tool trace the circle that best fits the demonstration's tool path.
-  const double duration = 20.0, dt = 0.04;
-  const int samples = static_cast<int>(duration / dt) + 1;
-  Eigen::VectorXd q0(7), a(7), b(7);
-  q0 << 0.0, 0.6, 0.0, 1.6, 0.0, 0.4, 0.0;
-  a << 0.25, 0.0, 0.1, 0.15, 0.0, 0.1, 0.0;
-  b << 0.0, 0.2, 0.0, -0.2, 0.1, 0.0, 0.0;
-  std::mt19937 demo_rng(options.seed);
-  std::normal_distribution<double> noise(0.0, 0.01);
-  Eigen::MatrixXd demonstration(samples, 7);
-  for (int i = 0; i < samples; ++i) {
-    const double phase = 2.0 * M_PI * i / (samples - 1);
-    for (int j = 0; j < 7; ++j) demonstration(i, j) = q0[j] + a[j] * std::sin(phase) + b[j] * (1.0 - std::cos(phase));
-    if (i > 0 && i < samples - 1) {
-      for (int j = 0; j < 7; ++j) demonstration(i, j) += noise(demo_rng);
-    }
-  }
-  const DmpTask task = fitDmp(demonstration, dt, 12);
-  // Best-fit circle of the demonstrated tool path: plane by SVD, circle in the plane by the algebraic (Kåsa) fit.
-  Eigen::MatrixXd tool(samples, 3);
-  for (int i = 0; i < samples; ++i) {
-    if (bk::forwardKinematics(model, data, demonstration.row(i).transpose()) != bk::KinematicsStatus::Success) {
-      throw std::runtime_error("circle: forward kinematics failed on the demonstration");
-    }
-    tool.row(i) = data.tipPose().translation().transpose();
-  }
-  const Eigen::Vector3d centroid = tool.colwise().mean().transpose();
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(tool.rowwise() - centroid.transpose(), Eigen::ComputeThinV);
-  const Eigen::Vector3d u = svd.matrixV().col(0), v = svd.matrixV().col(1);
-  Eigen::MatrixXd A(samples, 3);
-  Eigen::VectorXd rhs(samples);
-  for (int i = 0; i < samples; ++i) {
-    const Eigen::Vector3d p = tool.row(i).transpose() - centroid;
-    const double x = p.dot(u), z = p.dot(v);
-    A.row(i) << x, z, 1.0;
-    rhs[i] = x * x + z * z;
-  }
-  const Eigen::Vector3d fit = A.colPivHouseholderQr().solve(rhs);
-  const Eigen::Vector3d centre = centroid + 0.5 * fit[0] * u + 0.5 * fit[1] * v;
-  const double radius = std::sqrt(fit[2] + 0.25 * (fit[0] * fit[0] + fit[1] * fit[1]));
-  const Eigen::Vector3d normal = u.cross(v);
-  Eigen::MatrixXd y, ydd;
-  // Reward: −(mean distance of the tool from the circle [mm] + 1e-3 · mean squared joint acceleration).
-  const Reward reward = [&](const Eigen::VectorXd& theta) {
-    task.rollout(theta, y, ydd);
-    double distance = 0.0;
-    for (Eigen::Index i = 0; i < y.rows(); ++i) {
-      if (bk::forwardKinematics(model, data, y.row(i).transpose()) != bk::KinematicsStatus::Success) return -1e9;
-      const Eigen::Vector3d p = data.tipPose().translation() - centre;
-      const Eigen::Vector3d in_plane = p - p.dot(normal) * normal;
-      distance += std::hypot(p.dot(normal), in_plane.norm() - radius);
-    }
-    return -(1000.0 * distance / static_cast<double>(y.rows()) +
-             1e-3 * ydd.squaredNorm() / static_cast<double>(y.rows()));
-  };
-  const Protocol protocol = makeProtocol(options, 20, 2, 50, 5, 50, task.parameters(), 2.0);
+  bt::CircleTask task(bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool"),
+                      options.seed);
+  const Reward reward = [&](const Eigen::VectorXd& theta) { return task.reward(theta); };
+  const Protocol protocol = makeProtocol(options, 20, 2, 50, 5, 50, task.policy().parameters(), 2.0);
   Writer writer(options, "circle");
   for (const Algorithm& algorithm : repsFamily(0.5, 100, false)) {
     const std::vector<Curve> curves =
         runAll(options, "circle", protocol, algorithm, reward, writer, [](const Curve&) {});
     Summary s = summarise("circle", algorithm.name, protocol, curves);
-    s.extra = {{"initial_reward", curves.front().policy_reward.front()}, {"circle_radius_m", radius}};
+    s.extra = {{"initial_reward", curves.front().policy_reward.front()}, {"circle_radius_m", task.radius()}};
     out.push_back(s);
   }
 }
@@ -512,36 +349,11 @@ void circle(const Options& options, std::vector<Summary>& out) {
 // ---- pi2viapoint: a 1-D DMP through a via-point, PI2 vs PI2-CMA vs REPS ----
 
 void pi2viapoint(const Options& options, std::vector<Summary>& out) {
-  const double dt = 0.01, t_via = 0.3, y_via = 0.5;
-  const int samples = 101;
-  Eigen::MatrixXd demonstration(samples, 1);
-  for (int i = 0; i < samples; ++i) {
-    const double s = static_cast<double>(i) / (samples - 1);
-    demonstration(i, 0) = minimumJerk(s);
-  }
-  const DmpTask task = fitDmp(demonstration, dt, 10);
-  const int via_step = static_cast<int>(std::lround(t_via / dt));
-  // Basis activations per step, for PI2's projection (5.8).
-  Eigen::MatrixXd basis(task.steps, task.dmp.parameters().kernels);
-  {
-    bp::DmpState state = task.dmp.initialState();
-    for (int i = 0; i < task.steps; ++i) {
-      Eigen::VectorXd g(basis.cols());
-      task.dmp.basis(state.x, g);
-      basis.row(i) = g.transpose();
-      task.dmp.step(state, dt);
-    }
-  }
-  Eigen::MatrixXd y, ydd;
-  // Immediate cost 1e-6 ÿ² per step, and 1e4 (y − y_via)² at the via-point's step (Stulp's classic via-point task).
-  const auto step_costs = [&](const Eigen::VectorXd& theta) {
-    task.rollout(theta, y, ydd);
-    Eigen::VectorXd c = 1e-6 * ydd.col(0).tail(task.steps).array().square().matrix();
-    c[via_step - 1] += 1e4 * std::pow(y(via_step, 0) - y_via, 2);
-    return c;
-  };
+  bt::ViaPointTask task;
+  const Eigen::MatrixXd& basis = task.basis();
+  const auto step_costs = [&](const Eigen::VectorXd& theta) { return task.stepCosts(theta); };
   const Reward reward = [&](const Eigen::VectorXd& theta) { return -step_costs(theta).sum(); };
-  const Protocol protocol = makeProtocol(options, 20, 3, 60, 10, 10, task.parameters(), 30.0);
+  const Protocol protocol = makeProtocol(options, 20, 3, 60, 10, 10, task.policy().parameters(), 30.0);
   std::vector<Algorithm> algorithms;
   for (const bool cma : {false, true}) {
     bl::Pi2Parameters parameters;
@@ -559,10 +371,7 @@ void pi2viapoint(const Options& options, std::vector<Summary>& out) {
   Writer writer(options, "pi2viapoint");
   for (const Algorithm& algorithm : algorithms) {
     double via_error = 0.0;
-    const auto each = [&](const Curve& c) {
-      task.rollout(c.means.back(), y, ydd);
-      via_error += std::abs(y(via_step, 0) - y_via);
-    };
+    const auto each = [&](const Curve& c) { via_error += task.viaPointError(c.means.back()); };
     const std::vector<Curve> curves =
         runAll(options, "pi2viapoint", protocol, algorithm, reward, writer, each, step_costs);
     Summary s = summarise("pi2viapoint", algorithm.name, protocol, curves);
@@ -573,21 +382,20 @@ void pi2viapoint(const Options& options, std::vector<Summary>& out) {
 }
 
 void writeSummary(const Options& options, const std::vector<Summary>& rows) {
-  std::ofstream json(options.out + "/summary.json");
-  json.precision(10);
-  json << "{\n  \"program\": \"ps_benchmark\",\n  \"experiment\": \"" << options.experiment
-       << "\",\n  \"seed\": " << options.seed << ",\n  \"quick\": " << (options.quick ? "true" : "false")
-       << ",\n  \"results\": [\n";
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    const Summary& r = rows[i];
-    json << "    {\"experiment\": \"" << r.experiment << "\", \"algorithm\": \"" << r.algorithm
-         << "\", \"runs\": " << r.runs << ", \"updates\": " << r.updates << ", \"rollouts_per_update\": " << r.rollouts
-         << ", \"final_reward_mean\": " << r.final_reward_mean << ", \"final_reward_std\": " << r.final_reward_std
-         << ", \"seconds_per_update\": " << r.seconds_per_update;
-    for (const auto& [key, value] : r.extra) json << ", \"" << key << "\": " << value;
-    json << "}" << (i + 1 < rows.size() ? "," : "") << "\n";
+  std::vector<bimanual_skills::bench::JsonRow> json;
+  for (const Summary& r : rows) {
+    bimanual_skills::bench::JsonRow& row = json.emplace_back();
+    row.add("experiment", r.experiment)
+        .add("algorithm", r.algorithm)
+        .add("runs", r.runs)
+        .add("updates", r.updates)
+        .add("rollouts_per_update", r.rollouts)
+        .add("final_reward_mean", r.final_reward_mean)
+        .add("final_reward_std", r.final_reward_std)
+        .add("seconds_per_update", r.seconds_per_update);
+    for (const auto& [key, value] : r.extra) row.add(key, value);
   }
-  json << "  ]\n}\n";
+  bimanual_skills::bench::writeSummaryJson(options, "ps_benchmark", json);
 }
 
 }  // namespace

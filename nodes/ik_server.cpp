@@ -130,10 +130,9 @@ class ArmServices {
     if (it != solvers_.end()) return *it->second;
     bk::GlobalIkParameters parameters;
     if (!bk::parseMethodName(method, parameters.local.inverse, parameters.local.limits)) {
-      throw RequestError{SolveIk::Response::INVALID_INPUT,
-                         "unknown method '" + method +
-                             "' (JP, JT, SD, JD, JF, ED, IED, SVF, SVF+ED, SVF+SD, JW, GP, "
-                             "JC, TA, TP, CTP, CTP+SVF, CTP+SD, CTP+SD+SVF)"};
+      std::string known;
+      for (const std::string& name : bk::methodNames()) known += (known.empty() ? "" : ", ") + name;
+      throw RequestError{SolveIk::Response::INVALID_INPUT, "unknown method '" + method + "' (" + known + ")"};
     }
     if (mode == "first") {
       parameters.mode = bk::SolutionMode::FirstFound;

@@ -3,7 +3,7 @@
 // goal changes while running, the clamp of ‖v‖ > 1, bad input, allocation-free steps, and the log/exp maps against
 // Eigen's angle-axis.
 #include "bimanual_skills/primitives/cartesian_dmp.hpp"
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 
@@ -63,9 +63,9 @@ Rollout rollout(const bp::CartesianDmp& dmp, double seconds, double goal_change_
   const int steps = static_cast<int>(std::round(seconds / kDt));
   for (int k = 1; k <= steps; ++k) {
     if (goal_change_at >= 0.0 && std::abs(state.position.t - goal_change_at) < 0.5 * kDt) state.setGoal(new_goal);
-    const bp::CartesianDmpStatus status = dmp.step(state, kDt);
-    EXPECT_NE(status, bp::CartesianDmpStatus::InvalidInput);
-    r.clamped += status == bp::CartesianDmpStatus::VectorClamped;
+    const bp::DmpStatus status = dmp.step(state, kDt);
+    EXPECT_NE(status, bp::DmpStatus::InvalidInput);
+    r.clamped += status == bp::DmpStatus::VectorClamped;
     r.poses.push_back(state.pose());
     r.worst_norm_error = std::max(r.worst_norm_error, std::abs(state.orientation.norm() - 1.0));
   }
@@ -207,32 +207,32 @@ TEST(CartesianDmp, BadInputIsRefused) {
     const bp::CartesianDmp dmp = bp::CartesianDmp::fit(bp::DmpParameters(), encoding, demo, kDt);
     const bp::CartesianDmpState good = dmp.initialState();
     bp::CartesianDmpState state = good;
-    EXPECT_EQ(dmp.step(state, 0.0), bp::CartesianDmpStatus::InvalidInput);
-    EXPECT_EQ(dmp.step(state, std::nan("")), bp::CartesianDmpStatus::InvalidInput);
+    EXPECT_EQ(dmp.step(state, 0.0), bp::DmpStatus::InvalidInput);
+    EXPECT_EQ(dmp.step(state, std::nan("")), bp::DmpStatus::InvalidInput);
     state.position.y[1] = std::nan("");
-    EXPECT_EQ(dmp.step(state, kDt), bp::CartesianDmpStatus::InvalidInput);
+    EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::InvalidInput);
     EXPECT_TRUE(std::isnan(state.position.y[1]));  // unchanged
     state = good;
     state.orientation.coeffs() *= 1.01;  // not unit
-    EXPECT_EQ(dmp.step(state, kDt), bp::CartesianDmpStatus::InvalidInput);
+    EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::InvalidInput);
     EXPECT_EQ(state.orientation.coeffs(), good.orientation.coeffs() * 1.01);
     EXPECT_EQ(state.position.t, 0.0);
     state = good;
     state.goal_orientation.coeffs().setZero();
-    EXPECT_EQ(dmp.step(state, kDt), bp::CartesianDmpStatus::InvalidInput);
+    EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::InvalidInput);
     state = good;
     state.goal_orientation.x() = std::nan("");
-    EXPECT_EQ(dmp.step(state, kDt), bp::CartesianDmpStatus::InvalidInput);
+    EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::InvalidInput);
     state = good;
     state.angular_velocity[0] = INFINITY;
-    EXPECT_EQ(dmp.step(state, kDt), bp::CartesianDmpStatus::InvalidInput);
+    EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::InvalidInput);
     state = good;
     state.position.goal = Eigen::VectorXd::Zero(7);
-    EXPECT_EQ(dmp.step(state, kDt), bp::CartesianDmpStatus::InvalidInput);
+    EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::InvalidInput);
     if (encoding == bp::OrientationEncoding::QuaternionVector) {
       state = good;
       state.orientation_vector.y.resize(0);
-      EXPECT_EQ(dmp.step(state, kDt), bp::CartesianDmpStatus::InvalidInput);
+      EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::InvalidInput);
     }
     bp::Pose not_unit = dmp.goal();
     not_unit.orientation.coeffs() *= 2.0;
@@ -264,6 +264,6 @@ TEST(CartesianDmp, StepsDoNotAllocate) {
     const bp::CartesianDmp dmp = bp::CartesianDmp::fit(parameters, encoding, demo, kDt);
     bp::CartesianDmpState state = dmp.initialState();
     NoAllocGuard guard;
-    for (int k = 0; k < 200; ++k) EXPECT_EQ(dmp.step(state, kDt), bp::CartesianDmpStatus::Success);
+    for (int k = 0; k < 200; ++k) EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::Success);
   }
 }

@@ -1,8 +1,8 @@
 // Forward kinematics and Jacobians against independent references: KDL on the same URDF, central finite
 // differences of FK, and the WAM's known poses. Real-time calls are checked for heap allocations.
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
 #include "test_support.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 #include <kdl/chainfksolverpos_recursive.hpp>

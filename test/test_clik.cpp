@@ -1,14 +1,15 @@
 // CLIK inverse kinematics: operators against their closed forms, the continuous pseudoinverse against a brute-force
 // power-set sum, convergence on the WAM, bad input, and allocation-free steps for every method.
 #include "bimanual_skills/kinematics/clik.hpp"
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
 #include "test_support.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 #include <Eigen/Dense>
 
 #include <cmath>
 #include <random>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -24,24 +25,6 @@ using bimanual_skills::test_support::wam;
 namespace {
 
 constexpr unsigned kSeed = 31415;
-
-const std::vector<InverseOperator> kOperators = {InverseOperator::Pseudoinverse,
-                                                 InverseOperator::Transpose,
-                                                 InverseOperator::SelectiveDamping,
-                                                 InverseOperator::Damping,
-                                                 InverseOperator::Filtering,
-                                                 InverseOperator::ErrorDamping,
-                                                 InverseOperator::ImprovedErrorDamping,
-                                                 InverseOperator::SingularValueFilter,
-                                                 InverseOperator::SvfErrorDamping,
-                                                 InverseOperator::SvfSelectiveDamping};
-const std::vector<LimitScheme> kSchemes = {LimitScheme::None,
-                                           LimitScheme::JointWeighting,
-                                           LimitScheme::GradientProjection,
-                                           LimitScheme::JointClamping,
-                                           LimitScheme::TaskAugmentation,
-                                           LimitScheme::TaskPriority,
-                                           LimitScheme::ContinuousTaskPriority};
 
 Eigen::MatrixXd pinv(const Eigen::MatrixXd& A) {
   return A.completeOrthogonalDecomposition().pseudoInverse();
@@ -124,7 +107,7 @@ TEST(InverseOperators, StepsEqualTheirClosedForms) {
   const auto stepOf = [&](InverseOperator op) {
     parameters.inverse = op;
     bk::ClikData data(model, parameters);
-    EXPECT_EQ(bk::step(model, parameters, data, q, target), bk::IkStatus::Converged);
+    EXPECT_EQ(bk::step(model, parameters, data, q, target), bk::IkStatus::StepComputed);
     return std::make_tuple(Eigen::VectorXd(data.dq), Eigen::MatrixXd(data.jacobian), Eigen::VectorXd(data.task));
   };
   const auto [dq_jp, J, e] = stepOf(InverseOperator::Pseudoinverse);
@@ -161,7 +144,7 @@ TEST(InverseOperators, SingularValueFilterBoundsTheConditionNumber) {
   target.translation().x() += 0.01;
   parameters.inverse = InverseOperator::SingularValueFilter;
   bk::ClikData data(model, parameters);
-  ASSERT_EQ(bk::step(model, parameters, data, q, target), bk::IkStatus::Converged);
+  ASSERT_EQ(bk::step(model, parameters, data, q, target), bk::IkStatus::StepComputed);
   // The configuration is singular enough that JP's largest gain 1/σ_min would be 100× SVF's bound 1/σ0 ...
   const Eigen::JacobiSVD<Eigen::MatrixXd> svd(data.jacobian);
   EXPECT_LT(svd.singularValues().minCoeff(), parameters.sigma0 / 100.0);
@@ -198,8 +181,8 @@ TEST(Clik, EveryMethodConvergesOnNearbyTargets) {
     if (!model.withinLimits(q1, -0.3) || !model.withinLimits(q0, -0.3)) continue;
     problems.emplace_back(q0, tipPose(model, q1));
   }
-  for (LimitScheme scheme : kSchemes) {
-    for (InverseOperator op : kOperators) {
+  for (LimitScheme scheme : bk::kLimitSchemes) {
+    for (InverseOperator op : bk::kInverseOperators) {
       if ((scheme != LimitScheme::None && scheme != LimitScheme::ContinuousTaskPriority &&
            op != InverseOperator::Pseudoinverse) ||
           (scheme == LimitScheme::ContinuousTaskPriority && op == InverseOperator::Transpose)) {
@@ -215,19 +198,19 @@ TEST(Clik, EveryMethodConvergesOnNearbyTargets) {
         Eigen::VectorXd q = q0;
         const bk::IkResult result = bk::solve(model, parameters, data, q, target);
         if (op == InverseOperator::Transpose) {
+          // JT converges slowly: where it has not converged it must at least have halved the initial error.
           Eigen::VectorXd initial_error(6);
           bk::poseError(tipPose(model, q0), target, bk::TaskMode::Pose, initial_error);
           EXPECT_LT(result.residual, 0.5 * initial_error.cwiseAbs().maxCoeff()) << bk::methodName(op, scheme);
-          ++converged;
-          continue;
         }
         if (result.status == bk::IkStatus::Converged) {
           ++converged;
           EXPECT_LE((tipPose(model, q).translation() - target.translation()).cwiseAbs().maxCoeff(), 1e-5);
         }
       }
-      // TP is discontinuous by design (thesis Table 3.5: 33.6 %); the others must mostly succeed.
-      const int needed = scheme == LimitScheme::TaskPriority ? 5 : 27;
+      // From a start 0.3 rad from the solution every method mostly succeeds (measured: 29 or 30 of 30 each, TP
+      // included, whose discontinuity shows on Table 3.5's wider problems; JT 22 of 30 within the 2000 iterations).
+      const int needed = op == InverseOperator::Transpose ? 20 : 27;
       EXPECT_GE(converged, needed) << bk::methodName(op, scheme) << ": " << converged << "/30";
     }
   }
@@ -304,8 +287,8 @@ TEST(Clik, StepAndSolveDoNotAllocateForAnyMethod) {
   q0[5] = model.lowerLimits()[5] + 0.1;   // and another: the continuous pseudoinverse branches
   const Eigen::Isometry3d target = tipPose(model, randomWithinLimits(model, rng));
   for (bk::TaskMode mode : {bk::TaskMode::Pose, bk::TaskMode::Position}) {
-    for (LimitScheme scheme : kSchemes) {
-      for (InverseOperator op : kOperators) {
+    for (LimitScheme scheme : bk::kLimitSchemes) {
+      for (InverseOperator op : bk::kInverseOperators) {
         if (scheme == LimitScheme::ContinuousTaskPriority && op == InverseOperator::Transpose) continue;
         bk::ClikParameters parameters;
         parameters.inverse = op;
@@ -330,8 +313,8 @@ TEST(Clik, StepAndSolveDoNotAllocateForAnyMethod) {
 
 TEST(Clik, MethodNamesRoundTrip) {
   int parsed = 0;
-  for (LimitScheme scheme : kSchemes) {
-    for (InverseOperator op : kOperators) {
+  for (LimitScheme scheme : bk::kLimitSchemes) {
+    for (InverseOperator op : bk::kInverseOperators) {
       InverseOperator op_back;
       LimitScheme scheme_back;
       const std::string name = bk::methodName(op, scheme);
@@ -342,6 +325,19 @@ TEST(Clik, MethodNamesRoundTrip) {
     }
   }
   EXPECT_GE(parsed, 19);
+  // methodNames() lists exactly the distinct names that parse (the 19 of the thesis' tables), each once.
+  std::set<std::string> distinct;
+  for (LimitScheme scheme : bk::kLimitSchemes) {
+    for (InverseOperator op : bk::kInverseOperators) {
+      InverseOperator op_back;
+      LimitScheme scheme_back;
+      const std::string name = bk::methodName(op, scheme);
+      if (name != "CTP+other" && bk::parseMethodName(name, op_back, scheme_back)) distinct.insert(name);
+    }
+  }
+  const std::set<std::string> listed(bk::methodNames().begin(), bk::methodNames().end());
+  EXPECT_EQ(listed.size(), bk::methodNames().size());
+  EXPECT_EQ(listed, distinct);
   InverseOperator op;
   LimitScheme scheme;
   EXPECT_FALSE(bk::parseMethodName("SVF+XX", op, scheme));
@@ -394,7 +390,7 @@ TEST(Clik, CtpSelectiveDampingStepEqualsItsEquations) {
       Eigen::VectorXd q = randomWithinLimits(model, rng);
       if (trial % 2 == 1) q[3] = model.upperLimits()[3] - 0.3 * parameters.beta;  // a joint in transition
       const Eigen::Isometry3d target = tipPose(model, randomWithinLimits(model, rng));
-      ASSERT_EQ(bk::step(model, parameters, data, q, target), bk::IkStatus::Converged);
+      ASSERT_EQ(bk::step(model, parameters, data, q, target), bk::IkStatus::StepComputed);
       EXPECT_LE((data.dq - referenceCtpSdStep(parameters, data, q, model)).cwiseAbs().maxCoeff(), 1e-10)
           << bk::methodName(op, LimitScheme::ContinuousTaskPriority) << " trial " << trial;
     }

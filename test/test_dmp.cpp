@@ -1,7 +1,7 @@
 // DMPs (thesis 5.14–5.15): reproduction of a demonstration, goal reaching, time scaling, the goal-scaled variant's
 // exact rescaling, goal change while running, noisy demonstrations, bad input and allocation-free steps.
 #include "bimanual_skills/primitives/dmp.hpp"
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 
@@ -43,7 +43,7 @@ Eigen::MatrixXd rollout(const bp::Dmp& dmp, double seconds, double goal_change_a
   y.row(0) = state.y.transpose();
   for (int k = 1; k <= steps; ++k) {
     if (goal_change_at >= 0.0 && std::abs(state.t - goal_change_at) < 0.5 * kDt) state.goal = new_goal;
-    EXPECT_TRUE(dmp.step(state, kDt));
+    EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::Success);
     y.row(k) = state.y.transpose();
   }
   return y;
@@ -103,11 +103,13 @@ TEST(Dmp, NoisyDemonstrationsAreSmoothedBeforeDifferentiation) {
   const bp::Dmp dmp = bp::Dmp::fit(bp::DmpParameters(), demonstration(1e-3, 4), kDt);
   const Eigen::MatrixXd y = rollout(dmp, kDuration);
   const double rmse = std::sqrt((y - clean).squaredNorm() / static_cast<double>(clean.size()));
-  EXPECT_LE(rmse, 1e-2);
   const bp::Dmp raw = bp::Dmp::fit(bp::DmpParameters(), demonstration(1e-3, 4), kDt, 0.0);
   const double raw_rmse =
       std::sqrt((rollout(raw, kDuration) - clean).squaredNorm() / static_cast<double>(clean.size()));
   std::printf("noisy demonstration (1 mrad): RMSE %.2e rad smoothed, %.2e rad without smoothing\n", rmse, raw_rmse);
+  // Measured 9.9e-4 smoothed and 7.8e-3 without: the bound fails when the smoothing is off.
+  EXPECT_LE(rmse, 2e-3);
+  EXPECT_LT(rmse, 0.25 * raw_rmse);
 }
 
 TEST(Dmp, BadInputAndNoAllocation) {
@@ -117,13 +119,13 @@ TEST(Dmp, BadInputAndNoAllocation) {
   EXPECT_THROW(bp::Dmp::fit(bad, demonstration(), kDt), std::invalid_argument);
   const bp::Dmp dmp = bp::Dmp::fit(bp::DmpParameters(), demonstration(), kDt);
   bp::DmpState state = dmp.initialState();
-  EXPECT_FALSE(dmp.step(state, 0.0));
+  EXPECT_NE(dmp.step(state, 0.0), bp::DmpStatus::Success);
   bp::DmpState wrong = state;
   wrong.y = Eigen::VectorXd::Zero(3);
-  EXPECT_FALSE(dmp.step(wrong, kDt));
+  EXPECT_NE(dmp.step(wrong, kDt), bp::DmpStatus::Success);
   wrong = state;
   wrong.goal[2] = std::nan("");
-  EXPECT_FALSE(dmp.step(wrong, kDt));
+  EXPECT_NE(dmp.step(wrong, kDt), bp::DmpStatus::Success);
   NoAllocGuard guard;
-  for (int k = 0; k < 100; ++k) EXPECT_TRUE(dmp.step(state, kDt));
+  for (int k = 0; k < 100; ++k) EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::Success);
 }

@@ -2,39 +2,29 @@
 // after the repair, clusters where the bad and good rollouts are, escape from the REPS plateau of (6.16).
 #include "bimanual_skills/learning/dual_reps.hpp"
 #include "bimanual_skills/learning/kmeans.hpp"
+#include "bimanual_skills/tasks/policy_search_tasks.hpp"
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 
 #include <cmath>
 #include <random>
 #include <vector>
 
 namespace bl = bimanual_skills::learning;
+namespace bt = bimanual_skills::tasks;
 
 namespace {
 
 Eigen::MatrixXd gaussianSamples(std::mt19937& rng, const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance,
                                 int n) {
-  std::normal_distribution<double> normal(0.0, 1.0);
-  const Eigen::MatrixXd L = covariance.llt().matrixL();
-  Eigen::MatrixXd out(n, mean.size());
-  for (int k = 0; k < n; ++k) {
-    Eigen::VectorXd e(mean.size());
-    for (Eigen::Index i = 0; i < e.size(); ++i) e[i] = normal(rng);
-    out.row(k) = (mean + L * e).transpose();
-  }
-  return out;
+  return bl::GaussianSampler().draw(mean, bl::choleskyFactor(covariance), n, rng);
 }
 
 /// (6.16) with optima at (2, 1), (−2, 1), (0, −2) around the origin.
-double threeOptima(const Eigen::VectorXd& t) {
-  const std::vector<Eigen::Vector2d> psi = {{2.0, 1.0}, {-2.0, 1.0}, {0.0, -2.0}};
-  double r = 10.0 * t.head<2>().norm();
-  for (const auto& p : psi) r -= 5.0 * (p - t.head<2>()).norm();
-  return r;
-}
+const bt::MultimodalReward threeOptima;
 
 /// The policy mean after each of `updates` updates of `rollouts` rollouts on (6.16), from N(0, I).
 std::vector<Eigen::VectorXd> learnThreeOptima(const bl::DualRepsParameters& parameters, unsigned seed, int updates,
@@ -175,7 +165,9 @@ TEST(DualReps, ClustersSitOnBadAndGoodRolloutsAndTheKlBoundHolds) {
       ++repulsive;
       EXPECT_LT(at_mean, rewards.mean());
     }
-    EXPECT_GT(c.covariance.llt().matrixL().toDenseMatrix().diagonal().minCoeff(), 0.0);
+    // Positive definite: the smallest eigenvalue (llt()'s diagonal would pass a matrix that is not).
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(c.covariance).eigenvalues().minCoeff(), 0.0);
+    EXPECT_LE((c.covariance - c.covariance.transpose()).cwiseAbs().maxCoeff(), 1e-12);
   }
   EXPECT_EQ(attractive, 1);
   EXPECT_GE(repulsive, 1);

@@ -2,6 +2,7 @@
 // the noise level, the advanced model ahead of the basic one (as in Table 4.1), YAML round trip, clear errors for
 // bad logs and files, and the fit_friction tool end to end.
 #include "bimanual_skills/dynamics/friction_identification.hpp"
+#include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 
 #include <gtest/gtest.h>
@@ -90,8 +91,9 @@ bd::FrictionLog syntheticLog(const bk::ChainModel& model, const bd::FrictionMode
       }
     }
     EXPECT_EQ(bd::inverseDynamics(model, data, q, qd, qdd, tau), bd::DynamicsStatus::Success);
-    EXPECT_TRUE(bd::frictionTorques(truth, state, q, qd,
-                                    qdd.unaryExpr([](double a) { return (a > 0) - (a < 0) + 0.0; }), friction));
+    EXPECT_EQ(bd::frictionTorques(truth, state, q, qd, qdd.unaryExpr([](double a) { return (a > 0) - (a < 0) + 0.0; }),
+                                  friction),
+              bd::DynamicsStatus::Success);
     log.t[r] = t;
     log.q.row(r) = q.transpose();
     log.qd.row(r) = qd.transpose();

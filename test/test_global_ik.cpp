@@ -1,8 +1,8 @@
 // Global IK: FK -> IK -> FK round trips within limits, determinism, closest/all-solutions modes, bad input,
 // unreachable targets, and no allocation during a solve.
 #include "bimanual_skills/kinematics/global_ik.hpp"
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
 #include "test_support.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 

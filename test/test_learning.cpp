@@ -5,7 +5,7 @@
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/learning/locally_weighted_regression.hpp"
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 
@@ -32,21 +32,21 @@ TEST(LocallyWeightedRegression, FitsANoisyFunction) {
   std::normal_distribution<double> noise(0.0, 0.05);
   for (int k = 0; k < 5000; ++k) {
     const double x = u(rng);
-    ASSERT_TRUE(
-        lwr.update(Eigen::VectorXd::Constant(1, x), Eigen::VectorXd::Constant(1, std::sin(2 * x) + noise(rng))));
+    ASSERT_EQ(lwr.update(Eigen::VectorXd::Constant(1, x), Eigen::VectorXd::Constant(1, std::sin(2 * x) + noise(rng))),
+              bl::LwrStatus::Success);
   }
   double squared = 0.0;
   int count = 0;
   Eigen::VectorXd y(1);
   for (double x = -1.9; x <= 1.9; x += 0.01) {
-    ASSERT_TRUE(lwr.predict(Eigen::VectorXd::Constant(1, x), y));
+    ASSERT_EQ(lwr.predict(Eigen::VectorXd::Constant(1, x), y), bl::LwrStatus::Success);
     squared += std::pow(y[0] - std::sin(2 * x), 2);
     ++count;
   }
   EXPECT_LE(std::sqrt(squared / count), 0.03);
   EXPECT_LE(lwr.fields(), 100);
-  EXPECT_FALSE(lwr.predict(Eigen::VectorXd::Constant(1, 10.0), y));  // nothing learned there
-  EXPECT_FALSE(lwr.update(Eigen::VectorXd::Constant(1, std::nan("")), Eigen::VectorXd::Zero(1)));
+  EXPECT_NE(lwr.predict(Eigen::VectorXd::Constant(1, 10.0), y), bl::LwrStatus::Success);  // nothing learned there
+  EXPECT_NE(lwr.update(Eigen::VectorXd::Constant(1, std::nan("")), Eigen::VectorXd::Zero(1)), bl::LwrStatus::Success);
   bl::LwrParameters bad = parameters;
   bad.forgetting = 1.5;
   EXPECT_THROW(bl::LocallyWeightedRegression(1, 1, bad), std::invalid_argument);
@@ -80,12 +80,12 @@ TEST(LocallyWeightedRegression, LearnedDynamicsTrackLikeTheAnalyticModel) {
       qdd_des[j] = -0.3 * w * w * std::sin(w * t);
     }
     if (k == 6000) {
-      controller.setLearnedModel(&lwr);
-      observer.setLearnedModel(&lwr);
+      controller.setLearnedModel(bc::LearnedDynamics(lwr));
+      observer.setLearnedModel(bc::LearnedDynamics(lwr));
     }
     ASSERT_NE(controller.update(q, qd, q_des, qd_des, qdd_des, u), bc::ControlStatus::InvalidInput);
     const Eigen::VectorXd desired_sign = qdd_des.unaryExpr([](double a) { return (a > 0) - (a < 0) + 0.0; });
-    ASSERT_TRUE(observer.update(q, qd, u, desired_sign));
+    ASSERT_EQ(observer.update(q, qd, u, desired_sign), bc::ObserverStatus::Success);
     if (t >= 12.5) force_learned.push_back(observer.wrench().head<3>().norm());
     const double error = (q_des - q).cwiseAbs().maxCoeff();
     if (t >= 8.0 && t < 12.0) max_error_analytic = std::max(max_error_analytic, error);
@@ -95,11 +95,11 @@ TEST(LocallyWeightedRegression, LearnedDynamicsTrackLikeTheAnalyticModel) {
       ASSERT_EQ(bd::inverseDynamics(inertial, data, q_des, Eigen::VectorXd::Zero(7), qdd_des, inertia_torque),
                 bd::DynamicsStatus::Success);
       x << q, qd;
-      ASSERT_TRUE(lwr.update(x, u - inertia_torque));
+      ASSERT_EQ(lwr.update(x, u - inertia_torque), bl::LwrStatus::Success);
     }
     for (int s = 0; s < 10; ++s) {
       const Eigen::VectorXd sign = qdd.unaryExpr([](double a) { return (a > 0) - (a < 0) + 0.0; });
-      ASSERT_TRUE(bd::frictionTorques(friction, plant_friction, q, qd, sign, f));
+      ASSERT_EQ(bd::frictionTorques(friction, plant_friction, q, qd, sign, f), bd::DynamicsStatus::Success);
       ASSERT_EQ(bd::forwardDynamics(model, plant, q, qd, u - f, qdd), bd::DynamicsStatus::Success);
       qd += dt * qdd;
       q += dt * qd;
@@ -107,7 +107,9 @@ TEST(LocallyWeightedRegression, LearnedDynamicsTrackLikeTheAnalyticModel) {
   }
   std::printf("tracking: analytic model %.4f rad, learned model %.4f rad (%d fields)\n", max_error_analytic,
               max_error_learned, lwr.fields());
-  EXPECT_LE(max_error_learned, 0.03);
+  // Measured 0.0091 rad with the analytic model, 0.0134 rad with the learned one.
+  EXPECT_LE(max_error_analytic, 0.015);
+  EXPECT_LE(max_error_learned, 2.0 * max_error_analytic);
   // Without contact, the observer on the learned model sees no external force.
   std::nth_element(force_learned.begin(), force_learned.begin() + static_cast<long>(force_learned.size() / 2),
                    force_learned.end());
@@ -118,7 +120,7 @@ TEST(LocallyWeightedRegression, LearnedDynamicsTrackLikeTheAnalyticModel) {
   Eigen::VectorXd y(7);
   x << q, qd;
   NoAllocGuard guard;
-  EXPECT_TRUE(lwr.update(x, u));
-  EXPECT_TRUE(lwr.predict(x, y));
+  EXPECT_EQ(lwr.update(x, u), bl::LwrStatus::Success);
+  EXPECT_EQ(lwr.predict(x, y), bl::LwrStatus::Success);
   EXPECT_NE(controller.update(q, qd, q_des, qd_des, qdd_des, u), bc::ControlStatus::InvalidInput);
 }

@@ -1,5 +1,5 @@
 // The allocation guard must catch every kind of heap allocation, or the real-time tests that use it prove nothing.
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest-spi.h>
 #include <gtest/gtest.h>

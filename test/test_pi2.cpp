@@ -1,8 +1,9 @@
 // PI2 (thesis 5.8–5.13) and PI2-CMA: equal costs leave the rollouts equally likely; a rollout best at every step
 // takes the probability mass; a one-hot basis gives the literal time-weighted average of (5.12); the via-point
 // task is learned; the adapted covariance stays positive definite and shrinks; bad input throws.
+#include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/learning/pi2.hpp"
-#include "bimanual_skills/primitives/dmp.hpp"
+#include "bimanual_skills/tasks/policy_search_tasks.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +13,7 @@
 #include <random>
 
 namespace bl = bimanual_skills::learning;
-namespace bp = bimanual_skills::primitives;
+namespace bt = bimanual_skills::tasks;
 
 TEST(Pi2, EqualCostsGiveUniformProbabilities) {
   const Eigen::MatrixXd basis = Eigen::MatrixXd::Random(20, 4).cwiseAbs();
@@ -43,65 +44,28 @@ TEST(Pi2, OneHotBasisGivesTheTimeWeightedAverageOfTheBestRollout) {
 
 TEST(Pi2, LearnsTheViaPointAndCmaShrinksTheCovariance) {
   // 1-D DMP from 0 to 1 in 1 s through y = 0.5 at t = 0.3 s: 60 updates of 10 rollouts, seed 4.
-  const double dt = 0.01;
-  Eigen::MatrixXd demonstration(101, 1);
-  for (int i = 0; i <= 100; ++i) {
-    const double s = i / 100.0;
-    demonstration(i, 0) = 10 * std::pow(s, 3) - 15 * std::pow(s, 4) + 6 * std::pow(s, 5);
-  }
-  bp::DmpParameters dmp_parameters;
-  dmp_parameters.kernels = 10;
-  const bp::Dmp dmp = bp::Dmp::fit(dmp_parameters, demonstration, dt);
-  Eigen::MatrixXd basis(100, 10);
-  bp::DmpState state = dmp.initialState();
-  for (int i = 0; i < 100; ++i) {
-    Eigen::VectorXd g(10);
-    dmp.basis(state.x, g);
-    basis.row(i) = g.transpose();
-    dmp.step(state, dt);
-  }
-  const auto rollout = [&](const Eigen::VectorXd& w, double& via) {
-    const bp::Dmp sample = dmp.withWeights(w.transpose());
-    bp::DmpState s = sample.initialState();
-    Eigen::VectorXd c(100);
-    for (int i = 0; i < 100; ++i) {
-      sample.step(s, dt);
-      c[i] = 1e-6 * s.ydd[0] * s.ydd[0];
-      if (i == 29) {
-        via = s.y[0];
-        c[i] += 1e4 * std::pow(s.y[0] - 0.5, 2);
-      }
-    }
-    return c;
-  };
+  bt::ViaPointTask task;
   for (const bool cma : {false, true}) {
     std::mt19937 rng(4);
-    std::normal_distribution<double> normal(0.0, 1.0);
-    Eigen::VectorXd mean = dmp.weights().row(0).transpose();
+    bl::GaussianSampler sampler;
+    Eigen::VectorXd mean = task.policy().parameters();
     Eigen::MatrixXd covariance = Eigen::MatrixXd::Identity(10, 10) * 900.0;
     bl::Pi2Parameters parameters;
     parameters.covariance_adaptation = cma;
-    double via = 0.0;
-    rollout(mean, via);
-    const double initial_error = std::abs(via - 0.5);
+    const double initial_error = task.viaPointError(mean);
     for (int update = 0; update < 60; ++update) {
-      const Eigen::MatrixXd L = covariance.llt().matrixL();
-      Eigen::MatrixXd samples(10, 10), costs(10, 100);
-      for (int k = 0; k < 10; ++k) {
-        Eigen::VectorXd e(10);
-        for (int i = 0; i < 10; ++i) e[i] = normal(rng);
-        samples.row(k) = (mean + L * e).transpose();
-        costs.row(k) = rollout(samples.row(k).transpose(), via).transpose();
-      }
-      const bl::Pi2Update u = bl::pi2Update(parameters, mean, covariance, samples, costs, basis);
+      const Eigen::MatrixXd samples = sampler.draw(mean, bl::choleskyFactor(covariance), 10, rng);
+      Eigen::MatrixXd costs(10, task.policy().steps);
+      for (int k = 0; k < 10; ++k) costs.row(k) = task.stepCosts(samples.row(k).transpose()).transpose();
+      const bl::Pi2Update u = bl::pi2Update(parameters, mean, covariance, samples, costs, task.basis());
       mean = u.mean;
       covariance = u.covariance;
       ASSERT_EQ(covariance.llt().info(), Eigen::Success);
     }
-    rollout(mean, via);
+    const double error = task.viaPointError(mean);
     std::printf("%s: via-point error %.4f -> %.4f, covariance trace %.1f\n", cma ? "PI2-CMA" : "PI2", initial_error,
-                std::abs(via - 0.5), covariance.trace());
-    EXPECT_LT(std::abs(via - 0.5), 0.02);
+                error, covariance.trace());
+    EXPECT_LT(error, 0.02);
     if (cma) {
       EXPECT_LT(covariance.trace(), 9000.0);
     }

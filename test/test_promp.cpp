@@ -6,9 +6,11 @@
 #include "bimanual_skills/primitives/contextual_promp.hpp"
 #include "bimanual_skills/primitives/promp.hpp"
 #include "bimanual_skills/primitives/promp_blending.hpp"
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
+
+#include <Eigen/Cholesky>
 
 #include <cmath>
 #include <random>
@@ -56,18 +58,22 @@ TEST(ProMp, FitMatchesTheDemonstrationsMeanAndSpread) {
   double mean_a = 0.0, var_a = 0.0;
   for (double a : amplitudes) mean_a += a / amplitudes.size();
   for (double a : amplitudes) var_a += (a - mean_a) * (a - mean_a) / amplitudes.size();
-  Eigen::VectorXd y(2), yd(2);
+  Eigen::VectorXd y(2), yd(2), b(promp.kernels()), db(promp.kernels());
   Eigen::MatrixXd cov(2, 2);
   for (double z : {0.1, 0.3, 0.5, 0.7, 0.9}) {
-    ASSERT_TRUE(promp.mean(data, z, y, yd));
+    ASSERT_EQ(promp.mean(data, z, y, yd), bp::ProMpStatus::Success);
     for (int j = 0; j < 2; ++j) EXPECT_NEAR(y[j], base(z, j) + mean_a * bump(z), 5e-3) << "z " << z;
-    ASSERT_TRUE(promp.covariance(data, z, cov));
-    EXPECT_NEAR(std::sqrt(cov(0, 0)), std::sqrt(var_a) * bump(z), 0.1 * std::sqrt(var_a) + 2e-3) << "z " << z;
+    ASSERT_EQ(promp.covariance(data, z, cov), bp::ProMpStatus::Success);
+    // Σ_ω = var(a) ω_b ω_bᵀ + prior I (ω_b the bump's weights), so the variance at z is var(a) bump(z)² plus the
+    // prior's ‖b(z)‖²: within 10 % at every phase, also where the bump (and a wrong covariance) is near zero.
+    promp.basis(z, b, db);
+    const double expected = var_a * bump(z) * bump(z) + promp.parameters().covariance_prior * b.squaredNorm();
+    EXPECT_NEAR(cov(0, 0), expected, 0.1 * expected) << "z " << z;
   }
   // Velocity: d/dt of the mean path (duration 2 s), inside the phase range (normalised bases are poor at its ends).
   const double z = 0.25;
   const double bump_slope = -2.0 * (z - 0.5) / (0.15 * 0.15) * bump(z);
-  ASSERT_TRUE(promp.mean(data, z, y, yd));
+  ASSERT_EQ(promp.mean(data, z, y, yd), bp::ProMpStatus::Success);
   EXPECT_NEAR(yd[0], (0.3 * M_PI * std::cos(M_PI * z) + mean_a * bump_slope) / 2.0, 0.02);
   EXPECT_LT(promp.observationVariance().maxCoeff(), 1e-4);
 }
@@ -78,18 +84,18 @@ TEST(ProMp, ConditioningPassesThroughTheViaPoint) {
   bp::ProMpData data(promp);
   Eigen::VectorXd y(2), yd(2);
   Eigen::MatrixXd cov(2, 2), cov_after(2, 2);
-  ASSERT_TRUE(promp.mean(data, 0.4, y, yd));
-  ASSERT_TRUE(promp.covariance(data, 0.4, cov));
+  ASSERT_EQ(promp.mean(data, 0.4, y, yd), bp::ProMpStatus::Success);
+  ASSERT_EQ(promp.covariance(data, 0.4, cov), bp::ProMpStatus::Success);
   const Eigen::VectorXd via = y + Eigen::VectorXd::Constant(2, 0.08);
   const bp::ProMp through = promp.conditioned(0.4, via, 1e-8 * Eigen::MatrixXd::Identity(2, 2));
-  ASSERT_TRUE(through.mean(data, 0.4, y, yd));
+  ASSERT_EQ(through.mean(data, 0.4, y, yd), bp::ProMpStatus::Success);
   EXPECT_LE((y - via).cwiseAbs().maxCoeff(), 1e-3);
-  ASSERT_TRUE(through.covariance(data, 0.4, cov_after));
+  ASSERT_EQ(through.covariance(data, 0.4, cov_after), bp::ProMpStatus::Success);
   EXPECT_LT(cov_after(0, 0), 1e-2 * cov(0, 0));
   // With a velocity too.
   const Eigen::VectorXd via_velocity = Eigen::VectorXd::Constant(2, 0.1);
   const bp::ProMp both = promp.conditioned(0.6, via, 1e-8 * Eigen::MatrixXd::Identity(4, 4), via_velocity);
-  ASSERT_TRUE(both.mean(data, 0.6, y, yd));
+  ASSERT_EQ(both.mean(data, 0.6, y, yd), bp::ProMpStatus::Success);
   EXPECT_LE((y - via).cwiseAbs().maxCoeff(), 2e-3);
   EXPECT_LE((yd - via_velocity).cwiseAbs().maxCoeff(), 2e-2);
 }
@@ -121,15 +127,15 @@ TEST(ProMp, BadInputAndNoAllocation) {
   Eigen::MatrixXd cov(2, 2), state_cov(4, 4);
   NoAllocGuard guard;
   for (double z = 0.0; z <= 1.0; z += 0.1) {
-    ASSERT_TRUE(promp.mean(data, z, y, yd));
-    ASSERT_TRUE(promp.covariance(data, z, cov));
-    ASSERT_TRUE(promp.stateCovariance(data, z, state_cov));
+    ASSERT_EQ(promp.mean(data, z, y, yd), bp::ProMpStatus::Success);
+    ASSERT_EQ(promp.covariance(data, z, cov), bp::ProMpStatus::Success);
+    ASSERT_EQ(promp.stateCovariance(data, z, state_cov), bp::ProMpStatus::Success);
   }
   // Bad input is a status: wrong output sizes, a non-finite phase.
-  EXPECT_FALSE(promp.mean(data, 0.5, wrong, yd));
-  EXPECT_FALSE(promp.covariance(data, 0.5, state_cov));
-  EXPECT_FALSE(promp.stateCovariance(data, 0.5, cov));
-  EXPECT_FALSE(promp.covariance(data, std::nan(""), cov));
+  EXPECT_NE(promp.mean(data, 0.5, wrong, yd), bp::ProMpStatus::Success);
+  EXPECT_NE(promp.covariance(data, 0.5, state_cov), bp::ProMpStatus::Success);
+  EXPECT_NE(promp.stateCovariance(data, 0.5, cov), bp::ProMpStatus::Success);
+  EXPECT_NE(promp.covariance(data, std::nan(""), cov), bp::ProMpStatus::Success);
 }
 
 TEST(ProMp, StateCovarianceMatchesFiniteDifferencesOfSampledPaths) {
@@ -145,16 +151,16 @@ TEST(ProMp, StateCovarianceMatchesFiniteDifferencesOfSampledPaths) {
   Eigen::VectorXd y(2), yd(2), ahead(2), behind(2);
   for (int s = 0; s < n; ++s) {
     const bp::ProMp path = promp.withMean(promp.sample(rng));
-    ASSERT_TRUE(path.mean(data, z, y, yd));
-    ASSERT_TRUE(path.mean(data, z + h, ahead, yd));
-    ASSERT_TRUE(path.mean(data, z - h, behind, yd));
+    ASSERT_EQ(path.mean(data, z, y, yd), bp::ProMpStatus::Success);
+    ASSERT_EQ(path.mean(data, z + h, ahead, yd), bp::ProMpStatus::Success);
+    ASSERT_EQ(path.mean(data, z - h, behind, yd), bp::ProMpStatus::Success);
     states.col(s) << y, (ahead - behind) / (2.0 * h * promp.duration());
   }
   const Eigen::MatrixXd centred = states.colwise() - states.rowwise().mean();
   const Eigen::MatrixXd empirical = centred * centred.transpose() / n;
   Eigen::MatrixXd expected(4, 4), positions(2, 2);
-  ASSERT_TRUE(promp.stateCovariance(data, z, expected));
-  ASSERT_TRUE(promp.covariance(data, z, positions));
+  ASSERT_EQ(promp.stateCovariance(data, z, expected), bp::ProMpStatus::Success);
+  ASSERT_EQ(promp.covariance(data, z, positions), bp::ProMpStatus::Success);
   EXPECT_LE((expected.topLeftCorner(2, 2) - positions).cwiseAbs().maxCoeff(), 1e-12);
   // Standard error of a sample covariance entry: sqrt((σ_ii σ_jj + σ_ij²) / n); 5 of them.
   for (int i = 0; i < 4; ++i) {
@@ -180,8 +186,8 @@ TEST(ProMpBlending, OneActiveProMpIsThatProMp) {
     Eigen::VectorXd mean(4);
     Eigen::MatrixXd covariance(4, 4);
     for (Eigen::Index t = 0; t < phases.size(); ++t) {
-      ASSERT_TRUE(reference.mean(data, phases[t], mean.head(2), mean.tail(2)));
-      ASSERT_TRUE(reference.stateCovariance(data, phases[t], covariance));
+      ASSERT_EQ(reference.mean(data, phases[t], mean.head(2), mean.tail(2)), bp::ProMpStatus::Success);
+      ASSERT_EQ(reference.stateCovariance(data, phases[t], covariance), bp::ProMpStatus::Success);
       EXPECT_LE((blended.means[t] - mean).cwiseAbs().maxCoeff(), 1e-9) << "phase " << phases[t];
       EXPECT_LE((blended.covariances[t] - covariance).cwiseAbs().maxCoeff(), 1e-9 * covariance.cwiseAbs().maxCoeff())
           << "phase " << phases[t];
@@ -209,8 +215,8 @@ TEST(ProMpBlending, EqualCovariancesAverageTheMeans) {
   for (const Eigen::MatrixXd& activations : {halves, switching, Eigen::MatrixXd(2.0 * halves)}) {
     const bp::TrajectoryDistribution blended = bp::blend({a, b}, phases, activations);
     for (Eigen::Index t = 0; t < phases.size(); ++t) {
-      ASSERT_TRUE(a.mean(data, phases[t], mean.head(2), mean.tail(2)));
-      ASSERT_TRUE(a.stateCovariance(data, phases[t], covariance));
+      ASSERT_EQ(a.mean(data, phases[t], mean.head(2), mean.tail(2)), bp::ProMpStatus::Success);
+      ASSERT_EQ(a.stateCovariance(data, phases[t], covariance), bp::ProMpStatus::Success);
       const double total = activations.row(t).sum();
       mean.head(2).array() += 0.5 * activations(t, 1) / total;
       EXPECT_LE((blended.means[t] - mean).cwiseAbs().maxCoeff(), 1e-8) << "phase " << phases[t];
@@ -236,8 +242,8 @@ TEST(ProMpBlending, PassesFromOneToTheOtherWhereActivationsSwitch) {
   bp::ProMpData data(a);
   Eigen::VectorXd mean_a(4), mean_b(4);
   for (Eigen::Index t = 0; t < phases.size(); ++t) {
-    ASSERT_TRUE(a.mean(data, phases[t], mean_a.head(2), mean_a.tail(2)));
-    ASSERT_TRUE(b.mean(data, phases[t], mean_b.head(2), mean_b.tail(2)));
+    ASSERT_EQ(a.mean(data, phases[t], mean_a.head(2), mean_a.tail(2)), bp::ProMpStatus::Success);
+    ASSERT_EQ(b.mean(data, phases[t], mean_b.head(2), mean_b.tail(2)), bp::ProMpStatus::Success);
     const double gap = (mean_a.head(2) - mean_b.head(2)).cwiseAbs().maxCoeff();
     // Away from the switch (activation of the other below ~1e-3) the blend is that ProMP, to 1 % of the gap.
     if (phases[t] <= 0.3) {
@@ -316,12 +322,12 @@ TEST(ContextualProMp, RecoversTheContextMappingForAnUnseenContext) {
   Eigen::VectorXd y(2), yd(2);
   Eigen::MatrixXd cov(2, 2);
   for (double z : {0.1, 0.3, 0.5, 0.7, 0.9, 1.0}) {
-    ASSERT_TRUE(promp.mean(data, z, y, yd));
+    ASSERT_EQ(promp.mean(data, z, y, yd), bp::ProMpStatus::Success);
     for (int j = 0; j < 2; ++j) {
       EXPECT_NEAR(y[j], base(z, j) + unseen[j] * minimumJerk(z) + mean_a * bump(z), 5e-3) << "z " << z;
     }
     // Σ_ω from the residuals holds only the unexplained bump (a plain ProMP would also hold the goals' spread).
-    ASSERT_TRUE(promp.covariance(data, z, cov));
+    ASSERT_EQ(promp.covariance(data, z, cov), bp::ProMpStatus::Success);
     EXPECT_NEAR(std::sqrt(cov(0, 0)), std::sqrt(var_a) * bump(z), 0.1 * std::sqrt(var_a) + 2e-3) << "z " << z;
   }
   // Bad input.
@@ -336,4 +342,28 @@ TEST(ContextualProMp, RecoversTheContextMappingForAnUnseenContext) {
   EXPECT_THROW(bp::ContextualProMp(bp::ProMpParameters(), 2, promp.weightMean(), Eigen::MatrixXd::Zero(39, 2),
                                    promp.weightCovariance(), promp.observationVariance(), 2.0),
                std::invalid_argument);
+}
+
+TEST(ProMp, BlockCovarianceEqualsTheDenseProduct) {
+  // Independent reference: Ψ_zᵀ Σ_ω Ψ_z with the dense Ψ_z of blockBasis(), at 7 DoF × 20 kernels.
+  std::mt19937 rng(8);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const int dofs = 7, kernels = 20, n = dofs * kernels;
+  Eigen::MatrixXd A(n, n);
+  for (Eigen::Index i = 0; i < A.size(); ++i) A.data()[i] = normal(rng);
+  bp::ProMpParameters parameters;
+  parameters.kernels = kernels;
+  const bp::ProMp promp(parameters, dofs, Eigen::VectorXd::Zero(n), A * A.transpose() / n, Eigen::VectorXd::Ones(dofs),
+                        2.0);
+  bp::ProMpData data(promp);
+  Eigen::MatrixXd state_covariance(2 * dofs, 2 * dofs), covariance(dofs, dofs);
+  for (const double z : {0.0, 0.37, 0.8, 1.0}) {
+    ASSERT_EQ(promp.stateCovariance(data, z, state_covariance), bp::ProMpStatus::Success);
+    ASSERT_EQ(promp.covariance(data, z, covariance), bp::ProMpStatus::Success);
+    ASSERT_EQ(promp.blockBasis(data, z), bp::ProMpStatus::Success);
+    const Eigen::MatrixXd dense = data.psi.transpose() * promp.weightCovariance() * data.psi;
+    EXPECT_LE((state_covariance - dense).cwiseAbs().maxCoeff(), 1e-12 * dense.cwiseAbs().maxCoeff()) << z;
+    EXPECT_LE((covariance - dense.topLeftCorner(dofs, dofs)).cwiseAbs().maxCoeff(), 1e-12 * dense.cwiseAbs().maxCoeff())
+        << z;
+  }
 }

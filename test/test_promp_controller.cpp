@@ -3,7 +3,7 @@
 // closed-loop moments propagated exactly agree with the ProMP at every step (also with a damped, driven system);
 // bad input throws at construction and is a status at run time; commands do not allocate.
 #include "bimanual_skills/primitives/promp_controller.hpp"
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 
@@ -46,8 +46,8 @@ void proMpState(const bp::ProMp& promp, double t, Eigen::VectorXd& mean, Eigen::
   bp::ProMpData data(promp);
   mean.resize(2 * kDofs);
   covariance.resize(2 * kDofs, 2 * kDofs);
-  ASSERT_TRUE(promp.mean(data, t / promp.duration(), mean.head(kDofs), mean.tail(kDofs)));
-  ASSERT_TRUE(promp.stateCovariance(data, t / promp.duration(), covariance));
+  ASSERT_EQ(promp.mean(data, t / promp.duration(), mean.head(kDofs), mean.tail(kDofs)), bp::ProMpStatus::Success);
+  ASSERT_EQ(promp.stateCovariance(data, t / promp.duration(), covariance), bp::ProMpStatus::Success);
 }
 
 /// Propagates the closed loop's moments exactly: μ ← F μ + dt (B κ + c), Σ ← F Σ Fᵀ + B Σ_u Bᵀ dt with
@@ -128,7 +128,7 @@ TEST(ProMpController, RolloutsReproduceTheProMpsMeanAndCovariance) {
   const std::vector<int> checkpoints = {250, 500, 750, 1000};  // steps: t = 0.25, 0.5, 0.75, 1 s
   std::vector<Eigen::MatrixXd> positions(checkpoints.size(), Eigen::MatrixXd(kDofs, kRollouts));
   bp::ProMpData data(promp);
-  ASSERT_TRUE(promp.blockBasis(data, 0.0));
+  ASSERT_EQ(promp.blockBasis(data, 0.0), bp::ProMpStatus::Success);
   const Eigen::MatrixXd psi0 = data.psi;
   std::mt19937 rng(17);
   Eigen::VectorXd y(2 * kDofs), u(kDofs);
@@ -153,8 +153,8 @@ TEST(ProMpController, RolloutsReproduceTheProMpsMeanAndCovariance) {
     const double t = checkpoints[c] * kDt;
     Eigen::VectorXd mean(kDofs), velocity(kDofs);
     Eigen::MatrixXd covariance(kDofs, kDofs);
-    ASSERT_TRUE(promp.mean(data, t / kDuration, mean, velocity));
-    ASSERT_TRUE(promp.covariance(data, t / kDuration, covariance));
+    ASSERT_EQ(promp.mean(data, t / kDuration, mean, velocity), bp::ProMpStatus::Success);
+    ASSERT_EQ(promp.covariance(data, t / kDuration, covariance), bp::ProMpStatus::Success);
     const Eigen::VectorXd sample_mean = positions[c].rowwise().mean();
     const Eigen::MatrixXd centred = positions[c].colwise() - sample_mean;
     const Eigen::MatrixXd sample_covariance = centred * centred.transpose() / (kRollouts - 1.0);

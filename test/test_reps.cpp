@@ -21,20 +21,14 @@ std::vector<Eigen::VectorXd> learn(unsigned seed, int reuse) {
   parameters.reuse = reuse;
   bl::Reps reps(parameters);
   std::mt19937 rng(seed);
-  std::normal_distribution<double> normal(0.0, 1.0);
+  bl::GaussianSampler sampler;
   Eigen::VectorXd mean = Eigen::VectorXd::Zero(5);
   Eigen::MatrixXd covariance = Eigen::MatrixXd::Identity(5, 5);
   std::vector<Eigen::VectorXd> curve;
   for (int update = 0; update < 40; ++update) {
-    const Eigen::MatrixXd L = covariance.llt().matrixL();
-    Eigen::MatrixXd samples(50, 5);
+    const Eigen::MatrixXd samples = sampler.draw(mean, bl::choleskyFactor(covariance), 50, rng);
     Eigen::VectorXd rewards(50);
-    for (int k = 0; k < 50; ++k) {
-      Eigen::VectorXd e(5);
-      for (int i = 0; i < 5; ++i) e[i] = normal(rng);
-      samples.row(k) = (mean + L * e).transpose();
-      rewards[k] = -(samples.row(k).transpose() - target).squaredNorm();
-    }
+    for (int k = 0; k < 50; ++k) rewards[k] = -(samples.row(k).transpose() - target).squaredNorm();
     const bl::RepsUpdate result = reps.update(samples, rewards);
     mean = result.mean;
     covariance = result.covariance;

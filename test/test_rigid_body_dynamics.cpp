@@ -3,8 +3,8 @@
 // payload, and KDL joint inertia for the rotor terms. Real-time calls are checked for heap allocations.
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
 #include "test_support.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 #include <Eigen/Eigenvalues>

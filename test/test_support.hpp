@@ -12,6 +12,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace bimanual_skills::test_support {
 
@@ -33,6 +34,20 @@ inline kinematics::ChainModel wam() {
 inline kinematics::ChainModel wamWithRotors() {
   const Eigen::VectorXd rotor = (Eigen::VectorXd(7) << 0.164, 0.148, 0.053, 0.030, 0.0028, 0.0028, 0.0003).finished();
   return wam().withRotorInertia(rotor);
+}
+
+/// A 14-joint chain of production size (both arms' worth of joints): two WAMs with rotors in series, the second
+/// mounted on the first one's tool.
+inline kinematics::ChainModel twoWamsInSeries() {
+  const kinematics::ChainModel one = wamWithRotors();
+  std::vector<kinematics::ChainJoint> joints = one.joints();
+  for (kinematics::ChainJoint joint : one.joints()) {
+    joint.name += "_2";
+    joint.child_link += "_2";
+    if (joints.size() == one.joints().size()) joint.origin = one.tipInLastFrame() * joint.origin;
+    joints.push_back(joint);
+  }
+  return kinematics::ChainModel("wam_base", "wam_tool_2", joints, one.tipInLastFrame());
 }
 
 /// Uniform configuration within the limits (±π for unlimited joints).

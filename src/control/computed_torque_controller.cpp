@@ -60,11 +60,11 @@ ControlStatus ComputedTorqueController::update(const Eigen::Ref<const Eigen::Vec
     if (v->size() != n || !v->allFinite()) return ControlStatus::InvalidInput;
   }
   bool learned = false;
-  if (learned_ != nullptr && learned_->inputDim() == 2 * n && learned_->outputDim() == n) {
+  if (learned_.fits(n)) {
     // M(q) q̈_d from the rigid-body model, n(q, q̇) from the learned one.
     state_.head(n) = q;
     state_.tail(n) = qd;
-    learned = learned_->predict(state_, learned_n_) &&
+    learned = learned_.predict(state_, learned_n_) &&
               dynamics::inverseDynamics(inertial_model_, dynamics_, q, zeros_, qdd_desired, feedforward_, payload_) ==
                   dynamics::DynamicsStatus::Success;
     if (learned) feedforward_ += learned_n_;
@@ -76,7 +76,8 @@ ControlStatus ComputedTorqueController::update(const Eigen::Ref<const Eigen::Vec
   }
   if (friction_enabled_ && !learned) {
     for (int i = 0; i < n; ++i) sign_[i] = qdd_desired[i] > 0.0 ? 1.0 : qdd_desired[i] < 0.0 ? -1.0 : 0.0;
-    if (dynamics::frictionTorques(friction_, friction_state_, q, qd_desired, sign_, friction_torque_)) {
+    if (dynamics::frictionTorques(friction_, friction_state_, q, qd_desired, sign_, friction_torque_) ==
+        dynamics::DynamicsStatus::Success) {
       feedforward_ += friction_torque_;
     }
   }

@@ -8,6 +8,18 @@
 
 namespace bimanual_skills::control {
 
+const char* toString(ObserverStatus status) noexcept {
+  switch (status) {
+    case ObserverStatus::Success:
+      return "success";
+    case ObserverStatus::WrongSize:
+      return "an input has the wrong size";
+    case ObserverStatus::NotFinite:
+      return "an input contains NaN or Inf";
+  }
+  return "unknown status";
+}
+
 ObserverGains ObserverGains::diagonal(int n, double k11, double k12, double k21, double k22, double sigma) {
   ObserverGains gains;
   const Eigen::MatrixXd I = Eigen::MatrixXd::Identity(n, n);
@@ -26,7 +38,7 @@ DisturbanceObserver::DisturbanceObserver(const kinematics::ChainModel& model, co
       friction_(friction),
       period_(1.0 / gains.rate_hz),
       wrench_damping_(gains.wrench_damping),
-      velocity_filter_(designLowPassFir(gains.fir_taps, gains.fir_cutoff_hz, gains.rate_hz), model.nq()),
+      velocity_filter_(signal::designLowPassFir(gains.fir_taps, gains.fir_cutoff_hz, gains.rate_hz), model.nq()),
       dynamics_(model),
       friction_state_(friction),
       kinematics_(model),
@@ -85,22 +97,26 @@ void DisturbanceObserver::reset(const Eigen::Ref<const Eigen::VectorXd>& q,
   x2_ = qd;
   x2_previous_ = qd;
   velocity_filter_.reset();
-  velocity_filter_.filter(qd);
+  static_cast<void>(velocity_filter_.filter(qd));  // sizes and values checked above
   external_torque_.setZero();
   wrench_.setZero();
   started_ = true;
 }
 
-bool DisturbanceObserver::update(const Eigen::Ref<const Eigen::VectorXd>& q,
-                                 const Eigen::Ref<const Eigen::VectorXd>& qd,
-                                 const Eigen::Ref<const Eigen::VectorXd>& u,
-                                 const Eigen::Ref<const Eigen::VectorXd>& accel_sign) noexcept {
+ObserverStatus DisturbanceObserver::update(const Eigen::Ref<const Eigen::VectorXd>& q,
+                                           const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                           const Eigen::Ref<const Eigen::VectorXd>& u,
+                                           const Eigen::Ref<const Eigen::VectorXd>& accel_sign) noexcept {
   const auto n = x1_.size();
   for (const auto* v : {&q, &qd, &u, &accel_sign}) {
-    if (v->size() != n || !v->allFinite()) return false;
+    if (v->size() != n) return ObserverStatus::WrongSize;
+  }
+  for (const auto* v : {&q, &qd, &u, &accel_sign}) {
+    if (!v->allFinite()) return ObserverStatus::NotFinite;
   }
   if (!started_) reset(q, qd);
-  const Eigen::VectorXd& v = velocity_filter_.filter(qd);
+  static_cast<void>(velocity_filter_.filter(qd));  // sizes and values checked above
+  const Eigen::VectorXd& v = velocity_filter_.output();
   e1_ = q - x1_;
   x2_previous_ = x2_;
   x2_.noalias() = G_ * e1_;
@@ -112,35 +128,36 @@ bool DisturbanceObserver::update(const Eigen::Ref<const Eigen::VectorXd>& q,
   velocity_error_ = v - x2_;  // a plain vector: a product with an expression would allocate its temporary
   accel_.noalias() += Sigma_ * velocity_error_;
   bool learned = false;
-  if (learned_ != nullptr && learned_->inputDim() == 2 * n && learned_->outputDim() == n) {
+  if (learned_.fits(static_cast<int>(n))) {
     state_.head(n) = x1_;
     state_.tail(n) = x2_;
-    learned = learned_->predict(state_, learned_n_) &&
+    learned = learned_.predict(state_, learned_n_) &&
               dynamics::inverseDynamics(inertial_model_, dynamics_, x1_, zeros_, accel_, tau_model_, payload_) ==
                   dynamics::DynamicsStatus::Success;
     if (learned) tau_model_ += learned_n_;
   }
   if (!learned) {
+    // Only an estimate that overflowed can fail here: the inputs were checked above.
     if (dynamics::inverseDynamics(model_, dynamics_, x1_, x2_, accel_, tau_model_, payload_) !=
-        dynamics::DynamicsStatus::Success) {
-      return false;
+            dynamics::DynamicsStatus::Success ||
+        dynamics::frictionTorques(friction_, friction_state_, x1_, x2_, accel_sign, friction_torque_) !=
+            dynamics::DynamicsStatus::Success) {
+      return ObserverStatus::NotFinite;
     }
-    if (dynamics::frictionTorques(friction_, friction_state_, x1_, x2_, accel_sign, friction_torque_)) {
-      tau_model_ += friction_torque_;
-    }
+    tau_model_ += friction_torque_;
   }
   // d̂ = M q̈ + n − u_c: with M q̈ + n = u_c + τ_ext for a torque τ_ext the environment applies on the robot, this is
   // τ_ext (the thesis writes d = −u_e, u_e the robot's action on the environment).
   external_torque_ = tau_model_ - u;
   // Tool wrench: least-squares solution of Jᵀ F = τ̂_ext, F = (J Jᵀ + λ² I)⁻¹ J τ̂_ext.
-  if (kinematics::computeJacobian(model_, kinematics_, q) != kinematics::KinematicsStatus::Success) return false;
+  static_cast<void>(kinematics::computeJacobian(model_, kinematics_, q));  // q checked above
   const auto& J = kinematics_.jacobian;
   gram_.noalias() = J * J.transpose();
   gram_.diagonal().array() += wrench_damping_ * wrench_damping_;
   gram_llt_.compute(gram_);
   wrench_.noalias() = J * external_torque_;
   gram_llt_.solveInPlace(wrench_);
-  return true;
+  return ObserverStatus::Success;
 }
 
 }  // namespace bimanual_skills::control

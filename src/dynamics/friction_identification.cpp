@@ -1,16 +1,13 @@
 #include "bimanual_skills/dynamics/friction_identification.hpp"
 
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
+#include "bimanual_skills/signal/acceleration_sign.hpp"
 
-#include <yaml-cpp/yaml.h>
 #include <Eigen/QR>
 #include <nlopt.hpp>
 
 #include <cmath>
-#include <fstream>
-#include <map>
 #include <random>
-#include <sstream>
 #include <stdexcept>
 
 namespace bimanual_skills::dynamics {
@@ -128,128 +125,7 @@ JointFriction fitJoint(FrictionModelType type, const JointData& data, const Fric
   return best;
 }
 
-JointFriction readJoint(const YAML::Node& node, FrictionModelType type, const std::string& where) {
-  JointFriction joint;
-  joint.type = type;
-  if (!node.IsMap() || !node["b"] || !node["b"].IsSequence()) fail(where + ": needs a list 'b'");
-  std::vector<double> b;
-  try {
-    b = node["b"].as<std::vector<double>>();
-    if (node["s"]) joint.s = node["s"].as<double>();
-    if (node["z"]) joint.z = node["z"].as<double>();
-    if (node["h"]) joint.h = node["h"].as<double>();
-  } catch (const YAML::Exception& e) {
-    fail(where + ": " + e.what());
-  }
-  joint.b = Eigen::Map<const Eigen::VectorXd>(b.data(), static_cast<Eigen::Index>(b.size()));
-  try {
-    joint.validate();
-  } catch (const std::invalid_argument& e) {
-    fail(where + ": " + e.what());
-  }
-  return joint;
-}
-
-void writeJoint(YAML::Emitter& out, const JointFriction& joint) {
-  out << YAML::BeginMap;
-  out << YAML::Key << "b" << YAML::Value << YAML::Flow
-      << std::vector<double>(joint.b.data(), joint.b.data() + joint.b.size());
-  out << YAML::Key << "s" << YAML::Value << joint.s;
-  out << YAML::Key << "z" << YAML::Value << joint.z;
-  out << YAML::Key << "h" << YAML::Value << joint.h;
-  out << YAML::EndMap;
-}
-
 }  // namespace
-
-FrictionLog readFrictionLog(const std::string& path) {
-  std::ifstream file(path);
-  if (!file) fail("cannot read friction log '" + path + "'");
-  std::string line;
-  if (!std::getline(file, line)) fail("friction log '" + path + "' is empty");
-  std::vector<std::string> header;
-  {
-    std::stringstream stream(line);
-    std::string name;
-    while (std::getline(stream, name, ',')) header.push_back(name);
-  }
-  std::map<std::string, int> column;
-  for (std::size_t i = 0; i < header.size(); ++i) column[header[i]] = static_cast<int>(i);
-  if (!column.count("t")) fail("friction log '" + path + "': no column 't'");
-  int n = 0;
-  while (column.count("q" + std::to_string(n + 1))) ++n;
-  if (n == 0) fail("friction log '" + path + "': no columns q1, q2, ...");
-  for (const char* prefix : {"qd", "qdd", "tau"}) {
-    for (int j = 1; j <= n; ++j) {
-      if (!column.count(prefix + std::to_string(j))) {
-        fail("friction log '" + path + "': missing column '" + prefix + std::to_string(j) + "'");
-      }
-    }
-  }
-  std::vector<std::vector<double>> rows;
-  int line_number = 1;
-  while (std::getline(file, line)) {
-    ++line_number;
-    if (line.empty()) continue;
-    std::vector<double> values;
-    std::stringstream stream(line);
-    std::string cell;
-    while (std::getline(stream, cell, ',')) {
-      char* end = nullptr;
-      const double v = std::strtod(cell.c_str(), &end);
-      if (cell.empty() || *end != '\0' || !std::isfinite(v)) {
-        fail("friction log '" + path + "' line " + std::to_string(line_number) + ": '" + cell + "' is not a number");
-      }
-      values.push_back(v);
-    }
-    if (values.size() != header.size()) {
-      fail("friction log '" + path + "' line " + std::to_string(line_number) + ": " + std::to_string(values.size()) +
-           " values for " + std::to_string(header.size()) + " columns");
-    }
-    rows.push_back(std::move(values));
-  }
-  if (rows.size() < 10) fail("friction log '" + path + "' has fewer than 10 samples");
-  FrictionLog log;
-  const auto m = static_cast<Eigen::Index>(rows.size());
-  log.t.resize(m);
-  log.q.resize(m, n);
-  log.qd.resize(m, n);
-  log.qdd.resize(m, n);
-  log.tau.resize(m, n);
-  for (Eigen::Index r = 0; r < m; ++r) {
-    const auto& row = rows[static_cast<std::size_t>(r)];
-    log.t[r] = row[static_cast<std::size_t>(column["t"])];
-    if (r > 0 && !(log.t[r] > log.t[r - 1])) {
-      fail("friction log '" + path + "': time does not increase at sample " + std::to_string(r + 1));
-    }
-    for (int j = 0; j < n; ++j) {
-      const std::string k = std::to_string(j + 1);
-      log.q(r, j) = row[static_cast<std::size_t>(column["q" + k])];
-      log.qd(r, j) = row[static_cast<std::size_t>(column["qd" + k])];
-      log.qdd(r, j) = row[static_cast<std::size_t>(column["qdd" + k])];
-      log.tau(r, j) = row[static_cast<std::size_t>(column["tau" + k])];
-    }
-  }
-  return log;
-}
-
-void writeFrictionLog(const FrictionLog& log, const std::string& path) {
-  std::ofstream file(path);
-  if (!file) fail("cannot write friction log '" + path + "'");
-  file.precision(12);
-  file << "t";
-  for (const char* prefix : {"q", "qd", "qdd", "tau"}) {
-    for (int j = 1; j <= log.joints(); ++j) file << ',' << prefix << j;
-  }
-  file << '\n';
-  for (int r = 0; r < log.samples(); ++r) {
-    file << log.t[r];
-    for (const Eigen::MatrixXd* m : {&log.q, &log.qd, &log.qdd, &log.tau}) {
-      for (int j = 0; j < log.joints(); ++j) file << ',' << (*m)(r, j);
-    }
-    file << '\n';
-  }
-}
 
 Eigen::MatrixXd observedFriction(const kinematics::ChainModel& model, const FrictionLog& log) {
   if (log.joints() != model.nq()) {
@@ -277,8 +153,13 @@ Eigen::MatrixXd accelerationSigns(const FrictionLog& log, SignSource source) {
     return signs;
   }
   const double period = (log.t[log.samples() - 1] - log.t[0]) / (log.samples() - 1);
-  AccelerationSign filter(log.joints(), period);
-  for (int r = 0; r < log.samples(); ++r) signs.row(r) = filter.update(log.qd.row(r).transpose()).transpose();
+  signal::AccelerationSign filter(log.joints(), period);
+  for (int r = 0; r < log.samples(); ++r) {
+    if (filter.update(log.qd.row(r).transpose()) != signal::SignalStatus::Success) {
+      fail("acceleration signs: sample " + std::to_string(r + 1) + " has a non-finite velocity");
+    }
+    signs.row(r) = filter.sign().transpose();
+  }
   return signs;
 }
 
@@ -298,8 +179,8 @@ std::vector<FrictionErrors> evaluateFriction(const FrictionModel& model, const F
   FrictionState state(model);
   Eigen::VectorXd tau(n);
   for (int r = 0; r < last; ++r) {
-    if (!frictionTorques(model, state, log.q.row(r).transpose(), log.qd.row(r).transpose(), signs.row(r).transpose(),
-                         tau)) {
+    if (frictionTorques(model, state, log.q.row(r).transpose(), log.qd.row(r).transpose(), signs.row(r).transpose(),
+                        tau) != DynamicsStatus::Success) {
       fail("friction evaluation failed at sample " + std::to_string(r + 1));
     }
     if (r < first) continue;
@@ -370,82 +251,6 @@ FrictionFit fitFriction(const FrictionLog& log, const Eigen::MatrixXd& friction,
   fit.train = evaluateFriction(fit.model, log, friction, signs, 0, train_end);
   fit.test = evaluateFriction(fit.model, log, friction, signs, train_end, m);
   return fit;
-}
-
-void saveFrictionModel(const FrictionModel& model, const std::string& path, const std::string& comment) {
-  model.validate();
-  YAML::Emitter out;
-  out.SetDoublePrecision(12);
-  out << YAML::BeginMap;
-  out << YAML::Key << "model" << YAML::Value << (model.joints.empty() ? "viscous" : toString(model.joints[0].type));
-  out << YAML::Key << "joints" << YAML::Value << YAML::BeginSeq;
-  for (const JointFriction& joint : model.joints) writeJoint(out, joint);
-  out << YAML::EndSeq;
-  out << YAML::Key << "pairs" << YAML::Value << YAML::BeginSeq;
-  for (const CoupledPair& pair : model.pairs) {
-    out << YAML::BeginMap;
-    out << YAML::Key << "joints" << YAML::Value << YAML::Flow << std::vector<int>{pair.first + 1, pair.second + 1};
-    out << YAML::Key << "epsilon" << YAML::Value << pair.epsilon;
-    out << YAML::Key << "reduced" << YAML::Value << YAML::BeginSeq;
-    writeJoint(out, pair.reduced_first);
-    writeJoint(out, pair.reduced_second);
-    out << YAML::EndSeq << YAML::EndMap;
-  }
-  out << YAML::EndSeq << YAML::EndMap;
-  std::ofstream file(path);
-  if (!file) fail("cannot write friction model '" + path + "'");
-  std::stringstream text(comment);
-  for (std::string line; std::getline(text, line);) file << "# " << line << '\n';
-  file << out.c_str() << '\n';
-}
-
-FrictionModel loadFrictionModel(const std::string& path) {
-  YAML::Node root;
-  try {
-    root = YAML::LoadFile(path);
-  } catch (const YAML::Exception& e) {
-    fail("friction model '" + path + "': " + e.what());
-  }
-  const std::string where = "friction model '" + path + "'";
-  FrictionModelType type;
-  if (!root.IsMap() || !root["model"] || !parseFrictionModelType(root["model"].as<std::string>(""), type)) {
-    fail(where + ": 'model' must be viscous, initial, basic or advanced");
-  }
-  if (!root["joints"] || !root["joints"].IsSequence() || root["joints"].size() == 0) {
-    fail(where + ": needs a non-empty list 'joints'");
-  }
-  FrictionModel model;
-  for (std::size_t i = 0; i < root["joints"].size(); ++i) {
-    model.joints.push_back(readJoint(root["joints"][i], type, where + " joint " + std::to_string(i + 1)));
-  }
-  if (root["pairs"]) {
-    if (!root["pairs"].IsSequence()) fail(where + ": 'pairs' must be a list");
-    for (std::size_t k = 0; k < root["pairs"].size(); ++k) {
-      const YAML::Node node = root["pairs"][k];
-      const std::string at = where + " pair " + std::to_string(k + 1);
-      if (!node["joints"] || !node["joints"].IsSequence() || node["joints"].size() != 2 || !node["reduced"] ||
-          !node["reduced"].IsSequence() || node["reduced"].size() != 2) {
-        fail(at + ": needs 'joints' [i, j] and two 'reduced' models");
-      }
-      CoupledPair pair;
-      try {
-        pair.first = node["joints"][0].as<int>() - 1;
-        pair.second = node["joints"][1].as<int>() - 1;
-        pair.epsilon = node["epsilon"] ? node["epsilon"].as<double>() : pair.epsilon;
-      } catch (const YAML::Exception& e) {
-        fail(at + ": " + e.what());
-      }
-      pair.reduced_first = readJoint(node["reduced"][0], type, at + " reduced 1");
-      pair.reduced_second = readJoint(node["reduced"][1], type, at + " reduced 2");
-      model.pairs.push_back(pair);
-    }
-  }
-  try {
-    model.validate();
-  } catch (const std::invalid_argument& e) {
-    fail(where + ": " + e.what());
-  }
-  return model;
 }
 
 }  // namespace bimanual_skills::dynamics

@@ -162,63 +162,19 @@ const JointFriction& activeJointModel(const FrictionModel& model, const Friction
   return model.joints[static_cast<std::size_t>(joint)];
 }
 
-bool frictionTorques(const FrictionModel& model, FrictionState& state, const Eigen::Ref<const Eigen::VectorXd>& q,
-                     const Eigen::Ref<const Eigen::VectorXd>& qd, const Eigen::Ref<const Eigen::VectorXd>& accel_sign,
-                     Eigen::Ref<Eigen::VectorXd> tau) noexcept {
+DynamicsStatus frictionTorques(const FrictionModel& model, FrictionState& state,
+                               const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd,
+                               const Eigen::Ref<const Eigen::VectorXd>& accel_sign,
+                               Eigen::Ref<Eigen::VectorXd> tau) noexcept {
   const int n = model.size();
   if (q.size() != n || qd.size() != n || accel_sign.size() != n || tau.size() != n ||
-      state.reduced.size() != static_cast<std::size_t>(n) || !q.allFinite() || !qd.allFinite() ||
-      !accel_sign.allFinite()) {
-    return false;
+      state.reduced.size() != static_cast<std::size_t>(n)) {
+    return DynamicsStatus::WrongSize;
   }
+  if (!q.allFinite() || !qd.allFinite() || !accel_sign.allFinite()) return DynamicsStatus::NotFinite;
   updatePairModes(model, state, qd);
   for (int i = 0; i < n; ++i) tau[i] = frictionTorque(activeJointModel(model, state, i), q[i], qd[i], accel_sign[i]);
-  return true;
-}
-
-AccelerationSign::AccelerationSign(int n, double period, double cutoff_hz, double dead_band)
-    : period_(period),
-      alpha_(0.0),
-      dead_band_(dead_band),
-      previous_(Eigen::VectorXd::Zero(std::max(n, 1))),
-      stage_(Eigen::VectorXd::Zero(std::max(n, 1))),
-      filtered_(Eigen::VectorXd::Zero(std::max(n, 1))),
-      sign_(Eigen::VectorXd::Zero(std::max(n, 1))) {
-  if (n < 1 || !(period > 0.0) || !(cutoff_hz > 0.0) || !(dead_band >= 0.0) || !std::isfinite(period) ||
-      !std::isfinite(cutoff_hz) || !std::isfinite(dead_band)) {
-    throw std::invalid_argument("AccelerationSign: need n >= 1, period > 0, cutoff_hz > 0, dead_band >= 0");
-  }
-  // Each stage a discretised first-order low-pass: y += α (x − y), α = 1 − exp(−2π f_c T).
-  alpha_ = 1.0 - std::exp(-2.0 * M_PI * cutoff_hz * period);
-}
-
-const Eigen::VectorXd& AccelerationSign::update(const Eigen::Ref<const Eigen::VectorXd>& qd) noexcept {
-  if (qd.size() != previous_.size() || !qd.allFinite()) return sign_;
-  if (!primed_) {
-    previous_ = qd;
-    primed_ = true;
-    return sign_;
-  }
-  for (Eigen::Index i = 0; i < qd.size(); ++i) {
-    const double raw = (qd[i] - previous_[i]) / period_;
-    stage_[i] += alpha_ * (raw - stage_[i]);
-    filtered_[i] += alpha_ * (stage_[i] - filtered_[i]);
-    if (filtered_[i] > dead_band_) {
-      sign_[i] = 1.0;
-    } else if (filtered_[i] < -dead_band_) {
-      sign_[i] = -1.0;
-    }
-  }
-  previous_ = qd;
-  return sign_;
-}
-
-void AccelerationSign::reset() noexcept {
-  primed_ = false;
-  previous_.setZero();
-  stage_.setZero();
-  filtered_.setZero();
-  sign_.setZero();
+  return DynamicsStatus::Success;
 }
 
 }  // namespace bimanual_skills::dynamics

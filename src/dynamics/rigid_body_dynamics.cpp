@@ -98,20 +98,6 @@ void newtonEuler(const ChainModel& model, DynamicsData& data, const Eigen::Ref<c
 
 }  // namespace
 
-const char* toString(DynamicsStatus status) noexcept {
-  switch (status) {
-    case DynamicsStatus::Success:
-      return "success";
-    case DynamicsStatus::WrongSize:
-      return "a vector has the wrong size";
-    case DynamicsStatus::NotFinite:
-      return "a vector contains NaN or Inf";
-    case DynamicsStatus::NotPositiveDefinite:
-      return "the mass matrix is not positive definite";
-  }
-  return "unknown status";
-}
-
 DynamicsData::DynamicsData(const ChainModel& model)
     : mass_matrix(Eigen::MatrixXd::Zero(model.nq(), model.nq())),
       bias(Eigen::VectorXd::Zero(model.nq())),

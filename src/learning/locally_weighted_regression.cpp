@@ -5,6 +5,20 @@
 
 namespace bimanual_skills::learning {
 
+const char* toString(LwrStatus status) noexcept {
+  switch (status) {
+    case LwrStatus::Success:
+      return "success";
+    case LwrStatus::NoActiveField:
+      return "no receptive field is active at this input";
+    case LwrStatus::WrongSize:
+      return "an input or output has the wrong size";
+    case LwrStatus::NotFinite:
+      return "an input or output contains NaN or Inf";
+  }
+  return "unknown status";
+}
+
 void LwrParameters::validate(int input_dim) const {
   if (width.size() != input_dim || !width.allFinite() || !(width.array() > 0.0).all()) {
     throw std::invalid_argument("LwrParameters: width needs " + std::to_string(input_dim) + " positive entries");
@@ -37,9 +51,10 @@ double LocallyWeightedRegression::activation(int k, const Eigen::Ref<const Eigen
   return std::exp(-0.5 * d2);
 }
 
-bool LocallyWeightedRegression::update(const Eigen::Ref<const Eigen::VectorXd>& x,
-                                       const Eigen::Ref<const Eigen::VectorXd>& y) noexcept {
-  if (x.size() != input_dim_ || y.size() != output_dim_ || !x.allFinite() || !y.allFinite()) return false;
+LwrStatus LocallyWeightedRegression::update(const Eigen::Ref<const Eigen::VectorXd>& x,
+                                            const Eigen::Ref<const Eigen::VectorXd>& y) noexcept {
+  if (x.size() != input_dim_ || y.size() != output_dim_) return LwrStatus::WrongSize;
+  if (!x.allFinite() || !y.allFinite()) return LwrStatus::NotFinite;
   double strongest = 0.0;
   for (int k = 0; k < count_; ++k) {
     const double w = activation(k, x);
@@ -68,12 +83,13 @@ bool LocallyWeightedRegression::update(const Eigen::Ref<const Eigen::VectorXd>& 
     beta_[kk].row(input_dim_) = y.transpose();  // start at the sample's value
     ++count_;
   }
-  return true;
+  return LwrStatus::Success;
 }
 
-bool LocallyWeightedRegression::predict(const Eigen::Ref<const Eigen::VectorXd>& x,
-                                        Eigen::Ref<Eigen::VectorXd> y) noexcept {
-  if (x.size() != input_dim_ || y.size() != output_dim_ || !x.allFinite()) return false;
+LwrStatus LocallyWeightedRegression::predict(const Eigen::Ref<const Eigen::VectorXd>& x,
+                                             Eigen::Ref<Eigen::VectorXd> y) noexcept {
+  if (x.size() != input_dim_ || y.size() != output_dim_) return LwrStatus::WrongSize;
+  if (!x.allFinite()) return LwrStatus::NotFinite;
   y.setZero();
   double total = 0.0;
   for (int k = 0; k < count_; ++k) {
@@ -85,9 +101,9 @@ bool LocallyWeightedRegression::predict(const Eigen::Ref<const Eigen::VectorXd>&
     y += w * local_;
     total += w;
   }
-  if (total <= 0.0) return false;
+  if (total <= 0.0) return LwrStatus::NoActiveField;
   y /= total;
-  return true;
+  return LwrStatus::Success;
 }
 
 }  // namespace bimanual_skills::learning

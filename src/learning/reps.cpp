@@ -143,27 +143,6 @@ double repsDualObjective(const Eigen::VectorXd& rewards, double epsilon, const E
   return dual(static_cast<unsigned>(x.size()), x.data(), gradient != nullptr ? gradient->data() : nullptr, &data);
 }
 
-std::pair<Eigen::VectorXd, Eigen::MatrixXd> weightedGaussian(const Eigen::MatrixXd& samples,
-                                                             const Eigen::VectorXd& weights, double regularisation) {
-  Eigen::VectorXd mean = samples.transpose() * weights;
-  const Eigen::MatrixXd centred = samples.rowwise() - mean.transpose();
-  Eigen::MatrixXd covariance = centred.transpose() * weights.asDiagonal() * centred;
-  covariance.diagonal().array() += regularisation;
-  return {std::move(mean), std::move(covariance)};
-}
-
-Eigen::VectorXd gaussianLogDensity(const Eigen::MatrixXd& samples, const Eigen::VectorXd& mean,
-                                   const Eigen::MatrixXd& covariance) {
-  const Eigen::LLT<Eigen::MatrixXd> llt(covariance);
-  if (llt.info() != Eigen::Success || covariance.rows() != mean.size() || samples.cols() != mean.size()) {
-    throw std::invalid_argument("gaussianLogDensity: the covariance must be positive definite, sizes consistent");
-  }
-  const Eigen::MatrixXd whitened = llt.matrixL().solve((samples.rowwise() - mean.transpose()).transpose());
-  const double log_det = 2.0 * llt.matrixL().toDenseMatrix().diagonal().array().log().sum();
-  const double constant = -0.5 * (static_cast<double>(mean.size()) * std::log(2.0 * M_PI) + log_det);
-  return (constant - 0.5 * whitened.colwise().squaredNorm().array()).matrix().transpose();
-}
-
 std::pair<Eigen::MatrixXd, Eigen::VectorXd> RolloutBuffer::gather(const Eigen::MatrixXd& samples,
                                                                   const Eigen::VectorXd& rewards) const {
   if (samples.rows() != rewards.size() || samples.rows() < 2 || samples.cols() < 1 || !samples.allFinite() ||

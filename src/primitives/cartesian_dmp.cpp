@@ -1,6 +1,6 @@
 #include "bimanual_skills/primitives/cartesian_dmp.hpp"
 
-#include "bimanual_skills/control/fir_filter.hpp"
+#include "bimanual_skills/signal/fir_filter.hpp"
 
 #include <cmath>
 #include <stdexcept>
@@ -117,7 +117,7 @@ CartesianDmp CartesianDmp::fit(const DmpParameters& parameters, OrientationEncod
   for (Eigen::Index k = 0; k + 1 < samples; ++k) {
     half.row(k) = (2.0 / dt * quaternionLog(q[k + 1] * q[k].conjugate())).transpose();
   }
-  half = control::zeroPhaseLowPass(half, dt, smoothing_hz);
+  half = signal::zeroPhaseLowPass(half, dt, smoothing_hz);
   const CartesianDmp shape(parameters, encoding, position.weights(), Eigen::MatrixXd::Zero(3, parameters.kernels),
                            start, goal, tau);
   const Eigen::Vector3d amplitude = shape.orientation().goal();  // D_o = 2 log(g ∗ q̄_0)
@@ -130,8 +130,7 @@ CartesianDmp CartesianDmp::fit(const DmpParameters& parameters, OrientationEncod
       omega_dot = (half.row(k) - half.row(k - 1)).transpose() / dt;
     }
     const Eigen::Vector3d error = 2.0 * quaternionLog(goal.orientation * smoothed.conjugate());
-    Eigen::Vector3d f =
-        tau * tau * omega_dot - parameters.alpha_z * (parameters.beta_z * error - tau * omega);  // Ude et al. (2014)
+    Eigen::Vector3d f = forcingTarget(parameters, tau, error, omega, omega_dot);  // Ude et al. (2014)
     if (parameters.goal_scaled_forcing) {
       for (int i = 0; i < 3; ++i) f[i] /= std::abs(amplitude[i]) > 1e-9 ? amplitude[i] : 1.0;
     }
@@ -159,12 +158,12 @@ CartesianDmpState CartesianDmp::initialState() const {
   return state;
 }
 
-CartesianDmpStatus CartesianDmp::step(CartesianDmpState& state, double dt) const noexcept {
+DmpStatus CartesianDmp::step(CartesianDmpState& state, double dt) const noexcept {
   const bool vector_encoding = encoding_ == OrientationEncoding::QuaternionVector;
   if (!(dt > 0.0) || !std::isfinite(dt) || !validDmpState(state.position) || !isUnit(state.orientation) ||
       !isUnit(state.goal_orientation) || !state.angular_velocity.allFinite() ||
       !state.angular_acceleration.allFinite() || (vector_encoding && !validDmpState(state.orientation_vector))) {
-    return CartesianDmpStatus::InvalidInput;
+    return DmpStatus::InvalidInput;
   }
   const DmpParameters& p = parameters();
   const double tau = duration();
@@ -177,7 +176,7 @@ CartesianDmpStatus CartesianDmp::step(CartesianDmpState& state, double dt) const
     v_state.goal = relativeVector(q_s, state.goal_orientation);
     v_state.x = state.position.x;
     v_state.t = state.position.t;
-    orientation_.step(v_state, dt);  // cannot fail: validated above
+    static_cast<void>(orientation_.step(v_state, dt));  // cannot fail: validated above
     Eigen::Vector3d v = v_state.y;
     const double n = v.norm();
     clamped = n > 1.0;
@@ -198,12 +197,12 @@ CartesianDmpStatus CartesianDmp::step(CartesianDmpState& state, double dt) const
     f.noalias() = orientation_.weights() * g;
     if (p.goal_scaled_forcing) f = f.cwiseProduct(2.0 * quaternionLog(state.goal_orientation * q_s.conjugate()));
     const Eigen::Vector3d error = 2.0 * quaternionLog(state.goal_orientation * state.orientation.conjugate());
-    state.angular_acceleration = (p.alpha_z * (p.beta_z * error - tau * state.angular_velocity) + f) / (tau * tau);
+    state.angular_acceleration = transformationAcceleration(p, tau, error, state.angular_velocity, f);
     state.angular_velocity += dt * state.angular_acceleration;
     state.orientation = (quaternionExp(0.5 * dt * state.angular_velocity) * state.orientation).normalized();
   }
-  position_.step(state.position, dt);  // advances the shared phase; cannot fail: validated above
-  return clamped ? CartesianDmpStatus::VectorClamped : CartesianDmpStatus::Success;
+  static_cast<void>(position_.step(state.position, dt));  // advances the shared phase; validated above
+  return clamped ? DmpStatus::VectorClamped : DmpStatus::Success;
 }
 
 }  // namespace bimanual_skills::primitives

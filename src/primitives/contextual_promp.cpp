@@ -1,6 +1,6 @@
 #include "bimanual_skills/primitives/contextual_promp.hpp"
 
-#include <Eigen/Cholesky>
+#include "bimanual_skills/learning/ridge_regression.hpp"
 
 #include <stdexcept>
 #include <string>
@@ -38,16 +38,15 @@ ContextualProMp ContextualProMp::fit(const ProMpParameters& parameters,
     X(d, 0) = 1.0;
     X.row(d).tail(contexts_size) = contexts[static_cast<std::size_t>(d)].transpose();
   }
-  Eigen::MatrixXd normal = X.transpose() * X;
-  normal.diagonal().tail(contexts_size).array() += parameters.context_ridge;
-  const Eigen::LLT<Eigen::MatrixXd> solver(normal);
-  if (solver.info() != Eigen::Success) {
+  Eigen::MatrixXd coefficients;  // (M+1) × n: the mean, then K_omega transposed; the mean is not penalised
+  try {
+    coefficients = learning::ridgeLeastSquares(X, fitted.weights.transpose(), parameters.context_ridge, 1);
+  } catch (const std::invalid_argument&) {
     throw std::invalid_argument(
         "ContextualProMp::fit: the contexts do not determine K_omega (collinear or too few demonstrations); "
         "raise context_ridge");
   }
-  const Eigen::MatrixXd coefficients = solver.solve(X.transpose() * fitted.weights.transpose());  // (M+1) × n
-  const Eigen::MatrixXd residuals = fitted.weights.transpose() - X * coefficients;                // samples × n
+  const Eigen::MatrixXd residuals = fitted.weights.transpose() - X * coefficients;  // samples × n
   Eigen::MatrixXd covariance = residuals.transpose() * residuals / static_cast<double>(samples);
   covariance.diagonal().array() += parameters.covariance_prior;
   return ContextualProMp(parameters, static_cast<int>(demonstrations.front().cols()), coefficients.row(0).transpose(),

@@ -1,8 +1,8 @@
 #include "bimanual_skills/primitives/dmp.hpp"
 
-#include "bimanual_skills/control/fir_filter.hpp"
-
-#include <Eigen/Cholesky>
+#include "bimanual_skills/learning/ridge_regression.hpp"
+#include "bimanual_skills/primitives/basis.hpp"
+#include "bimanual_skills/signal/fir_filter.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -10,6 +10,19 @@
 #include <string>
 
 namespace bimanual_skills::primitives {
+
+const char* toString(DmpStatus status) noexcept {
+  switch (status) {
+    case DmpStatus::Success:
+      return "success";
+    case DmpStatus::VectorClamped:
+      return "the orientation vector left the unit ball and was clamped";
+    case DmpStatus::InvalidInput:
+      return "invalid input (wrong size, NaN/Inf, non-unit quaternion or dt <= 0)";
+  }
+  return "unknown status";
+}
+
 void DmpParameters::validate() const {
   if (kernels < 1 || kernels > kDmpMaxKernels) {
     throw std::invalid_argument("DmpParameters: kernels must be in [1, " + std::to_string(kDmpMaxKernels) + "]");
@@ -44,13 +57,7 @@ Dmp::Dmp(const DmpParameters& parameters, const Eigen::MatrixXd& weights, const 
 }
 
 void Dmp::basis(double x, Eigen::Ref<Eigen::VectorXd> g) const noexcept {
-  double sum = 0.0;
-  for (int i = 0; i < parameters_.kernels; ++i) {
-    const double delta = x - centres_[i];
-    g[i] = std::exp(-0.5 * delta * delta / widths_[i]);
-    sum += g[i];
-  }
-  g *= sum > 0.0 ? x / sum : 0.0;
+  normalisedGaussianBasis(x, centres_, widths_, x, g);
 }
 
 Dmp Dmp::fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, double dt, double smoothing_hz) {
@@ -60,7 +67,7 @@ Dmp Dmp::fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, 
   if (samples < 10 || d < 1 || !(dt > 0.0) || !positions.allFinite()) {
     throw std::invalid_argument("Dmp::fit: need >= 10 finite samples of >= 1 DoF and dt > 0");
   }
-  const Eigen::MatrixXd y = control::zeroPhaseLowPass(positions, dt, smoothing_hz);
+  const Eigen::MatrixXd y = signal::zeroPhaseLowPass(positions, dt, smoothing_hz);
   Eigen::MatrixXd yd = Eigen::MatrixXd::Zero(samples, d), ydd = Eigen::MatrixXd::Zero(samples, d);
   for (Eigen::Index r = 1; r + 1 < samples; ++r) {
     yd.row(r) = (y.row(r + 1) - y.row(r - 1)) / (2.0 * dt);
@@ -73,8 +80,8 @@ Dmp Dmp::fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, 
   // f = τ² ÿ − α_z (β_z (g − y) − τ ẏ), divided by (g − y0) for the goal-scaled variant, regressed on g(x).
   Eigen::MatrixXd forcing(samples, d);
   for (Eigen::Index j = 0; j < d; ++j) {
-    forcing.col(j) = tau * tau * ydd.col(j) -
-                     parameters.alpha_z * (parameters.beta_z * (goal[j] - y.col(j).array()).matrix() - tau * yd.col(j));
+    const Eigen::VectorXd error = (goal[j] - y.col(j).array()).matrix();
+    forcing.col(j) = forcingTarget<Eigen::VectorXd>(parameters, tau, error, yd.col(j), ydd.col(j));
     if (parameters.goal_scaled_forcing) {
       const double amplitude = goal[j] - start[j];
       forcing.col(j) /= std::abs(amplitude) > 1e-9 ? amplitude : 1.0;
@@ -95,10 +102,7 @@ Eigen::MatrixXd Dmp::fitWeights(const Eigen::MatrixXd& forcing, double dt) const
     basis(std::exp(-parameters_.alpha_x * static_cast<double>(r) * dt / duration_), g);
     G.row(r) = g.transpose();
   }
-  Eigen::MatrixXd gram = G.transpose() * G;
-  gram.diagonal().array() += parameters_.regularisation;
-  const Eigen::LDLT<Eigen::MatrixXd> solver(gram);
-  return solver.solve(G.transpose() * forcing).transpose();
+  return learning::ridgeLeastSquares(G, forcing, parameters_.regularisation).transpose();
 }
 
 Dmp Dmp::withDuration(double duration) const {
@@ -118,11 +122,12 @@ DmpState Dmp::initialState() const {
   return state;
 }
 
-bool Dmp::step(DmpState& state, double dt) const noexcept {
+DmpStatus Dmp::step(DmpState& state, double dt) const noexcept {
   const int d = dofs();
   if (state.y.size() != d || state.yd.size() != d || state.ydd.size() != d || state.goal.size() != d || !(dt > 0.0) ||
-      !state.y.allFinite() || !state.yd.allFinite() || !state.goal.allFinite() || !std::isfinite(state.x)) {
-    return false;
+      !std::isfinite(dt) || !state.y.allFinite() || !state.yd.allFinite() || !state.goal.allFinite() ||
+      !std::isfinite(state.x) || !std::isfinite(state.t)) {
+    return DmpStatus::InvalidInput;
   }
   double g_storage[kDmpMaxKernels];
   Eigen::Map<Eigen::VectorXd> g(g_storage, parameters_.kernels);
@@ -131,14 +136,13 @@ bool Dmp::step(DmpState& state, double dt) const noexcept {
   for (int j = 0; j < d; ++j) {
     double f = weights_.row(j).dot(g);
     if (parameters_.goal_scaled_forcing) f *= state.goal[j] - start_[j];
-    state.ydd[j] = (parameters_.alpha_z * (parameters_.beta_z * (state.goal[j] - state.y[j]) - tau * state.yd[j]) + f) /
-                   (tau * tau);
+    state.ydd[j] = transformationAcceleration(parameters_, tau, state.goal[j] - state.y[j], state.yd[j], f);
   }
   state.yd += dt * state.ydd;
   state.y += dt * state.yd;
   state.x *= std::exp(-parameters_.alpha_x * dt / tau);
   state.t += dt;
-  return true;
+  return DmpStatus::Success;
 }
 
 }  // namespace bimanual_skills::primitives

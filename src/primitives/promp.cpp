@@ -1,5 +1,9 @@
 #include "bimanual_skills/primitives/promp.hpp"
 
+#include "bimanual_skills/learning/gaussian.hpp"
+#include "bimanual_skills/learning/ridge_regression.hpp"
+#include "bimanual_skills/primitives/basis.hpp"
+
 #include <Eigen/LU>
 
 #include <algorithm>
@@ -8,6 +12,18 @@
 #include <string>
 
 namespace bimanual_skills::primitives {
+
+const char* toString(ProMpStatus status) noexcept {
+  switch (status) {
+    case ProMpStatus::Success:
+      return "success";
+    case ProMpStatus::WrongSize:
+      return "an output or the evaluation data has the wrong size";
+    case ProMpStatus::NotFinite:
+      return "the phase is NaN or Inf";
+  }
+  return "unknown status";
+}
 
 void ProMpParameters::validate() const {
   if (kernels < 2) throw std::invalid_argument("ProMpParameters: kernels must be >= 2");
@@ -42,10 +58,11 @@ ProMp::ProMp(const ProMpParameters& parameters, int dofs, const Eigen::VectorXd&
   const int k = parameters_.kernels;
   centres_ = Eigen::VectorXd::LinSpaced(k, 0.0, 1.0);
   const double spacing = 1.0 / (k - 1);
-  width_ = parameters_.width > 0.0 ? parameters_.width : 0.5 * spacing * spacing;
+  widths_ = Eigen::VectorXd::Constant(k, parameters_.width > 0.0 ? parameters_.width : 0.5 * spacing * spacing);
   // Sampling factor of Σ_ω (+ a tiny jitter so a rank-deficient covariance still factorises).
-  sampler_.compute(covariance_ + 1e-12 * Eigen::MatrixXd::Identity(n, n));
-  if (sampler_.info() != Eigen::Success) {
+  try {
+    sampling_factor_ = learning::choleskyFactor(covariance_ + 1e-12 * Eigen::MatrixXd::Identity(n, n));
+  } catch (const std::invalid_argument&) {
     throw std::invalid_argument("ProMp: the weight covariance is not positive semidefinite");
   }
 }
@@ -53,6 +70,7 @@ ProMp::ProMp(const ProMpParameters& parameters, int dofs, const Eigen::VectorXd&
 ProMpData::ProMpData(const ProMp& promp)
     : b(Eigen::VectorXd::Zero(promp.kernels())),
       db(Eigen::VectorXd::Zero(promp.kernels())),
+      dt_basis(Eigen::VectorXd::Zero(promp.kernels())),
       psi(Eigen::MatrixXd::Zero(promp.dofs() * promp.kernels(), 2 * promp.dofs())),
       sigma_psi(Eigen::MatrixXd::Zero(promp.dofs() * promp.kernels(), 2 * promp.dofs())) {}
 
@@ -66,75 +84,75 @@ ProMp ProMp::withMean(const Eigen::VectorXd& mean) const {
 }
 
 void ProMp::basis(double z, Eigen::Ref<Eigen::VectorXd> b, Eigen::Ref<Eigen::VectorXd> db) const noexcept {
-  // b_i = φ_i / Σ φ, φ_i = exp(−(z − c_i)² / (2 w)); db_i/dz = b_i (φ_i'/φ_i − Σ φ' / Σ φ), φ_i'/φ_i = −(z − c_i)/w.
-  double sum = 0.0, dsum = 0.0;
-  for (int i = 0; i < parameters_.kernels; ++i) {
-    const double delta = z - centres_[i];
-    const double phi = std::exp(-0.5 * delta * delta / width_);
-    b[i] = phi;
-    db[i] = -delta / width_ * phi;
-    sum += phi;
-    dsum += db[i];
-  }
-  for (int i = 0; i < parameters_.kernels; ++i) {
-    db[i] = (db[i] * sum - b[i] * dsum) / (sum * sum);
-    b[i] /= sum;
-  }
+  normalisedGaussianBasis(z, centres_, widths_, b, db);
 }
 
-bool ProMp::blockBasis(ProMpData& data, double z) const noexcept {
+ProMpStatus ProMp::check(const ProMpData& data, double z) const noexcept {
   const int k = parameters_.kernels;
-  if (data.b.size() != k || data.psi.rows() != dofs_ * k || data.psi.cols() != 2 * dofs_ ||
-      data.sigma_psi.rows() != data.psi.rows() || data.sigma_psi.cols() != data.psi.cols() || !std::isfinite(z)) {
-    return false;
+  if (data.b.size() != k || data.db.size() != k || data.dt_basis.size() != k || data.psi.rows() != dofs_ * k ||
+      data.psi.cols() != 2 * dofs_ || data.sigma_psi.rows() != data.psi.rows() ||
+      data.sigma_psi.cols() != data.psi.cols()) {
+    return ProMpStatus::WrongSize;
   }
+  return std::isfinite(z) ? ProMpStatus::Success : ProMpStatus::NotFinite;
+}
+
+ProMpStatus ProMp::blockBasis(ProMpData& data, double z) const noexcept {
+  if (const ProMpStatus status = check(data, z); status != ProMpStatus::Success) return status;
+  const int k = parameters_.kernels;
   basis(std::clamp(z, 0.0, 1.0), data.b, data.db);
   data.psi.setZero();
   for (int j = 0; j < dofs_; ++j) {
     data.psi.block(j * k, j, k, 1) = data.b;
     data.psi.block(j * k, dofs_ + j, k, 1) = data.db / duration_;  // d/dt = (d/dz) / duration
   }
-  return true;
+  return ProMpStatus::Success;
 }
 
-bool ProMp::mean(ProMpData& data, double z, Eigen::Ref<Eigen::VectorXd> position,
-                 Eigen::Ref<Eigen::VectorXd> velocity) const noexcept {
+ProMpStatus ProMp::mean(ProMpData& data, double z, Eigen::Ref<Eigen::VectorXd> position,
+                        Eigen::Ref<Eigen::VectorXd> velocity) const noexcept {
+  if (position.size() != dofs_ || velocity.size() != dofs_) return ProMpStatus::WrongSize;
+  if (const ProMpStatus status = check(data, z); status != ProMpStatus::Success) return status;
   const int k = parameters_.kernels;
-  if (position.size() != dofs_ || velocity.size() != dofs_ || data.b.size() != k || data.db.size() != k ||
-      !std::isfinite(z)) {
-    return false;
-  }
   basis(std::clamp(z, 0.0, 1.0), data.b, data.db);
   for (int j = 0; j < dofs_; ++j) {
     position[j] = data.b.dot(mean_.segment(j * k, k));
     velocity[j] = data.db.dot(mean_.segment(j * k, k)) / duration_;
   }
-  return true;
+  return ProMpStatus::Success;
 }
 
 void ProMp::projectCovariance(ProMpData& data, int columns, Eigen::Ref<Eigen::MatrixXd> out) const noexcept {
-  const auto psi = data.psi.leftCols(columns);
-  data.sigma_psi.leftCols(columns).noalias() = covariance_ * psi;
-  out.noalias() = psi.transpose() * data.sigma_psi.leftCols(columns);
+  const int k = parameters_.kernels;
+  data.dt_basis = data.db / duration_;
+  const auto vector = [&](int column) -> const Eigen::VectorXd& { return column < dofs_ ? data.b : data.dt_basis; };
+  for (int c = 0; c < columns; ++c) {
+    const int dof = c % dofs_;
+    data.sigma_psi.col(c).noalias() = covariance_.middleCols(dof * k, k) * vector(c);
+  }
+  for (int c = 0; c < columns; ++c) {
+    for (int r = 0; r < columns; ++r) out(r, c) = vector(r).dot(data.sigma_psi.col(c).segment((r % dofs_) * k, k));
+  }
 }
 
-bool ProMp::covariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept {
-  if (out.rows() != dofs_ || out.cols() != dofs_ || !blockBasis(data, z)) return false;
+ProMpStatus ProMp::covariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept {
+  if (out.rows() != dofs_ || out.cols() != dofs_) return ProMpStatus::WrongSize;
+  if (const ProMpStatus status = check(data, z); status != ProMpStatus::Success) return status;
+  basis(std::clamp(z, 0.0, 1.0), data.b, data.db);
   projectCovariance(data, dofs_, out);
-  return true;
+  return ProMpStatus::Success;
 }
 
-bool ProMp::stateCovariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept {
-  if (out.rows() != 2 * dofs_ || out.cols() != 2 * dofs_ || !blockBasis(data, z)) return false;
+ProMpStatus ProMp::stateCovariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept {
+  if (out.rows() != 2 * dofs_ || out.cols() != 2 * dofs_) return ProMpStatus::WrongSize;
+  if (const ProMpStatus status = check(data, z); status != ProMpStatus::Success) return status;
+  basis(std::clamp(z, 0.0, 1.0), data.b, data.db);
   projectCovariance(data, 2 * dofs_, out);
-  return true;
+  return ProMpStatus::Success;
 }
 
 Eigen::VectorXd ProMp::sample(std::mt19937& rng) const {
-  std::normal_distribution<double> normal(0.0, 1.0);
-  Eigen::VectorXd e(mean_.size());
-  for (Eigen::Index i = 0; i < e.size(); ++i) e[i] = normal(rng);
-  return mean_ + sampler_.matrixL() * e;
+  return learning::GaussianSampler().draw(mean_, sampling_factor_, rng);
 }
 
 DemonstrationWeights ProMp::demonstrationWeights(const ProMpParameters& parameters,
@@ -163,11 +181,10 @@ DemonstrationWeights ProMp::demonstrationWeights(const ProMpParameters& paramete
       shape.basis(static_cast<double>(r) / static_cast<double>(y.rows() - 1), b, db);
       B.row(r) = b.transpose();
     }
-    const Eigen::LDLT<Eigen::MatrixXd> solver(B.transpose() * B + parameters.ridge * Eigen::MatrixXd::Identity(k, k));
+    const Eigen::MatrixXd w = learning::ridgeLeastSquares(B, y, parameters.ridge);  // kernels × dofs
     for (int j = 0; j < dofs; ++j) {
-      const Eigen::VectorXd w = solver.solve(B.transpose() * y.col(j));
-      out.weights.block(j * k, static_cast<Eigen::Index>(d), k, 1) = w;
-      out.observation_variance[j] += (B * w - y.col(j)).squaredNorm();
+      out.weights.block(j * k, static_cast<Eigen::Index>(d), k, 1) = w.col(j);
+      out.observation_variance[j] += (B * w.col(j) - y.col(j)).squaredNorm();
     }
     residual_samples += static_cast<double>(y.rows());
   }
@@ -179,10 +196,7 @@ ProMp ProMp::fit(const ProMpParameters& parameters, const std::vector<Eigen::Mat
                  double duration) {
   if (demonstrations.size() < 2) throw std::invalid_argument("ProMp::fit: needs at least 2 demonstrations");
   const DemonstrationWeights fitted = demonstrationWeights(parameters, demonstrations);
-  const Eigen::MatrixXd& weights = fitted.weights;
-  const Eigen::VectorXd mean = weights.rowwise().mean();
-  const Eigen::MatrixXd centred = weights.colwise() - mean;
-  Eigen::MatrixXd covariance = centred * centred.transpose() / static_cast<double>(weights.cols());
+  auto [mean, covariance] = learning::sampleMoments(fitted.weights.transpose());
   covariance.diagonal().array() += parameters.covariance_prior;
   return ProMp(parameters, static_cast<int>(demonstrations.front().cols()), mean, covariance,
                fitted.observation_variance, duration);
@@ -200,7 +214,9 @@ ProMp ProMp::conditioned(double z, const Eigen::VectorXd& position, const Eigen:
         "velocities) with a matching square covariance");
   }
   ProMpData data(*this);
-  if (!blockBasis(data, z)) throw std::invalid_argument("ProMp::conditioned: the phase must be finite");
+  if (blockBasis(data, z) != ProMpStatus::Success) {
+    throw std::invalid_argument("ProMp::conditioned: the phase must be finite");
+  }
   const Eigen::MatrixXd H = data.psi.leftCols(m);
   Eigen::VectorXd observed(m);
   observed.head(dofs_) = position;

@@ -38,8 +38,8 @@ TrajectoryDistribution blend(const std::vector<ProMp>& promps, const Eigen::Vect
       const double alpha = activations(t, static_cast<Eigen::Index>(i));
       if (alpha == 0.0) continue;
       const ProMp& promp = promps[i];
-      if (!promp.mean(data[i], phases[t], state_mean.head(dofs), state_mean.tail(dofs)) ||
-          !promp.stateCovariance(data[i], phases[t], state_covariance)) {
+      if (promp.mean(data[i], phases[t], state_mean.head(dofs), state_mean.tail(dofs)) != ProMpStatus::Success ||
+          promp.stateCovariance(data[i], phases[t], state_covariance) != ProMpStatus::Success) {
         throw std::invalid_argument("blend: could not evaluate ProMP " + std::to_string(i));
       }
       llt.compute(state_covariance);

@@ -1,5 +1,7 @@
 #include "bimanual_skills/primitives/promp_controller.hpp"
 
+#include "bimanual_skills/learning/gaussian.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/QR>
@@ -74,7 +76,7 @@ ProMpController::ProMpController(const ProMp& promp, const std::vector<Linearise
   weight_covariance.diagonal().array() += regularisation;
   ProMpData data(promp);
   const auto evaluate = [&](int k, Eigen::MatrixXd& psi, Eigen::VectorXd& mean) {
-    if (!promp.blockBasis(data, std::min(1.0, k * dt / promp.duration()))) {
+    if (promp.blockBasis(data, std::min(1.0, k * dt / promp.duration())) != ProMpStatus::Success) {
       throw std::invalid_argument("ProMpController: could not evaluate the ProMP's basis");
     }
     psi = data.psi;
@@ -128,9 +130,7 @@ ProMpControlStatus ProMpController::command(int step, const Eigen::Ref<const Eig
                                             Eigen::Ref<Eigen::VectorXd> u) const noexcept {
   const ProMpControlStatus status = command(step, state, u);
   if (status != ProMpControlStatus::Success) return status;
-  const Eigen::MatrixXd& L = noise_factors_[static_cast<std::size_t>(step)];
-  std::normal_distribution<double> normal(0.0, 1.0);
-  for (Eigen::Index j = 0; j < L.cols(); ++j) u += L.col(j) * normal(rng);
+  learning::GaussianSampler().addNoise(noise_factors_[static_cast<std::size_t>(step)], u, rng);
   return ProMpControlStatus::Success;
 }
 

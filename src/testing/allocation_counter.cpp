@@ -1,5 +1,5 @@
 // Counting replacements of the global allocation functions, for the real-time allocation tests and benchmarks.
-#include "bimanual_skills/testing/allocation_counter.hpp"
+#include "testing/allocation_counter.hpp"
 
 #include <Eigen/Core>
 

@@ -1,5 +1,5 @@
 // NoAllocGuard: fails the current gtest when its scope allocates (counting in allocation_counter.cpp).
-#include "bimanual_skills/testing/no_alloc_guard.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 

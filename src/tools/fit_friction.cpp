@@ -8,6 +8,7 @@
 // observed as tau - M qdd - C qd - G (2.12) with the arm model; the fit uses the first 1 - holdout of the samples and
 // the errors (MAE, MSE, maximum, as in Table 4.1) are printed for the held-out rest.
 #include "bimanual_skills/dynamics/friction_identification.hpp"
+#include "bimanual_skills/dynamics/friction_yaml.hpp"
 
 #include <cstdio>
 #include <cstdlib>

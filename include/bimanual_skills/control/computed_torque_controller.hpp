@@ -2,9 +2,9 @@
 /// Computed-torque controller with low PD gains (thesis eq. 4.17): u = M(q) q̈_d + C(q, q̇) q̇ + G(q) + F_f + Kp e + Kv ė.
 #pragma once
 
+#include "bimanual_skills/control/learned_dynamics.hpp"
 #include "bimanual_skills/dynamics/friction_model.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
-#include "bimanual_skills/learning/locally_weighted_regression.hpp"
 
 namespace bimanual_skills::control {
 
@@ -38,9 +38,9 @@ class ComputedTorqueController {
   void setPayload(const dynamics::Payload& payload) noexcept { payload_ = payload; }
   /// Learned alternative (thesis Sec. 2.3.1): with a model of n(q, q̇) = C q̇ + G + F_f (inputs [q; q̇], n outputs),
   /// the feed-forward becomes M(q) q̈_d + n̂(q, q̇), only M coming from the rigid-body model; where the learned model
-  /// has no active field the analytic feed-forward is used. nullptr returns to the analytic model. The model is
-  /// not owned and must outlive its use. Real-time safe.
-  void setLearnedModel(learning::LocallyWeightedRegression* model) noexcept { learned_ = model; }
+  /// has no prediction the analytic feed-forward is used. An empty handle returns to the analytic model. The model
+  /// is not owned and must outlive its use. Real-time safe.
+  void setLearnedModel(LearnedDynamics model) noexcept { learned_ = model; }
 
   const kinematics::ChainModel& model() const noexcept { return model_; }
   const dynamics::FrictionModel& friction() const noexcept { return friction_; }
@@ -56,7 +56,7 @@ class ComputedTorqueController {
   dynamics::FrictionState friction_state_;
   dynamics::Payload payload_;
   bool friction_enabled_ = true;
-  learning::LocallyWeightedRegression* learned_ = nullptr;
+  LearnedDynamics learned_;
   Eigen::VectorXd feedforward_, friction_torque_, sign_, state_, learned_n_, zeros_;
 };
 

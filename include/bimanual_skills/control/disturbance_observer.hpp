@@ -2,15 +2,19 @@
 /// Sensorless external-force estimation with the disturbance observer of thesis Sec. 4.1 (eqs. 4.5–4.15).
 #pragma once
 
-#include "bimanual_skills/control/fir_filter.hpp"
+#include "bimanual_skills/control/learned_dynamics.hpp"
 #include "bimanual_skills/dynamics/friction_model.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
-#include "bimanual_skills/learning/locally_weighted_regression.hpp"
+#include "bimanual_skills/signal/fir_filter.hpp"
 
 #include <Eigen/Cholesky>
 
 namespace bimanual_skills::control {
+
+/// Outcome of an observer update. On anything but Success the estimates are unchanged.
+enum class ObserverStatus { Success, WrongSize, NotFinite };
+const char* toString(ObserverStatus status) noexcept;
 
 struct ObserverGains {
   Eigen::MatrixXd K11, K12, K21, K22, Sigma;  ///< n × n each.
@@ -41,14 +45,16 @@ class DisturbanceObserver {
   void reset(const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd) noexcept;
 
   /// One observer step with the measured q, q̇, the applied command u_c and sign(q̈) for the friction term.
-  /// False (estimates unchanged) on NaN/Inf or wrong sizes. Real-time safe: no allocation, no exceptions.
-  bool update(const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd,
-              const Eigen::Ref<const Eigen::VectorXd>& u, const Eigen::Ref<const Eigen::VectorXd>& accel_sign) noexcept;
+  /// WrongSize or NotFinite (estimates unchanged) on bad input. Real-time safe: no allocation, no exceptions.
+  [[nodiscard]] ObserverStatus update(const Eigen::Ref<const Eigen::VectorXd>& q,
+                                      const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                      const Eigen::Ref<const Eigen::VectorXd>& u,
+                                      const Eigen::Ref<const Eigen::VectorXd>& accel_sign) noexcept;
 
   void setPayload(const dynamics::Payload& payload) noexcept { payload_ = payload; }
   /// Learned n̂(q, q̇) = C q̇ + G + F_f (inputs [q; q̇]) in place of the analytic terms of (4.15), as in the
-  /// controller; where it has no active field the analytic model is used. Not owned. Real-time safe.
-  void setLearnedModel(learning::LocallyWeightedRegression* model) noexcept { learned_ = model; }
+  /// controller; where it has no prediction the analytic model is used. Not owned. Real-time safe.
+  void setLearnedModel(LearnedDynamics model) noexcept { learned_ = model; }
   const Eigen::VectorXd& externalTorque() const noexcept { return external_torque_; }
   /// Estimated wrench [f; m] the environment exerts on the tip, in the base frame, at the tip's origin.
   const Eigen::Matrix<double, 6, 1>& wrench() const noexcept { return wrench_; }
@@ -60,10 +66,10 @@ class DisturbanceObserver {
   kinematics::ChainModel model_;
   kinematics::ChainModel inertial_model_;  ///< model_ without gravity: RNEA(q, 0, a) = M(q) a
   dynamics::FrictionModel friction_;
-  learning::LocallyWeightedRegression* learned_ = nullptr;
+  LearnedDynamics learned_;
   double period_, wrench_damping_;
   Eigen::MatrixXd P_, P_period_, G_, Sigma_;
-  FirFilter velocity_filter_;
+  signal::FirFilter velocity_filter_;
   dynamics::DynamicsData dynamics_;
   dynamics::FrictionState friction_state_;
   kinematics::ChainData kinematics_;

@@ -1,9 +1,10 @@
 /// \file
-/// Offline identification of the friction models (thesis Sec. 2.3.2 and 4.2.2) from logged joint data, and their
-/// YAML files. Allocates and throws freely: never call from a real-time loop. Target bimanual_skills_identification
-/// (NLopt, yaml-cpp).
+/// Offline identification of the friction models (thesis Sec. 2.3.2 and 4.2.2) from logged joint data (the logs'
+/// CSV files are in friction_log.hpp, the models' YAML files in friction_yaml.hpp). Allocates and throws freely:
+/// never call from a real-time loop. Target bimanual_skills_identification (NLopt, yaml-cpp).
 #pragma once
 
+#include "bimanual_skills/dynamics/friction_log.hpp"
 #include "bimanual_skills/dynamics/friction_model.hpp"
 #include "bimanual_skills/kinematics/chain_model.hpp"
 
@@ -13,21 +14,6 @@
 #include <vector>
 
 namespace bimanual_skills::dynamics {
-
-/// Logged samples, one row per sample and one column per joint (time in s, SI units).
-struct FrictionLog {
-  Eigen::VectorXd t;
-  Eigen::MatrixXd q, qd, qdd, tau;  ///< tau: the torque the controller applied, u_c of (2.12).
-
-  int samples() const noexcept { return static_cast<int>(t.size()); }
-  int joints() const noexcept { return static_cast<int>(q.cols()); }
-};
-
-/// Reads a CSV log whose header names the columns t, q1..qn, qd1..qdn, qdd1..qddn, tau1..taun (any order).
-/// \throws std::invalid_argument naming the file, line and column of any problem (missing columns, bad numbers,
-/// non-increasing time, fewer than 10 samples).
-FrictionLog readFrictionLog(const std::string& path);
-void writeFrictionLog(const FrictionLog& log, const std::string& path);
 
 /// Friction torques observed in a log, F_f = u_c − M(q) q̈ − C(q, q̇) q̇ − G(q) (2.12), for a model of the arm.
 Eigen::MatrixXd observedFriction(const kinematics::ChainModel& model, const FrictionLog& log);
@@ -74,10 +60,5 @@ FrictionFit fitFriction(const FrictionLog& log, const Eigen::MatrixXd& friction,
 std::vector<FrictionErrors> evaluateFriction(const FrictionModel& model, const FrictionLog& log,
                                              const Eigen::MatrixXd& friction, const Eigen::MatrixXd& signs, int first,
                                              int last);
-
-/// YAML file of a friction model (what controllers load); `comment` goes at the top.
-void saveFrictionModel(const FrictionModel& model, const std::string& path, const std::string& comment = "");
-/// \throws std::invalid_argument naming the file and the entry at fault.
-FrictionModel loadFrictionModel(const std::string& path);
 
 }  // namespace bimanual_skills::dynamics

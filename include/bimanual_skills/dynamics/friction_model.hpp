@@ -3,6 +3,8 @@
 /// linear in the coefficients b once the nonlinear parameters (s, z, h) are fixed, which is how they are identified.
 #pragma once
 
+#include "bimanual_skills/dynamics/dynamics_status.hpp"
+
 #include <Eigen/Core>
 
 #include <array>
@@ -83,36 +85,13 @@ void updatePairModes(const FrictionModel& model, FrictionState& state,
 /// The model a joint uses in the given state: its own, or its pair's reduced one while in mode B.
 const JointFriction& activeJointModel(const FrictionModel& model, const FrictionState& state, int joint) noexcept;
 
-/// Friction torques of every joint at (q, q̇) with acceleration signs σ (see AccelerationSign), updating the pair
-/// modes in `state`. False on wrong sizes or non-finite input (then `tau` is left unchanged).
+/// Friction torques of every joint at (q, q̇) with acceleration signs σ (see signal::AccelerationSign), updating the
+/// pair modes in `state`. WrongSize or NotFinite on bad input (then `tau` and `state` are left unchanged).
 /// Real-time safe: no allocation, no exceptions.
-bool frictionTorques(const FrictionModel& model, FrictionState& state, const Eigen::Ref<const Eigen::VectorXd>& q,
-                     const Eigen::Ref<const Eigen::VectorXd>& qd, const Eigen::Ref<const Eigen::VectorXd>& accel_sign,
-                     Eigen::Ref<Eigen::VectorXd> tau) noexcept;
-
-/// The sign of q̈ for the hysteresis term, from measured joint velocities: q̈ is the finite difference of q̇ at the
-/// control period, low-passed by two cascaded first-order stages (a critically damped second-order filter, cut-off
-/// `cutoff_hz` each), and the sign only flips when the filtered q̈ crosses ±`dead_band` (a Schmitt trigger), so
-/// sensor noise around q̈ = 0 does not make the friction chatter. Defaults sized by simulation: a 0.5 Hz, 0.5 rad/s
-/// oscillation sampled at 500 Hz with 2–5 mrad/s velocity noise gives exactly its 4 sign changes in 4 s (one
-/// first-order stage at 20 Hz: 61–253). With a desired trajectory available (computed-torque control), sign(q̈_d)
-/// can be used directly instead.
-class AccelerationSign {
- public:
-  /// \throws std::invalid_argument for n < 1, period ≤ 0, cut-off ≤ 0 or dead band < 0.
-  AccelerationSign(int n, double period, double cutoff_hz = 10.0, double dead_band = 0.2);
-
-  /// Feeds one velocity sample; returns the signs (−1, 0 before the first decision, +1).
-  /// Real-time safe: no allocation, no exceptions. Non-finite or wrongly sized input leaves the state unchanged.
-  const Eigen::VectorXd& update(const Eigen::Ref<const Eigen::VectorXd>& qd) noexcept;
-  const Eigen::VectorXd& sign() const noexcept { return sign_; }
-  const Eigen::VectorXd& filteredAcceleration() const noexcept { return filtered_; }
-  void reset() noexcept;
-
- private:
-  double period_, alpha_, dead_band_;
-  bool primed_ = false;
-  Eigen::VectorXd previous_, stage_, filtered_, sign_;
-};
+[[nodiscard]] DynamicsStatus frictionTorques(const FrictionModel& model, FrictionState& state,
+                                             const Eigen::Ref<const Eigen::VectorXd>& q,
+                                             const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                             const Eigen::Ref<const Eigen::VectorXd>& accel_sign,
+                                             Eigen::Ref<Eigen::VectorXd> tau) noexcept;
 
 }  // namespace bimanual_skills::dynamics

@@ -3,6 +3,7 @@
 /// Newton–Euler inverse dynamics, mass matrix, Coriolis/centripetal and gravity vectors, forward dynamics.
 #pragma once
 
+#include "bimanual_skills/dynamics/dynamics_status.hpp"
 #include "bimanual_skills/kinematics/chain_model.hpp"
 
 #include <Eigen/Cholesky>
@@ -18,10 +19,6 @@ struct Payload {
   double mass = 0.0;                              ///< [kg], 0 = none.
   Eigen::Vector3d com = Eigen::Vector3d::Zero();  ///< Centre of mass in the tip frame [m].
 };
-
-/// Outcome of a real-time dynamics call.
-enum class DynamicsStatus { Success, WrongSize, NotFinite, NotPositiveDefinite };
-const char* toString(DynamicsStatus status) noexcept;
 
 /// Scratch buffers of the dynamics functions, sized once from a model.
 struct DynamicsData {

@@ -10,6 +10,7 @@
 
 #include <Eigen/Cholesky>
 
+#include <array>
 #include <string>
 #include <vector>
 
@@ -41,11 +42,34 @@ enum class LimitScheme {
   ContinuousTaskPriority,  ///< CTP (3.26–3.28; with SD 3.29–3.40): limits first, continuous pseudoinverse (3.22).
 };
 
+/// Every inverse operator and every limit scheme, in the order of the thesis' tables.
+inline constexpr std::array<InverseOperator, 10> kInverseOperators = {InverseOperator::Pseudoinverse,
+                                                                      InverseOperator::Transpose,
+                                                                      InverseOperator::SelectiveDamping,
+                                                                      InverseOperator::Damping,
+                                                                      InverseOperator::Filtering,
+                                                                      InverseOperator::ErrorDamping,
+                                                                      InverseOperator::ImprovedErrorDamping,
+                                                                      InverseOperator::SingularValueFilter,
+                                                                      InverseOperator::SvfErrorDamping,
+                                                                      InverseOperator::SvfSelectiveDamping};
+inline constexpr std::array<LimitScheme, 7> kLimitSchemes = {LimitScheme::None,
+                                                             LimitScheme::JointWeighting,
+                                                             LimitScheme::GradientProjection,
+                                                             LimitScheme::JointClamping,
+                                                             LimitScheme::TaskAugmentation,
+                                                             LimitScheme::TaskPriority,
+                                                             LimitScheme::ContinuousTaskPriority};
+
 /// Parses a thesis abbreviation as methodName() prints it ("JP", "SVF+ED", "CTP+SD+SVF", ...): false if unknown.
 bool parseMethodName(const std::string& name, InverseOperator& op, LimitScheme& scheme) noexcept;
 
 /// Human-readable thesis abbreviation ("JP", "SVF+SD", "CTP+SD+SVF", ...) of an (operator, scheme) pair.
 const char* methodName(InverseOperator op, LimitScheme scheme) noexcept;
+
+/// Every method name parseMethodName() accepts, in the order of the thesis' tables (Table 3.4's operators, then
+/// Table 3.5's limit schemes).
+const std::vector<std::string>& methodNames();
 
 struct ClikParameters;
 
@@ -91,8 +115,9 @@ struct ClikParameters {
   void validate() const;
 };
 
-/// Outcome of a CLIK step or solve.
-enum class IkStatus { Converged, MaxIterations, Timeout, InvalidInput, NumericalFailure };
+/// Outcome of a CLIK step or solve. A step() that computed Δq returns StepComputed; only solve() (and the global
+/// solver) say Converged.
+enum class IkStatus { Converged, StepComputed, MaxIterations, Timeout, InvalidInput, NumericalFailure };
 const char* toString(IkStatus status) noexcept;
 
 /// Result of solve(): status, iterations used and the final residual max_i |e_i| (unweighted, m and rad).
@@ -106,42 +131,75 @@ struct IkResult {
 /// C∞ in between (h = ½ (1 + tanh(1/x − 1/(1 − x))), x = distance / β).
 double limitActivation(double q, double lower, double upper, double beta) noexcept;
 
-/// Scratch buffers of a CLIK solver for one chain and one parameter set, sized once.
+/// Most joints a CLIK chain may have: the continuous pseudoinverse (3.22) enumerates the subsets of the joints in
+/// transition with a bit mask, and the joint index lists have this fixed capacity.
+inline constexpr int kClikMaxJoints = 30;
+
+/// A list of joint indices of fixed capacity kClikMaxJoints: growing it never allocates.
+class JointIndexList {
+ public:
+  void clear() noexcept { size_ = 0; }
+  /// Appends a joint; ignored when full (ClikData rejects chains longer than the capacity).
+  void push(int joint) noexcept {
+    if (size_ < kClikMaxJoints) indices_[static_cast<std::size_t>(size_++)] = joint;
+  }
+  int size() const noexcept { return size_; }
+  bool empty() const noexcept { return size_ == 0; }
+  int operator[](int i) const noexcept { return indices_[static_cast<std::size_t>(i)]; }
+  const int* begin() const noexcept { return indices_.data(); }
+  const int* end() const noexcept { return indices_.data() + size_; }
+
+ private:
+  std::array<int, kClikMaxJoints> indices_{};
+  int size_ = 0;
+};
+
+/// Scratch buffers of a CLIK solver for one chain and one parameter set, sized once. n joints, m task rows.
 struct ClikData {
+  /// 	hrows std::invalid_argument for invalid parameters or a chain of more than kClikMaxJoints joints.
   ClikData(const ChainModel& model, const ClikParameters& parameters);
 
   ChainData kinematics;
   Eigen::VectorXd error;     ///< Unweighted task error (m rows).
-  Eigen::VectorXd task;      ///< Weighted task error.
-  Eigen::MatrixXd jacobian;  ///< Weighted task Jacobian (m × n).
+  Eigen::VectorXd task;      ///< Weighted task error e.
+  Eigen::MatrixXd jacobian;  ///< Weighted task Jacobian J (m × n).
   Eigen::VectorXd dq;        ///< Last step.
 
-  // Internal workspaces.
-  std::vector<ThinSvd> svd_by_columns;  ///< SVD of m × c sub-Jacobians, c = 1..n (index c − 1).
-  ThinSvd svd_augmented;                ///< (m + n) × n, task augmentation.
-  ThinSvd svd_inverse;                  ///< n × m, SVD of a continuous pseudoinverse (CTP+SD).
-  Eigen::MatrixXd columns;              ///< m × n, sub-Jacobian of selected columns (left block used).
-  Eigen::MatrixXd augmented;            ///< (m + n) × n.
-  Eigen::VectorXd augmented_task;       ///< m + n.
-  Eigen::MatrixXd inverse;              ///< n × m, an inverse operator as a matrix.
-  Eigen::VectorXd activation;           ///< h_β(q_i).
-  Eigen::VectorXd centre;               ///< Joint range centres (0 for unlimited joints).
-  Eigen::VectorXd column_norms;         ///< ‖J^j‖ for selective damping.
-  Eigen::VectorXd scale;                ///< Per-joint scaling (JW: W^{-1/2}; JC: 1 − h).
-  Eigen::VectorXd previous_gradient;    ///< JW: |∂H/∂q| at the previous step.
-  Eigen::VectorXd n1, n2, n3;           ///< n-vectors.
-  Eigen::VectorXd m1;                   ///< m-vector.
-  Eigen::VectorXd gains;                ///< Operator gains g(σ_i).
-  Eigen::VectorXd rows;                 ///< Task-row scratch (m + n).
-  Eigen::MatrixXd gram;                 ///< J Jᵀ + c I (m × m), damped operators.
-  Eigen::LLT<Eigen::MatrixXd> gram_llt;
-  Eigen::MatrixXd scattered;  ///< n × m: right singular vectors of J_Q scattered to their joints (CTP+SD). ///< Its
-                              ///< Cholesky factorisation.
-  std::vector<int> always, transitional, selected;  ///< Joint index lists (capacity n, never grown).
+  // Decompositions.
+  std::vector<ThinSvd> svd_by_columns;   ///< SVD of m × c sub-Jacobians, c = 1..n (index c − 1).
+  ThinSvd svd_augmented;                 ///< (m + n) × n, task augmentation.
+  ThinSvd svd_inverse;                   ///< n × m, SVD of a continuous pseudoinverse (CTP+SD).
+  Eigen::MatrixXd gram;                  ///< J Jᵀ + c I (m × m), damped operators.
+  Eigen::LLT<Eigen::MatrixXd> gram_llt;  ///< Its Cholesky factorisation.
+
+  // Joint space (n).
+  Eigen::VectorXd activation;         ///< h_β(q_i) (3.24).
+  Eigen::VectorXd centre;             ///< Joint range centres q_c (0 for unlimited joints).
+  Eigen::VectorXd scale;              ///< Column scaling of J: W^{-1/2} (JW), 1 − h (JC, CTP), P1's diagonal (TP).
+  Eigen::VectorXd previous_gradient;  ///< JW: |∂H/∂q| at the previous step.
+  Eigen::VectorXd column_norms;       ///< ‖J^j‖ for selective damping.
+  Eigen::VectorXd limit_step;         ///< Δq1 of TP and CTP: the joint-limit task's step.
+  Eigen::VectorXd task_step;          ///< The pose task's step through the (scaled) inverse.
+  Eigen::VectorXd centring_gradient;  ///< GP: ∇H (3.19).
+  Eigen::VectorXd null_space_part;    ///< GP: J† J ∇H.
+  Eigen::VectorXd component;          ///< Selective damping: one component w_s.
+
+  // Task space (m) and operators.
+  Eigen::VectorXd task_residual;   ///< e − J Δq1 (TP, CTP).
+  Eigen::VectorXd task_image;      ///< J x of a joint vector x (GP: J ∇H; CTP+SD: J Δq1).
+  Eigen::VectorXd gains;           ///< Operator gains g(σ_i) (m + n).
+  Eigen::VectorXd task_scratch;    ///< J Jᵀ e (JT) or (J Jᵀ + c I)⁻¹ e (damped operators) (m + n).
+  Eigen::MatrixXd columns;         ///< m × n, sub-Jacobian of selected or scaled columns (left block used).
+  Eigen::MatrixXd augmented;       ///< (m + n) × n, TA's extended Jacobian.
+  Eigen::VectorXd augmented_task;  ///< m + n, TA's extended error.
+  Eigen::MatrixXd inverse;         ///< n × m, an inverse operator as a matrix.
+  Eigen::MatrixXd scattered;       ///< n × m: right singular vectors of J_Q scattered to their joints (CTP+SD).
+  JointIndexList always, transitional, selected;  ///< Joints with h = 1, with 0 < h < 1, and of the subset Q.
 };
 
-/// One CLIK step Δq at configuration q towards `target` (pose of the chain tip in the base frame), into data.dq.
-/// Real-time safe: no allocation, no exceptions. InvalidInput for a wrong size or non-finite q or target.
+/// One CLIK step Δq at configuration q towards `target` (pose of the chain tip in the base frame), into data.dq:
+/// StepComputed, InvalidInput for a wrong size or non-finite q or target, NumericalFailure for a non-finite step.
+/// Real-time safe: no allocation, no exceptions.
 [[nodiscard]] IkStatus step(const ChainModel& model, const ClikParameters& parameters, ClikData& data,
                             const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Isometry3d& target) noexcept;
 

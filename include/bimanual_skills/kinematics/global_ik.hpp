@@ -59,7 +59,7 @@ struct GlobalIkResult {
 /// Global IK for one chain. Construction allocates everything; solve() does not allocate.
 class GlobalIkSolver {
  public:
-  /// \throws std::invalid_argument for invalid parameters or a chain with an unlimited joint range of zero width.
+  /// \throws std::invalid_argument for invalid parameters or a chain of more than kClikMaxJoints joints.
   GlobalIkSolver(const ChainModel& model, const GlobalIkParameters& parameters);
 
   /// Solves for the tip pose `target` (base frame) from `seed` (size n, finite; may lie outside the limits).

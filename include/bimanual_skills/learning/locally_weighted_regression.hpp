@@ -20,6 +20,10 @@ struct LwrParameters {
   void validate(int input_dim) const;
 };
 
+/// Outcome of an update or prediction. On anything but Success nothing was learned or predicted (y is zero).
+enum class LwrStatus { Success, NoActiveField, WrongSize, NotFinite };
+const char* toString(LwrStatus status) noexcept;
+
 /// y ≈ Σ_k w_k(x) β_kᵀ [x − c_k; 1] / Σ_k w_k(x), w_k = exp(−½ Σ_i ((x_i − c_k,i)/width_i)²). Each field's β_k is
 /// fitted by recursive weighted least squares on the samples it sees; fields are created on demand at samples
 /// no field covers, up to max_fields. All storage is allocated at construction: update() and predict() are
@@ -29,10 +33,12 @@ class LocallyWeightedRegression {
   /// \throws std::invalid_argument for non-positive dimensions or invalid parameters.
   LocallyWeightedRegression(int input_dim, int output_dim, const LwrParameters& parameters);
 
-  /// Adds one training sample. False (nothing learned) on wrong sizes or non-finite values.
-  bool update(const Eigen::Ref<const Eigen::VectorXd>& x, const Eigen::Ref<const Eigen::VectorXd>& y) noexcept;
-  /// Prediction into y; false when no field is active enough there (y is then zero) or on bad input.
-  bool predict(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) noexcept;
+  /// Adds one training sample: WrongSize or NotFinite (nothing learned) on bad input. Real-time safe.
+  [[nodiscard]] LwrStatus update(const Eigen::Ref<const Eigen::VectorXd>& x,
+                                 const Eigen::Ref<const Eigen::VectorXd>& y) noexcept;
+  /// Prediction into y; NoActiveField when no field is active enough at x (y is then zero), WrongSize or NotFinite
+  /// (y untouched) on bad input. Real-time safe.
+  [[nodiscard]] LwrStatus predict(const Eigen::Ref<const Eigen::VectorXd>& x, Eigen::Ref<Eigen::VectorXd> y) noexcept;
 
   int fields() const noexcept { return count_; }
   int inputDim() const noexcept { return input_dim_; }

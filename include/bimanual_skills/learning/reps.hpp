@@ -4,6 +4,8 @@
 /// control loop: it allocates and may throw.
 #pragma once
 
+#include "bimanual_skills/learning/gaussian.hpp"
+
 #include <Eigen/Core>
 
 #include <deque>
@@ -61,15 +63,6 @@ DualSolution solveRepsDual(const Eigen::VectorXd& rewards, double epsilon, const
 double repsDualObjective(const Eigen::VectorXd& rewards, double epsilon, const Eigen::VectorXd& log_q,
                          const std::vector<DualConstraint>& constraints, const Eigen::VectorXd& x,
                          Eigen::VectorXd* gradient);
-
-/// Weighted maximum-likelihood Gaussian of the rows of `samples` with normalised `weights`:
-/// μ = Σ p_k θ_k, Σ = Σ p_k (θ_k − μ)(θ_k − μ)ᵀ + regularisation·I.
-std::pair<Eigen::VectorXd, Eigen::MatrixXd> weightedGaussian(const Eigen::MatrixXd& samples,
-                                                             const Eigen::VectorXd& weights, double regularisation);
-
-/// log N(θ_k | μ, Σ) for every row θ_k of `samples`. \throws std::invalid_argument if Σ is not positive definite.
-Eigen::VectorXd gaussianLogDensity(const Eigen::MatrixXd& samples, const Eigen::VectorXd& mean,
-                                   const Eigen::MatrixXd& covariance);
 
 /// The rollouts an update uses: up to `reuse` kept from earlier updates, then the new batch (rewards raw).
 class RolloutBuffer {

@@ -35,13 +35,6 @@ enum class OrientationEncoding {
   QuaternionVector,
 };
 
-/// Result of CartesianDmp::step().
-enum class CartesianDmpStatus {
-  Success,
-  VectorClamped,  ///< QuaternionVector: ‖v‖ > 1 was clamped to 1 in the orientation of this step (step done).
-  InvalidInput,   ///< wrong sizes, non-finite values, a non-unit quaternion or dt ≤ 0: the state is unchanged.
-};
-
 /// The running state of a CartesianDmp (its "Data"); the goal pose may be changed at any time.
 struct CartesianDmpState {
   /// Position part: y [m], ẏ [m/s], ÿ [m/s²], the goal position, and the shared phase x and time t [s].
@@ -106,7 +99,7 @@ class CartesianDmp {
   /// One integration step of dt [s] (semi-implicit Euler; the orientation by the exponential map for UnitQuaternion).
   /// Validates the whole state first and leaves it unchanged on InvalidInput.
   /// Real-time safe: no allocation, no exceptions.
-  CartesianDmpStatus step(CartesianDmpState& state, double dt) const noexcept;
+  DmpStatus step(CartesianDmpState& state, double dt) const noexcept;
 
  private:
   OrientationEncoding encoding_;

@@ -9,6 +9,14 @@ namespace bimanual_skills::primitives {
 /// Most kernels per DoF: the real-time steps keep the basis values on the stack.
 inline constexpr int kDmpMaxKernels = 256;
 
+/// Result of Dmp::step() and CartesianDmp::step().
+enum class DmpStatus {
+  Success,
+  VectorClamped,  ///< CartesianDmp with QuaternionVector: ‖v‖ > 1 was clamped to 1 in this step (step done).
+  InvalidInput,   ///< wrong sizes, non-finite values, a non-unit quaternion or dt ≤ 0: the state is unchanged.
+};
+const char* toString(DmpStatus status) noexcept;
+
 /// Shape of a DMP. With τ the movement's duration [s] (the thesis' (5.14), written with one consistent τ):
 ///   τ² ÿ = α_z (β_z (g − y) − τ ẏ) + f(x),   τ ẋ = −α_x x,   f_j(x) = g(x)ᵀ ω_j (5.15),
 ///   g_i(x) = φ_i(x) / Σ_k φ_k(x) · x,  φ_i(x) = exp(−½ (x − c_i)² / d_i),
@@ -24,6 +32,21 @@ struct DmpParameters {
 
   void validate() const;
 };
+
+/// The transformation system of (5.14) solved for the acceleration, the one home of the DMP dynamics (joint and
+/// Cartesian): ÿ = (α_z (β_z e − τ ẏ) + f) / τ², e = g − y the error to the goal. T is double or a fixed-size
+/// Eigen vector (no allocation); a dynamic vector allocates its result.
+template <class T>
+T transformationAcceleration(const DmpParameters& p, double tau, const T& error, const T& velocity, const T& forcing) {
+  return (p.alpha_z * (p.beta_z * error - tau * velocity) + forcing) / (tau * tau);
+}
+
+/// The forcing value that makes the transformation system follow a demonstration (the target of the weights' fit):
+/// f = τ² ÿ − α_z (β_z e − τ ẏ).
+template <class T>
+T forcingTarget(const DmpParameters& p, double tau, const T& error, const T& velocity, const T& acceleration) {
+  return tau * tau * acceleration - p.alpha_z * (p.beta_z * error - tau * velocity);
+}
 
 /// The DMP's state while it runs (the "Data" of the model): position, velocity, phase, time, and the goal in use.
 struct DmpState {
@@ -67,12 +90,12 @@ class Dmp {
   /// A state at the start: y = start, ẏ = 0, x = 1, goal = the model's goal (change it at any time).
   DmpState initialState() const;
 
-  /// Basis values g(x) (kernels), written into `basis`. Real-time safe.
+  /// Basis values g(x) (kernels, normalisedGaussianBasis with scale x), written into `basis`. Real-time safe.
   void basis(double x, Eigen::Ref<Eigen::VectorXd> basis) const noexcept;
 
-  /// One integration step of dt (semi-implicit Euler on y, exact on the phase). Returns false (state unchanged) for
+  /// One integration step of dt (semi-implicit Euler on y, exact on the phase). InvalidInput (state unchanged) for
   /// a state of the wrong size, non-finite values or dt ≤ 0. Real-time safe: no allocation, no exceptions.
-  bool step(DmpState& state, double dt) const noexcept;
+  [[nodiscard]] DmpStatus step(DmpState& state, double dt) const noexcept;
 
  private:
   DmpParameters parameters_;

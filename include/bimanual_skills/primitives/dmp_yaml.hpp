@@ -26,10 +26,10 @@
 namespace bimanual_skills::primitives {
 
 /// Writes `dmp` to `path`; `comment` (any number of lines) goes at the top as YAML comments.
-/// \throws std::runtime_error when the file cannot be written.
+/// \throws std::invalid_argument when the file cannot be written.
 void saveDmp(const Dmp& dmp, const std::string& path, const std::string& comment = "");
-/// \throws std::runtime_error when the file cannot be read; std::invalid_argument naming the file and the entry at
-///         fault for malformed YAML, a wrong `type`, missing keys, non-numeric values, wrong sizes, or values the
+/// \throws std::invalid_argument naming the file (and the entry at fault) when the file cannot be read, for
+///         malformed YAML, a wrong `type`, missing keys, non-numeric or non-finite values, wrong sizes, or values the
 ///         Dmp constructor refuses.
 Dmp loadDmp(const std::string& path);
 

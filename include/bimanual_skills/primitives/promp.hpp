@@ -3,13 +3,16 @@
 /// demonstrations, sampling, and conditioning on via-points.
 #pragma once
 
-#include <Eigen/Cholesky>
 #include <Eigen/Core>
 
 #include <random>
 #include <vector>
 
 namespace bimanual_skills::primitives {
+
+/// Outcome of a real-time ProMP evaluation. On anything but Success the outputs are unchanged.
+enum class ProMpStatus { Success, WrongSize, NotFinite };
+const char* toString(ProMpStatus status) noexcept;
 
 struct ProMpParameters {
   int kernels = 20;                ///< Gaussian basis functions per DoF, centres uniform in the phase z ∈ [0, 1].
@@ -70,20 +73,21 @@ class ProMp {
   void basis(double z, Eigen::Ref<Eigen::VectorXd> b, Eigen::Ref<Eigen::VectorXd> db) const noexcept;
 
   /// Ψ_z (dofs·kernels × 2 dofs, positions then velocities d/dt = (d/dz) / duration) at z clamped to [0, 1], into
-  /// data.psi. False (data unchanged) for data of another model or a non-finite z.
+  /// data.psi. WrongSize (data of another model) or NotFinite (z), data unchanged.
   /// Real-time safe: no allocation, no exceptions.
-  [[nodiscard]] bool blockBasis(ProMpData& data, double z) const noexcept;
+  [[nodiscard]] ProMpStatus blockBasis(ProMpData& data, double z) const noexcept;
 
-  /// Mean position Ψ_zᵀ μ_ω and velocity at phase z (clamped to [0, 1]). False (outputs unchanged) for wrong sizes
-  /// or a non-finite z. Real-time safe: no allocation, no exceptions.
-  [[nodiscard]] bool mean(ProMpData& data, double z, Eigen::Ref<Eigen::VectorXd> position,
-                          Eigen::Ref<Eigen::VectorXd> velocity) const noexcept;
-  /// Position covariance Ψ_zᵀ Σ_ω Ψ_z (dofs × dofs) at phase z, without Σ_y. False (output unchanged) for a wrong
-  /// size or a non-finite z. Real-time safe: no allocation, no exceptions.
-  [[nodiscard]] bool covariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept;
-  /// Covariance of the state [q; q̇] (2 dofs × 2 dofs) at phase z, without Σ_y. False (output unchanged) for a wrong
-  /// size or a non-finite z. Real-time safe: no allocation, no exceptions.
-  [[nodiscard]] bool stateCovariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept;
+  /// Mean position Ψ_zᵀ μ_ω and velocity at phase z (clamped to [0, 1]). WrongSize or NotFinite (z), outputs
+  /// unchanged. Real-time safe: no allocation, no exceptions.
+  [[nodiscard]] ProMpStatus mean(ProMpData& data, double z, Eigen::Ref<Eigen::VectorXd> position,
+                                 Eigen::Ref<Eigen::VectorXd> velocity) const noexcept;
+  /// Position covariance Ψ_zᵀ Σ_ω Ψ_z (dofs × dofs) at phase z, without Σ_y, computed block by block (Ψ_z is
+  /// block-diagonal: entry (i, j) is b_iᵀ Σ_ω^{ij} b_j). WrongSize or NotFinite (z), output unchanged.
+  /// Real-time safe: no allocation, no exceptions.
+  [[nodiscard]] ProMpStatus covariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept;
+  /// Covariance of the state [q; q̇] (2 dofs × 2 dofs) at phase z, without Σ_y, block by block as covariance().
+  /// WrongSize or NotFinite (z), output unchanged. Real-time safe: no allocation, no exceptions.
+  [[nodiscard]] ProMpStatus stateCovariance(ProMpData& data, double z, Eigen::Ref<Eigen::MatrixXd> out) const noexcept;
 
   /// Weights drawn from N(μ_ω, Σ_ω).
   Eigen::VectorXd sample(std::mt19937& rng) const;
@@ -95,15 +99,19 @@ class ProMp {
                     const Eigen::VectorXd& velocity = Eigen::VectorXd()) const;
 
  private:
-  /// Σ_ω Ψ_z for the first `columns` columns of data.psi (written by blockBasis), then out = Ψ_zᵀ Σ_ω Ψ_z.
+  /// Checks the data's sizes and z; WrongSize or NotFinite.
+  ProMpStatus check(const ProMpData& data, double z) const noexcept;
+  /// out = Ψ_zᵀ Σ_ω Ψ_z over the first `columns` state columns (dofs: positions; 2 dofs: positions and velocities)
+  /// from the basis in data.b, data.db: column c of Σ_ω Ψ_z is the product of Σ_ω's block column of DoF c mod dofs
+  /// with that DoF's basis vector, and entry (r, c) the basis vector of row r dotted with its block of that column.
   void projectCovariance(ProMpData& data, int columns, Eigen::Ref<Eigen::MatrixXd> out) const noexcept;
 
   ProMpParameters parameters_;
   int dofs_;
-  Eigen::VectorXd mean_, observation_variance_, centres_;
+  Eigen::VectorXd mean_, observation_variance_, centres_, widths_;
   Eigen::MatrixXd covariance_;
-  double duration_, width_;
-  Eigen::LLT<Eigen::MatrixXd> sampler_;
+  double duration_;
+  Eigen::MatrixXd sampling_factor_;  ///< L of Σ_ω + 10⁻¹² I = L Lᵀ
 };
 
 /// Scratch buffers of a ProMp's evaluation, sized once from the model: `ProMpData data(promp);`.
@@ -111,6 +119,7 @@ struct ProMpData {
   explicit ProMpData(const ProMp& promp);
 
   Eigen::VectorXd b, db;      ///< Basis b(z) and db/dz (kernels).
+  Eigen::VectorXd dt_basis;   ///< db/dt = (db/dz) / duration (kernels).
   Eigen::MatrixXd psi;        ///< Ψ_z (dofs·kernels × 2 dofs): position columns, then velocity columns.
   Eigen::MatrixXd sigma_psi;  ///< Σ_ω Ψ_z (dofs·kernels × 2 dofs).
 };

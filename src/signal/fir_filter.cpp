@@ -1,10 +1,10 @@
-#include "bimanual_skills/control/fir_filter.hpp"
+#include "bimanual_skills/signal/fir_filter.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
-namespace bimanual_skills::control {
+namespace bimanual_skills::signal {
 
 Eigen::VectorXd designLowPassFir(int taps, double cutoff_hz, double rate_hz) {
   if (taps < 3 || taps % 2 == 0) throw std::invalid_argument("designLowPassFir: taps must be odd and >= 3");
@@ -52,8 +52,9 @@ FirFilter::FirFilter(const Eigen::VectorXd& coefficients, int channels)
   }
 }
 
-const Eigen::VectorXd& FirFilter::filter(const Eigen::Ref<const Eigen::VectorXd>& sample) noexcept {
-  if (sample.size() != output_.size() || !sample.allFinite()) return output_;
+SignalStatus FirFilter::filter(const Eigen::Ref<const Eigen::VectorXd>& sample) noexcept {
+  if (sample.size() != output_.size()) return SignalStatus::WrongSize;
+  if (!sample.allFinite()) return SignalStatus::NotFinite;
   const auto taps = static_cast<int>(coefficients_.size());
   if (!primed_) {
     history_.colwise() = sample;
@@ -67,7 +68,7 @@ const Eigen::VectorXd& FirFilter::filter(const Eigen::Ref<const Eigen::VectorXd>
     output_ += coefficients_[k] * history_.col(column);
   }
   head_ = (head_ + 1) % taps;
-  return output_;
+  return SignalStatus::Success;
 }
 
 void FirFilter::reset() noexcept {
@@ -77,4 +78,4 @@ void FirFilter::reset() noexcept {
   primed_ = false;
 }
 
-}  // namespace bimanual_skills::control
+}  // namespace bimanual_skills::signal

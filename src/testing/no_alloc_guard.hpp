@@ -4,14 +4,15 @@
 /// Linking the bimanual_skills_testing library into a test executable replaces the global operator new/delete and
 /// malloc/calloc/realloc/posix_memalign/aligned_alloc/memalign with counting versions (forwarding to glibc). Counting
 /// is per thread and only while an AllocationCounter is alive in that thread. With EIGEN_RUNTIME_NO_MALLOC defined,
-/// Eigen's own check is switched off for the scope as well (it fires in builds with assertions).
+/// Eigen's own run-time check is switched on for the scope as well (Eigen's allocations then also assert in builds
+/// with assertions).
 ///
 /// \code
 ///   { NoAllocGuard guard; status = forwardKinematics(model, data, q); }  // fails the test on any allocation
 /// \endcode
 #pragma once
 
-#include "bimanual_skills/testing/allocation_counter.hpp"
+#include "testing/allocation_counter.hpp"
 
 namespace bimanual_skills::testing {
 

@@ -2,7 +2,8 @@
 /// Counts heap allocations per thread. Linking bimanual_skills_allocation_counter into an executable replaces the
 /// global operator new/delete and malloc/calloc/realloc/posix_memalign/aligned_alloc/memalign with counting versions
 /// (forwarding to glibc); counting happens only while an AllocationCounter is alive in the thread. With
-/// EIGEN_RUNTIME_NO_MALLOC defined, Eigen's own check is switched off for the scope as well.
+/// EIGEN_RUNTIME_NO_MALLOC defined, Eigen's own run-time check is switched on for the scope as well
+/// (set_is_malloc_allowed(false): an Eigen allocation then also asserts in builds with assertions).
 #pragma once
 
 #include <cstddef>

@@ -2,9 +2,11 @@
 /// Linear-phase FIR low-pass filter for joint velocities: windowed-sinc design at init, allocation-free filtering.
 #pragma once
 
+#include "bimanual_skills/signal/signal_status.hpp"
+
 #include <Eigen/Core>
 
-namespace bimanual_skills::control {
+namespace bimanual_skills::signal {
 
 /// Coefficients of a linear-phase low-pass FIR of `taps` taps (odd, ≥ 3) with cut-off `cutoff_hz` at sample rate
 /// `rate_hz`: h[k] = w[k] · 2 f_c/f_s · sinc(2 f_c/f_s (k − (N−1)/2)), w a Blackman window, scaled to unit gain at
@@ -23,10 +25,10 @@ class FirFilter {
  public:
   FirFilter(const Eigen::VectorXd& coefficients, int channels);
 
-  /// Pushes one sample of every channel and returns the filtered vector. Before the buffer is full, the first
-  /// sample fills the history (a step, not a ramp from zero). Real-time safe: no allocation, no exceptions;
-  /// a wrongly sized or non-finite sample is ignored (the last output is returned).
-  const Eigen::VectorXd& filter(const Eigen::Ref<const Eigen::VectorXd>& sample) noexcept;
+  /// Pushes one sample of every channel and writes the filtered vector into output(). Before the buffer is full,
+  /// the first sample fills the history (a step, not a ramp from zero). Real-time safe: no allocation, no
+  /// exceptions; a wrongly sized or non-finite sample is rejected (WrongSize, NotFinite) and changes nothing.
+  [[nodiscard]] SignalStatus filter(const Eigen::Ref<const Eigen::VectorXd>& sample) noexcept;
   const Eigen::VectorXd& output() const noexcept { return output_; }
   /// Group delay in samples, (N − 1) / 2.
   double delay() const noexcept { return 0.5 * static_cast<double>(coefficients_.size() - 1); }
@@ -40,4 +42,4 @@ class FirFilter {
   bool primed_ = false;
 };
 
-}  // namespace bimanual_skills::control
+}  // namespace bimanual_skills::signal
