@@ -6,6 +6,7 @@
 // Counters median_ns, p99_ns, p999_ns and max_ns are per call (batches of 8 timed with a steady clock); the
 // configurations, velocities and accelerations are seeded random states within the joint limits.
 #include "bench_timing.hpp"
+#include "benchmark_main.hpp"
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
@@ -188,17 +189,12 @@ BENCHMARK(BM_Cycle);
 BENCHMARK(BM_CycleJitterFloor);
 
 int main(int argc, char** argv) {
-  // --realtime: run as a real-time controller would, SCHED_FIFO priority 80 with memory locked (needs root or
-  // CAP_SYS_NICE; reported in the context either way).
-  bool realtime = false;
-  for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--realtime") == 0) {
-      realtime = true;
-      for (int j = i; j + 1 < argc; ++j) argv[j] = argv[j + 1];
-      --argc;
-      break;
-    }
-  }
+  const bool realtime = bimanual_skills::bench::initialiseBenchmarks(
+      argc, argv, "control_bench",
+      "Dynamics (RNEA, CRBA mass matrix, forward dynamics) against KDL, and the whole control cycle (controller,\n"
+      "observer, acceleration sign) per call, with tail percentiles.",
+      {{"--realtime",
+        "run as a real-time controller would: SCHED_FIFO priority 80, memory locked (needs root or CAP_SYS_NICE)"}})[0];
   std::string scheduling = "SCHED_OTHER";
   if (realtime) {
     sched_param parameters{};
@@ -207,8 +203,6 @@ int main(int argc, char** argv) {
     const bool locked = mlockall(MCL_CURRENT | MCL_FUTURE) == 0;
     scheduling = std::string(fifo ? "SCHED_FIFO 80" : "SCHED_FIFO refused") + (locked ? ", memory locked" : "");
   }
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
   benchmark::AddCustomContext("seed", std::to_string(kSeed));
   benchmark::AddCustomContext("model", kWamUrdf + " (wam_base -> wam_tool)");
   benchmark::AddCustomContext("scheduling", scheduling);

@@ -1,14 +1,17 @@
 /// \file
-/// Command line and plotting shared by the experiment programs (ik_benchmark, ps_benchmark):
-///   PROGRAM --experiment NAME --seed S --out DIR [--runs R] [--quick]
+/// Command line and plotting shared by the experiment programs (ik_benchmark, ps_benchmark, ...):
+///   PROGRAM --experiment NAME --seed S --out DIR [--runs R] [--jobs N] [--quick] [program options]
 #pragma once
+
+#include "tools/command_line.hpp"
 
 #include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
-#include <iostream>
+#include <functional>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace bimanual_skills::bench {
@@ -18,54 +21,53 @@ struct ExperimentOptions {
   std::string out;
   std::uint32_t seed = 1;
   int runs = 0;  ///< 0: not given (the experiment's default).
+  int jobs = 1;  ///< Independent runs in parallel (programs that take --jobs; default: the cores).
   bool quick = false;
 };
 
-/// Parses the command line; on any error prints it with the usage line and exits with status 2. `--runs` is
-/// accepted only when `with_runs`.
-inline ExperimentOptions parseExperimentOptions(int argc, char** argv, const std::string& program,
-                                                const std::vector<std::string>& experiments, bool with_runs) {
+/// What an experiment program accepts besides the common options.
+struct ExperimentProgram {
+  std::string name;
+  std::string description;               ///< What the program reproduces (printed by --help).
+  std::vector<std::string> experiments;  ///< Accepted --experiment names.
+  bool with_runs = false;                ///< Accepts --runs R.
+  bool with_jobs = false;                ///< Accepts --jobs N.
+  /// Declares the program's own options on the command line (bound to the program's variables).
+  std::function<void(cli::CommandLine&)> extra;
+};
+
+/// Parses the command line: --help/-h prints the usage and exits 0; an error prints it with the usage on stderr and
+/// exits 2.
+inline ExperimentOptions parseExperimentOptions(int argc, char** argv, const ExperimentProgram& program) {
   std::string names;
-  for (const std::string& e : experiments) names += (names.empty() ? "" : "|") + e;
-  const auto usage = [&](const std::string& error) {
-    std::cerr << program << ": " << error << "\nusage: " << program << " --experiment " << names
-              << (with_runs ? " --runs R" : "") << " --seed S --out DIR [--quick]\n";
-    std::exit(2);
-  };
-  const auto count = [&](const std::string& flag, const std::string& text, unsigned long maximum) {
-    char* end = nullptr;
-    const unsigned long value = std::strtoul(text.c_str(), &end, 10);
-    if (text.empty() || text[0] == '-' || *end != '\0' || value > maximum) {
-      usage(flag + " must be an integer in [0, " + std::to_string(maximum) + "]");
-    }
-    return value;
-  };
+  for (const std::string& e : program.experiments) names += (names.empty() ? "" : "|") + e;
   ExperimentOptions options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    const auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usage(arg + " needs a value");
-      return argv[++i];
-    };
-    if (arg == "--experiment") {
-      options.experiment = value();
-    } else if (arg == "--out") {
-      options.out = value();
-    } else if (arg == "--seed") {
-      options.seed = static_cast<std::uint32_t>(count(arg, value(), 0xffffffffUL));
-    } else if (arg == "--runs" && with_runs) {
-      options.runs = static_cast<int>(count(arg, value(), 10000));
-      if (options.runs == 0) usage("--runs must be >= 1");
-    } else if (arg == "--quick") {
-      options.quick = true;
-    } else {
-      usage("unknown argument '" + arg + "'");
-    }
+  long seed = options.seed, runs = 0;
+  long jobs = std::max(1u, std::thread::hardware_concurrency());
+  cli::CommandLine line(program.name,
+                        "--experiment " + names + " --seed S --out DIR" + (program.with_runs ? " [--runs R]" : "") +
+                            (program.with_jobs ? " [--jobs N]" : "") + " [--quick] [options]",
+                        program.description);
+  line.option("--experiment", "NAME", "the experiment to run: " + names, &options.experiment);
+  line.option("--seed", "S", "seed of every random generator (default 1)", &seed, 0, 0xffffffffL);
+  line.option("--out", "DIR", "output directory: summary.json, CSV, PNG and tables.md", &options.out);
+  if (program.with_runs)
+    line.option("--runs", "R", "independent runs per algorithm (default: the thesis')", &runs, 1, 10000);
+  if (program.with_jobs) {
+    line.option("--jobs", "N", "independent runs in parallel (default: the cores; results do not depend on it)", &jobs,
+                1, 256);
   }
-  if (std::find(experiments.begin(), experiments.end(), options.experiment) == experiments.end()) {
-    usage("--experiment must be one of " + names);
+  line.flag("--quick", "a smoke run of a few seconds (fewer samples, runs and updates)", &options.quick);
+  if (program.extra) program.extra(line);
+  line.parse(argc, argv);
+  if (std::find(program.experiments.begin(), program.experiments.end(), options.experiment) ==
+      program.experiments.end()) {
+    line.fail("--experiment must be one of " + names);
   }
-  if (options.out.empty()) usage("--out DIR is required");
+  if (options.out.empty()) line.fail("--out DIR is required");
+  options.seed = static_cast<std::uint32_t>(seed);
+  options.runs = static_cast<int>(runs);
+  options.jobs = static_cast<int>(jobs);
   return options;
 }
 

@@ -1,7 +1,8 @@
 // The thesis' inverse kinematics experiments (Ch. 3.1: Tables 3.4, 3.5, Figs. 3.2–3.5) and the TRAC-IK protocol
 // against KDL's solvers, as one seeded program.
 //
-//   ik_benchmark --experiment table34|table35|fig35|fig32|fig33|tracik|all --seed S --out DIR [--quick]
+//   ik_benchmark --experiment table34|table35|fig35|fig32|fig33|tracik|closest|all --seed S --out DIR [--quick]
+//                [--urdf FILE --base LINK --tip LINK]   (tracik and closest; default: the WAM)
 //
 // Writes DIR/summary.json (one object per solver x setting), DIR/<experiment>.csv (one row per sample, written as
 // samples complete), then runs scripts/plot_ik_benchmark.py for the PNG plots and DIR/tables.md.
@@ -41,19 +42,31 @@ const std::string kWamUrdf = kSourceDir + "/urdf/wam.urdf";
 
 using Options = bimanual_skills::bench::ExperimentOptions;
 
+/// The chain of the tracik and closest experiments (--urdf, --base, --tip).
+struct Arm {
+  std::string urdf = kWamUrdf, base = "wam_base", tip = "wam_tool";
+  /// The URDF file's name without directory and extension ("wam").
+  std::string name() const { return std::filesystem::path(urdf).stem().string(); }
+};
+
 /// One row of summary.json.
 struct Summary {
   std::string experiment, solver, setting;
   int samples = 0;
   double success_rate = 0, within_limits_rate = 0, median_us = 0, p99_us = 0, mean_iterations = 0;
   double mean_residual_failed = 0;
+  std::string robot = "wam";
+  std::vector<std::pair<std::string, double>> extra;  ///< Experiment-specific fields.
 };
 
 /// Accumulates per-sample outcomes of one solver x setting and writes them to the experiment's CSV as they come.
 class Recorder {
  public:
-  Recorder(std::ofstream& csv, std::string experiment, std::string solver, std::string setting)
-      : csv_(csv), summary_{std::move(experiment), std::move(solver), std::move(setting)} {}
+  Recorder(std::ofstream& csv, std::string experiment, std::string solver, std::string setting) : csv_(csv) {
+    summary_.experiment = std::move(experiment);
+    summary_.solver = std::move(solver);
+    summary_.setting = std::move(setting);
+  }
 
   void add(bool success, bool within_limits, double time_us, int iterations, double residual) {
     csv_ << summary_.solver << ',' << summary_.setting << ',' << times_.size() << ',' << success << ',' << within_limits
@@ -321,15 +334,15 @@ bool twistWithin(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b, double 
   return e.cwiseAbs().maxCoeff() <= tolerance;
 }
 
-void tracik(const Options& options, std::vector<Summary>& out) {
+void tracik(const Options& options, const Arm& arm, std::vector<Summary>& out) {
   // TRAC-IK's protocol (trac_ik_examples ik_tests): random configurations within limits, FK, IK from the mid-limit
   // nominal seed and from a random seed; success = every pose-error twist component ≤ 1e-5; 5 ms per solve,
   // failures counted with their whole time.
-  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(arm.urdf, arm.base, arm.tip);
   KDL::Tree tree;
   KDL::Chain chain;
-  if (!kdl_parser::treeFromFile(kWamUrdf, tree) || !tree.getChain("wam_base", "wam_tool", chain)) {
-    throw std::runtime_error("KDL cannot load the WAM");
+  if (!kdl_parser::treeFromFile(arm.urdf, tree) || !tree.getChain(arm.base, arm.tip, chain)) {
+    throw std::runtime_error("KDL cannot load the chain " + arm.base + " -> " + arm.tip + " of " + arm.urdf);
   }
   const unsigned n = chain.getNrOfJoints();
   KDL::JntArray lower(n), upper(n);
@@ -344,8 +357,9 @@ void tracik(const Options& options, std::vector<Summary>& out) {
   const auto targets = forward(model, goals);
   const Eigen::VectorXd nominal = 0.5 * (model.lowerLimits() + model.upperLimits());
   std::ofstream csv = openCsv(options, "tracik", kSampleHeader);
-  std::printf("tracik: %d random poses, 5 ms budget, success = every twist component <= 1e-5 (seed %u)\n", samples,
-              options.seed);
+  std::printf(
+      "tracik: %s (%d joints), %d random poses, 5 ms budget, success = every twist component <= 1e-5 (seed %u)\n",
+      arm.name().c_str(), model.nq(), samples, options.seed);
 
   KDL::ChainFkSolverPos_recursive fk(chain);
   KDL::ChainIkSolverVel_pinv vik(chain);
@@ -383,14 +397,20 @@ void tracik(const Options& options, std::vector<Summary>& out) {
   };
   std::vector<std::tuple<std::string, std::string, Solver>> solvers;
   std::vector<std::unique_ptr<bk::GlobalIkSolver>> ours;
-  for (auto [op, scheme, label] :
-       {std::tuple{InverseOperator::ErrorDamping, LimitScheme::None, "global ED"},
-        std::tuple{InverseOperator::SvfSelectiveDamping, LimitScheme::ContinuousTaskPriority, "global CTP+SD+SVF"}}) {
+  // The service default (GlobalIkParameters{}), then single local methods, each restarted within the budget.
+  for (const std::string& method : {std::string("default"), std::string("ED"), std::string("SVF+ED"), std::string("JD"),
+                                    std::string("CTP+SD+SVF")}) {
     bk::GlobalIkParameters parameters;
-    parameters.local.inverse = op;
-    parameters.local.limits = scheme;
+    if (method != "default" && !bk::parseMethodName(method, parameters.local.inverse, parameters.local.limits)) {
+      throw std::logic_error("unknown method " + method);
+    }
     parameters.timeout = budget;
     parameters.seed = options.seed;
+    const std::string label =
+        "global " +
+        (method == "default"
+             ? "default (" + std::string(bk::methodName(parameters.local.inverse, parameters.local.limits)) + ")"
+             : method);
     ours.push_back(std::make_unique<bk::GlobalIkSolver>(model, parameters));
     bk::GlobalIkSolver* solver = ours.back().get();
     solvers.emplace_back("ours", label,
@@ -425,8 +445,89 @@ void tracik(const Options& options, std::vector<Summary>& out) {
           std::fflush(stdout);
         }
       }
-      out.push_back(recorder.finish());
+      Summary summary = recorder.finish();
+      summary.robot = arm.name();
+      out.push_back(summary);
     }
+  }
+}
+
+/// Percentile f ∈ [0, 1] of sorted values.
+double percentile(const std::vector<double>& sorted, double f) {
+  return sorted.empty() ? 0.0 : sorted[static_cast<std::size_t>(f * static_cast<double>(sorted.size() - 1))];
+}
+
+void closest(const Options& options, const Arm& arm, std::vector<Summary>& out) {
+  // How close mode `closest` (and, for comparison, `first`) gets to the seed, against the closest solution found by
+  // a long AllDistinct search from the same seed (100 ms) and the configuration the target came from. Seeds are the
+  // goal configurations moved by up to ±A per joint (clamped into the limits): the seed is the current
+  // configuration of a smooth motion, the target a nearby pose.
+  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(arm.urdf, arm.base, arm.tip);
+  const int samples = options.quick ? 20 : 1000;
+  std::ofstream csv = openCsv(options, "closest", "robot,mode,A,sample,distance,best_distance,excess");
+  std::printf("closest: %s, %d targets, seeds within +-A of the goal configuration (seed %u)\n", arm.name().c_str(),
+              samples, options.seed);
+  const auto solverFor = [&](bk::SolutionMode mode, double timeout) {
+    bk::GlobalIkParameters parameters;
+    parameters.mode = mode;
+    parameters.timeout = timeout;
+    parameters.seed = options.seed;
+    return std::make_unique<bk::GlobalIkSolver>(model, parameters);
+  };
+  const auto first = solverFor(bk::SolutionMode::FirstFound, 0.005);
+  const auto nearest = solverFor(bk::SolutionMode::ClosestToSeed, 0.005);
+  const auto all = solverFor(bk::SolutionMode::AllDistinct, options.quick ? 0.02 : 0.1);
+  for (const double A : {0.1, 0.3}) {
+    std::mt19937 rng(options.seed);
+    std::vector<double> excess_first, excess_closest;
+    int best_first = 0, best_closest = 0, failures = 0;
+    for (int k = 0; k < samples; ++k) {
+      const Eigen::VectorXd goal = uniformWithin(model, rng);
+      const Eigen::VectorXd seed = uniformNear(model, goal, A, rng);
+      const Eigen::Isometry3d target = forward(model, {goal}).front();
+      Eigen::VectorXd q(model.nq());
+      // The reference: the nearest of every solution a long search finds, and of the goal itself.
+      double best = (goal - seed).norm();
+      if (all->solve(target, seed, q).status == bk::IkStatus::Converged) {
+        for (int s = 0; s < all->solutionCount(); ++s) best = std::min(best, (all->solution(s) - seed).norm());
+      }
+      for (auto [solver, excess, at_best, mode] :
+           {std::tuple{first.get(), &excess_first, &best_first, "first"},
+            std::tuple{nearest.get(), &excess_closest, &best_closest, "closest"}}) {
+        if (solver->solve(target, seed, q).status != bk::IkStatus::Converged) {
+          ++failures;
+          continue;
+        }
+        const double distance = (q - seed).norm();
+        const double e = std::max(0.0, distance - best);
+        excess->push_back(e);
+        if (e <= 1e-6) ++*at_best;
+        csv << arm.name() << ',' << mode << ',' << A << ',' << k << ',' << distance << ',' << best << ',' << e << '\n';
+      }
+    }
+    for (auto [mode, excess, at_best] :
+         {std::tuple{"first", &excess_first, best_first}, std::tuple{"closest", &excess_closest, best_closest}}) {
+      std::sort(excess->begin(), excess->end());
+      Summary s;
+      s.experiment = "closest";
+      s.solver = "ours";
+      s.setting = std::string(mode) + " / A=" + std::to_string(A).substr(0, 3);
+      s.samples = static_cast<int>(excess->size());
+      s.robot = arm.name();
+      s.success_rate = static_cast<double>(excess->size()) / samples;
+      s.extra = {{"A", A},
+                 {"fraction_at_best", static_cast<double>(at_best) / std::max<std::size_t>(1, excess->size())},
+                 {"excess_median_rad", percentile(*excess, 0.5)},
+                 {"excess_p90_rad", percentile(*excess, 0.9)},
+                 {"excess_p99_rad", percentile(*excess, 0.99)},
+                 {"excess_max_rad", excess->empty() ? 0.0 : excess->back()}};
+      std::printf("  %-8s A=%.1f: %d solved, at the best %.1f %%, excess median %.4f p90 %.4f p99 %.4f max %.4f rad\n",
+                  mode, A, s.samples, 100.0 * s.extra[1].second, s.extra[2].second, s.extra[3].second,
+                  s.extra[4].second, s.extra[5].second);
+      out.push_back(s);
+    }
+    csv.flush();
+    if (failures > 0) std::printf("  (%d solves of %d failed within 5 ms)\n", failures, 2 * samples);
   }
 }
 
@@ -443,7 +544,9 @@ void writeSummary(const Options& options, const std::vector<Summary>& rows) {
         .add("median_us", r.median_us)
         .add("p99_us", r.p99_us)
         .add("mean_iterations", r.mean_iterations)
-        .add("mean_residual_failed", r.mean_residual_failed);
+        .add("mean_residual_failed", r.mean_residual_failed)
+        .add("robot", r.robot);
+    for (const auto& [key, value] : r.extra) json.back().add(key, value);
   }
   bimanual_skills::bench::writeSummaryJson(options, "ik_benchmark", json);
 }
@@ -451,8 +554,20 @@ void writeSummary(const Options& options, const std::vector<Summary>& rows) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const Options options = bimanual_skills::bench::parseExperimentOptions(
-      argc, argv, "ik_benchmark", {"table34", "table35", "fig35", "fig32", "fig33", "tracik", "all"}, false);
+  Arm arm;
+  bimanual_skills::bench::ExperimentProgram program;
+  program.name = "ik_benchmark";
+  program.description =
+      "The thesis' inverse-kinematics experiments (Ch. 3.1: Tables 3.4, 3.5, Figs. 3.2-3.5) on the WAM, TRAC-IK's\n"
+      "protocol against KDL's solvers (tracik) and the distance of mode closest's answers to the seed (closest).\n"
+      "Writes DIR/<experiment>.csv as samples complete, DIR/summary.json, PNG plots and DIR/tables.md.";
+  program.experiments = {"table34", "table35", "fig35", "fig32", "fig33", "tracik", "closest", "all"};
+  program.extra = [&arm](bimanual_skills::cli::CommandLine& line) {
+    line.option("--urdf", "FILE", "robot description of tracik and closest (default: urdf/wam.urdf)", &arm.urdf);
+    line.option("--base", "LINK", "base link of the chain (default: wam_base)", &arm.base);
+    line.option("--tip", "LINK", "tip link of the chain (default: wam_tool)", &arm.tip);
+  };
+  const Options options = bimanual_skills::bench::parseExperimentOptions(argc, argv, program);
   try {
     std::filesystem::create_directories(options.out);
     std::printf("ik_benchmark: experiment %s, seed %u%s, output %s\n", options.experiment.c_str(), options.seed,
@@ -468,7 +583,8 @@ int main(int argc, char** argv) {
       for (double A = 0.25; A <= 2.5 + 1e-9; A += 0.25) amplitudes.push_back(A);
       limitExperiment(options, "fig35", amplitudes, rows);
     }
-    if (wants("tracik")) tracik(options, rows);
+    if (wants("tracik")) tracik(options, arm, rows);
+    if (wants("closest")) closest(options, arm, rows);
     writeSummary(options, rows);
     if (!bimanual_skills::bench::runPlotScript("ik_benchmark", kSourceDir + "/scripts/plot_ik_benchmark.py",
                                                options.out)) {

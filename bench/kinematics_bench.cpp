@@ -10,6 +10,7 @@
 #include "bimanual_skills/kinematics/clik.hpp"
 
 #include "bench_timing.hpp"
+#include "benchmark_main.hpp"
 
 #include <benchmark/benchmark.h>
 #include <kdl/chainfksolverpos_recursive.hpp>
@@ -156,8 +157,9 @@ BENCHMARK(BM_ClikStepEd);
 BENCHMARK(BM_ClikStepCtpSdSvf);
 
 int main(int argc, char** argv) {
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  bimanual_skills::bench::initialiseBenchmarks(
+      argc, argv, "kinematics_bench",
+      "Forward kinematics, Jacobians and CLIK steps of the WAM per call, against KDL in the same run.");
   benchmark::AddCustomContext("seed", std::to_string(kSeed));
   benchmark::AddCustomContext("model", kWamUrdf + " (wam_base -> wam_tool)");
   benchmark::AddCustomContext("batch", std::to_string(kBatch));

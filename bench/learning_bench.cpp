@@ -5,6 +5,8 @@
 //   learning_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
 #include "bimanual_skills/learning/dual_reps.hpp"
 
+#include "benchmark_main.hpp"
+
 #include <benchmark/benchmark.h>
 
 #include <algorithm>
@@ -71,8 +73,9 @@ BENCHMARK(BM_DualRepsUpdate)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_DualRepsClustering)->Unit(benchmark::kMicrosecond);
 
 int main(int argc, char** argv) {
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  bimanual_skills::bench::initialiseBenchmarks(
+      argc, argv, "learning_bench",
+      "One REPS and one Dual REPS update (clustering included) of 50 rollouts of 20 parameters.");
   benchmark::AddCustomContext("seed", std::to_string(kSeed));
   benchmark::AddCustomContext("batch", "50 rollouts x 20 parameters, two-optimum reward");
   benchmark::RunSpecifiedBenchmarks();

@@ -4,6 +4,7 @@
 //
 //   primitives_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
 #include "bench_timing.hpp"
+#include "benchmark_main.hpp"
 #include "bimanual_skills/primitives/cartesian_dmp.hpp"
 #include "bimanual_skills/primitives/dmp.hpp"
 #include "bimanual_skills/primitives/promp.hpp"
@@ -72,8 +73,7 @@ bp::ProMp sevenDofProMp() {
   for (Eigen::Index i = 0; i < A.size(); ++i) A.data()[i] = normal(rng);
   bp::ProMpParameters parameters;
   parameters.kernels = kernels;
-  return bp::ProMp(parameters, dofs, Eigen::VectorXd::Zero(n), A * A.transpose() / n, Eigen::VectorXd::Ones(dofs),
-                   2.0);
+  return bp::ProMp(parameters, dofs, Eigen::VectorXd::Zero(n), A * A.transpose() / n, Eigen::VectorXd::Ones(dofs), 2.0);
 }
 
 /// ProMp::stateCovariance: 14 × 14 from Σ_ω's block columns (allocation-free).
@@ -108,8 +108,9 @@ BENCHMARK(BM_DmpStep);
 BENCHMARK(BM_CartesianDmpStep)->Arg(0)->Arg(1)->ArgName("quaternion_vector");
 
 int main(int argc, char** argv) {
-  benchmark::Initialize(&argc, argv);
-  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  bimanual_skills::bench::initialiseBenchmarks(
+      argc, argv, "primitives_bench",
+      "DMP and Cartesian DMP steps, and a ProMP state covariance (ours and the dense product) per call.");
   benchmark::AddCustomContext("dmp", "7 DoF x 25 kernels, dt = 2 ms");
   benchmark::AddCustomContext("cartesian_dmp", "position + orientation, 25 kernels, dt = 2 ms");
   benchmark::AddCustomContext("promp", "7 DoF x 20 kernels, state covariance 14 x 14, dense random Sigma_w (seed 11)");

@@ -401,8 +401,15 @@ void writeSummary(const Options& options, const std::vector<Summary>& rows) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const Options options = bimanual_skills::bench::parseExperimentOptions(
-      argc, argv, "ps_benchmark", {"multimodal2d", "bottles", "circle", "pi2viapoint", "all"}, true);
+  bimanual_skills::bench::ExperimentProgram program;
+  program.name = "ps_benchmark";
+  program.description =
+      "The thesis' policy-search experiments (Ch. 6: REPS, nDREPS and DREPS on the multimodal reward (6.16), the\n"
+      "bottle task (6.17, 6.18) and the WAM circle) and PI2/PI2-CMA on the via-point task. Writes\n"
+      "DIR/<experiment>.csv as runs end, DIR/summary.json, learning-curve PNGs and DIR/tables.md.";
+  program.experiments = {"multimodal2d", "bottles", "circle", "pi2viapoint", "all"};
+  program.with_runs = true;
+  const Options options = bimanual_skills::bench::parseExperimentOptions(argc, argv, program);
   try {
     std::filesystem::create_directories(options.out);
     std::printf("ps_benchmark: experiment %s, seed %u%s, output %s\n", options.experiment.c_str(), options.seed,

@@ -3,6 +3,8 @@
 // robot_state_publisher derives from the same robot_description. Exits (0 on agreement) unless ~hold is true.
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 
+#include "node_cli.hpp"
+
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
 #include <tf2_eigen/tf2_eigen.h>
@@ -124,7 +126,22 @@ sensor_msgs::JointState jointStates(const std::vector<Arm>& arms) {
 
 }  // namespace
 
+namespace {
+
+const char* const kUsage = R"(usage: rosrun bimanual_skills bimanual_fk_demo [_param:=value ...]
+
+Commands a joint configuration to each arm of the bimanual model on /joint_states, prints both arms' forward
+kinematics from the core library and checks them against the tf that robot_state_publisher publishes from the
+same robot_description. Exits 0 on agreement (unless ~hold is true). Run it with launch/bimanual_model.launch.
+
+parameters (private, config/fk_demo.yaml): world_frame, tip_link, arms, q_<arm>, publish_rate, tf_timeout, hold
+reads: robot_description, tf        publishes: /joint_states
+)";
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  bimanual_skills::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "bimanual_fk_demo");
   ros::NodeHandle node("~");
   const std::string world = node.param<std::string>("world_frame", "world");

@@ -3,6 +3,8 @@
 // Exits 0 when every arm was solved and reached its target within 1e-4 (m and rad), unless ~hold is true.
 #include "bimanual_skills/SolveIk.h"
 
+#include "node_cli.hpp"
+
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
 #include <tf2_ros/transform_listener.h>
@@ -49,12 +51,28 @@ bool readTarget(const ros::NodeHandle& node, const std::string& arm, const std::
 
 }  // namespace
 
+namespace {
+
+const char* const kUsage = R"(usage: rosrun bimanual_skills bimanual_ik_demo [_param:=value ...]
+
+Asks ik_server for a pose of each arm's tool (<arm>/solve_ik), commands the solutions on /joint_states and
+checks the tool poses robot_state_publisher then publishes against the targets. Exits 0 when every arm reached its
+target within 1e-4 m and rad (unless ~hold is true). What `make demo` runs, through launch/demo.launch.
+
+parameters (private, config/ik_demo.yaml): world_frame, arms, target_<arm> {position, orientation}, method
+  (empty: the server's default), timeout, tf_timeout, publish_rate, hold
+calls: <arm>/solve_ik        publishes: /joint_states        reads: tf
+)";
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  bimanual_skills::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "bimanual_ik_demo");
   ros::NodeHandle node("~");
   ros::NodeHandle root;
   const std::string world = node.param<std::string>("world_frame", "world");
-  const std::string method = node.param<std::string>("method", "CTP+SD+SVF");
+  const std::string method = node.param<std::string>("method", "");  // empty: the server's default
   const double timeout = node.param("timeout", 0.05);
   const double tf_timeout = node.param("tf_timeout", 5.0);
   const double rate_hz = node.param("publish_rate", 50.0);
@@ -70,7 +88,8 @@ int main(int argc, char** argv) {
     arms.push_back(arm);
   }
   std::printf("bimanual_ik_demo: IK of %zu arms through ik_server (%s, %.0f ms per request), targets in '%s'\n",
-              arms.size(), method.c_str(), 1e3 * timeout, world.c_str());
+              arms.size(), method.empty() ? "the server's default method" : method.c_str(), 1e3 * timeout,
+              world.c_str());
   sensor_msgs::JointState command;
   for (Arm& arm : arms) {
     const std::string service = "/" + arm.name + "/solve_ik";

@@ -7,6 +7,8 @@
 #include "bimanual_skills/SolveIk.h"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 
+#include "node_cli.hpp"
+
 #include <ros/ros.h>
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
@@ -27,7 +29,7 @@ using bimanual_skills::SolveIk;
 namespace {
 
 struct Settings {
-  std::string method = "CTP+SD+SVF";
+  std::string method = "ED";
   double default_timeout = 0.02;
   double max_timeout = 5.0;
   int max_attempts = 100000;
@@ -281,7 +283,25 @@ class ArmServices {
 
 }  // namespace
 
+namespace {
+
+const char* const kUsage = R"(usage: rosrun bimanual_skills ik_server [_param:=value ...]
+
+Inverse and forward kinematics services for each arm of robot_description: <arm>/solve_ik
+(bimanual_skills/SolveIk: the global CLIK solver, modes first/closest/all, any of the thesis' methods by name,
+MoveIt error codes) and <arm>/solve_fk (bimanual_skills/SolveFk). Start it with launch/ik_server.launch.
+
+parameters (private, config/ik_server.yaml): arms [{name, base_link, tip_link}], method (default ED),
+  default_timeout, max_timeout, max_attempts, tf_timeout
+reads: robot_description, tf
+example: rosservice call /left/solve_ik "{target: {header: {frame_id: world}, pose: {position: {x: 0.55, y: 0.25,
+  z: 0.3}, orientation: {x: 1.0, y: 0.0, z: 0.0, w: 0.0}}}}"
+)";
+
+}  // namespace
+
 int main(int argc, char** argv) {
+  bimanual_skills::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "ik_server");
   ros::NodeHandle node;
   ros::NodeHandle private_node("~");

@@ -214,15 +214,16 @@ def tracik(out, summary, lines):
     rows = results(summary, "tracik")
     if not rows:
         return
+    robot = rows[0].get("robot", "wam")
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.5))
     labels = [f"{r['solver']} {r['setting']}" for r in rows]
     bars(axes[0], labels, [100 * r["within_limits_rate"] for r in rows], "% solved within limits", "Success")
     bars(axes[1], labels, [r["median_us"] for r in rows], "median time [us]", "Time per solve (5 ms budget)", log=True)
-    fig.suptitle(f"TRAC-IK protocol: WAM, {rows[0]['samples']} random poses")
+    fig.suptitle(f"TRAC-IK protocol: {robot}, {rows[0]['samples']} random poses")
     fig.tight_layout()
     fig.savefig(os.path.join(out, "tracik.png"), dpi=110)
     plt.close(fig)
-    lines += ["### TRAC-IK protocol (WAM)", "",
+    lines += [f"### TRAC-IK protocol ({robot})", "",
               f"{rows[0]['samples']} random configurations within limits -> FK -> IK; success: every pose-error twist "
               f"component <= 1e-5; 5 ms budget; failures counted with their full time (seed {summary['seed']}).", "",
               "| solver | setting | % solved | % solved within limits | median (us) | p99 (us) |",
@@ -230,6 +231,24 @@ def tracik(out, summary, lines):
     for r in rows:
         lines.append(f"| {r['solver']} | {r['setting']} | {100 * r['success_rate']:.2f} | "
                      f"{100 * r['within_limits_rate']:.2f} | {r['median_us']:.1f} | {r['p99_us']:.1f} |")
+    lines.append("")
+
+
+def closest(out, summary, lines):
+    rows = results(summary, "closest")
+    if not rows:
+        return
+    robot = rows[0].get("robot", "wam")
+    lines += [f"### Distance of the answer to the seed ({robot})", "",
+              "Excess over the nearest solution a 100 ms AllDistinct search (and the goal configuration) gives, "
+              f"seeds within +-A of the goal configuration (seed {summary['seed']}).", "",
+              "| mode | A (rad) | solved | at the nearest | excess median (rad) | p90 | p99 | max |",
+              "|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        mode = r["setting"].split(" /")[0]
+        lines.append(f"| {mode} | {r['A']:.1f} | {r['samples']} | {100 * r['fraction_at_best']:.1f} % | "
+                     f"{r['excess_median_rad']:.4f} | {r['excess_p90_rad']:.4f} | {r['excess_p99_rad']:.4f} | "
+                     f"{r['excess_max_rad']:.4f} |")
     lines.append("")
 
 
@@ -245,6 +264,7 @@ def main():
     table35(out, summary, lines)
     fig35(out, summary, lines)
     tracik(out, summary, lines)
+    closest(out, summary, lines)
     fig32(out)
     fig33(out)
     with open(os.path.join(out, "tables.md"), "w", encoding="utf-8") as f:

@@ -34,12 +34,13 @@ TEST(IkBenchmarkSmoke, QuickRunWritesEveryOutput) {
   const std::string summary = readFile(out / "summary.json");
   for (const char* field :
        {"\"solver\"", "\"setting\"", "\"samples\"", "\"success_rate\"", "\"within_limits_rate\"", "\"median_us\"",
-        "\"p99_us\"", "\"mean_iterations\"", "\"mean_residual_failed\"", "\"seed\": 3", "\"CTP+SD+SVF\"", "\"KDL\""}) {
+        "\"p99_us\"", "\"mean_iterations\"", "\"mean_residual_failed\"", "\"seed\": 3", "\"CTP+SD+SVF\"", "\"KDL\"",
+        "\"robot\": \"wam\"", "\"excess_median_rad\""}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field;
   }
   for (const char* file :
        {"table34.csv", "table35.csv", "fig35.csv", "fig32.csv", "fig33.csv", "tracik.csv", "table34.png", "table35.png",
-        "fig35.png", "fig32.png", "fig33.png", "fig34.png", "tracik.png", "tables.md"}) {
+        "fig35.png", "fig32.png", "fig33.png", "fig34.png", "tracik.png", "closest.csv", "tables.md"}) {
     EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
   }
   fs::remove_all(out);

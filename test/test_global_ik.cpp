@@ -8,6 +8,7 @@
 
 #include <random>
 #include <string>
+#include <vector>
 
 namespace bk = bimanual_skills::kinematics;
 using bimanual_skills::testing::NoAllocGuard;
@@ -51,6 +52,31 @@ TEST_P(GlobalIkRoundTrip, SolvesRandomReachablePosesWithinLimits) {
 INSTANTIATE_TEST_SUITE_P(LocalMethods, GlobalIkRoundTrip,
                          ::testing::Values(bk::InverseOperator::SvfSelectiveDamping,
                                            bk::InverseOperator::ErrorDamping));
+
+TEST(GlobalIk, TheDefaultSolvesTheWamAndTwoArmsOfOtherGeometry) {
+  // The default configuration (ED restarted within the budget) on the WAM, a 7-joint arm with wrist offsets and
+  // asymmetric limits and a 6-joint arm with a spherical wrist, from the mid-limit seed and from random seeds.
+  const std::string dir = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/";
+  const std::vector<bk::ChainModel> arms = {
+      wam(), bk::ChainModel::fromUrdfFile(dir + "test_arms/offset_wrist_arm.urdf", "base_link", "tool"),
+      bk::ChainModel::fromUrdfFile(dir + "test_arms/spherical_wrist_arm.urdf", "base_link", "tool")};
+  for (const bk::ChainModel& model : arms) {
+    bk::GlobalIkParameters parameters;
+    parameters.timeout = 0.5;  // correctness, not speed
+    EXPECT_EQ(parameters.local.inverse, bk::InverseOperator::ErrorDamping);
+    bk::GlobalIkSolver solver(model, parameters);
+    std::mt19937 rng(7);
+    const Eigen::VectorXd nominal = 0.5 * (model.lowerLimits() + model.upperLimits());
+    Eigen::VectorXd q(model.nq());
+    for (int sample = 0; sample < 200; ++sample) {
+      const Eigen::Isometry3d target = tipPose(model, randomWithinLimits(model, rng));
+      const Eigen::VectorXd seed = sample % 2 == 0 ? nominal : randomWithinLimits(model, rng);
+      ASSERT_EQ(solver.solve(target, seed, q).status, bk::IkStatus::Converged) << model.nq() << " joints, " << sample;
+      EXPECT_TRUE(model.withinLimits(q));
+      EXPECT_LE(poseErrorMax(tipPose(model, q), target), 1e-5);
+    }
+  }
+}
 
 TEST(GlobalIk, SameInputsGiveTheSameAnswer) {
   const bk::ChainModel model = wam();

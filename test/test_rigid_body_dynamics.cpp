@@ -16,6 +16,7 @@
 #include <random>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace bd = bimanual_skills::dynamics;
 namespace bk = bimanual_skills::kinematics;
@@ -146,6 +147,39 @@ TEST(RigidBodyDynamics, MassMatrixIsSymmetricPositiveDefiniteAndConsistentWithRn
     Eigen::VectorXd qdd(7);
     ASSERT_EQ(bd::forwardDynamics(model, data, s.q, s.qd, tau, qdd), bd::DynamicsStatus::Success);
     EXPECT_LE((qdd - s.qdd).cwiseAbs().maxCoeff(), 1e-8);
+  }
+}
+
+TEST(RigidBodyDynamics, CompositeRigidBodyEqualsTheRneaColumns) {
+  // massMatrix() is the CRBA; the reference is column j = RNEA(q, 0, e_j) without gravity, on the WAM with rotors and
+  // a payload, the 14-joint chain and the chain with prismatic and skewed joints.
+  const std::vector<bk::ChainModel> models = {bimanual_skills::test_support::wamWithRotors(),
+                                              bimanual_skills::test_support::twoWamsInSeries(),
+                                              bk::ChainModel::fromUrdfString(kMixedUrdf, "base", "tool")};
+  const bd::Payload payload{1.7, Eigen::Vector3d(0.03, -0.02, 0.09)};
+  std::mt19937 rng(kSeed + 5);
+  for (const bk::ChainModel& model : models) {
+    const int n = model.nq();
+    const bk::ChainModel no_gravity = model.withGravity(Eigen::Vector3d::Zero());
+    bd::DynamicsData data(model), reference(no_gravity);
+    Eigen::MatrixXd M(n, n);
+    Eigen::VectorXd unit(n), column(n);
+    double worst = 0.0;
+    for (int sample = 0; sample < 100; ++sample) {
+      const State s = randomState(model, rng);
+      for (const bd::Payload& load : {bd::Payload{}, payload}) {
+        for (int j = 0; j < n; ++j) {
+          unit.setZero();
+          unit[j] = 1.0;
+          ASSERT_EQ(bd::inverseDynamics(no_gravity, reference, s.q, Eigen::VectorXd::Zero(n), unit, column, load),
+                    bd::DynamicsStatus::Success);
+          M.col(j) = column;
+        }
+        ASSERT_EQ(bd::massMatrix(model, data, s.q, load), bd::DynamicsStatus::Success);
+        worst = std::max(worst, (data.mass_matrix - M).cwiseAbs().maxCoeff());
+      }
+    }
+    EXPECT_LE(worst, 1e-12 * std::max(1.0, M.cwiseAbs().maxCoeff())) << n << " joints";
   }
 }
 

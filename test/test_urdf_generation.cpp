@@ -48,6 +48,16 @@ TEST(UrdfGeneration, CommittedBimanualEqualsGenerated) {
       << "urdf/bimanual_wam.urdf is stale: run scripts/generate_bimanual_urdf.py --out urdf/bimanual_wam.urdf";
 }
 
+TEST(UrdfGeneration, CommittedTestArmsEqualGenerated) {
+  for (const std::string arm : {"offset_wrist_arm", "spherical_wrist_arm"}) {
+    const std::string generated = generate("generate_test_arms.py", "--arm " + arm);
+    ASSERT_FALSE(generated.empty());
+    EXPECT_EQ(readFile(kSource + "/urdf/test_arms/" + arm + ".urdf"), generated)
+        << "urdf/test_arms/" << arm << ".urdf is stale: run scripts/generate_test_arms.py --arm " << arm
+        << " --out urdf/test_arms/" << arm << ".urdf";
+  }
+}
+
 TEST(UrdfGeneration, BadConfigurationIsAClearErrorNotACrash) {
   char path[] = "/tmp/bimanual_skills_config_XXXXXX";
   const int fd = mkstemp(path);

@@ -96,6 +96,70 @@ void newtonEuler(const ChainModel& model, DynamicsData& data, const Eigen::Ref<c
   }
 }
 
+/// |v|² 1 − v vᵀ: the rotational inertia of a unit point mass at v about the origin.
+Eigen::Matrix3d pointInertia(const Eigen::Vector3d& v) noexcept {
+  return v.squaredNorm() * Eigen::Matrix3d::Identity() - v * v.transpose();
+}
+
+/// Composite-rigid-body algorithm on the frames of jointFrames() (see massMatrix()).
+void compositeRigidBody(const ChainModel& model, DynamicsData& data, const Payload& payload) noexcept {
+  const int n = model.nq();
+  const auto& steps = model.axisFrames();
+  // Composite inertias, tip to base: I^c_i = I_i + (the child's composite carried into F_i).
+  for (int i = n - 1; i >= 0; --i) {
+    const auto k = static_cast<std::size_t>(i);
+    double m = steps[k].body.mass;
+    Eigen::Vector3d h = steps[k].first_moment;
+    Eigen::Matrix3d I = steps[k].origin_inertia;
+    if (i == n - 1 && payload.mass > 0.0) {
+      const Eigen::Vector3d c = model.tipInLastFrame() * payload.com;
+      m += payload.mass;
+      h += payload.mass * c;
+      I += payload.mass * pointInertia(c);
+    }
+    if (i + 1 < n) {
+      // Child (m', h', I') in F_{i+1} = (R, t) in F_i: h = R h' + m' t, I = R I' Rᵀ + m' K(t) + 2 (R h')·t 1 −
+      // (R h') tᵀ − t (R h')ᵀ, the parallel-axis theorem written with the first moment.
+      const Eigen::Matrix3d& R = data.rotation[k + 1];
+      const Eigen::Vector3d& t = data.translation[k + 1];
+      const double mc = data.composite_mass[k + 1];
+      const Eigen::Vector3d Rh = R * data.composite_moment[k + 1];
+      m += mc;
+      h += Rh + mc * t;
+      const Eigen::Matrix3d RI = R * data.composite_inertia[k + 1];
+      I.noalias() += RI * R.transpose();
+      I.diagonal().array() += mc * t.squaredNorm() + 2.0 * Rh.dot(t);
+      I.noalias() -= (mc * t + Rh) * t.transpose();
+      I.noalias() -= t * Rh.transpose();
+    }
+    data.composite_mass[k] = m;
+    data.composite_moment[k] = h;
+    data.composite_inertia[k] = I;
+  }
+  // Columns: the spatial force (moment n about the origin, force f) of unit motion of joint i, carried inwards.
+  for (int i = 0; i < n; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    const Eigen::Vector3d& h = data.composite_moment[k];
+    Eigen::Vector3d f, moment;
+    if (steps[k].prismatic) {
+      f = data.composite_mass[k] * kZ;  // S = [0; z]: f = m z, n = h × z
+      moment = h.cross(kZ);
+    } else {
+      f = kZ.cross(h);  // S = [z; 0]: n = I_o z, f = z × h
+      moment = data.composite_inertia[k].col(2);
+    }
+    data.mass_matrix(i, i) = (steps[k].prismatic ? f.z() : moment.z()) + model.rotorInertia()[i];
+    for (int j = i - 1; j >= 0; --j) {
+      const auto c = static_cast<std::size_t>(j + 1);
+      f = data.rotation[c] * f;
+      moment = data.rotation[c] * moment + data.translation[c].cross(f);
+      const double value = steps[static_cast<std::size_t>(j)].prismatic ? f.z() : moment.z();
+      data.mass_matrix(i, j) = value;
+      data.mass_matrix(j, i) = value;
+    }
+  }
+}
+
 }  // namespace
 
 DynamicsData::DynamicsData(const ChainModel& model)
@@ -106,8 +170,10 @@ DynamicsData::DynamicsData(const ChainModel& model)
       omega(static_cast<std::size_t>(model.nq())),
       alpha(static_cast<std::size_t>(model.nq())),
       accel(static_cast<std::size_t>(model.nq())),
+      composite_mass(static_cast<std::size_t>(model.nq()), 0.0),
+      composite_moment(static_cast<std::size_t>(model.nq()), Eigen::Vector3d::Zero()),
+      composite_inertia(static_cast<std::size_t>(model.nq()), Eigen::Matrix3d::Zero()),
       zeros(Eigen::VectorXd::Zero(model.nq())),
-      unit(Eigen::VectorXd::Zero(model.nq())),
       llt(model.nq()) {}
 
 DynamicsStatus inverseDynamics(const ChainModel& model, DynamicsData& data, const Eigen::Ref<const Eigen::VectorXd>& q,
@@ -127,11 +193,7 @@ DynamicsStatus massMatrix(const ChainModel& model, DynamicsData& data, const Eig
                           const Payload& payload) noexcept {
   if (const DynamicsStatus status = check(model, q); status != DynamicsStatus::Success) return status;
   jointFrames(model, data, q);
-  for (int j = 0; j < model.nq(); ++j) {
-    data.unit.setZero();
-    data.unit[j] = 1.0;
-    newtonEuler(model, data, data.zeros, data.unit, Eigen::Vector3d::Zero(), payload, data.mass_matrix.col(j));
-  }
+  compositeRigidBody(model, data, payload);
   return DynamicsStatus::Success;
 }
 

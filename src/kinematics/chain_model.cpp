@@ -101,6 +101,10 @@ ChainModel::ChainModel(std::string base_link, std::string tip_link, std::vector<
     Eigen::Isometry3d axis_in_link = Eigen::Isometry3d::Identity();
     axis_in_link.linear() = R_i;
     frame.body = joint.body.expressedIn(axis_in_link);
+    const Eigen::Vector3d& c = frame.body.com;
+    frame.first_moment = frame.body.mass * c;
+    frame.origin_inertia =
+        frame.body.inertia + frame.body.mass * (c.squaredNorm() * Eigen::Matrix3d::Identity() - c * c.transpose());
     previous_alignment = R_i;
     frame_names_.push_back(joint.child_link);
   }

@@ -16,6 +16,8 @@ constexpr double kTwoPi = 2.0 * M_PI;
 
 ClikParameters GlobalIkParameters::defaultLocal() {
   ClikParameters local;
+  local.inverse = InverseOperator::ErrorDamping;
+  local.limits = LimitScheme::None;
   local.max_iterations = 40;
   return local;
 }
@@ -119,7 +121,8 @@ GlobalIkResult GlobalIkSolver::solve(const Eigen::Isometry3d& target, const Eige
     result.iterations += local.iterations;
     if (local.status == IkStatus::InvalidInput) return result;
     bool valid = local.status == IkStatus::Converged && wrapIntoLimits(candidate_);
-    if (!valid && parameters_.refine_enabled && local.status != IkStatus::Timeout) {
+    if (!valid && parameters_.refine_enabled && local_.limits != LimitScheme::None &&
+        local.status != IkStatus::Timeout) {
       refine_.timeout = std::max(budget - elapsed(), 1e-9);
       local = kinematics::solve(model_, refine_, refine_data_, candidate_, target);
       result.iterations += local.iterations;

@@ -9,6 +9,7 @@
 // the errors (MAE, MSE, maximum, as in Table 4.1) are printed for the held-out rest.
 #include "bimanual_skills/dynamics/friction_identification.hpp"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
+#include "tools/command_line.hpp"
 
 #include <cstdio>
 #include <cstdlib>
@@ -21,33 +22,23 @@ namespace bk = bimanual_skills::kinematics;
 
 namespace {
 
-[[noreturn]] void usage(const std::string& error) {
-  std::cerr << "fit_friction: " << error << "\n"
-            << "usage: fit_friction --model viscous|initial|basic|advanced --in log.csv --out friction.yaml\n"
-               "                    [--urdf FILE --base LINK --tip LINK] [--pairs 2-3,5-6|none] [--epsilon E]\n"
-               "                    [--holdout F] [--restarts N] [--seed S] [--sign logged|filtered]\n";
-  std::exit(2);
-}
-
-double number(const std::string& flag, const std::string& text) {
-  char* end = nullptr;
-  const double v = std::strtod(text.c_str(), &end);
-  if (text.empty() || *end != '\0') usage(flag + " needs a number, got '" + text + "'");
-  return v;
-}
-
-std::vector<std::pair<int, int>> parsePairs(const std::string& text) {
-  std::vector<std::pair<int, int>> pairs;
-  if (text == "none") return pairs;
+/// Parses "i-j[,k-l]" (1-based) or "none"; false if malformed.
+bool parsePairs(const std::string& text, std::vector<std::pair<int, int>>& pairs) {
+  pairs.clear();
+  if (text == "none") return true;
   std::stringstream stream(text);
   std::string item;
   while (std::getline(stream, item, ',')) {
     const auto dash = item.find('-');
-    if (dash == std::string::npos) usage("--pairs takes i-j[,k-l] (1-based) or none, got '" + text + "'");
-    pairs.emplace_back(static_cast<int>(number("--pairs", item.substr(0, dash))) - 1,
-                       static_cast<int>(number("--pairs", item.substr(dash + 1))) - 1);
+    if (dash == std::string::npos) return false;
+    char* end_a = nullptr;
+    char* end_b = nullptr;
+    const std::string a = item.substr(0, dash), b = item.substr(dash + 1);
+    const long i = std::strtol(a.c_str(), &end_a, 10), j = std::strtol(b.c_str(), &end_b, 10);
+    if (a.empty() || b.empty() || *end_a != '\0' || *end_b != '\0' || i < 1 || j < 1) return false;
+    pairs.emplace_back(static_cast<int>(i) - 1, static_cast<int>(j) - 1);
   }
-  return pairs;
+  return !pairs.empty();
 }
 
 }  // namespace
@@ -56,47 +47,41 @@ int main(int argc, char** argv) {
   std::string model_name, in, out, sign = "logged", pairs_text;
   std::string urdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf", base = "wam_base", tip = "wam_tool";
   bd::FrictionFitOptions options;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    const auto value = [&]() -> std::string {
-      if (i + 1 >= argc) usage(arg + " needs a value");
-      return argv[++i];
-    };
-    if (arg == "--model")
-      model_name = value();
-    else if (arg == "--in")
-      in = value();
-    else if (arg == "--out")
-      out = value();
-    else if (arg == "--urdf")
-      urdf = value();
-    else if (arg == "--base")
-      base = value();
-    else if (arg == "--tip")
-      tip = value();
-    else if (arg == "--pairs")
-      pairs_text = value();
-    else if (arg == "--epsilon")
-      options.epsilon = number(arg, value());
-    else if (arg == "--holdout")
-      options.holdout = number(arg, value());
-    else if (arg == "--restarts")
-      options.restarts = static_cast<int>(number(arg, value()));
-    else if (arg == "--seed")
-      options.seed = static_cast<std::uint32_t>(number(arg, value()));
-    else if (arg == "--sign")
-      sign = value();
-    else
-      usage("unknown argument '" + arg + "'");
+  long restarts = options.restarts, seed = options.seed;
+  bimanual_skills::cli::CommandLine line(
+      "fit_friction", "--model viscous|initial|basic|advanced --in log.csv --out friction.yaml [options]",
+      "Identifies a joint friction model (thesis 2.13, 2.14 or 4.16, with cable-coupled pairs) from a log whose\n"
+      "columns are t, q1..qn, qd1..qdn, qdd1..qddn, tau1..taun (tau: applied torques). Friction is observed as\n"
+      "tau - M qdd - C qd - G (2.12) with the arm model; the fit uses the first 1 - holdout of the samples and prints\n"
+      "the errors of Table 4.1 (MAE, MSE, maximum) on the held-out rest; the model is written as YAML.");
+  line.option("--model", "TYPE", "viscous, initial, basic or advanced", &model_name);
+  line.option("--in", "FILE", "the log (CSV)", &in);
+  line.option("--out", "FILE", "the fitted model (YAML)", &out);
+  line.option("--urdf", "FILE", "robot description (default: urdf/wam.urdf)", &urdf);
+  line.option("--base", "LINK", "base link of the chain (default: wam_base)", &base);
+  line.option("--tip", "LINK", "tip link of the chain (default: wam_tool)", &tip);
+  line.option("--pairs", "I-J,K-L", "coupled joint pairs, 1-based, or none (default: 2-3,5-6 for 7 joints)",
+              &pairs_text);
+  line.option("--epsilon", "E", "dead band of the pair switching [rad/s] (default 0.05)", &options.epsilon);
+  line.option("--holdout", "F", "fraction of samples, at the end, kept for validation (default 0.25)",
+              &options.holdout);
+  line.option("--restarts", "N", "seeded starts of the nonlinear search (default 8)", &restarts, 1, 1000);
+  line.option("--seed", "S", "seed of the search's starts (default 1)", &seed, 0, 0xffffffffL);
+  line.option("--sign", "SOURCE", "sign of qdd from the logged qdd (logged) or filtered velocities (filtered)", &sign);
+  line.parse(argc, argv);
+  options.restarts = static_cast<int>(restarts);
+  options.seed = static_cast<std::uint32_t>(seed);
+  if (!bd::parseFrictionModelType(model_name, options.type)) {
+    line.fail("--model must be viscous, initial, basic or advanced");
   }
-  if (!bd::parseFrictionModelType(model_name, options.type))
-    usage("--model must be viscous, initial, basic or advanced");
-  if (in.empty() || out.empty()) usage("--in and --out are required");
-  if (sign != "logged" && sign != "filtered") usage("--sign must be logged or filtered");
+  if (in.empty() || out.empty()) line.fail("--in and --out are required");
+  if (sign != "logged" && sign != "filtered") line.fail("--sign must be logged or filtered");
   try {
     const bk::ChainModel model = bk::ChainModel::fromUrdfFile(urdf, base, tip);
     const bd::FrictionLog log = bd::readFrictionLog(in);
-    options.pairs = parsePairs(pairs_text.empty() ? (log.joints() == 7 ? "2-3,5-6" : "none") : pairs_text);
+    if (!parsePairs(pairs_text.empty() ? (log.joints() == 7 ? "2-3,5-6" : "none") : pairs_text, options.pairs)) {
+      line.fail("--pairs takes i-j[,k-l] (1-based) or none, got '" + pairs_text + "'");
+    }
     std::printf(
         "fit_friction: %s model, %d samples of %d joints from %s (%.1f s), held out: last %.0f %%, "
         "%d restarts, seed %u, sign of qdd: %s\n",

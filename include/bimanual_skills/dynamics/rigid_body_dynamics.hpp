@@ -31,7 +31,11 @@ struct DynamicsData {
   std::vector<Eigen::Matrix3d> rotation;     ///< F_{i−1} → F_i
   std::vector<Eigen::Vector3d> translation;  ///< origin of F_i in F_{i−1}
   std::vector<Eigen::Vector3d> omega, alpha, accel;
-  Eigen::VectorXd zeros, unit;
+  // Internal: composite bodies of the CRBA (in each joint's own frame).
+  std::vector<double> composite_mass;
+  std::vector<Eigen::Vector3d> composite_moment;   ///< h = m c
+  std::vector<Eigen::Matrix3d> composite_inertia;  ///< about the frame's origin
+  Eigen::VectorXd zeros;
   Eigen::LLT<Eigen::MatrixXd> llt;
 };
 
@@ -44,8 +48,12 @@ struct DynamicsData {
                                              Eigen::Ref<Eigen::VectorXd> tau, const Payload& payload = {}) noexcept;
 
 /// Joint-space mass matrix M(q) (symmetric positive definite; rotor inertias on the diagonal) into
-/// data.mass_matrix, column j being the RNEA torque of q̈ = e_j without velocity and gravity.
-/// Real-time safe: no allocation, no exceptions.
+/// data.mass_matrix by the composite-rigid-body algorithm (Featherstone, Rigid Body Dynamics Algorithms, Sec. 6.2):
+/// the composite inertia of the bodies beyond each joint (mass m, first moment h = m c and rotational inertia I_o
+/// about the joint frame's origin, accumulated from the tip inwards), the spatial force F_i = I^c_i S_i of unit
+/// motion of joint i, M_ii = S_iᵀ F_i (+ the rotor inertia), and M_ji = S_jᵀ F_i with F_i carried to each joint
+/// j < i. Equals the RNEA columns of q̈ = e_j without velocity and gravity. Real-time safe: no allocation, no
+/// exceptions.
 [[nodiscard]] DynamicsStatus massMatrix(const ChainModel& model, DynamicsData& data,
                                         const Eigen::Ref<const Eigen::VectorXd>& q,
                                         const Payload& payload = {}) noexcept;

@@ -110,7 +110,9 @@ class ChainModel {
     Eigen::Matrix3d to_link;      ///< R_i^T: L_i = F_i R_i^T (identity when the URDF axis is +z).
     bool axis_is_z = true;        ///< R_i is the identity.
     bool prismatic = false;
-    BodyInertia body;  ///< The joint's body in the internal frame F_i (for the dynamics).
+    BodyInertia body;                ///< The joint's body in the internal frame F_i (for the dynamics).
+    Eigen::Vector3d first_moment;    ///< m c of the body in F_i (for the composite-rigid-body algorithm).
+    Eigen::Matrix3d origin_inertia;  ///< The body's rotational inertia about F_i's origin, I_c + m (|c|² 1 − c cᵀ).
   };
   const std::vector<AxisFrame>& axisFrames() const noexcept { return axis_frames_; }
   /// Pose of the tip in the internal frame of the last joint, R_n^T T_tip.

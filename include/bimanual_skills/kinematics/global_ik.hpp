@@ -19,14 +19,18 @@ enum class SolutionMode {
 };
 
 struct GlobalIkParameters {
-  /// Local method (its own timeout is replaced by what is left of the budget). Default CTP+SD+SVF with attempts
-  /// capped at 40 iterations: a stalled attempt costs less than a fresh start (WAM, TRAC-IK protocol, 5 ms, 500
-  /// poses: 89 %/61 % solved with 500 iterations from the nominal/random seed, 99.4 %/99.6 % with 40).
+  /// Local method (its own timeout is replaced by what is left of the budget). Default ED (error damping, 3.7)
+  /// without a limit scheme, attempts capped at 40 iterations, restarted from random configurations until one
+  /// converges within the limits: chosen by measurement under TRAC-IK's protocol on the WAM and two other arms
+  /// (docs/RESULTS.md), where it was the fastest configuration at 100 % within limits. The thesis' methods stay
+  /// selectable (e.g. CTP+SD+SVF, which keeps every attempt inside the limits but steps at most γ_max per iteration).
   ClikParameters local = defaultLocal();
-  /// Polish stage run from the end point of a local attempt that did not give a valid solution (stalled near a
-  /// limit, or converged outside the limits): by default a damped Newton method (ED) clamped into the limits.
-  /// CTP methods stall where a solution needs a joint inside its activation buffer β (the thesis' "algorithmic
-  /// singularity"); this stage finishes those. Set refine_enabled = false for the pure local method.
+  /// Polish stage run from the end point of a local attempt that did not give a valid solution, for local methods
+  /// with a limit scheme (JW, GP, JC, TA, TP, CTP): by default a damped Newton method (ED) clamped into the limits.
+  /// Those methods stall where a solution needs a joint inside its activation buffer β (the thesis' "algorithmic
+  /// singularity"); this stage finishes those. A method without a limit scheme is not polished: a fresh start beats
+  /// polishing an attempt that converged outside the limits (measured: p99 twice lower with ED). Set
+  /// refine_enabled = false for the pure local method.
   ClikParameters refine = defaultRefine();
   bool refine_enabled = true;
   double timeout = 0.005;     ///< Time budget per solve [s] (> 0).
@@ -39,7 +43,7 @@ struct GlobalIkParameters {
   /// Throws std::invalid_argument naming the first parameter out of range (and validates `local`).
   void validate() const;
 
-  /// ClikParameters' defaults (CTP+SD+SVF) with max_iterations = 40.
+  /// ED without a limit scheme, max_iterations = 40 (a stalled attempt costs less than a fresh start).
   static ClikParameters defaultLocal();
   /// ED, no limit scheme, q clamped into the limits after each step, 100 iterations.
   static ClikParameters defaultRefine();
