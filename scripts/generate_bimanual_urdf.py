@@ -14,6 +14,8 @@ import xml.etree.ElementTree as ET
 
 import yaml
 
+from generate_wam_urdf import emit
+
 PACKAGE = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -118,12 +120,7 @@ def main():
     parser.add_argument("--config", default=os.path.join(PACKAGE, "config", "bimanual.yaml"))
     parser.add_argument("--out", help="output file (default: stdout)")
     args = parser.parse_args()
-    text = generate(args.arm, args.config)
-    if args.out:
-        with open(args.out, "w", encoding="utf-8") as f:
-            f.write(text)
-    else:
-        sys.stdout.write(text)
+    emit(generate(args.arm, args.config), args.out)
 
 
 if __name__ == "__main__":

@@ -13,9 +13,8 @@ Usage: generate_test_arms.py --arm offset_wrist_arm|spherical_wrist_arm [--out F
 """
 import argparse
 import math
-import sys
 
-from generate_wam_urdf import cylinder_between, fmt, vec
+from generate_wam_urdf import cylinder_between, emit, fmt, vec
 
 # i: (a, alpha, d, lower, upper)
 ARMS = {
@@ -95,12 +94,7 @@ def main():
     parser.add_argument("--arm", required=True, choices=sorted(ARMS), help="which arm")
     parser.add_argument("--out", help="output file (default: stdout)")
     args = parser.parse_args()
-    text = generate(args.arm)
-    if args.out:
-        with open(args.out, "w", encoding="utf-8") as f:
-            f.write(text)
-    else:
-        sys.stdout.write(text)
+    emit(generate(args.arm), args.out)
 
 
 if __name__ == "__main__":

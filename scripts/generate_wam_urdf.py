@@ -147,17 +147,21 @@ def generate(prefix):
     return "".join(out)
 
 
+def emit(text, path):
+    """Writes a generated file to path, or to stdout when path is empty (the generators' --out)."""
+    if path:
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(text)
+    else:
+        sys.stdout.write(text)
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--prefix", default="", help="prefix for every link and joint name")
     parser.add_argument("--out", help="output file (default: stdout)")
     args = parser.parse_args()
-    text = generate(args.prefix)
-    if args.out:
-        with open(args.out, "w", encoding="utf-8") as f:
-            f.write(text)
-    else:
-        sys.stdout.write(text)
+    emit(generate(args.prefix), args.out)
 
 
 if __name__ == "__main__":
