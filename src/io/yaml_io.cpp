@@ -1,5 +1,6 @@
 #include "yaml_io.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -19,6 +20,18 @@ YAML::Node loadYamlFile(const std::string& path, const std::string& where) {
     fail("cannot read " + where);
   } catch (const YAML::Exception& e) {
     fail(where + ": not valid YAML: " + e.what());
+  }
+}
+
+void checkKeys(const YAML::Node& node, const std::string& where, std::initializer_list<const char*> allowed) {
+  if (!node.IsMap()) return;
+  for (const auto& entry : node) {
+    const std::string key = entry.first.as<std::string>();
+    if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; })) {
+      std::string names;
+      for (const char* a : allowed) names += (names.empty() ? "" : ", ") + std::string(a);
+      fail(where + ": unknown entry '" + key + "' (expected one of: " + names + ")");
+    }
   }
 }
 

@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include <functional>
+#include <initializer_list>
 #include <string>
 
 namespace bimanual_skills::io {
@@ -22,6 +23,9 @@ inline constexpr int kYamlDigits = 17;
 
 /// The root node of a YAML file. `where` names the file in messages (e.g. "friction model 'a.yaml'").
 YAML::Node loadYamlFile(const std::string& path, const std::string& where);
+
+/// Fails on any key of the map `node` that is not in `allowed` (catches misspelt entries).
+void checkKeys(const YAML::Node& node, const std::string& where, std::initializer_list<const char*> allowed);
 
 /// `node[key]`, which must exist.
 YAML::Node required(const YAML::Node& node, const std::string& key, const std::string& where);

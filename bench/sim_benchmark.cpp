@@ -1,0 +1,402 @@
+// Experiments on the physics simulator (issue 11), as one seeded program:
+//
+//   sim_benchmark --experiment speed --seed S --out DIR [--quick]
+//
+// speed: wall-clock speed of the simulation on one core (the process is pinned to CPU 0), as simulated seconds per
+// wall-clock second of BimanualSimulation::step() calls, with Bullet's share of that time:
+//   two_arms                   both WAMs with their true plant at 1 kHz, tracking joint sinusoids (table on);
+//   two_arms_cloth             the same with the 20 x 24 self-colliding cloth of config/sim.yaml, two corners grasped
+//                              and folded over onto the cloth, released, settled (no divergence allowed);
+//   two_arms_cloth_step_<N>ms  the same fold with the cloth at other steps (the rate comparison behind the choice);
+//   two_arms_cloth_no_self     the same fold without self-collision (its cost and what it prevents).
+// Writes DIR/speed.csv (one row per setting, appended as each ends) and DIR/summary.json; prints progress lines.
+// The controllers' own time is measured apart and not counted in realtime_factor.
+//
+// Other experiments (friction identification against the true plant, payload estimation) slot into kExperiments.
+#include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
+#include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/sim/bimanual_simulation.hpp"
+#include "experiment_cli.hpp"
+
+#include <sched.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iostream>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace bs = bimanual_skills;
+namespace sim = bimanual_skills::sim;
+
+namespace {
+
+const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
+using Options = bs::bench::ExperimentOptions;
+using Clock = std::chrono::steady_clock;
+
+double seconds(Clock::time_point from, Clock::time_point to) {
+  return std::chrono::duration<double>(to - from).count();
+}
+
+/// One row of summary.json and speed.csv: a simulation setting.
+struct Row {
+  std::string setting;
+  double simulated = 0.0;        ///< [s]
+  double wall = 0.0;             ///< [s] in step()
+  double controller_wall = 0.0;  ///< [s] in the benchmark's controllers (not in realtime_factor)
+  sim::SimTimings timings;
+  double cloth_step = 0.0;  ///< [s], 0 without cloth
+  bool diverged = false;
+  double max_stretch = 0.0;
+  double fold_on_top = -1.0;  ///< Fraction of the folded half lying on the cloth after the fold (−1: no fold).
+
+  double realtimeFactor() const { return simulated / wall; }
+  double bulletShare() const { return (timings.bullet_arms + timings.cloth.bullet) / timings.total; }
+};
+
+/// Joint PD with inverse-dynamics feed-forward (the rigid-body model only: the true plant's friction and rotor
+/// inertia are unknown to it), per arm.
+class JointTracker {
+ public:
+  explicit JointTracker(const sim::BimanualSimulation& simulation) {
+    for (int arm = 0; arm < simulation.armCount(); ++arm) {
+      models_.push_back(simulation.armModel(arm));
+      data_.emplace_back(models_.back());
+    }
+    kp_ = (Eigen::VectorXd(7) << 400, 400, 200, 150, 30, 30, 6).finished();
+    kd_ = (Eigen::VectorXd(7) << 40, 40, 15, 10, 1.5, 1.5, 0.2).finished();
+    tau_.setZero(7);
+    state_ = sim::JointState(7);
+  }
+
+  void command(sim::BimanualSimulation& simulation, int arm, const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+               const Eigen::VectorXd& qdd) {
+    const auto a = static_cast<std::size_t>(arm);
+    if (simulation.readJointState(arm, state_) != sim::RobotStatus::Ok) return;
+    if (bs::dynamics::inverseDynamics(models_[a], data_[a], state_.position, state_.velocity, qdd, tau_) !=
+        bs::dynamics::DynamicsStatus::Success) {
+      return;
+    }
+    tau_ += kp_.cwiseProduct(q - state_.position) + kd_.cwiseProduct(qd - state_.velocity);
+    (void)simulation.writeJointTorques(arm, tau_);
+  }
+
+ private:
+  std::vector<bs::kinematics::ChainModel> models_;
+  std::vector<bs::dynamics::DynamicsData> data_;
+  Eigen::VectorXd kp_, kd_, tau_;
+  sim::JointState state_;
+};
+
+/// A joint trajectory through waypoints at a fixed spacing: Catmull-Rom (C¹) in time.
+class WaypointTrajectory {
+ public:
+  WaypointTrajectory(std::vector<Eigen::VectorXd> points, double spacing) : points_(std::move(points)), h_(spacing) {}
+
+  double duration() const { return h_ * static_cast<double>(points_.size() - 1); }
+
+  void evaluate(double t, Eigen::VectorXd& q, Eigen::VectorXd& qd, Eigen::VectorXd& qdd) const {
+    const int last = static_cast<int>(points_.size()) - 1;
+    const double x = std::clamp(t / h_, 0.0, static_cast<double>(last));
+    const int i = std::min(static_cast<int>(x), last - 1);
+    const double s = x - i;
+    const auto at = [&](int k) { return points_[static_cast<std::size_t>(std::clamp(k, 0, last))]; };
+    const Eigen::VectorXd m0 = (at(i + 1) - at(i - 1)) / (i == 0 ? 1.0 : 2.0);
+    const Eigen::VectorXd m1 = (at(i + 2) - at(i)) / (i + 1 == last ? 1.0 : 2.0);
+    const Eigen::VectorXd p0 = at(i), p1 = at(i + 1);
+    const double s2 = s * s, s3 = s2 * s;
+    q = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1;
+    qd = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h_;
+    qdd = ((12 * s - 6) * p0 + (6 * s - 4) * m0 + (-12 * s + 6) * p1 + (6 * s - 2) * m1) / (h_ * h_);
+    if (t <= 0.0 || t >= duration()) {
+      qd.setZero();
+      qdd.setZero();
+    }
+  }
+
+ private:
+  std::vector<Eigen::VectorXd> points_;
+  double h_;
+};
+
+/// Runs `steps` steps, calling `control(k)` before each; times step() and the controller apart.
+void run(sim::BimanualSimulation& simulation, int steps, const std::function<void(int)>& control, Row& row) {
+  simulation.resetTimings();
+  for (int k = 0; k < steps; ++k) {
+    const auto start = Clock::now();
+    control(k);
+    const auto controlled = Clock::now();
+    const sim::SimStatus status = simulation.step();
+    const auto stepped = Clock::now();
+    row.controller_wall += seconds(start, controlled);
+    row.wall += seconds(controlled, stepped);
+    if (status == sim::SimStatus::ClothDiverged || status == sim::SimStatus::ArmDiverged) row.diverged = true;
+    if (simulation.hasCloth()) row.max_stretch = std::max(row.max_stretch, simulation.cloth().maxStretch());
+  }
+  row.simulated += steps * simulation.stepSize();
+  row.timings = simulation.timings();
+}
+
+sim::SimConfig baseConfig(const Options& options) {
+  sim::SimConfig config = sim::SimConfig::fromYamlFile(kSourceDir + "/config/sim.yaml");
+  config.seed = options.seed;
+  return config;
+}
+
+Row twoArms(const Options& options) {
+  sim::SimConfig config = baseConfig(options);
+  config.has_cloth = false;
+  sim::BimanualSimulation simulation(config);
+  const Eigen::VectorXd centre = (Eigen::VectorXd(7) << 0.0, 0.6, 0.0, 1.6, 0.0, 0.5, 0.0).finished();
+  const Eigen::VectorXd amplitude = (Eigen::VectorXd(7) << 0.4, 0.3, 0.4, 0.3, 0.5, 0.4, 0.5).finished();
+  const Eigen::VectorXd frequency = (Eigen::VectorXd(7) << 0.3, 0.25, 0.35, 0.4, 0.5, 0.45, 0.6).finished();
+  std::vector<sim::ArmState> start;
+  for (int arm = 0; arm < 2; ++arm) {
+    start.push_back({arm == 0 ? centre : Eigen::VectorXd(-centre), Eigen::VectorXd::Zero(7)});
+    start.back().q[1] = centre[1];
+    start.back().q[3] = centre[3];
+    start.back().q[5] = centre[5];
+  }
+  if (simulation.reset(start) != sim::SimStatus::Ok) throw std::runtime_error("two_arms: reset failed");
+  JointTracker tracker(simulation);
+  Eigen::VectorXd q(7), qd(7), qdd(7);
+  const double dt = simulation.stepSize();
+  Row row;
+  row.setting = "two_arms";
+  const int steps = static_cast<int>(std::lround((options.quick ? 0.5 : 20.0) / dt));
+  run(
+      simulation, steps,
+      [&](int k) {
+        const double t = k * dt;
+        for (int arm = 0; arm < 2; ++arm) {
+          for (int j = 0; j < 7; ++j) {
+            const double w = 2.0 * M_PI * frequency[j];
+            // Starts at rest: amplitude ramps in with (1 − cos) so the desired motion is smooth from t = 0.
+            const double a = amplitude[j] * std::min(1.0, t);
+            q[j] = start[static_cast<std::size_t>(arm)].q[j] + a * std::sin(w * t);
+            qd[j] = a * w * std::cos(w * t);
+            qdd[j] = -a * w * w * std::sin(w * t);
+          }
+          tracker.command(simulation, arm, q, qd, qdd);
+        }
+      },
+      row);
+  return row;
+}
+
+/// The fold of config/sim.yaml's cloth: tools pointing down take the two corners of the far edge (x = 0.75) over to
+/// the near edge (x = 0.25) on half circles, lay them on the cloth and let go.
+struct FoldPlan {
+  std::vector<WaypointTrajectory> arms;  ///< Joint trajectories of the fold, per arm.
+  std::vector<Eigen::VectorXd> start;
+};
+
+FoldPlan planFold(const sim::BimanualSimulation& simulation, const sim::SimConfig& config, double duration) {
+  const double top = config.table.topCentre().z();
+  const Eigen::Vector3d centre = config.cloth.pose.translation();
+  const double radius = 0.5 * config.cloth.length - 0.01, lift = 0.025;
+  const int waypoints = 31;
+  FoldPlan plan;
+  const Eigen::VectorXd seed = (Eigen::VectorXd(7) << 0.0, 0.8, 0.0, 1.6, 0.0, 0.7, 0.0).finished();
+  for (int arm = 0; arm < simulation.armCount(); ++arm) {
+    const double y = centre.y() + (simulation.basePose(arm).translation().y() > 0 ? 0.5 : -0.5) * config.cloth.width;
+    bs::kinematics::GlobalIkParameters parameters;
+    parameters.timeout = 0.2;
+    bs::kinematics::GlobalIkSolver solver(simulation.armModel(arm), parameters);
+    std::vector<Eigen::VectorXd> points;
+    Eigen::VectorXd previous = seed, q(7);
+    for (int w = 0; w < waypoints; ++w) {
+      double s = static_cast<double>(w) / (waypoints - 1);
+      s = s * s * (3.0 - 2.0 * s);
+      const double angle = M_PI * s;
+      Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+      // Tool z down, turning with the fold about the y axis a little (the wrist follows the arc).
+      target.linear() = Eigen::AngleAxisd(M_PI - 0.4 * std::sin(angle), Eigen::Vector3d::UnitY()).toRotationMatrix();
+      target.translation() =
+          Eigen::Vector3d(centre.x() + radius * std::cos(angle), y, top + lift + 0.8 * radius * std::sin(angle));
+      const auto result = solver.solve(simulation.basePose(arm).inverse() * target, previous, q);
+      if (result.status != bs::kinematics::IkStatus::Converged) {
+        throw std::runtime_error("fold: no IK solution for waypoint " + std::to_string(w));
+      }
+      points.push_back(q);
+      previous = q;
+    }
+    plan.start.push_back(points.front());
+    plan.arms.emplace_back(points, duration / (waypoints - 1));
+  }
+  return plan;
+}
+
+Row twoArmsCloth(const Options& options, const std::string& setting, double cloth_step, bool self_collision) {
+  sim::SimConfig config = baseConfig(options);
+  if (cloth_step > 0.0) config.cloth.step = cloth_step;
+  config.cloth.self_collision = self_collision;
+  sim::BimanualSimulation simulation(config);
+  const double fold = options.quick ? 1.2 : 3.0, hold = 0.3, settle = options.quick ? 0.2 : 0.7;
+  const FoldPlan plan = planFold(simulation, config, fold);
+  std::vector<sim::ArmState> start;
+  for (const Eigen::VectorXd& q : plan.start) start.push_back({q, Eigen::VectorXd::Zero(7)});
+  if (simulation.reset(start) != sim::SimStatus::Ok) throw std::runtime_error(setting + ": reset failed");
+  for (int arm = 0; arm < 2; ++arm) {
+    int attached = 0;
+    if (simulation.grasp(arm, &attached) != sim::SimStatus::Ok || attached == 0) {
+      throw std::runtime_error(setting + ": arm " + std::to_string(arm) + " grasped nothing");
+    }
+  }
+  JointTracker tracker(simulation);
+  Eigen::VectorXd q(7), qd(7), qdd(7);
+  const double dt = simulation.stepSize();
+  Row row;
+  row.setting = setting;
+  row.cloth_step = config.cloth.step;
+  const int steps = static_cast<int>(std::lround((hold + fold + hold + settle) / dt));
+  const int release_step = static_cast<int>(std::lround((hold + fold + hold) / dt));
+  run(
+      simulation, steps,
+      [&](int k) {
+        if (k == release_step) {
+          for (int arm = 0; arm < 2; ++arm) (void)simulation.release(arm);
+        }
+        const double t = k * dt - hold;
+        for (int arm = 0; arm < 2; ++arm) {
+          plan.arms[static_cast<std::size_t>(arm)].evaluate(t, q, qd, qdd);
+          if (k >= release_step) {  // after the release the tools rise 5 cm/s out of the cloth
+            Eigen::VectorXd up = q;
+            up[1] -= 0.1 * (k - release_step) * dt;
+            q = up;
+          }
+          tracker.command(simulation, arm, q, qd, qdd);
+        }
+      },
+      row);
+  // Fold quality: nodes of the folded half lying over the bottom half (away from crease and near edge) that lie on
+  // the cloth (above the bottom layer), not at table level.
+  const sim::Cloth& cloth = simulation.cloth();
+  const double top = config.table.topCentre().z();
+  int on_top = 0, total = 0;
+  for (int i = 0; i < cloth.nodeCount(); ++i) {
+    const Eigen::Vector3d rest = cloth.restVertices().col(i) - config.cloth.pose.translation();
+    const Eigen::Vector3d now = cloth.vertices().col(i) - config.cloth.pose.translation();
+    const double quarter = 0.25 * config.cloth.length;
+    if (rest.x() < 0.2 * quarter || std::abs(rest.y()) > 0.4 * config.cloth.width || now.x() > -0.3 * quarter ||
+        now.x() < -1.7 * quarter) {
+      continue;
+    }
+    ++total;
+    on_top += cloth.vertices()(2, i) >= top + 1.5 * config.cloth.thickness;
+  }
+  row.fold_on_top = total > 0 ? static_cast<double>(on_top) / total : 0.0;
+  return row;
+}
+
+class Writer {
+ public:
+  explicit Writer(const Options& options) : csv_(options.out + "/speed.csv") {
+    csv_ << "setting,cloth_step_s,simulated_s,wall_s,realtime_factor,bullet_share,bullet_arms_s,bullet_cloth_s,"
+            "self_collision_s,plant_s,cloth_bookkeeping_s,controller_s,steps,diverged,max_stretch,fold_on_top\n";
+  }
+  void add(const Row& r) {
+    csv_ << r.setting << ',' << r.cloth_step << ',' << r.simulated << ',' << r.wall << ',' << r.realtimeFactor() << ','
+         << r.bulletShare() << ',' << r.timings.bullet_arms << ',' << r.timings.cloth.bullet << ','
+         << r.timings.cloth.self_collision << ',' << r.timings.plant << ',' << r.timings.cloth.bookkeeping << ','
+         << r.controller_wall << ',' << r.timings.steps << ',' << (r.diverged ? 1 : 0) << ',' << r.max_stretch << ','
+         << r.fold_on_top << '\n';
+    csv_.flush();
+  }
+
+ private:
+  std::ofstream csv_;
+};
+
+void speed(const Options& options, std::vector<Row>& rows) {
+  Writer writer(options);
+  const auto report = [&](const Row& r) {
+    std::printf(
+        "sim_benchmark: %-28s %6.2f s simulated in %6.2f s: %6.2fx real time, Bullet %4.1f %% "
+        "(arms %.1f %%, cloth %.1f %%), self-collision %.1f %%, plant %.1f %%%s\n",
+        r.setting.c_str(), r.simulated, r.wall, r.realtimeFactor(), 100.0 * r.bulletShare(),
+        100.0 * r.timings.bullet_arms / r.timings.total, 100.0 * r.timings.cloth.bullet / r.timings.total,
+        100.0 * r.timings.cloth.self_collision / r.timings.total, 100.0 * r.timings.plant / r.timings.total,
+        r.diverged ? ", DIVERGED" : "");
+    std::fflush(stdout);
+    writer.add(r);
+    rows.push_back(r);
+  };
+  report(twoArms(options));
+  report(twoArmsCloth(options, "two_arms_cloth", 0.0, true));
+  if (options.quick) return;
+  for (const double step : {0.001, 0.002, 0.005}) {
+    report(twoArmsCloth(options, "two_arms_cloth_step_" + std::to_string(static_cast<int>(step * 1000)) + "ms", step,
+                        true));
+  }
+  report(twoArmsCloth(options, "two_arms_cloth_no_self", 0.0, false));
+}
+
+void writeSummary(const Options& options, const std::vector<Row>& rows) {
+  std::ofstream json(options.out + "/summary.json");
+  json.precision(10);
+  json << "{\n  \"program\": \"sim_benchmark\",\n  \"experiment\": \"" << options.experiment
+       << "\",\n  \"seed\": " << options.seed << ",\n  \"quick\": " << (options.quick ? "true" : "false")
+       << ",\n  \"cpu\": 0,\n  \"results\": [\n";
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const Row& r = rows[i];
+    json << "    {\"experiment\": \"" << options.experiment << "\", \"setting\": \"" << r.setting
+         << "\", \"realtime_factor\": " << r.realtimeFactor() << ", \"bullet_share\": " << r.bulletShare()
+         << ", \"bullet_arms_share\": " << r.timings.bullet_arms / r.timings.total
+         << ", \"bullet_cloth_share\": " << r.timings.cloth.bullet / r.timings.total
+         << ", \"self_collision_share\": " << r.timings.cloth.self_collision / r.timings.total
+         << ", \"plant_share\": " << r.timings.plant / r.timings.total << ", \"simulated_s\": " << r.simulated
+         << ", \"wall_s\": " << r.wall << ", \"controller_s\": " << r.controller_wall
+         << ", \"arm_step_s\": " << (r.simulated / static_cast<double>(std::max(1L, r.timings.steps)))
+         << ", \"cloth_step_s\": " << r.cloth_step << ", \"diverged\": " << (r.diverged ? "true" : "false")
+         << ", \"max_stretch\": " << r.max_stretch << ", \"fold_on_top\": " << r.fold_on_top << "}"
+         << (i + 1 < rows.size() ? "," : "") << "\n";
+  }
+  json << "  ]\n}\n";
+}
+
+/// The experiments of this program; friction and payload experiments go here.
+const std::vector<std::pair<std::string, std::function<void(const Options&, std::vector<Row>&)>>> kExperiments = {
+    {"speed", speed},
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bs::bench::ExperimentProgram program;
+  program.name = "sim_benchmark";
+  program.description =
+      "Experiments on the physics simulator. speed: simulated seconds per wall-clock second on one core (CPU 0) and\n"
+      "Bullet's share of the time, for the two arms alone and with the folding cloth (several cloth steps); writes\n"
+      "DIR/speed.csv and DIR/summary.json. --quick: short runs, chosen cloth step only.";
+  for (const auto& [name, function] : kExperiments) program.experiments.push_back(name);
+  const Options options = bs::bench::parseExperimentOptions(argc, argv, program);
+  try {
+    cpu_set_t one;
+    CPU_ZERO(&one);
+    CPU_SET(0, &one);
+    if (sched_setaffinity(0, sizeof(one), &one) != 0) std::fprintf(stderr, "sim_benchmark: could not pin to CPU 0\n");
+    std::filesystem::create_directories(options.out);
+    std::printf("sim_benchmark: experiment %s, seed %u%s, output %s\n", options.experiment.c_str(), options.seed,
+                options.quick ? " (quick)" : "", options.out.c_str());
+    std::vector<Row> rows;
+    for (const auto& [name, function] : kExperiments) {
+      if (name == options.experiment) function(options, rows);
+    }
+    writeSummary(options, rows);
+    std::printf("sim_benchmark: wrote %s/summary.json and %s/speed.csv\n", options.out.c_str(), options.out.c_str());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sim_benchmark: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,62 @@
+/// \file
+/// Configuration of a simulation (`config/sim.yaml`): the robot description and its arms, the step, the table, the
+/// cloth, the true plant and the seed.
+#pragma once
+
+#include "bimanual_skills/sim/cloth.hpp"
+#include "bimanual_skills/sim/plant_model.hpp"
+#include "bimanual_skills/sim/table.hpp"
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::sim {
+
+/// One simulated arm: the serial chain between two links of the URDF.
+struct ArmConfig {
+  std::string name;       ///< Arm name (the key of its true plant in the plant model).
+  std::string base_link;  ///< Link fixed to the world (through fixed joints only); the chain's base frame.
+  std::string tip_link;   ///< The tool link: payloads hang and grippers sit at its origin.
+};
+
+struct SimConfig {
+  std::string urdf_path;  ///< Robot description (URDF file).
+  std::vector<ArmConfig> arms;
+  double step = 0.001;                                         ///< Fixed time step of the arms [s] (1 kHz).
+  Eigen::Vector3d gravity = Eigen::Vector3d(0.0, 0.0, -9.81);  ///< World frame [m/s²].
+  bool has_table = true;
+  Table table;
+  bool has_cloth = false;
+  ClothParameters cloth;       ///< Its `step` must be a whole multiple of `step` (the cloth runs at its own rate).
+  double grasp_radius = 0.04;  ///< Nodes within this distance of a tool are grasped [m].
+  PlantModel plant;            ///< True plant, one entry per arm name.
+  std::string plant_path;      ///< Where `plant` was read from (informative).
+  std::uint32_t seed = 1;      ///< Seed of the sensor noise generator.
+
+  /// Reads a simulation file; relative paths in it (`urdf`, `plant`) are relative to the file's directory:
+  /// \code
+  /// urdf: ../urdf/bimanual_wam.urdf
+  /// plant: plant.yaml
+  /// step: 0.001
+  /// seed: 1
+  /// gravity: [0, 0, -9.81]
+  /// arms:
+  ///   - {name: left, base_link: left_wam_base, tip_link: left_wam_tool}
+  /// table: {xyz: [0.55, 0, 0], rpy: [0, 0, 0], size: [0.7, 1.2, 0.3], friction: 0.5}   # optional
+  /// cloth:                                                                             # optional
+  ///   {xyz: [...], rpy: [...], size: [0.5, 0.6], nodes: [20, 24], mass: 0.22, stretch_stiffness: 0.9,
+  ///    bending_stiffness: 0.05, damping: 0.01, friction: 0.5, thickness: 0.004, position_iterations: 4,
+  ///    self_collision: true, step: 0.004, max_node_speed: 20, max_stretch: 3, grasp_radius: 0.04}
+  /// \endcode
+  /// \throws std::invalid_argument naming the file and the entry (missing or unknown entries, wrong types, values
+  /// out of range, a cloth step that is not a multiple of the step, unreadable plant file).
+  static SimConfig fromYamlFile(const std::string& path);
+
+  /// Throws std::invalid_argument naming the first inconsistent value (checked again by the simulation).
+  void validate() const;
+};
+
+}  // namespace bimanual_skills::sim

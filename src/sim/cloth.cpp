@@ -1,0 +1,511 @@
+#include "bimanual_skills/sim/cloth.hpp"
+
+#include "bullet_conversions.hpp"
+
+#include <BulletSoftBody/btSoftBodyHelpers.h>
+#include <BulletSoftBody/btSoftBodyInternals.h>
+#include <BulletSoftBody/btSoftBodyRigidBodyCollisionConfiguration.h>
+#include <BulletSoftBody/btSoftRigidDynamicsWorld.h>
+#include <btBulletDynamicsCommon.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::sim {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds(Clock::time_point from, Clock::time_point to) {
+  return std::chrono::duration<double>(to - from).count();
+}
+
+/// Gripper bodies: heavy, unaffected by gravity and colliding with nothing, so the anchor impulses Bullet applies to
+/// them barely move them and can be read back as the cloth's pull (momentum change over the step).
+constexpr double kGripperMass = 100.0;    // [kg]
+constexpr double kGripperInertia = 10.0;  // [kg m²], isotropic
+/// Sparse signed-distance-field cell of the soft-rigid contacts [m]. Bullet's default (0.25 m) interpolates the
+/// distance to a thin table top so coarsely that the cloth rests 2–3 cm inside it (measured); 0.05 m is exact for
+/// the table's faces.
+constexpr double kSdfVoxel = 0.05;
+
+/// Node-versus-face self-contacts of one cloth, fed to Bullet's soft-contact position solver (PSolve_SContacts).
+/// Bullet's own VF_SS handler skips self-collision (and its node/face exclusion test is a no-op), so this does the
+/// detection: a node collides with a face unless the face has a vertex within `skip` of the node on the rest mesh
+/// (its own faces and the faces of its neighbours, which lie within the margin wherever the cloth bends).
+struct SelfCollider : btDbvt::ICollide {
+  void Process(const btDbvtNode* leaf_node, const btDbvtNode* leaf_face) override {
+    btSoftBody::Node* node = static_cast<btSoftBody::Node*>(leaf_node->data);
+    btSoftBody::Face* face = static_cast<btSoftBody::Face*>(leaf_face->data);
+    const btSoftBody::Node* first = &body->m_nodes[0];
+    const btVector3& rest_node = rest[node - first];
+    for (int k = 0; k < 3; ++k) {
+      if ((rest[face->m_n[k] - first] - rest_node).length2() < skip2) return;
+    }
+    const btVector3 o = node->m_x;
+    btVector3 p(0, 0, 0);
+    btScalar d2 = SIMD_INFINITY;
+    ProjectOrigin(face->m_n[0]->m_x - o, face->m_n[1]->m_x - o, face->m_n[2]->m_x - o, p, d2);
+    const btScalar m = margin + (o - node->m_q).length() * 2;
+    if (!(d2 < m * m) || !(d2 > 0)) return;
+    const btVector3 w = BaryCoord(face->m_n[0]->m_x, face->m_n[1]->m_x, face->m_n[2]->m_x, p + o);
+    const btScalar ma = node->m_im;
+    btScalar mb = BaryEval(face->m_n[0]->m_im, face->m_n[1]->m_im, face->m_n[2]->m_im, w);
+    if (face->m_n[0]->m_im <= 0 || face->m_n[1]->m_im <= 0 || face->m_n[2]->m_im <= 0) mb = 0;
+    const btScalar ms = ma + mb;
+    if (ms <= 0) return;
+    btSoftBody::SContact c;
+    c.m_normal = p / -btSqrt(d2);
+    c.m_margin = m;
+    c.m_node = node;
+    c.m_face = face;
+    c.m_weights = w;
+    c.m_friction = body->m_cfg.kDF;
+    c.m_cfm[0] = ma / ms * body->m_cfg.kSHR;
+    c.m_cfm[1] = mb / ms * body->m_cfg.kSHR;
+    body->m_scontacts.push_back(c);
+    ++count;
+  }
+
+  btSoftBody* body = nullptr;
+  const btVector3* rest = nullptr;
+  btScalar margin = 0;
+  btScalar skip2 = 0;
+  int count = 0;
+};
+
+/// The soft-rigid world with the self-contacts added after Bullet's collision detection (contacts are cleared in
+/// predictMotion and solved after detection, so this is the only place they can go).
+class ClothWorld : public btSoftRigidDynamicsWorld {
+ public:
+  using btSoftRigidDynamicsWorld::btSoftRigidDynamicsWorld;
+
+  void performDiscreteCollisionDetection() override {
+    btSoftRigidDynamicsWorld::performDiscreteCollisionDetection();
+    if (collider.body == nullptr) return;
+    const auto start = Clock::now();
+    btSoftBody* body = collider.body;
+    collider.count = 0;
+    if (body->m_ndbvt.m_root != nullptr && body->m_fdbvt.m_root != nullptr) {
+      body->m_ndbvt.collideTT(body->m_ndbvt.m_root, body->m_fdbvt.m_root, collider);
+    }
+    self_collision_seconds += seconds(start, Clock::now());
+  }
+
+  SelfCollider collider;
+  double self_collision_seconds = 0.0;
+};
+
+}  // namespace
+
+void ClothParameters::validate(const char* where) const {
+  const std::string at = where;
+  const auto positive = [&](double v, const char* name) {
+    if (!(v > 0.0) || !std::isfinite(v)) throw std::invalid_argument(at + ": cloth '" + name + "' must be > 0");
+  };
+  const auto unit = [&](double v, const char* name, bool zero_ok, bool one_ok) {
+    const bool ok = (zero_ok ? v >= 0.0 : v > 0.0) && (one_ok ? v <= 1.0 : v < 1.0);
+    if (!ok) {
+      throw std::invalid_argument(at + ": cloth '" + name + "' must be in " + (zero_ok ? "[0, " : "(0, ") +
+                                  (one_ok ? "1]" : "1)"));
+    }
+  };
+  positive(length, "length");
+  positive(width, "width");
+  positive(mass, "mass");
+  positive(thickness, "thickness");
+  positive(step, "step");
+  positive(max_node_speed, "max_node_speed");
+  if (!(max_stretch > 1.0) || !std::isfinite(max_stretch)) {
+    throw std::invalid_argument(at + ": cloth 'max_stretch' must be > 1");
+  }
+  if (nodes_x < 2 || nodes_y < 2) throw std::invalid_argument(at + ": cloth 'nodes' must be at least 2 x 2");
+  if (position_iterations < 1) throw std::invalid_argument(at + ": cloth 'position_iterations' must be >= 1");
+  unit(stretch_stiffness, "stretch_stiffness", false, true);
+  unit(bending_stiffness, "bending_stiffness", true, true);
+  unit(damping, "damping", true, false);
+  unit(friction, "friction", true, true);
+  if (!pose.matrix().allFinite()) throw std::invalid_argument(at + ": cloth 'pose' must be finite");
+}
+
+const char* toString(ClothDivergence divergence) noexcept {
+  switch (divergence) {
+    case ClothDivergence::None:
+      return "None";
+    case ClothDivergence::NotFinite:
+      return "NotFinite";
+    case ClothDivergence::NodeSpeed:
+      return "NodeSpeed";
+    case ClothDivergence::Stretch:
+      return "Stretch";
+  }
+  return "Unknown";
+}
+
+struct Cloth::Impl {
+  ClothParameters parameters;
+  Table table;
+  Eigen::Vector3d gravity;
+  int gripper_count = 0;
+
+  std::unique_ptr<btSoftBodyRigidBodyCollisionConfiguration> configuration;
+  std::unique_ptr<btCollisionDispatcher> dispatcher;
+  std::unique_ptr<btDbvtBroadphase> broadphase;
+  std::unique_ptr<btSequentialImpulseConstraintSolver> solver;
+  std::unique_ptr<ClothWorld> world;
+  std::unique_ptr<btBoxShape> table_shape;
+  std::unique_ptr<btRigidBody> table_body;
+  std::unique_ptr<btSphereShape> gripper_shape;
+  std::vector<std::unique_ptr<btRigidBody>> grippers;
+  std::unique_ptr<btSoftBody> soft;
+  std::vector<btVector3> rest_bt;
+
+  Eigen::Matrix3Xd vertices, velocities, rest;
+  Eigen::Matrix3Xi triangles;
+  std::vector<Vector6d> wrenches;
+  std::vector<Vector6d> twists;
+  std::vector<Eigen::Isometry3d> poses;
+  std::vector<int> owner;  ///< Gripper holding each node, −1 if free.
+  std::vector<int> grasped;
+  SimStatus status = SimStatus::Ok;
+  ClothDivergence divergence = ClothDivergence::None;
+  double max_stretch = 1.0;
+  ClothTimings timings;
+
+  void build();
+  void destroy() noexcept;
+  void copyMesh() noexcept;
+  ClothDivergence check() noexcept;
+};
+
+void Cloth::Impl::destroy() noexcept {
+  if (world) {
+    if (soft) world->removeSoftBody(soft.get());
+    for (auto& g : grippers) world->removeRigidBody(g.get());
+    if (table_body) world->removeRigidBody(table_body.get());
+  }
+  soft.reset();
+  grippers.clear();
+  table_body.reset();
+  world.reset();
+  solver.reset();
+  broadphase.reset();
+  dispatcher.reset();
+  configuration.reset();
+}
+
+void Cloth::Impl::build() {
+  destroy();
+  configuration = std::make_unique<btSoftBodyRigidBodyCollisionConfiguration>();
+  dispatcher = std::make_unique<btCollisionDispatcher>(configuration.get());
+  broadphase = std::make_unique<btDbvtBroadphase>();
+  solver = std::make_unique<btSequentialImpulseConstraintSolver>();
+  world = std::make_unique<ClothWorld>(dispatcher.get(), broadphase.get(), solver.get(), configuration.get());
+  world->setGravity(toBullet(gravity));
+  btSoftBodyWorldInfo& info = world->getWorldInfo();
+  info.m_gravity = toBullet(gravity);
+  info.air_density = 0;
+  info.m_sparsesdf.Initialize();
+  info.m_sparsesdf.setDefaultVoxelsz(kSdfVoxel);
+  info.m_sparsesdf.Reset();
+
+  // Table: a static box.
+  table_shape = std::make_unique<btBoxShape>(toBullet(0.5 * table.size));
+  btRigidBody::btRigidBodyConstructionInfo table_info(0.0, nullptr, table_shape.get());
+  table_info.m_startWorldTransform = toBulletTransform(table.pose);
+  table_info.m_friction = table.friction;
+  table_body = std::make_unique<btRigidBody>(table_info);
+  world->addRigidBody(table_body.get());
+
+  // Grippers: heavy bodies without gravity, in a collision group that collides with nothing.
+  gripper_shape = std::make_unique<btSphereShape>(0.01);
+  for (int g = 0; g < gripper_count; ++g) {
+    btRigidBody::btRigidBodyConstructionInfo info_g(kGripperMass, nullptr, gripper_shape.get(),
+                                                    btVector3(kGripperInertia, kGripperInertia, kGripperInertia));
+    info_g.m_startWorldTransform = toBulletTransform(poses[static_cast<std::size_t>(g)]);
+    auto body = std::make_unique<btRigidBody>(info_g);
+    body->setFlags(body->getFlags() | BT_DISABLE_WORLD_GRAVITY);
+    body->setActivationState(DISABLE_DEACTIVATION);
+    body->setDamping(0.0, 0.0);
+    world->addRigidBody(body.get(), btBroadphaseProxy::SensorTrigger, 0);
+    grippers.push_back(std::move(body));
+  }
+
+  // The patch, centred on parameters.pose, in its xy plane.
+  const ClothParameters& p = parameters;
+  const auto corner = [&](double sx, double sy) {
+    return toBullet(p.pose * Eigen::Vector3d(0.5 * sx * p.length, 0.5 * sy * p.width, 0.0));
+  };
+  soft.reset(btSoftBodyHelpers::CreatePatch(info, corner(-1, -1), corner(1, -1), corner(-1, 1), corner(1, 1), p.nodes_x,
+                                            p.nodes_y, 0, true));
+  soft->getCollisionShape()->setMargin(p.thickness);
+  soft->m_materials[0]->m_kLST = p.stretch_stiffness;
+  if (p.bending_stiffness > 0.0) {
+    btSoftBody::Material* bending = soft->appendMaterial();
+    bending->m_kLST = p.bending_stiffness;
+    soft->generateBendingConstraints(2, bending);
+  }
+  soft->m_cfg.piterations = p.position_iterations;
+  soft->m_cfg.kDF = p.friction;
+  soft->m_cfg.kDP = p.damping;
+  soft->m_cfg.kAHR = 1.0;
+  // VF_SS builds the face tree the self-collision detection runs on.
+  soft->m_cfg.collisions = btSoftBody::fCollision::SDF_RS | (p.self_collision ? btSoftBody::fCollision::VF_SS : 0);
+  soft->setTotalMass(p.mass, false);
+  soft->setActivationState(DISABLE_DEACTIVATION);
+  soft->m_anchors.reserve(soft->m_nodes.size());
+  world->addSoftBody(soft.get());
+
+  const int n = soft->m_nodes.size();
+  rest_bt.resize(static_cast<std::size_t>(n));
+  rest.resize(3, n);
+  for (int i = 0; i < n; ++i) {
+    rest_bt[static_cast<std::size_t>(i)] = soft->m_nodes[i].m_x;
+    rest.col(i) = toEigen(soft->m_nodes[i].m_x);
+  }
+  triangles.resize(3, soft->m_faces.size());
+  for (int f = 0; f < soft->m_faces.size(); ++f) {
+    for (int k = 0; k < 3; ++k) triangles(k, f) = static_cast<int>(soft->m_faces[f].m_n[k] - &soft->m_nodes[0]);
+  }
+  vertices = rest;
+  velocities.setZero(3, n);
+  owner.assign(static_cast<std::size_t>(n), -1);
+  grasped.assign(static_cast<std::size_t>(gripper_count), 0);
+  wrenches.assign(static_cast<std::size_t>(gripper_count), Vector6d::Zero());
+  status = SimStatus::Ok;
+  divergence = ClothDivergence::None;
+  max_stretch = 1.0;
+
+  if (p.self_collision) {
+    const double spacing = std::max(p.length / (p.nodes_x - 1), p.width / (p.nodes_y - 1));
+    world->collider.body = soft.get();
+    world->collider.rest = rest_bt.data();
+    world->collider.margin = 2.0 * p.thickness;
+    world->collider.skip2 = (2.1 * spacing) * (2.1 * spacing);
+  }
+}
+
+void Cloth::Impl::copyMesh() noexcept {
+  for (int i = 0; i < soft->m_nodes.size(); ++i) {
+    vertices.col(i) = toEigen(soft->m_nodes[i].m_x);
+    velocities.col(i) = toEigen(soft->m_nodes[i].m_v);
+  }
+}
+
+ClothDivergence Cloth::Impl::check() noexcept {
+  const double speed2 = parameters.max_node_speed * parameters.max_node_speed;
+  bool too_fast = false;
+  for (int i = 0; i < soft->m_nodes.size(); ++i) {
+    const btSoftBody::Node& node = soft->m_nodes[i];
+    for (int k = 0; k < 3; ++k) {
+      if (!std::isfinite(node.m_x[k]) || !std::isfinite(node.m_v[k])) return ClothDivergence::NotFinite;
+    }
+    too_fast = too_fast || node.m_v.length2() > speed2;
+  }
+  if (too_fast) return ClothDivergence::NodeSpeed;
+  double stretch = 0.0;
+  for (int l = 0; l < soft->m_links.size(); ++l) {
+    const btSoftBody::Link& link = soft->m_links[l];
+    stretch = std::max(stretch, static_cast<double>((link.m_n[0]->m_x - link.m_n[1]->m_x).length() / link.m_rl));
+  }
+  max_stretch = stretch;
+  return stretch > parameters.max_stretch ? ClothDivergence::Stretch : ClothDivergence::None;
+}
+
+Cloth::Cloth(const ClothParameters& parameters, const Table& table, int grippers, const Eigen::Vector3d& gravity)
+    : impl_(std::make_unique<Impl>()) {
+  parameters.validate("cloth");
+  table.validate("cloth");
+  if (grippers < 0) throw std::invalid_argument("cloth: the number of grippers must be >= 0");
+  if (!gravity.allFinite()) throw std::invalid_argument("cloth: gravity must be finite");
+  impl_->parameters = parameters;
+  impl_->table = table;
+  impl_->gravity = gravity;
+  impl_->gripper_count = grippers;
+  impl_->poses.assign(static_cast<std::size_t>(grippers), Eigen::Isometry3d::Identity());
+  for (int g = 0; g < grippers; ++g) {
+    // Parked above the cloth's centre until the owner moves them.
+    impl_->poses[static_cast<std::size_t>(g)].translation() =
+        parameters.pose * Eigen::Vector3d(0.0, 0.0, 0.5 + 0.1 * g);
+  }
+  impl_->twists.assign(static_cast<std::size_t>(grippers), Vector6d::Zero());
+  impl_->build();
+}
+
+Cloth::~Cloth() {
+  if (impl_) impl_->destroy();
+}
+Cloth::Cloth(Cloth&&) noexcept = default;
+Cloth& Cloth::operator=(Cloth&&) noexcept = default;
+
+const ClothParameters& Cloth::parameters() const noexcept {
+  return impl_->parameters;
+}
+int Cloth::nodeCount() const noexcept {
+  return static_cast<int>(impl_->vertices.cols());
+}
+int Cloth::gripperCount() const noexcept {
+  return impl_->gripper_count;
+}
+SimStatus Cloth::status() const noexcept {
+  return impl_->status;
+}
+ClothDivergence Cloth::divergence() const noexcept {
+  return impl_->divergence;
+}
+const Eigen::Matrix3Xd& Cloth::vertices() const noexcept {
+  return impl_->vertices;
+}
+const Eigen::Matrix3Xd& Cloth::velocities() const noexcept {
+  return impl_->velocities;
+}
+const Eigen::Matrix3Xi& Cloth::triangles() const noexcept {
+  return impl_->triangles;
+}
+const Eigen::Matrix3Xd& Cloth::restVertices() const noexcept {
+  return impl_->rest;
+}
+double Cloth::maxStretch() const noexcept {
+  return impl_->max_stretch;
+}
+int Cloth::selfContactCount() const noexcept {
+  return impl_->world->collider.count;
+}
+const ClothTimings& Cloth::timings() const noexcept {
+  return impl_->timings;
+}
+void Cloth::resetTimings() noexcept {
+  impl_->timings = ClothTimings();
+}
+
+SimStatus Cloth::setGripperMotion(int gripper, const Eigen::Isometry3d& pose, const Vector6d& twist) noexcept {
+  if (gripper < 0 || gripper >= impl_->gripper_count) return SimStatus::InvalidArgument;
+  if (!pose.matrix().allFinite() || !twist.allFinite()) return SimStatus::InvalidArgument;
+  const auto g = static_cast<std::size_t>(gripper);
+  impl_->poses[g] = pose;
+  impl_->twists[g] = twist;
+  btRigidBody& body = *impl_->grippers[g];
+  const btTransform transform = toBulletTransform(pose);
+  body.setWorldTransform(transform);
+  body.setInterpolationWorldTransform(transform);
+  body.setLinearVelocity(toBullet(twist.head<3>()));
+  body.setAngularVelocity(toBullet(twist.tail<3>()));
+  body.setInterpolationLinearVelocity(toBullet(twist.head<3>()));
+  body.setInterpolationAngularVelocity(toBullet(twist.tail<3>()));
+  return SimStatus::Ok;
+}
+
+Eigen::Isometry3d Cloth::gripperPose(int gripper) const noexcept {
+  if (gripper < 0 || gripper >= impl_->gripper_count) return Eigen::Isometry3d::Identity();
+  return impl_->poses[static_cast<std::size_t>(gripper)];
+}
+
+SimStatus Cloth::step() noexcept {
+  Impl& m = *impl_;
+  if (m.status != SimStatus::Ok) return m.status;
+  const double dt = m.parameters.step;
+  // Each gripper starts the step with the twist it was given; what the anchors add is the cloth's pull.
+  for (int g = 0; g < m.gripper_count; ++g) {
+    const auto k = static_cast<std::size_t>(g);
+    m.grippers[k]->setLinearVelocity(toBullet(m.twists[k].head<3>()));
+    m.grippers[k]->setAngularVelocity(toBullet(m.twists[k].tail<3>()));
+  }
+  const double self_before = m.world->self_collision_seconds;
+  const auto start = Clock::now();
+  m.world->stepSimulation(dt, 0, dt);
+  const auto stepped = Clock::now();
+  const double self_seconds = m.world->self_collision_seconds - self_before;
+  m.timings.bullet += seconds(start, stepped) - self_seconds;
+  m.timings.self_collision += self_seconds;
+  ++m.timings.steps;
+
+  m.divergence = m.check();
+  if (m.divergence != ClothDivergence::None) {
+    m.status = SimStatus::ClothDiverged;
+    for (Vector6d& w : m.wrenches) w.setZero();
+  } else {
+    m.copyMesh();
+    for (int g = 0; g < m.gripper_count; ++g) {
+      const auto k = static_cast<std::size_t>(g);
+      const btRigidBody& body = *m.grippers[k];
+      Vector6d& w = m.wrenches[k];
+      if (m.grasped[k] == 0) {
+        w.setZero();
+        continue;
+      }
+      w.head<3>() = kGripperMass / dt * (toEigen(body.getLinearVelocity()) - m.twists[k].head<3>());
+      w.tail<3>() = kGripperInertia / dt * (toEigen(body.getAngularVelocity()) - m.twists[k].tail<3>());
+    }
+  }
+  m.timings.bookkeeping += seconds(stepped, Clock::now());
+  return m.status;
+}
+
+SimStatus Cloth::grasp(int gripper, double radius, int* attached) noexcept {
+  Impl& m = *impl_;
+  if (attached != nullptr) *attached = 0;
+  if (gripper < 0 || gripper >= m.gripper_count || !std::isfinite(radius) || radius < 0.0) {
+    return SimStatus::InvalidArgument;
+  }
+  if (m.status != SimStatus::Ok) return m.status;
+  const auto g = static_cast<std::size_t>(gripper);
+  const btVector3 origin = toBullet(m.poses[g].translation());
+  int count = 0;
+  for (int i = 0; i < m.soft->m_nodes.size(); ++i) {
+    if (m.owner[static_cast<std::size_t>(i)] >= 0) continue;
+    if ((m.soft->m_nodes[i].m_x - origin).length() > radius) continue;
+    m.soft->appendAnchor(i, m.grippers[g].get(), false, 1.0);
+    m.owner[static_cast<std::size_t>(i)] = gripper;
+    ++count;
+  }
+  m.grasped[g] += count;
+  if (attached != nullptr) *attached = count;
+  return SimStatus::Ok;
+}
+
+// GCC 12 cannot see that btSoftBody::Anchor's members are initialised when an anchor is copied (Bullet's struct
+// has no constructor); the copies below are of anchors Bullet filled in.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+SimStatus Cloth::release(int gripper) noexcept {
+  Impl& m = *impl_;
+  if (gripper < 0 || gripper >= m.gripper_count) return SimStatus::InvalidArgument;
+  const auto g = static_cast<std::size_t>(gripper);
+  btAlignedObjectArray<btSoftBody::Anchor>& anchors = m.soft->m_anchors;
+  int kept = 0;
+  for (int a = 0; a < anchors.size(); ++a) {
+    if (anchors[a].m_body == m.grippers[g].get()) {
+      btSoftBody::Node* node = anchors[a].m_node;
+      node->m_battach = 0;
+      m.owner[static_cast<std::size_t>(node - &m.soft->m_nodes[0])] = -1;
+      continue;
+    }
+    anchors[kept++] = anchors[a];
+  }
+  anchors.resize(kept);
+  m.grasped[g] = 0;
+  m.wrenches[g].setZero();
+  return SimStatus::Ok;
+}
+#pragma GCC diagnostic pop
+
+int Cloth::graspedNodeCount(int gripper) const noexcept {
+  if (gripper < 0 || gripper >= impl_->gripper_count) return 0;
+  return impl_->grasped[static_cast<std::size_t>(gripper)];
+}
+
+const Vector6d& Cloth::gripperWrench(int gripper) const noexcept {
+  static const Vector6d kZero = Vector6d::Zero();
+  if (gripper < 0 || gripper >= impl_->gripper_count) return kZero;
+  return impl_->wrenches[static_cast<std::size_t>(gripper)];
+}
+
+void Cloth::reset() {
+  impl_->build();
+}
+
+}  // namespace bimanual_skills::sim

@@ -1,0 +1,168 @@
+#include "bimanual_skills/sim/sim_config.hpp"
+
+#include "io/yaml_io.hpp"
+
+#include <cmath>
+#include <filesystem>
+#include <set>
+#include <stdexcept>
+
+namespace bimanual_skills::sim {
+namespace {
+
+using io::fail;
+
+/// Pose from `xyz` and `rpy` (roll, pitch, yaw about fixed x, y, z, as in URDF); both optional (zero).
+Eigen::Isometry3d readPose(const YAML::Node& node, const std::string& where) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  if (node["xyz"]) pose.translation() = io::readVector(node, "xyz", where, 3);
+  if (node["rpy"]) {
+    const Eigen::VectorXd rpy = io::readVector(node, "rpy", where, 3);
+    pose.linear() =
+        (Eigen::AngleAxisd(rpy[2], Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(rpy[1], Eigen::Vector3d::UnitY()) *
+         Eigen::AngleAxisd(rpy[0], Eigen::Vector3d::UnitX()))
+            .toRotationMatrix();
+  }
+  return pose;
+}
+
+std::string resolve(const std::string& file, const std::string& relative) {
+  const std::filesystem::path p(relative);
+  if (p.is_absolute()) return relative;
+  return (std::filesystem::path(file).parent_path() / p).lexically_normal().string();
+}
+
+ClothParameters readCloth(const YAML::Node& node, const std::string& where, double& grasp_radius) {
+  io::checkKeys(
+      node, where,
+      {"xyz", "rpy", "size", "nodes", "mass", "stretch_stiffness", "bending_stiffness", "damping", "friction",
+       "thickness", "position_iterations", "self_collision", "step", "max_node_speed", "max_stretch", "grasp_radius"});
+  ClothParameters c;
+  c.pose = readPose(node, where);
+  if (node["size"]) {
+    const Eigen::VectorXd size = io::readVector(node, "size", where, 2);
+    c.length = size[0];
+    c.width = size[1];
+  }
+  if (node["nodes"]) {
+    const Eigen::VectorXd nodes = io::readVector(node, "nodes", where, 2);
+    for (int k = 0; k < 2; ++k) {
+      if (nodes[k] != std::floor(nodes[k]) || nodes[k] < 2 || nodes[k] > 1000) {
+        fail(where + ": 'nodes' must be two integers in [2, 1000]");
+      }
+    }
+    c.nodes_x = static_cast<int>(nodes[0]);
+    c.nodes_y = static_cast<int>(nodes[1]);
+  }
+  c.mass = io::readDouble(node, "mass", where, c.mass);
+  c.stretch_stiffness = io::readDouble(node, "stretch_stiffness", where, c.stretch_stiffness);
+  c.bending_stiffness = io::readDouble(node, "bending_stiffness", where, c.bending_stiffness);
+  c.damping = io::readDouble(node, "damping", where, c.damping);
+  c.friction = io::readDouble(node, "friction", where, c.friction);
+  c.thickness = io::readDouble(node, "thickness", where, c.thickness);
+  if (node["position_iterations"]) {
+    c.position_iterations = io::readInt(node, "position_iterations", where);
+  }
+  if (node["self_collision"]) c.self_collision = io::readBool(node, "self_collision", where);
+  c.step = io::readDouble(node, "step", where, c.step);
+  c.max_node_speed = io::readDouble(node, "max_node_speed", where, c.max_node_speed);
+  c.max_stretch = io::readDouble(node, "max_stretch", where, c.max_stretch);
+  grasp_radius = io::readDouble(node, "grasp_radius", where, grasp_radius);
+  try {
+    c.validate(where.c_str());
+  } catch (const std::invalid_argument& e) {
+    fail(e.what());
+  }
+  return c;
+}
+
+}  // namespace
+
+void Table::validate(const char* where) const {
+  if (!pose.matrix().allFinite()) throw std::invalid_argument(std::string(where) + ": table pose must be finite");
+  if (!size.allFinite() || !(size.minCoeff() > 0.0)) {
+    throw std::invalid_argument(std::string(where) + ": table 'size' must be three positive numbers");
+  }
+  if (!std::isfinite(friction) || friction < 0.0) {
+    throw std::invalid_argument(std::string(where) + ": table 'friction' must be >= 0");
+  }
+}
+
+void SimConfig::validate() const {
+  const std::string where = "simulation configuration";
+  if (urdf_path.empty()) fail(where + ": 'urdf' is empty");
+  if (arms.empty()) fail(where + ": needs at least one arm");
+  std::set<std::string> names;
+  for (const ArmConfig& arm : arms) {
+    if (arm.name.empty() || arm.base_link.empty() || arm.tip_link.empty()) {
+      fail(where + ": every arm needs a name, a base_link and a tip_link");
+    }
+    if (!names.insert(arm.name).second) fail(where + ": two arms are called '" + arm.name + "'");
+  }
+  if (!(step > 0.0) || !std::isfinite(step)) fail(where + ": 'step' must be > 0");
+  if (!gravity.allFinite()) fail(where + ": 'gravity' must be finite");
+  if (!std::isfinite(grasp_radius) || grasp_radius < 0.0) fail(where + ": 'grasp_radius' must be >= 0");
+  if (has_table) table.validate(where.c_str());
+  if (has_cloth) {
+    if (!has_table) fail(where + ": a cloth needs the table to lie on");
+    cloth.validate(where.c_str());
+    const double ratio = cloth.step / step;
+    if (std::abs(ratio - std::round(ratio)) > 1e-9 * ratio || std::round(ratio) < 1.0) {
+      fail(where + ": the cloth 'step' (" + std::to_string(cloth.step) + " s) must be a whole multiple of 'step' (" +
+           std::to_string(step) + " s)");
+    }
+  }
+}
+
+SimConfig SimConfig::fromYamlFile(const std::string& path) {
+  const std::string where = "simulation file '" + path + "'";
+  const YAML::Node root = io::loadYamlFile(path, where);
+  if (!root.IsMap()) fail(where + ": must be a map");
+  io::checkKeys(root, where, {"urdf", "plant", "step", "seed", "gravity", "arms", "table", "cloth"});
+  SimConfig config;
+  config.urdf_path = resolve(path, io::readString(root, "urdf", where));
+  config.step = io::readDouble(root, "step", where, config.step);
+  if (root["seed"]) {
+    const double seed = io::readDouble(root, "seed", where);
+    if (seed < 0 || seed > 4294967295.0 || seed != std::floor(seed)) fail(where + ": 'seed' must be in [0, 2^32)");
+    config.seed = static_cast<std::uint32_t>(seed);
+  }
+  if (root["gravity"]) config.gravity = io::readVector(root, "gravity", where, 3);
+
+  const YAML::Node arms = root["arms"];
+  if (!arms || !arms.IsSequence() || arms.size() == 0) fail(where + ": needs a non-empty list 'arms'");
+  for (std::size_t k = 0; k < arms.size(); ++k) {
+    const std::string at = where + " arm " + std::to_string(k + 1);
+    io::checkKeys(arms[k], at, {"name", "base_link", "tip_link"});
+    config.arms.push_back({io::readString(arms[k], "name", at), io::readString(arms[k], "base_link", at),
+                           io::readString(arms[k], "tip_link", at)});
+  }
+
+  config.has_table = static_cast<bool>(root["table"]);
+  if (config.has_table) {
+    const YAML::Node table = root["table"];
+    const std::string at = where + " table";
+    io::checkKeys(table, at, {"xyz", "rpy", "size", "friction"});
+    config.table.pose = readPose(table, at);
+    if (table["size"]) config.table.size = io::readVector(table, "size", at, 3);
+    config.table.friction = io::readDouble(table, "friction", at, config.table.friction);
+  }
+  config.has_cloth = static_cast<bool>(root["cloth"]);
+  if (config.has_cloth) config.cloth = readCloth(root["cloth"], where + " cloth", config.grasp_radius);
+
+  config.plant_path = resolve(path, io::readString(root, "plant", where));
+  config.plant = PlantModel::fromYamlFile(config.plant_path);
+  for (const ArmConfig& arm : config.arms) {
+    if (!config.plant.hasArm(arm.name)) {
+      fail(where + ": the plant model '" + config.plant_path + "' has no arm '" + arm.name + "'");
+    }
+  }
+  try {
+    config.validate();
+  } catch (const std::invalid_argument& e) {
+    fail(where + ": " + e.what());
+  }
+  return config;
+}
+
+}  // namespace bimanual_skills::sim

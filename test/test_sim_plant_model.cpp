@@ -1,0 +1,157 @@
+// The configuration files of the simulator: config/plant.yaml and config/sim.yaml load; bad files are rejected with
+// messages that name the file and the entry.
+#include "bimanual_skills/sim/plant_model.hpp"
+#include "bimanual_skills/sim/sim_config.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace bs = bimanual_skills;
+namespace fs = std::filesystem;
+using bs::sim::PlantModel;
+using bs::sim::SimConfig;
+
+namespace {
+
+const std::string kConfig = BIMANUAL_SKILLS_SOURCE_DIR "/config";
+
+/// Writes `text` to a temporary file and returns its path.
+std::string write(const std::string& name, const std::string& text) {
+  const fs::path path = fs::temp_directory_path() / ("bimanual_skills_sim_" + name);
+  std::ofstream(path) << text;
+  return path.string();
+}
+
+template <typename Load>
+std::string errorOf(Load load) {
+  try {
+    load();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "no exception";
+}
+
+const char* kGoodArm = R"(
+    rotor_inertia: [0.1, 0.2]
+    friction:
+      - {joint: 1, static: 1.0, coulomb: 0.8, viscous: 0.5}
+      - {joint: 2, static: 0.5, coulomb: 0.4, ripple: 0.1, ripple_frequency: 3, ripple_phase: [0, 1]}
+)";
+
+}  // namespace
+
+TEST(SimConfigFiles, ThePlantFileDescribesBothWams) {
+  const PlantModel plant = PlantModel::fromYamlFile(kConfig + "/plant.yaml");
+  ASSERT_EQ(plant.arms.size(), 2u);
+  for (const char* name : {"left", "right"}) {
+    const bs::sim::ArmPlantParameters& arm = plant.arm(name);
+    EXPECT_NO_THROW(arm.validate(7, name));
+    ASSERT_EQ(arm.drives.size(), 5u);
+    EXPECT_TRUE(arm.drives[1].isDifferential());
+    EXPECT_EQ(arm.drives[1].first, 1);
+    EXPECT_EQ(arm.drives[1].second, 2);
+    EXPECT_TRUE(arm.drives[3].isDifferential());
+    for (const bs::sim::Drive& d : arm.drives) {
+      EXPECT_GT(d.friction.static_friction, d.friction.coulomb) << "stick-slip: static above Coulomb";
+    }
+    EXPECT_EQ(arm.rotor_inertia.size(), 7);
+    EXPECT_TRUE(arm.saturate_torque);
+  }
+  EXPECT_NE(plant.arm("left").drives[0].friction.coulomb, plant.arm("right").drives[0].friction.coulomb);
+  EXPECT_NE(errorOf([&] { plant.arm("middle"); }).find("middle"), std::string::npos);
+}
+
+TEST(SimConfigFiles, TheSimulationFileResolvesItsPaths) {
+  const SimConfig config = SimConfig::fromYamlFile(kConfig + "/sim.yaml");
+  EXPECT_TRUE(fs::exists(config.urdf_path)) << config.urdf_path;
+  EXPECT_TRUE(fs::exists(config.plant_path)) << config.plant_path;
+  EXPECT_DOUBLE_EQ(config.step, 0.001);
+  ASSERT_EQ(config.arms.size(), 2u);
+  EXPECT_EQ(config.arms[1].tip_link, "right_wam_tool");
+  EXPECT_TRUE(config.has_table);
+  EXPECT_NEAR(config.table.topCentre().z(), 0.15, 1e-12);
+  ASSERT_TRUE(config.has_cloth);
+  EXPECT_EQ(config.cloth.nodes_x, 20);
+  EXPECT_EQ(config.cloth.nodes_y, 24);
+  EXPECT_DOUBLE_EQ(config.cloth.length, 0.5);
+  EXPECT_DOUBLE_EQ(config.cloth.width, 0.6);
+  EXPECT_DOUBLE_EQ(config.cloth.mass, 0.22);
+  EXPECT_NO_THROW(config.validate());
+}
+
+TEST(SimConfigFiles, BadPlantFilesNameTheFileAndTheEntry) {
+  const auto plant = [&](const std::string& name, const std::string& arm) {
+    const std::string path = write(name, "arms:\n  left:" + arm);
+    return std::pair{path, errorOf([&] { PlantModel::fromYamlFile(path).arm("left").validate(2, "left"); })};
+  };
+  EXPECT_EQ(plant("good.yaml", kGoodArm).second, "no exception");
+  struct Case {
+    const char* file;
+    std::string arm;
+    const char* expected;
+  };
+  const std::string good = kGoodArm;
+  const Case cases[] = {
+      {"typo.yaml", good + "    viscosity: 3\n", "unknown entry 'viscosity'"},
+      {"static.yaml", "\n    friction:\n      - {joint: 1, static: 0.5, coulomb: 0.8}\n      - {joint: 2}\n",
+       "'static'"},
+      {"number.yaml", "\n    friction:\n      - {joint: 1, coulomb: abc}\n      - {joint: 2}\n", "'coulomb'"},
+      {"twice.yaml", "\n    friction:\n      - {joint: 1}\n      - {joint: 1}\n", "more than one"},
+      {"missing.yaml", "\n    friction:\n      - {joint: 1}\n", "joint 2 has no friction entry"},
+      {"range.yaml", "\n    friction:\n      - {joint: 1, hysteresis: 1.5}\n      - {joint: 2}\n", "'hysteresis'"},
+      {"ratio.yaml", "\n    friction:\n      - {differential: [1, 2], ratio: -1}\n", "'ratio'"},
+      {"size.yaml", "\n    rotor_inertia: [0.1, 0.2, 0.3]\n", "'rotor_inertia'"},
+      {"drive.yaml", "\n    friction:\n      - {static: 1.0}\n", "needs 'joint'"},
+  };
+  for (const Case& c : cases) {
+    const auto [path, message] = plant(c.file, c.arm);
+    EXPECT_NE(message.find(c.expected), std::string::npos) << c.file << ": " << message;
+    // Sizes and completeness need the arm's joint count: checked when the simulation is built, not by the loader.
+    if (std::string(c.expected).find("joint 2 has no") == std::string::npos &&
+        std::string(c.expected) != "'rotor_inertia'") {
+      EXPECT_NE(message.find(path), std::string::npos) << c.file << " names the file: " << message;
+    }
+  }
+  EXPECT_NE(errorOf([] { PlantModel::fromYamlFile("/nonexistent/plant.yaml"); }).find("/nonexistent/plant.yaml"),
+            std::string::npos);
+  const std::string syntax = write("syntax.yaml", "arms: [left: {");
+  EXPECT_NE(errorOf([&] { PlantModel::fromYamlFile(syntax); }).find(syntax), std::string::npos);
+}
+
+TEST(SimConfigFiles, BadSimulationFilesNameTheFileAndTheEntry) {
+  const std::string plant = write("plant_for_sim.yaml", std::string("arms:\n  left:") + kGoodArm);
+  const std::string urdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/bimanual_wam.urdf";
+  const std::string head = "urdf: " + urdf + "\nplant: " + plant + "\n";
+  const std::string arms = "arms:\n  - {name: left, base_link: left_wam_base, tip_link: left_wam_tool}\n";
+  const auto sim = [&](const std::string& name, const std::string& text) {
+    const std::string path = write(name, text);
+    return std::pair{path, errorOf([&] { SimConfig::fromYamlFile(path); })};
+  };
+  EXPECT_EQ(sim("sim_good.yaml", head + arms).second, "no exception");
+  struct Case {
+    const char* file;
+    std::string text;
+    const char* expected;
+  };
+  const Case cases[] = {
+      {"sim_key.yaml", head + arms + "rate: 1000\n", "unknown entry 'rate'"},
+      {"sim_arms.yaml", head, "'arms'"},
+      {"sim_plant_arm.yaml", head + "arms:\n  - {name: right, base_link: a, tip_link: b}\n", "no arm 'right'"},
+      {"sim_step.yaml", head + arms + "step: -0.001\n", "'step'"},
+      {"sim_table.yaml", head + arms + "table: {size: [1, 0, 1]}\n", "table 'size'"},
+      {"sim_cloth_rate.yaml", head + arms + "table: {}\ncloth: {step: 0.0025}\n", "whole multiple"},
+      {"sim_cloth_table.yaml", head + arms + "cloth: {}\n", "needs the table"},
+      {"sim_cloth_nodes.yaml", head + arms + "table: {}\ncloth: {nodes: [20.5, 24]}\n", "'nodes'"},
+      {"sim_cloth_key.yaml", head + arms + "table: {}\ncloth: {stiffness: 1}\n", "unknown entry 'stiffness'"},
+      {"sim_seed.yaml", head + arms + "seed: -3\n", "'seed'"},
+  };
+  for (const Case& c : cases) {
+    const auto [path, message] = sim(c.file, c.text);
+    EXPECT_NE(message.find(c.expected), std::string::npos) << c.file << ": " << message;
+    EXPECT_NE(message.find(path), std::string::npos) << c.file << " names the file: " << message;
+  }
+}
