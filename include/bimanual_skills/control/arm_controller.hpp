@@ -1,0 +1,98 @@
+/// \file
+/// The real-time part of a joint-space arm controller (what the `ctc_controller` node runs per joint-state
+/// message): modes gravity compensation, hold and track, the computed-torque law (thesis eq. 4.17) with the
+/// identified friction model, the disturbance observer (Sec. 4.1) for the external wrench at the tool, and the
+/// safety rules: torque saturation, a velocity limit, a watchdog on the age of the joint states, rejection of
+/// non-finite states and of bad trajectories. No ROS: the node is a shell that moves messages in and out.
+#pragma once
+
+#include "bimanual_skills/control/computed_torque_controller.hpp"
+#include "bimanual_skills/control/disturbance_observer.hpp"
+#include "bimanual_skills/control/joint_trajectory.hpp"
+#include "bimanual_skills/dynamics/friction_model.hpp"
+#include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
+
+namespace bimanual_skills::control {
+
+enum class ControllerMode { GravityCompensation, Hold, Track };
+
+/// Name of a mode ("gravity_compensation", "hold", "track").
+const char* toString(ControllerMode mode) noexcept;
+/// The mode called `name`; false if there is none.
+bool modeFromString(const char* name, ControllerMode& mode) noexcept;
+
+/// Outcome of one update; anything but Ok/Saturated is also a reason the controller switched to hold.
+enum class ControllerStatus {
+  Ok,
+  Saturated,      ///< Torque clamped at the limit on some joint (the torque is still sent).
+  InvalidState,   ///< Wrong size or NaN/Inf in the measurement: no torque computed (caller sends none).
+  StaleState,     ///< The state is older than the timeout: no torque computed; the controller holds on recovery.
+  VelocityLimit,  ///< A joint moved faster than its limit: switched to hold at the current position.
+};
+
+const char* toString(ControllerStatus status) noexcept;
+
+struct ArmControllerConfig {
+  ComputedTorqueGains gains;       ///< Kp, Kv and torque limits of the computed-torque law.
+  ObserverGains observer;          ///< Its rate_hz must be the control rate.
+  Eigen::VectorXd velocity_limit;  ///< [rad/s] per joint; empty: the model's velocity limits.
+  double state_timeout = 0.05;     ///< States older than this [s] are stale.
+  int trajectory_capacity = 2000;  ///< Maximum waypoints of one trajectory.
+  bool friction_compensation = true;
+};
+
+/// Construction allocates and validates (std::invalid_argument); every other call is real-time safe: no
+/// allocation, no locks, no exceptions, no logging.
+class ArmController {
+ public:
+  ArmController(const kinematics::ChainModel& model, const dynamics::FrictionModel& friction,
+                ArmControllerConfig config);
+
+  /// One control step with the state measured at `stamp`, computed at `now` (same clock). Writes `torque` unless
+  /// the status is InvalidState or StaleState. The first valid state starts the controller in hold at that state.
+  ControllerStatus update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
+                          const Eigen::Ref<const Eigen::VectorXd>& qd, Eigen::Ref<Eigen::VectorXd> torque) noexcept;
+
+  /// True (and the controller will hold at the next fresh state) if no state newer than now − timeout arrived.
+  bool stale(double now) noexcept;
+
+  /// Switches mode at the next update (hold: at the measured position then; track: the loaded trajectory, if any,
+  /// else hold).
+  void setMode(ControllerMode mode) noexcept;
+  /// Validates waypoints (times relative to the next update) and tracks them from the next update on, starting
+  /// from the current desired state (no jump when replacing a running trajectory). Anything but Ok changes nothing.
+  TrajectoryStatus setTrajectory(const Waypoints& waypoints) noexcept;
+
+  ControllerMode mode() const noexcept { return mode_; }
+  bool started() const noexcept { return started_; }
+  /// Desired state and tracking error q_d − q of the last update.
+  const Eigen::VectorXd& desiredPosition() const noexcept { return q_d_; }
+  const Eigen::VectorXd& desiredVelocity() const noexcept { return qd_d_; }
+  const Eigen::VectorXd& trackingError() const noexcept { return error_; }
+  /// Estimated wrench [f; m] the environment exerts on the tool (base frame, at the tool origin).
+  const Eigen::Matrix<double, 6, 1>& estimatedWrench() const noexcept { return observer_.wrench(); }
+  const Eigen::VectorXd& estimatedExternalTorque() const noexcept { return observer_.externalTorque(); }
+  /// Whether the running trajectory has ended (or there is none).
+  bool trajectoryFinished(double now) const noexcept {
+    return mode_ != ControllerMode::Track || trajectory_.finished(now);
+  }
+  const kinematics::ChainModel& model() const noexcept { return ctc_.model(); }
+
+ private:
+  void holdAt(double now, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept;
+
+  ComputedTorqueController ctc_;
+  DisturbanceObserver observer_;
+  JointTrajectory trajectory_;
+  dynamics::DynamicsData dynamics_;
+  Eigen::VectorXd velocity_limit_, torque_limit_;
+  double timeout_;
+  ControllerMode mode_ = ControllerMode::Hold;
+  ControllerMode requested_mode_ = ControllerMode::Hold;
+  bool mode_request_ = false, trajectory_request_ = false;
+  bool started_ = false, was_stale_ = false;
+  double last_stamp_ = 0.0;
+  Eigen::VectorXd q_d_, qd_d_, qdd_d_, error_, applied_, accel_sign_;
+};
+
+}  // namespace bimanual_skills::control

@@ -1,0 +1,168 @@
+#include "bimanual_skills/control/arm_controller.hpp"
+
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+#include <utility>
+
+namespace bimanual_skills::control {
+
+namespace {
+
+constexpr const char* kModeNames[] = {"gravity_compensation", "hold", "track"};
+/// |q̈_d| below this counts as no acceleration for the friction models' sign(q̈) [rad/s²].
+constexpr double kAccelerationDeadBand = 1e-3;
+
+}  // namespace
+
+const char* toString(ControllerMode mode) noexcept {
+  return kModeNames[static_cast<int>(mode)];
+}
+
+bool modeFromString(const char* name, ControllerMode& mode) noexcept {
+  for (int i = 0; i < 3; ++i) {
+    if (std::strcmp(name, kModeNames[i]) == 0) {
+      mode = static_cast<ControllerMode>(i);
+      return true;
+    }
+  }
+  return false;
+}
+
+const char* toString(ControllerStatus status) noexcept {
+  switch (status) {
+    case ControllerStatus::Ok:
+      return "Ok";
+    case ControllerStatus::Saturated:
+      return "Saturated";
+    case ControllerStatus::InvalidState:
+      return "InvalidState";
+    case ControllerStatus::StaleState:
+      return "StaleState";
+    case ControllerStatus::VelocityLimit:
+      return "VelocityLimit";
+  }
+  return "Unknown";
+}
+
+ArmController::ArmController(const kinematics::ChainModel& model, const dynamics::FrictionModel& friction,
+                             ArmControllerConfig config)
+    : ctc_(model, friction, config.gains),
+      observer_(model, friction, config.observer),
+      trajectory_(model.nq(), config.trajectory_capacity, model.lowerLimits(), model.upperLimits()),
+      dynamics_(model),
+      velocity_limit_(config.velocity_limit.size() == 0 ? model.velocityLimits() : config.velocity_limit),
+      torque_limit_(config.gains.torque_limit.size() == 0 ? model.effortLimits() : config.gains.torque_limit),
+      timeout_(config.state_timeout) {
+  const int n = model.nq();
+  if (velocity_limit_.size() != n || (velocity_limit_.array() <= 0.0).any()) {
+    throw std::invalid_argument("ArmController: velocity_limit needs " + std::to_string(n) + " positive entries");
+  }
+  if (!(timeout_ > 0.0)) throw std::invalid_argument("ArmController: state_timeout must be > 0");
+  ctc_.setFrictionCompensation(config.friction_compensation);
+  q_d_ = qd_d_ = qdd_d_ = error_ = applied_ = accel_sign_ = Eigen::VectorXd::Zero(n);
+}
+
+void ArmController::holdAt(double now, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept {
+  trajectory_.hold(now, q);
+  mode_ = ControllerMode::Hold;
+}
+
+bool ArmController::stale(double now) noexcept {
+  if (started_ && now - last_stamp_ > timeout_) was_stale_ = true;
+  return was_stale_;
+}
+
+void ArmController::setMode(ControllerMode mode) noexcept {
+  requested_mode_ = mode;
+  mode_request_ = true;
+}
+
+TrajectoryStatus ArmController::setTrajectory(const Waypoints& waypoints) noexcept {
+  const TrajectoryStatus status = trajectory_.load(waypoints);
+  if (status == TrajectoryStatus::Ok) trajectory_request_ = true;
+  return status;
+}
+
+ControllerStatus ArmController::update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
+                                       const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                       Eigen::Ref<Eigen::VectorXd> torque) noexcept {
+  const Eigen::Index n = q_d_.size();
+  if (q.size() != n || qd.size() != n || torque.size() != n || !q.allFinite() || !qd.allFinite() ||
+      !std::isfinite(now) || !std::isfinite(stamp)) {
+    return ControllerStatus::InvalidState;
+  }
+  if (now - stamp > timeout_) {
+    was_stale_ = started_;
+    return ControllerStatus::StaleState;
+  }
+  last_stamp_ = stamp;
+  if (!started_ || was_stale_) {
+    if (!started_) observer_.reset(q, qd);
+    started_ = true;
+    was_stale_ = false;
+    trajectory_request_ = false;
+    mode_request_ = false;
+    holdAt(now, q);
+    q_d_ = q;
+    qd_d_.setZero();
+    qdd_d_.setZero();
+  }
+  if (mode_request_) {
+    mode_request_ = false;
+    if (requested_mode_ == ControllerMode::Track && trajectory_request_) {
+      // The trajectory request below switches to tracking.
+    } else if (requested_mode_ == ControllerMode::GravityCompensation) {
+      mode_ = ControllerMode::GravityCompensation;
+      trajectory_request_ = false;
+    } else {
+      holdAt(now, q);
+      q_d_ = q;
+      qd_d_.setZero();
+      qdd_d_.setZero();
+    }
+  }
+  if (trajectory_request_) {
+    trajectory_request_ = false;
+    if (mode_ == ControllerMode::GravityCompensation) {
+      q_d_ = q;
+      qd_d_ = qd;
+      qdd_d_.setZero();
+    }
+    if (trajectory_.start(now, q_d_, qd_d_, qdd_d_) == TrajectoryStatus::Ok) mode_ = ControllerMode::Track;
+  }
+  ControllerStatus status = ControllerStatus::Ok;
+  if (((qd.array().abs() - velocity_limit_.array()) > 0.0).any()) {
+    holdAt(now, q);
+    status = ControllerStatus::VelocityLimit;
+  }
+  if (mode_ == ControllerMode::GravityCompensation) {
+    q_d_ = q;
+    qd_d_ = qd;
+    qdd_d_.setZero();
+    if (dynamics::gravityTorques(ctc_.model(), dynamics_, q, torque) != dynamics::DynamicsStatus::Success) {
+      return ControllerStatus::InvalidState;
+    }
+    for (Eigen::Index i = 0; i < n; ++i) {
+      if (std::abs(torque[i]) > torque_limit_[i]) {
+        torque[i] = std::copysign(torque_limit_[i], torque[i]);
+        if (status == ControllerStatus::Ok) status = ControllerStatus::Saturated;
+      }
+    }
+  } else {
+    trajectory_.sample(now, q_d_, qd_d_, qdd_d_);
+    const ControlStatus control = ctc_.update(q, qd, q_d_, qd_d_, qdd_d_, torque);
+    if (control == ControlStatus::InvalidInput) return ControllerStatus::InvalidState;
+    if (control == ControlStatus::Saturated && status == ControllerStatus::Ok) status = ControllerStatus::Saturated;
+  }
+  error_ = q_d_ - q;
+  for (Eigen::Index i = 0; i < n; ++i) {
+    accel_sign_[i] = std::abs(qdd_d_[i]) < kAccelerationDeadBand ? 0.0 : std::copysign(1.0, qdd_d_[i]);
+  }
+  // The measured state results from the torque applied over the last period.
+  (void)observer_.update(q, qd, applied_, accel_sign_);
+  applied_ = torque;
+  return status;
+}
+
+}  // namespace bimanual_skills::control

@@ -1,0 +1,276 @@
+// The real-time parts of the controller node and the simulator node: the quintic joint trajectory (against finite
+// differences and its own waypoints), the arm controller in closed loop with the model's forward dynamics (tracking,
+// observer against a known payload, safety reactions, no allocation) and the torque command gate.
+#include "bimanual_skills/control/arm_controller.hpp"
+#include "bimanual_skills/control/joint_trajectory.hpp"
+#include "bimanual_skills/sim/torque_command_gate.hpp"
+#include "test_support.hpp"
+#include "testing/no_alloc_guard.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+
+namespace bc = bimanual_skills::control;
+namespace bd = bimanual_skills::dynamics;
+namespace bk = bimanual_skills::kinematics;
+namespace bsim = bimanual_skills::sim;
+using bimanual_skills::test_support::lowGains;
+using bimanual_skills::test_support::wamWithRotors;
+using bimanual_skills::testing::NoAllocGuard;
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+bc::JointTrajectory freeTrajectory(int n, int capacity) {
+  return bc::JointTrajectory(n, capacity, Eigen::VectorXd::Constant(n, -kInf), Eigen::VectorXd::Constant(n, kInf));
+}
+
+bc::Waypoints threePoints() {
+  bc::Waypoints w;
+  w.times = Eigen::Vector3d(0.5, 1.0, 2.0);
+  w.positions = (Eigen::MatrixXd(2, 3) << 0.3, 0.8, 0.2, -0.1, -0.4, -0.6).finished();
+  return w;
+}
+
+struct Sample {
+  Eigen::VectorXd q, qd, qdd;
+};
+
+Sample sampleAt(const bc::JointTrajectory& trajectory, double t) {
+  Sample s{Eigen::VectorXd(trajectory.joints()), Eigen::VectorXd(trajectory.joints()),
+           Eigen::VectorXd(trajectory.joints())};
+  trajectory.sample(t, s.q, s.qd, s.qdd);
+  return s;
+}
+
+/// Central-difference check of q̇ and q̈, and continuity across [t0, t1].
+void expectSmooth(const bc::JointTrajectory& trajectory, double t0, double t1) {
+  const double h = 1e-5;
+  for (double t = t0 + 1e-4; t < t1; t += 0.0137) {
+    const Sample a = sampleAt(trajectory, t - h), b = sampleAt(trajectory, t), c = sampleAt(trajectory, t + h);
+    EXPECT_LT(((c.q - a.q) / (2 * h) - b.qd).cwiseAbs().maxCoeff(), 1e-5) << "t = " << t;
+    EXPECT_LT(((c.qd - a.qd) / (2 * h) - b.qdd).cwiseAbs().maxCoeff(), 1e-4) << "t = " << t;
+    // A step in q̈ would show as a jump between neighbours 2h apart.
+    EXPECT_LT((c.qdd - a.qdd).cwiseAbs().maxCoeff(), 1e-2) << "t = " << t;
+  }
+}
+
+}  // namespace
+
+TEST(JointTrajectory, PassesThroughWaypointsWithContinuousAccelerations) {
+  bc::JointTrajectory trajectory = freeTrajectory(2, 8);
+  const bc::Waypoints w = threePoints();
+  ASSERT_EQ(trajectory.load(w), bc::TrajectoryStatus::Ok);
+  const Eigen::Vector2d q0(0.0, 0.0), v0(0.2, -0.1), a0(0.5, 0.0);
+  ASSERT_EQ(trajectory.start(10.0, q0, v0, a0), bc::TrajectoryStatus::Ok);
+  const Sample start = sampleAt(trajectory, 10.0);
+  EXPECT_LT((start.q - q0).norm(), 1e-12);
+  EXPECT_LT((start.qd - v0).norm(), 1e-12);
+  EXPECT_LT((start.qdd - a0).norm(), 1e-12);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_LT((sampleAt(trajectory, 10.0 + w.times[i]).q - w.positions.col(i)).norm(), 1e-12) << i;
+  }
+  // Joint 0 turns at waypoint 2 (0.3 → 0.8 → 0.2): velocity 0 there; joint 1 keeps going down: the mean slope.
+  const Sample mid = sampleAt(trajectory, 11.0);
+  EXPECT_NEAR(mid.qd[0], 0.0, 1e-12);
+  EXPECT_NEAR(mid.qd[1], 0.5 * (-0.3 / 0.5 + -0.2 / 1.0), 1e-12);
+  const Sample end = sampleAt(trajectory, 13.0);
+  EXPECT_LT((end.q - w.positions.col(2)).norm(), 1e-12);
+  EXPECT_LT(end.qd.norm() + end.qdd.norm(), 1e-12);
+  EXPECT_TRUE(trajectory.finished(12.0));
+  expectSmooth(trajectory, 10.0, 12.5);
+}
+
+TEST(JointTrajectory, ReplacementMidMotionHasNoJump) {
+  bc::JointTrajectory trajectory = freeTrajectory(2, 8);
+  ASSERT_EQ(trajectory.load(threePoints()), bc::TrajectoryStatus::Ok);
+  ASSERT_EQ(trajectory.start(0.0, Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()),
+            bc::TrajectoryStatus::Ok);
+  const Sample before = sampleAt(trajectory, 0.7);
+  bc::Waypoints other;
+  other.times = Eigen::VectorXd::Constant(1, 1.0);
+  other.positions = Eigen::Vector2d(-0.5, 0.5);
+  ASSERT_EQ(trajectory.load(other), bc::TrajectoryStatus::Ok);
+  ASSERT_EQ(trajectory.start(0.7, before.q, before.qd, before.qdd), bc::TrajectoryStatus::Ok);
+  const Sample after = sampleAt(trajectory, 0.7);
+  EXPECT_LT((after.q - before.q).norm() + (after.qd - before.qd).norm() + (after.qdd - before.qdd).norm(), 1e-12);
+  expectSmooth(trajectory, 0.7, 1.8);
+}
+
+TEST(JointTrajectory, RejectsBadWaypointsAndKeepsTheOldOnes) {
+  bc::JointTrajectory trajectory(2, 3, Eigen::Vector2d(-1, -1), Eigen::Vector2d(1, 1));
+  bc::Waypoints w = threePoints();
+  ASSERT_EQ(trajectory.load(w), bc::TrajectoryStatus::Ok);
+  bc::Waypoints bad = w;
+  bad.positions(1, 1) = std::nan("");
+  EXPECT_EQ(trajectory.load(bad), bc::TrajectoryStatus::NotFinite);
+  bad = w;
+  bad.times[2] = 0.9;
+  EXPECT_EQ(trajectory.load(bad), bc::TrajectoryStatus::NotIncreasing);
+  bad = w;
+  bad.times[0] = 0.0;
+  EXPECT_EQ(trajectory.load(bad), bc::TrajectoryStatus::NotIncreasing);
+  bad = w;
+  bad.positions(0, 0) = 1.5;
+  EXPECT_EQ(trajectory.load(bad), bc::TrajectoryStatus::OutOfLimits);
+  bad = w;
+  bad.velocities = Eigen::MatrixXd::Zero(2, 2);
+  EXPECT_EQ(trajectory.load(bad), bc::TrajectoryStatus::WrongSize);
+  bad.times = Eigen::VectorXd::LinSpaced(4, 0.1, 0.4);
+  bad.positions = Eigen::MatrixXd::Zero(2, 4);
+  bad.velocities.resize(0, 0);
+  EXPECT_EQ(trajectory.load(bad), bc::TrajectoryStatus::WrongSize);  // beyond the capacity of 3
+  ASSERT_EQ(trajectory.start(0.0, Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()),
+            bc::TrajectoryStatus::Ok);
+  EXPECT_LT((sampleAt(trajectory, 2.0).q - w.positions.col(2)).norm(), 1e-12);
+}
+
+namespace {
+
+/// The WAM model with rotors, driven by the controller through its own forward dynamics (semi-implicit Euler at
+/// 1 kHz), optionally carrying a payload the controller does not know.
+struct ClosedLoop {
+  bk::ChainModel model = wamWithRotors();
+  bd::DynamicsData data{model};
+  Eigen::VectorXd q = (Eigen::VectorXd(7) << 0.0, 0.6, 0.0, 1.6, 0.0, 0.4, 0.0).finished();
+  Eigen::VectorXd qd = Eigen::VectorXd::Zero(7), qdd = Eigen::VectorXd::Zero(7), tau = Eigen::VectorXd::Zero(7);
+  bd::Payload payload;
+  double t = 0.0;
+  static constexpr double kStep = 0.001;
+
+  static bc::ArmControllerConfig config() {
+    bc::ArmControllerConfig c;
+    c.gains = lowGains();
+    c.observer = bc::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0);
+    c.observer.rate_hz = 1000.0;
+    c.friction_compensation = false;
+    return c;
+  }
+
+  /// One control period: the controller sees the state, the plant integrates its torque.
+  bc::ControllerStatus step(bc::ArmController& controller) {
+    const bc::ControllerStatus status = controller.update(t, t, q, qd, tau);
+    if (bd::forwardDynamics(model, data, q, qd, tau, qdd, payload) != bd::DynamicsStatus::Success) ADD_FAILURE();
+    qd += kStep * qdd;
+    q += kStep * qd;
+    t += kStep;
+    return status;
+  }
+};
+
+bd::FrictionModel noFriction() {
+  bd::FrictionModel friction;
+  friction.joints.assign(7, bd::JointFriction{});
+  return friction;
+}
+
+}  // namespace
+
+TEST(ArmController, TracksATrajectoryAndEstimatesAnUnknownPayload) {
+  ClosedLoop loop;
+  bc::ArmController controller(loop.model, noFriction(), ClosedLoop::config());
+  for (int k = 0; k < 200; ++k) loop.step(controller);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Hold);
+  bc::Waypoints w;
+  w.times = Eigen::Vector2d(1.0, 2.0);
+  w.positions.resize(7, 2);
+  w.positions.col(0) = loop.q + Eigen::VectorXd::Constant(7, 0.3);
+  w.positions.col(1) = loop.q - Eigen::VectorXd::Constant(7, 0.1);
+  ASSERT_EQ(controller.setTrajectory(w), bc::TrajectoryStatus::Ok);
+  double worst = 0.0;
+  for (int k = 0; k < 2500; ++k) {
+    EXPECT_NE(loop.step(controller), bc::ControllerStatus::InvalidState);
+    worst = std::max(worst, controller.trackingError().cwiseAbs().maxCoeff());
+  }
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Track);
+  EXPECT_LT(worst, 0.02);  // the model is exact: only discretisation lag remains
+  EXPECT_LT((loop.q - w.positions.col(1)).cwiseAbs().maxCoeff(), 1e-3);
+
+  // A 1.5 kg load at the tool appears as a downward force of m g at the tool (base frame z is up).
+  loop.payload.mass = 1.5;
+  for (int k = 0; k < 3000; ++k) loop.step(controller);
+  EXPECT_NEAR(controller.estimatedWrench()[2], -1.5 * 9.81, 0.03 * 1.5 * 9.81);
+  EXPECT_LT(controller.estimatedWrench().head<2>().norm(), 0.3);
+}
+
+TEST(ArmController, SafetyReactions) {
+  ClosedLoop loop;
+  bc::ArmController controller(loop.model, noFriction(), ClosedLoop::config());
+  Eigen::VectorXd torque = Eigen::VectorXd::Constant(7, 42.0);
+  // NaN state: no torque computed.
+  Eigen::VectorXd bad = loop.q;
+  bad[3] = std::nan("");
+  EXPECT_EQ(controller.update(0.0, 0.0, bad, loop.qd, torque), bc::ControllerStatus::InvalidState);
+  EXPECT_EQ(torque[0], 42.0);
+  EXPECT_FALSE(controller.started());
+  for (int k = 0; k < 100; ++k) loop.step(controller);
+  // A trajectory outside the limits is rejected; the controller keeps holding.
+  bc::Waypoints w;
+  w.times = Eigen::VectorXd::Constant(1, 1.0);
+  w.positions = loop.q;
+  w.positions(1, 0) = 5.0;
+  EXPECT_EQ(controller.setTrajectory(w), bc::TrajectoryStatus::OutOfLimits);
+  // Stale state (stamped 0.2 s before now): nothing computed, and the controller holds where it resumes.
+  w.positions = loop.q + Eigen::VectorXd::Constant(7, 0.2);
+  ASSERT_EQ(controller.setTrajectory(w), bc::TrajectoryStatus::Ok);
+  for (int k = 0; k < 300; ++k) loop.step(controller);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Track);
+  EXPECT_EQ(controller.update(loop.t + 0.2, loop.t, loop.q, loop.qd, torque), bc::ControllerStatus::StaleState);
+  EXPECT_TRUE(controller.stale(loop.t + 0.2));
+  loop.step(controller);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Hold);
+  EXPECT_LT((controller.desiredPosition() - (loop.q - loop.qd * ClosedLoop::kStep)).norm(), 1e-9);
+  // Too fast: hold at the current position.
+  const Eigen::VectorXd fast = Eigen::VectorXd::Constant(7, 10.0);
+  EXPECT_EQ(controller.update(loop.t, loop.t, loop.q, fast, torque), bc::ControllerStatus::VelocityLimit);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Hold);
+  // Torques stay within the limits even far from the target.
+  EXPECT_LE((torque.cwiseAbs() - loop.model.effortLimits()).maxCoeff(), 1e-12);
+}
+
+TEST(ArmController, ModesAndNoAllocation) {
+  ClosedLoop loop;
+  bc::ArmController controller(loop.model, noFriction(), ClosedLoop::config());
+  bc::Waypoints w;
+  w.times = Eigen::Vector2d(0.2, 0.4);
+  w.positions.resize(7, 2);
+  w.positions.col(0) = loop.q;
+  w.positions.col(1) = loop.q;
+  NoAllocGuard guard;
+  for (int k = 0; k < 10; ++k) loop.step(controller);
+  controller.setMode(bc::ControllerMode::GravityCompensation);
+  loop.step(controller);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::GravityCompensation);
+  EXPECT_EQ(controller.setTrajectory(w), bc::TrajectoryStatus::Ok);
+  loop.step(controller);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Track);
+  controller.setMode(bc::ControllerMode::Hold);
+  loop.step(controller);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Hold);
+  bc::ControllerMode mode;
+  EXPECT_TRUE(bc::modeFromString("gravity_compensation", mode));
+  EXPECT_EQ(mode, bc::ControllerMode::GravityCompensation);
+  EXPECT_FALSE(bc::modeFromString("dance", mode));
+}
+
+TEST(TorqueCommandGate, UsesFreshCommandsAndBrakesOtherwise) {
+  bsim::TorqueCommandGate gate(2, 0.05, Eigen::Vector2d(2.0, 1.0));
+  Eigen::Vector2d out;
+  const Eigen::Vector2d velocity(0.5, -1.0), not_a_number(std::nan(""), 0.0);
+  const Eigen::Vector3d three_joints = Eigen::Vector3d::Zero();
+  NoAllocGuard guard;
+  EXPECT_TRUE(gate.torque(0.0, velocity, out));  // nothing received yet: brake
+  EXPECT_LT((out - Eigen::Vector2d(-1.0, 1.0)).norm(), 1e-15);
+  EXPECT_EQ(gate.accept(1.0, Eigen::Vector2d(3.0, 4.0)), bsim::RobotStatus::Ok);
+  EXPECT_FALSE(gate.torque(1.04, velocity, out));
+  EXPECT_LT((out - Eigen::Vector2d(3.0, 4.0)).norm(), 1e-15);
+  EXPECT_EQ(gate.accept(1.01, not_a_number), bsim::RobotStatus::InvalidCommand);
+  EXPECT_EQ(gate.accept(1.01, three_joints), bsim::RobotStatus::InvalidCommand);
+  EXPECT_FALSE(gate.torque(1.04, velocity, out));
+  EXPECT_LT((out - Eigen::Vector2d(3.0, 4.0)).norm(), 1e-15);  // the rejected commands changed nothing
+  EXPECT_TRUE(gate.torque(1.06, velocity, out));               // stale: never replayed
+  EXPECT_LT((out - Eigen::Vector2d(-1.0, 1.0)).norm(), 1e-15);
+}
