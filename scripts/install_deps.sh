@@ -9,10 +9,13 @@ PACKAGES=(
   python3-rosparam python3-rosmaster python3-rostest librostest-dev ros-message-generation ros-message-runtime libroscpp-dev
   # messages, with their Python modules for rosservice/rostopic from the shell
   libsensor-msgs-dev libgeometry-msgs-dev libtrajectory-msgs-dev libvisualization-msgs-dev libstd-srvs-dev
+  libstd-msgs-dev libdiagnostic-msgs-dev libros-rosgraph-msgs-dev libroslib-dev python3-diagnostic-msgs
   python3-sensor-msgs python3-geometry-msgs python3-trajectory-msgs python3-visualization-msgs python3-std-srvs
   # robot model and transforms
   libtf2-ros-dev libtf2-eigen-dev libkdl-parser-dev liborocos-kdl-dev liburdf-dev liburdfdom-dev
   ros-robot-state-publisher
+  # rviz, and headless snapshots of it (scripts/rviz_snapshot.sh)
+  rviz xvfb xauth imagemagick
   # numerics
   libeigen3-dev libnlopt-cxx-dev libyaml-cpp-dev
   # physics simulator (sim/): Bullet, with its double-precision build and pkg-config files
