@@ -3,6 +3,7 @@
 #include "bimanual_skills/SetControlMode.h"
 #include "bimanual_skills/control/arm_controller.hpp"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "node_cli.hpp"
 
 #include <diagnostic_msgs/DiagnosticArray.h>
@@ -11,8 +12,10 @@
 #include <sensor_msgs/JointState.h>
 #include <std_msgs/Float64MultiArray.h>
 #include <trajectory_msgs/JointTrajectory.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include <algorithm>
+#include <deque>
 #include <memory>
 #include <string>
 #include <vector>
@@ -40,7 +43,8 @@ const char* const kUsage =
     "Reads robot_description. Topics (relative to the namespace): subscribes /joint_states and command\n"
     "(trajectory_msgs/JointTrajectory: all the arm's joints, times from now; an empty trajectory holds);\n"
     "publishes effort_command (std_msgs/Float64MultiArray), estimated_wrench (geometry_msgs/WrenchStamped, base\n"
-    "frame), tracking_error (sensor_msgs/JointState: position and velocity errors q_d - q), /diagnostics.\n"
+    "frame), tracking_error (sensor_msgs/JointState: position and velocity errors q_d - q), tool_paths\n"
+    "(visualization_msgs/MarkerArray: the last 10 s of actual and commanded tool positions), /diagnostics.\n"
     "Service: set_mode (bimanual_skills/SetControlMode: gravity_compensation | hold | track).\n";
 
 template <typename T>
@@ -98,6 +102,7 @@ class CtcControllerNode {
     config.observer.fir_taps = param(private_node, "observer/fir_taps", 15);
     config.observer.fir_cutoff_hz = param(private_node, "observer/fir_cutoff", 40.0);
     controller_ = std::make_unique<bc::ArmController>(model, friction, config);
+    kinematics_ = std::make_unique<bs::kinematics::ChainData>(model);
     base_frame_ = base;
     q_ = qd_ = torque_ = Eigen::VectorXd::Zero(n);
     command_.data.assign(n, 0.0);
@@ -116,6 +121,7 @@ class CtcControllerNode {
     effort_publisher_ = node.advertise<std_msgs::Float64MultiArray>("effort_command", 10);
     wrench_publisher_ = node.advertise<geometry_msgs::WrenchStamped>("estimated_wrench", 10);
     error_publisher_ = node.advertise<sensor_msgs::JointState>("tracking_error", 10);
+    path_publisher_ = node.advertise<visualization_msgs::MarkerArray>("tool_paths", 1);
     diagnostics_publisher_ = node.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     state_subscriber_ =
         node.subscribe("/joint_states", 10, &CtcControllerNode::onJointState, this, ros::TransportHints().tcpNoDelay());
@@ -196,6 +202,44 @@ class CtcControllerNode {
       error_message_.velocity[i] = controller_->desiredVelocity()[i] - qd_[i];
     }
     error_publisher_.publish(error_message_);
+    publishToolPaths(stamp);
+  }
+
+  /// Appends the actual and commanded tool positions; publishes both paths every tenth call.
+  void publishToolPaths(const ros::Time& stamp) {
+    const auto tool = [this](const Eigen::VectorXd& q) {
+      geometry_msgs::Point p;
+      if (bs::kinematics::forwardKinematics(controller_->model(), *kinematics_, q) ==
+          bs::kinematics::KinematicsStatus::Success) {
+        const Eigen::Vector3d t = kinematics_->tipPose().translation();
+        p.x = t.x();
+        p.y = t.y();
+        p.z = t.z();
+      }
+      return p;
+    };
+    for (auto* path : {&actual_path_, &desired_path_}) {
+      if (path->size() >= kPathLength) path->pop_front();
+    }
+    actual_path_.push_back(tool(q_));
+    desired_path_.push_back(tool(controller_->desiredPosition()));
+    if (++path_calls_ % 10 != 0 || path_publisher_.getNumSubscribers() == 0) return;
+    visualization_msgs::MarkerArray markers;
+    for (int k = 0; k < 2; ++k) {
+      visualization_msgs::Marker m;
+      m.header.stamp = stamp;
+      m.header.frame_id = base_frame_;
+      m.ns = k == 0 ? "actual" : "commanded";
+      m.type = visualization_msgs::Marker::LINE_STRIP;
+      m.pose.orientation.w = 1.0;
+      m.scale.x = 0.006;
+      m.color.a = 1.0f;
+      (k == 0 ? m.color.g : m.color.r) = 0.9f;
+      const auto& path = k == 0 ? actual_path_ : desired_path_;
+      m.points.assign(path.begin(), path.end());
+      markers.markers.push_back(m);
+    }
+    path_publisher_.publish(markers);
   }
 
   void onTrajectory(const trajectory_msgs::JointTrajectory::ConstPtr& message) {
@@ -314,11 +358,15 @@ class CtcControllerNode {
   std::vector<std::string> joint_names_;
   std::vector<int> index_;
   std::size_t names_seen_ = 0;
+  static constexpr std::size_t kPathLength = 1000;
   std::unique_ptr<bc::ArmController> controller_;
+  std::unique_ptr<bs::kinematics::ChainData> kinematics_;
+  std::deque<geometry_msgs::Point> actual_path_, desired_path_;
+  long path_calls_ = 0;
   Eigen::VectorXd q_, qd_, torque_;
   std_msgs::Float64MultiArray command_;
   sensor_msgs::JointState error_message_;
-  ros::Publisher effort_publisher_, wrench_publisher_, error_publisher_, diagnostics_publisher_;
+  ros::Publisher effort_publisher_, wrench_publisher_, error_publisher_, path_publisher_, diagnostics_publisher_;
   ros::Subscriber state_subscriber_, trajectory_subscriber_;
   ros::ServiceServer mode_service_;
   ros::SteadyTimer watchdog_, diagnostics_timer_;
