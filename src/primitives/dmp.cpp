@@ -60,12 +60,13 @@ void Dmp::basis(double x, Eigen::Ref<Eigen::VectorXd> g) const noexcept {
   normalisedGaussianBasis(x, centres_, widths_, x, g);
 }
 
-Dmp Dmp::fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, double dt, double smoothing_hz) {
+Eigen::MatrixXd Dmp::demonstratedForcing(const DmpParameters& parameters, const Eigen::MatrixXd& positions, double dt,
+                                         double smoothing_hz) {
   parameters.validate();
   const auto samples = positions.rows();
   const auto d = positions.cols();
   if (samples < 10 || d < 1 || !(dt > 0.0) || !positions.allFinite()) {
-    throw std::invalid_argument("Dmp::fit: need >= 10 finite samples of >= 1 DoF and dt > 0");
+    throw std::invalid_argument("Dmp::fit, Dmp::demonstratedForcing: need >= 10 finite samples of >= 1 DoF and dt > 0");
   }
   const Eigen::MatrixXd y = signal::zeroPhaseLowPass(positions, dt, smoothing_hz);
   Eigen::MatrixXd yd = Eigen::MatrixXd::Zero(samples, d), ydd = Eigen::MatrixXd::Zero(samples, d);
@@ -74,15 +75,26 @@ Dmp Dmp::fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, 
     ydd.row(r) = (y.row(r + 1) - 2.0 * y.row(r) + y.row(r - 1)) / (dt * dt);
   }
   const double tau = dt * static_cast<double>(samples - 1);
-  const Eigen::VectorXd start = positions.row(0).transpose();
   const Eigen::VectorXd goal = positions.row(samples - 1).transpose();
-  const Dmp shape(parameters, Eigen::MatrixXd::Zero(d, parameters.kernels), start, goal, tau);
-  // f = τ² ÿ − α_z (β_z (g − y) − τ ẏ), divided by (g − y0) for the goal-scaled variant, regressed on g(x).
   Eigen::MatrixXd forcing(samples, d);
   for (Eigen::Index j = 0; j < d; ++j) {
     const Eigen::VectorXd error = (goal[j] - y.col(j).array()).matrix();
     forcing.col(j) = forcingTarget<Eigen::VectorXd>(parameters, tau, error, yd.col(j), ydd.col(j));
-    if (parameters.goal_scaled_forcing) {
+  }
+  return forcing;
+}
+
+Dmp Dmp::fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, double dt, double smoothing_hz) {
+  // f = τ² ÿ − α_z (β_z (g − y) − τ ẏ), divided by (g − y0) for the goal-scaled variant, regressed on g(x).
+  Eigen::MatrixXd forcing = demonstratedForcing(parameters, positions, dt, smoothing_hz);
+  const auto samples = positions.rows();
+  const auto d = positions.cols();
+  const double tau = dt * static_cast<double>(samples - 1);
+  const Eigen::VectorXd start = positions.row(0).transpose();
+  const Eigen::VectorXd goal = positions.row(samples - 1).transpose();
+  const Dmp shape(parameters, Eigen::MatrixXd::Zero(d, parameters.kernels), start, goal, tau);
+  if (parameters.goal_scaled_forcing) {
+    for (Eigen::Index j = 0; j < d; ++j) {
       const double amplitude = goal[j] - start[j];
       forcing.col(j) /= std::abs(amplitude) > 1e-9 ? amplitude : 1.0;
     }
@@ -122,26 +134,42 @@ DmpState Dmp::initialState() const {
   return state;
 }
 
-DmpStatus Dmp::step(DmpState& state, double dt) const noexcept {
+bool Dmp::steppable(const DmpState& state, double dt) const noexcept {
   const int d = dofs();
-  if (state.y.size() != d || state.yd.size() != d || state.ydd.size() != d || state.goal.size() != d || !(dt > 0.0) ||
-      !std::isfinite(dt) || !state.y.allFinite() || !state.yd.allFinite() || !state.goal.allFinite() ||
-      !std::isfinite(state.x) || !std::isfinite(state.t)) {
-    return DmpStatus::InvalidInput;
-  }
+  return state.y.size() == d && state.yd.size() == d && state.ydd.size() == d && state.goal.size() == d && dt > 0.0 &&
+         std::isfinite(dt) && state.y.allFinite() && state.yd.allFinite() && state.goal.allFinite() &&
+         std::isfinite(state.x) && std::isfinite(state.t);
+}
+
+void Dmp::advance(DmpState& state, double dt) const noexcept {
+  state.yd += dt * state.ydd;
+  state.y += dt * state.yd;
+  state.x *= std::exp(-parameters_.alpha_x * dt / duration_);
+  state.t += dt;
+}
+
+DmpStatus Dmp::step(DmpState& state, double dt) const noexcept {
+  if (!steppable(state, dt)) return DmpStatus::InvalidInput;
   double g_storage[kDmpMaxKernels];
   Eigen::Map<Eigen::VectorXd> g(g_storage, parameters_.kernels);
   basis(state.x, g);
   const double tau = duration_;
-  for (int j = 0; j < d; ++j) {
+  for (int j = 0; j < dofs(); ++j) {
     double f = weights_.row(j).dot(g);
     if (parameters_.goal_scaled_forcing) f *= state.goal[j] - start_[j];
     state.ydd[j] = transformationAcceleration(parameters_, tau, state.goal[j] - state.y[j], state.yd[j], f);
   }
-  state.yd += dt * state.ydd;
-  state.y += dt * state.yd;
-  state.x *= std::exp(-parameters_.alpha_x * dt / tau);
-  state.t += dt;
+  advance(state, dt);
+  return DmpStatus::Success;
+}
+
+DmpStatus Dmp::step(DmpState& state, double dt, const Eigen::Ref<const Eigen::VectorXd>& forcing) const noexcept {
+  if (!steppable(state, dt) || forcing.size() != dofs() || !forcing.allFinite()) return DmpStatus::InvalidInput;
+  for (int j = 0; j < dofs(); ++j) {
+    state.ydd[j] =
+        transformationAcceleration(parameters_, duration_, state.goal[j] - state.y[j], state.yd[j], forcing[j]);
+  }
+  advance(state, dt);
   return DmpStatus::Success;
 }
 

@@ -70,6 +70,14 @@ class Dmp {
   static Dmp fit(const DmpParameters& parameters, const Eigen::MatrixXd& positions, double dt,
                  double smoothing_hz = 20.0);
 
+  /// The forcing values f = τ² ÿ − α_z (β_z (g − y) − τ ẏ) that make the transformation system (5.14) follow a
+  /// demonstration (rows = samples every dt, columns = DoF; τ its duration, g its last sample), from positions
+  /// smoothed as in fit() and central differences (zero velocity and acceleration at the end samples). Not
+  /// goal-scaled. What fit() regresses on the basis, and the demonstrated excitation of the DR-DMP (7.26).
+  /// 	hrows std::invalid_argument as fit().
+  static Eigen::MatrixXd demonstratedForcing(const DmpParameters& parameters, const Eigen::MatrixXd& positions,
+                                             double dt, double smoothing_hz = 20.0);
+
   /// Ridge least-squares weights W (dofs × kernels) of forcing values sampled every dt from the movement's start
   /// (rows = samples, columns = DoF): minimises Σ_k ‖f_k − W g(x_k)‖² + λ ‖W‖², x_k = exp(−α_x k dt / τ), with
   /// this DMP's kernels (5.15) and duration τ. Used by fit() and by other DMPs that build their own forcing term.
@@ -97,7 +105,19 @@ class Dmp {
   /// a state of the wrong size, non-finite values or dt ≤ 0. Real-time safe: no allocation, no exceptions.
   [[nodiscard]] DmpStatus step(DmpState& state, double dt) const noexcept;
 
+  /// The same step with the forcing term f (dofs values) given by the caller instead of the weights' g(x)ᵀ ω_j
+  /// (DMPs that build their forcing term otherwise, such as the coordinated DR-DMP, 7.24); used as given, also with
+  /// goal_scaled_forcing. InvalidInput (state unchanged) as step(), or for a forcing of the wrong size or not finite.
+  /// Real-time safe: no allocation, no exceptions.
+  [[nodiscard]] DmpStatus step(DmpState& state, double dt,
+                               const Eigen::Ref<const Eigen::VectorXd>& forcing) const noexcept;
+
  private:
+  /// Whether a state and dt can be stepped: sizes, finiteness, dt > 0.
+  bool steppable(const DmpState& state, double dt) const noexcept;
+  /// Integrates ẏ and y over dt from the acceleration already in state.ydd, and advances the phase and time.
+  void advance(DmpState& state, double dt) const noexcept;
+
   DmpParameters parameters_;
   Eigen::MatrixXd weights_;
   Eigen::VectorXd start_, goal_, centres_, widths_;
