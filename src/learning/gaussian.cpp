@@ -69,4 +69,24 @@ Eigen::VectorXd gaussianLogDensity(const Eigen::MatrixXd& samples, const Eigen::
   return (constant - 0.5 * whitened.colwise().squaredNorm().array()).matrix().transpose();
 }
 
+double gaussianKl(const Eigen::VectorXd& mean_p, const Eigen::MatrixXd& covariance_p, const Eigen::VectorXd& mean_q,
+                  const Eigen::MatrixXd& covariance_q) {
+  const Eigen::Index k = mean_p.size();
+  if (k < 1 || mean_q.size() != k || covariance_p.rows() != k || covariance_p.cols() != k || covariance_q.rows() != k ||
+      covariance_q.cols() != k) {
+    throw std::invalid_argument("gaussianKl: means of one size k and k x k covariances needed");
+  }
+  const Eigen::LLT<Eigen::MatrixXd> p(covariance_p), q(covariance_q);
+  if (p.info() != Eigen::Success || q.info() != Eigen::Success) {
+    throw std::invalid_argument("gaussianKl: both covariances must be positive definite");
+  }
+  const auto logDet = [](const Eigen::LLT<Eigen::MatrixXd>& llt) {
+    return 2.0 * llt.matrixLLT().diagonal().array().log().sum();
+  };
+  const Eigen::VectorXd difference = mean_q - mean_p;
+  const double trace = q.solve(covariance_p).trace();
+  const double mahalanobis = difference.dot(q.solve(difference));
+  return 0.5 * (trace + mahalanobis - static_cast<double>(k) + logDet(q) - logDet(p));
+}
+
 }  // namespace bimanual_skills::learning

@@ -46,4 +46,9 @@ std::pair<Eigen::VectorXd, Eigen::MatrixXd> sampleMoments(const Eigen::MatrixXd&
 Eigen::VectorXd gaussianLogDensity(const Eigen::MatrixXd& samples, const Eigen::VectorXd& mean,
                                    const Eigen::MatrixXd& covariance);
 
+/// KL(N(μ_p, Σ_p) ‖ N(μ_q, Σ_q)) = ½ [tr(Σ_q⁻¹ Σ_p) + (μ_q − μ_p)ᵀ Σ_q⁻¹ (μ_q − μ_p) − k + ln(|Σ_q| / |Σ_p|)], k the
+/// dimension. \throws std::invalid_argument for inconsistent sizes or covariances that are not positive definite.
+double gaussianKl(const Eigen::VectorXd& mean_p, const Eigen::MatrixXd& covariance_p, const Eigen::VectorXd& mean_q,
+                  const Eigen::MatrixXd& covariance_q);
+
 }  // namespace bimanual_skills::learning
