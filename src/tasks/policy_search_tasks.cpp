@@ -127,6 +127,36 @@ double BottleTask::reward(const Eigen::MatrixXd& y, bool* satisfactory) const {
   return -2.0 * down - 0.15 * length - (crossing_term && !crossed ? 4.0 : 0.0);
 }
 
+Circle3d Circle3d::fit(const Eigen::MatrixXd& points) {
+  const auto samples = points.rows();
+  if (samples < 3 || points.cols() != 3 || !points.allFinite()) {
+    throw std::invalid_argument("Circle3d::fit: needs at least 3 finite points as the rows of an N x 3 matrix");
+  }
+  const Eigen::Vector3d centroid = points.colwise().mean().transpose();
+  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(points.rowwise() - centroid.transpose(), Eigen::ComputeThinV);
+  const Eigen::Vector3d u = svd.matrixV().col(0), v = svd.matrixV().col(1);
+  Eigen::MatrixXd A(samples, 3);
+  Eigen::VectorXd rhs(samples);
+  for (Eigen::Index i = 0; i < samples; ++i) {
+    const Eigen::Vector3d p = points.row(i).transpose() - centroid;
+    const double x = p.dot(u), z = p.dot(v);
+    A.row(i) << x, z, 1.0;
+    rhs[i] = x * x + z * z;
+  }
+  const Eigen::Vector3d fit = A.colPivHouseholderQr().solve(rhs);
+  Circle3d circle;
+  circle.centre = centroid + 0.5 * fit[0] * u + 0.5 * fit[1] * v;
+  circle.radius = std::sqrt(fit[2] + 0.25 * (fit[0] * fit[0] + fit[1] * fit[1]));
+  circle.normal = u.cross(v);
+  return circle;
+}
+
+double Circle3d::distance(const Eigen::Vector3d& point) const noexcept {
+  const Eigen::Vector3d p = point - centre;
+  const Eigen::Vector3d in_plane = p - p.dot(normal) * normal;
+  return std::hypot(p.dot(normal), in_plane.norm() - radius);
+}
+
 namespace {
 
 /// The circle task's noisy joint-space ellipse: 20 s at 25 Hz around a nominal posture.
@@ -159,31 +189,15 @@ CircleTask::CircleTask(const kinematics::ChainModel& model, std::uint32_t seed)
 
 CircleTask::CircleTask(const kinematics::ChainModel& model, const Eigen::MatrixXd& demonstration)
     : model_(model), data_(model), policy_(DmpRollout::fit(demonstration, kCircleDt, 12)) {
-  const auto samples = demonstration.rows();
-  // Best-fit circle of the demonstrated tool path: plane by SVD, circle in the plane by the algebraic (Kåsa) fit.
-  Eigen::MatrixXd tool(samples, 3);
-  for (Eigen::Index i = 0; i < samples; ++i) {
+  Eigen::MatrixXd tool(demonstration.rows(), 3);
+  for (Eigen::Index i = 0; i < demonstration.rows(); ++i) {
     if (kinematics::forwardKinematics(model_, data_, demonstration.row(i).transpose()) !=
         kinematics::KinematicsStatus::Success) {
       throw std::invalid_argument("CircleTask: forward kinematics failed on the demonstration");
     }
     tool.row(i) = data_.tipPose().translation().transpose();
   }
-  const Eigen::Vector3d centroid = tool.colwise().mean().transpose();
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(tool.rowwise() - centroid.transpose(), Eigen::ComputeThinV);
-  const Eigen::Vector3d u = svd.matrixV().col(0), v = svd.matrixV().col(1);
-  Eigen::MatrixXd A(samples, 3);
-  Eigen::VectorXd rhs(samples);
-  for (Eigen::Index i = 0; i < samples; ++i) {
-    const Eigen::Vector3d p = tool.row(i).transpose() - centroid;
-    const double x = p.dot(u), z = p.dot(v);
-    A.row(i) << x, z, 1.0;
-    rhs[i] = x * x + z * z;
-  }
-  const Eigen::Vector3d fit = A.colPivHouseholderQr().solve(rhs);
-  centre_ = centroid + 0.5 * fit[0] * u + 0.5 * fit[1] * v;
-  radius_ = std::sqrt(fit[2] + 0.25 * (fit[0] * fit[0] + fit[1] * fit[1]));
-  normal_ = u.cross(v);
+  circle_ = Circle3d::fit(tool);
 }
 
 double CircleTask::reward(const Eigen::VectorXd& theta) {
@@ -193,9 +207,7 @@ double CircleTask::reward(const Eigen::VectorXd& theta) {
     if (kinematics::forwardKinematics(model_, data_, y_.row(i).transpose()) != kinematics::KinematicsStatus::Success) {
       return -1e9;
     }
-    const Eigen::Vector3d p = data_.tipPose().translation() - centre_;
-    const Eigen::Vector3d in_plane = p - p.dot(normal_) * normal_;
-    distance += std::hypot(p.dot(normal_), in_plane.norm() - radius_);
+    distance += circle_.distance(data_.tipPose().translation());
   }
   return -(1000.0 * distance / static_cast<double>(y_.rows()) +
            1e-3 * ydd_.squaredNorm() / static_cast<double>(y_.rows()));

@@ -61,6 +61,19 @@ struct BottleTask {
   double reward(const Eigen::MatrixXd& y, bool* satisfactory = nullptr) const;
 };
 
+/// A circle in space.
+struct Circle3d {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  ///< Unit normal of its plane.
+  double radius = 0.0;
+
+  /// Best fit of points (rows, ≥ 3): plane by SVD, circle in the plane by the algebraic (Kåsa) fit.
+  /// \throws std::invalid_argument for fewer than 3 points or not 3 columns.
+  static Circle3d fit(const Eigen::MatrixXd& points);
+  /// Shortest distance from p to the circle.
+  double distance(const Eigen::Vector3d& p) const noexcept;
+};
+
 /// A unimodal 7-DoF task with the WAM's kinematics (Fig. 6.14): an inaccurate "kinesthetic" joint-space ellipse
 /// with noise is demonstrated; the tool must trace the circle that best fits the demonstrated tool path.
 class CircleTask {
@@ -70,7 +83,7 @@ class CircleTask {
   CircleTask(const kinematics::ChainModel& model, std::uint32_t seed);
 
   const DmpRollout& policy() const noexcept { return policy_; }
-  double radius() const noexcept { return radius_; }
+  double radius() const noexcept { return circle_.radius; }
   /// −(mean distance of the tool from the circle [mm] + 10⁻³ · mean squared joint acceleration).
   double reward(const Eigen::VectorXd& theta);
 
@@ -80,8 +93,7 @@ class CircleTask {
   kinematics::ChainModel model_;
   kinematics::ChainData data_;
   DmpRollout policy_;
-  Eigen::Vector3d centre_, normal_;
-  double radius_ = 0.0;
+  Circle3d circle_;
   Eigen::MatrixXd y_, ydd_;
 };
 
