@@ -9,6 +9,9 @@
 #include "bimanual_skills/learning/locally_weighted_regression.hpp"
 #include "bimanual_skills/primitives/cartesian_dmp.hpp"
 #include "bimanual_skills/primitives/dmp.hpp"
+#include "bimanual_skills/primitives/dr_dmp.hpp"
+#include "bimanual_skills/primitives/dr_promp.hpp"
+#include "bimanual_skills/primitives/dr_promp_controller.hpp"
 #include "bimanual_skills/primitives/promp.hpp"
 #include "bimanual_skills/primitives/promp_controller.hpp"
 #include "bimanual_skills/signal/acceleration_sign.hpp"
@@ -223,4 +226,46 @@ TEST(ProductionSizes, ProMpEvaluationAndControlDoNotAllocate) {
       EXPECT_EQ(controller.command(3, state, rng, u), bp::ProMpControlStatus::Success);
     }
   }
+}
+
+TEST(ProductionSizes, DrDmpStepsDoNotAllocate) {
+  constexpr int dofs = 14, kernels = 20, latent = 4;
+  for (const int matrices : {1, 3}) {
+    bp::DrDmpParameters parameters;
+    parameters.dmp.kernels = kernels;
+    parameters.matrices = matrices;
+    const bp::DrDmpFit fit = bp::DrDmp::fit(parameters, {demonstration(dofs, 500)}, 0.002, latent);
+    bp::DrDmpState state = fit.dmp.initialState();
+    state.exploration.setConstant(0.1);
+    NoAllocGuard guard;
+    for (int k = 0; k < 10; ++k) EXPECT_EQ(fit.dmp.step(state, 0.002), bp::DmpStatus::Success);
+  }
+}
+
+TEST(ProductionSizes, DrProMpEvaluationAndLatentControlDoNotAllocate) {
+  constexpr int dofs = 14, kernels = 20, latent = 4;
+  bp::DrProMpParameters parameters;
+  parameters.promp.kernels = kernels;
+  parameters.latent_dims = latent;
+  parameters.em.max_iterations = 5;
+  std::vector<Eigen::MatrixXd> demos;
+  for (int d = 0; d < 6; ++d) demos.push_back(demonstration(dofs, 200, 0.1 * d));
+  const bp::DrProMp promp = bp::DrProMp::fit(parameters, demos, 2.0);
+  bp::DrProMpData data(promp);
+  Eigen::VectorXd position(dofs), velocity(dofs);
+  Eigen::MatrixXd state_covariance(2 * dofs, 2 * dofs);
+  {
+    NoAllocGuard guard;
+    for (const double z : {0.0, 0.3, 1.0}) {
+      EXPECT_EQ(promp.mean(data, z, position, velocity), bp::ProMpStatus::Success);
+      EXPECT_EQ(promp.stateCovariance(data, z, state_covariance), bp::ProMpStatus::Success);
+    }
+  }
+  const bp::DrProMpController controller(promp, {bp::LinearisedSystem::doubleIntegrator(dofs)}, 0.01, 0.01);
+  bp::DrProMpControllerData scratch(controller);
+  Eigen::VectorXd state = Eigen::VectorXd::Zero(2 * dofs), u(dofs);
+  std::mt19937 rng(6);
+  NoAllocGuard guard;
+  EXPECT_EQ(controller.command(scratch, 3, state, u), bp::ProMpControlStatus::Success);
+  EXPECT_EQ(controller.command(scratch, 3, state, rng, u), bp::ProMpControlStatus::Success);
 }
