@@ -10,6 +10,7 @@
 #include "bimanual_skills/learning/pi2.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
 #include "experiment_cli.hpp"
+#include "parallel_runs.hpp"
 #include "summary_json.hpp"
 
 #include <algorithm>
@@ -203,12 +204,6 @@ Summary summarise(const std::string& experiment, const std::string& algorithm, c
   return s;
 }
 
-std::mt19937 runGenerator(const Options& options, const std::string& experiment, int run) {
-  std::seed_seq seq{options.seed, static_cast<std::uint32_t>(std::hash<std::string>{}(experiment)&0xffffffffu),
-                    static_cast<std::uint32_t>(run)};
-  return std::mt19937(seq);
-}
-
 void progress(const std::string& experiment, const std::string& algorithm, int run, int runs, const Curve& curve) {
   if ((run + 1) % std::max(1, runs / 10) == 0 || run + 1 == runs) {
     std::printf("  %s %s: run %d/%d, final policy reward %.3f (%.2f s)\n", experiment.c_str(), algorithm.c_str(),
@@ -225,7 +220,7 @@ std::vector<Curve> runAll(const Options& options, const std::string& experiment,
                           const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& step_costs = {}) {
   std::vector<Curve> curves;
   for (int run = 0; run < protocol.runs; ++run) {
-    std::mt19937 rng = runGenerator(options, experiment, run);
+    std::mt19937 rng = bimanual_skills::bench::runGenerator(options, experiment, run);
     curves.push_back(learn(protocol, algorithm, reward, rng, step_costs));
     writer.add(algorithm.name, run, curves.back());
     progress(experiment, algorithm.name, run, protocol.runs, curves.back());

@@ -1,5 +1,6 @@
-// Smoke test of the experiment programs (ik_benchmark, ps_benchmark) in --quick mode: they run, write summary.json with
-// every field, CSV, PNG and tables.md, and reject bad arguments with exit code 2. No assertion on time.
+// Smoke test of the experiment programs (ik_benchmark, ps_benchmark, dr_benchmark) in --quick mode: they run, write
+// summary.json with every field, CSV, PNG and tables.md, reject bad arguments with exit code 2 (--help: usage, 0), and
+// dr_benchmark writes the same results with any number of jobs. No assertion on time.
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -80,4 +81,64 @@ TEST(PsBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(run(program + " --experiment bottles --runs 0 --seed 1 --out /tmp/x"), 2);
   EXPECT_EQ(run(program + " --experiment bottles --runs -3 --seed 1 --out /tmp/x"), 2);
   EXPECT_EQ(run(program + " --experiment bottles --seed 1"), 2);
+}
+
+TEST(DrBenchmarkSmoke, QuickRunWritesEveryOutput) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_smoke";
+  fs::remove_all(out);
+  ASSERT_EQ(
+      run(std::string(DR_BENCHMARK) + " --experiment all --runs 2 --seed 3 --jobs 2 --quick --out " + out.string()), 0);
+  const std::string summary = readFile(out / "summary.json");
+  for (const char* field : {"\"experiment\": \"estep\"",
+                            "\"speedup\"",
+                            "\"max_difference_means\"",
+                            "\"method\"",
+                            "\"kl\"",
+                            "\"algorithm\": \"EM\"",
+                            "\"algorithm\": \"PCA\"",
+                            "\"rho_mean\"",
+                            "\"algorithm\": \"ProMP+REPS\"",
+                            "\"algorithm\": \"DMP+REPS\"",
+                            "\"algorithm\": \"EM-ProMP(8)\"",
+                            "\"algorithm\": \"DR-DMP_CMU(2)\"",
+                            "\"algorithm\": \"DR-DMP_MCMU(2,5)\"",
+                            "\"algorithm\": \"IDR-DMP_MCMU(2)\"",
+                            "\"algorithm\": \"DR-DMP0(7)\"",
+                            "\"algorithm\": \"DR-DMP0_MCMU(3,1)\"",
+                            "\"algorithm\": \"IDR-DMP_CMU\"",
+                            "\"algorithm\": \"EM DR-DMP(3)\"",
+                            "\"final_reward\"",
+                            "\"runs\": 2",
+                            "\"seed\": 3"}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field;
+  }
+  for (const char* file : {"em_vs_pca.csv", "planar15.csv", "planar10.csv", "wam_circle.csv", "em_vs_pca.png",
+                           "planar15.png", "planar10.png", "wam_circle.png", "tables.md"}) {
+    EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
+  }
+  fs::remove_all(out);
+}
+
+TEST(DrBenchmarkSmoke, ResultsDoNotDependOnTheNumberOfJobs) {
+  const fs::path one = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_jobs1";
+  const fs::path three = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_jobs3";
+  const std::string command = std::string(DR_BENCHMARK) + " --experiment planar10 --runs 3 --seed 5 --quick";
+  ASSERT_EQ(run(command + " --jobs 1 --out " + one.string()), 0);
+  ASSERT_EQ(run(command + " --jobs 3 --out " + three.string()), 0);
+  const std::string csv = readFile(one / "planar10.csv");
+  EXPECT_GT(csv.size(), 1000u);
+  EXPECT_EQ(csv, readFile(three / "planar10.csv"));
+  fs::remove_all(one);
+  fs::remove_all(three);
+}
+
+TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
+  const std::string program = DR_BENCHMARK;
+  EXPECT_EQ(run(program + " --help"), 0);
+  EXPECT_EQ(run(program + " --experiment nope --runs 2 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(run(program + " --experiment planar10 --runs 0 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(run(program + " --experiment planar10 --jobs 0 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(run(program + " --experiment planar10 --jobs -2 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(run(program + " --experiment planar10 --seed 1"), 2);
+  EXPECT_EQ(run(program + " --experiment planar10 --seed 1 --out /tmp/x --fast"), 2);
 }

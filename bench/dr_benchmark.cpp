@@ -1,0 +1,723 @@
+// The thesis' reward-oriented dimensionality-reduction experiments (Ch. 7: Fig. 7.2, Fig. 7.5, Tables 7.3 and 7.4)
+// and the E-step benchmark, as one seeded program.
+//
+//   dr_benchmark --experiment estep|em_vs_pca|planar15|planar10|wam_circle|all --runs R --seed S --out DIR
+//                [--jobs N] [--quick]
+//
+// Independent runs go to N threads; every run draws from its own generator seeded by (seed, experiment, run), the
+// same for every algorithm, so the results do not depend on N. Writes DIR/<experiment>.csv (rows in run order),
+// DIR/summary.json, then runs scripts/plot_dr_benchmark.py for the PNGs (mean and 95 % interval over runs) and
+// DIR/tables.md.
+#include "bimanual_skills/learning/coordinated_reps.hpp"
+#include "bimanual_skills/learning/gaussian.hpp"
+#include "bimanual_skills/learning/latent_trajectory_em.hpp"
+#include "bimanual_skills/primitives/dr_dmp.hpp"
+#include "bimanual_skills/primitives/dr_promp.hpp"
+#include "bimanual_skills/tasks/dr_tasks.hpp"
+#include "experiment_cli.hpp"
+#include "parallel_runs.hpp"
+#include "summary_json.hpp"
+
+#include <Eigen/QR>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <random>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace bb = bimanual_skills::bench;
+namespace bk = bimanual_skills::kinematics;
+namespace bl = bimanual_skills::learning;
+namespace bp = bimanual_skills::primitives;
+namespace bt = bimanual_skills::tasks;
+
+namespace {
+
+const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+using Options = bb::ExperimentOptions;
+using Clock = std::chrono::steady_clock;
+
+double seconds(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+// ---- the learning loop shared by planar15, planar10 and wam_circle ----
+
+/// A rollout of latent weights ω through coordination matrices Ω_s: fills the values the coordination update
+/// learns from (forcing terms or positions) and returns the reward. `rng` is null for the noise-free evaluation of
+/// the mean policy.
+using Rollout = std::function<double(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& weights,
+                                     std::mt19937* rng, Eigen::MatrixXd& values)>;
+
+/// Everything one run of one algorithm needs; built inside the run (tasks hold scratch).
+struct Setup {
+  bl::CoordinatedRepsParameters parameters;
+  std::shared_ptr<const bl::CoordinationGrid> grid;
+  bl::CoordinatedPolicy policy;
+  std::vector<Eigen::MatrixXd> excitation;
+  Rollout rollout;
+};
+
+struct Protocol {
+  int runs = 10;
+  int updates = 100;
+  int rollouts = 20;        ///< Per update.
+  int first_rollouts = 20;  ///< Of the first update.
+};
+
+/// One run's learning curve: the mean policy's reward before the first update and after each, the mean reward of
+/// each update's rollouts, the latent dimension after each update.
+struct Curve {
+  std::vector<double> policy_reward, rollout_reward;
+  std::vector<int> latent_dims;
+  double seconds = 0.0;
+};
+
+Curve learn(const Setup& setup, const Protocol& protocol, std::mt19937& rng) {
+  Curve curve;
+  bl::CoordinatedReps learner(setup.parameters, *setup.grid, setup.policy, setup.excitation);
+  bl::GaussianSampler sampler;
+  Eigen::MatrixXd values;
+  const auto evaluate = [&]() {
+    const bl::CoordinatedPolicy& policy = learner.policy();
+    return setup.rollout(policy.coordination, policy.mean, nullptr, values);
+  };
+  curve.policy_reward.push_back(evaluate());
+  curve.latent_dims.push_back(learner.policy().latentDims());
+  const auto start = Clock::now();
+  for (int u = 0; u < protocol.updates; ++u) {
+    const bl::CoordinatedPolicy& policy = learner.policy();
+    const int count = u == 0 ? protocol.first_rollouts : protocol.rollouts;
+    const Eigen::MatrixXd L = bl::choleskyFactor(policy.covariance);
+    Eigen::MatrixXd samples(count, policy.mean.size());
+    std::vector<Eigen::MatrixXd> rollout_values(static_cast<std::size_t>(count));
+    Eigen::VectorXd rewards(count);
+    for (int k = 0; k < count; ++k) {
+      samples.row(k) = sampler.draw(policy.mean, L, rng).transpose();
+      rewards[k] = setup.rollout(policy.coordination, samples.row(k).transpose(), &rng,
+                                 rollout_values[static_cast<std::size_t>(k)]);
+    }
+    learner.update(samples, rollout_values, rewards);
+    curve.policy_reward.push_back(evaluate());
+    curve.rollout_reward.push_back(rewards.mean());
+    curve.latent_dims.push_back(learner.policy().latentDims());
+  }
+  curve.seconds = seconds(start);
+  return curve;
+}
+
+struct Algorithm {
+  std::string name;
+  std::function<Setup()> setup;
+};
+
+/// Row of summary.json.
+struct Summary {
+  std::string experiment, algorithm;
+  std::vector<std::pair<std::string, double>> numbers;
+  std::vector<std::pair<std::string, std::string>> texts;
+};
+
+/// Runs every (algorithm, run) pair on options.jobs threads; writes DIR/<experiment>.csv in (algorithm, run) order
+/// and one summary row per algorithm.
+void runLearning(const Options& options, const std::string& experiment, const Protocol& protocol,
+                 const std::vector<Algorithm>& algorithms, std::vector<Summary>& out) {
+  const int runs = protocol.runs;
+  const int jobs = static_cast<int>(algorithms.size()) * runs;
+  std::vector<Curve> curves(static_cast<std::size_t>(jobs));
+  std::ofstream csv(options.out + "/" + experiment + ".csv");
+  csv << "experiment,algorithm,run,update,policy_reward,rollout_reward,latent_dims\n";
+  csv.precision(10);
+  const auto wall = Clock::now();
+  bb::parallelRuns(
+      jobs, options.jobs,
+      [&](int i) {
+        const Algorithm& algorithm = algorithms[static_cast<std::size_t>(i / runs)];
+        std::mt19937 rng = bb::runGenerator(options, experiment, i % runs);
+        curves[static_cast<std::size_t>(i)] = learn(algorithm.setup(), protocol, rng);
+      },
+      [&](int i) {
+        const Algorithm& algorithm = algorithms[static_cast<std::size_t>(i / runs)];
+        const Curve& c = curves[static_cast<std::size_t>(i)];
+        for (std::size_t u = 0; u < c.policy_reward.size(); ++u) {
+          csv << experiment << ",\"" << algorithm.name << "\"," << i % runs << ',' << u << ',' << c.policy_reward[u]
+              << ',' << (u > 0 ? c.rollout_reward[u - 1] : c.policy_reward[0]) << ',' << c.latent_dims[u] << '\n';
+        }
+        csv.flush();
+        if (i % runs == runs - 1) {
+          double sum = 0.0, squares = 0.0, dims = 0.0, time = 0.0;
+          for (int r = i - runs + 1; r <= i; ++r) {
+            const Curve& run = curves[static_cast<std::size_t>(r)];
+            sum += run.policy_reward.back();
+            squares += run.policy_reward.back() * run.policy_reward.back();
+            dims += run.latent_dims.back();
+            time += run.seconds;
+          }
+          const double mean = sum / runs;
+          const double std = std::sqrt(std::max(0.0, squares / runs - mean * mean));
+          std::printf("  %s %-22s %d runs: final policy reward %.4g ± %.2g, latent dims %.1f (%.1f s per run)\n",
+                      experiment.c_str(), algorithm.name.c_str(), runs, mean, std, dims / runs, time / runs);
+          std::fflush(stdout);
+          out.push_back(
+              {experiment,
+               algorithm.name,
+               {{"runs", runs},
+                {"updates", protocol.updates},
+                {"rollouts_per_update", protocol.rollouts},
+                {"final_reward", mean},
+                {"final_reward_std", std},
+                {"final_reward_ci95", runs > 1 ? 1.96 * std * std::sqrt(runs / (runs - 1.0)) / std::sqrt(runs) : 0.0},
+                {"initial_reward", curves[static_cast<std::size_t>(i)].policy_reward.front()},
+                {"final_latent_dims", dims / runs},
+                {"seconds_per_update", time / (runs * std::max(protocol.updates, 1))}},
+               {}});
+        }
+      });
+  std::printf("  %s: %d runs of %zu algorithms in %.1f s on %d threads\n", experiment.c_str(), runs, algorithms.size(),
+              seconds(wall), options.jobs);
+}
+
+int runsOf(const Options& options, int runs, int quick_runs) {
+  return options.runs > 0 ? options.runs : (options.quick ? quick_runs : runs);
+}
+
+// ---- estep: the E-step with the Kronecker structure against the printed one ----
+
+/// A random latent model of d DoF, r latent DoF and the grid's kernels (orthonormal Ω, Σ_ω and Σ_y of full rank),
+/// and `trajectories` drawn from it with weights from 0.5 to 1.5.
+struct RandomModel {
+  bl::LatentTrajectoryModel model;
+  bl::WeightedTrajectories data;
+};
+
+RandomModel randomModel(const bl::CoordinationGrid& grid, int d, int r, int trajectories, std::mt19937& rng) {
+  const int n = grid.kernels();
+  std::normal_distribution<double> normal(0.0, 1.0);
+  const auto random = [&](int rows, int cols) {
+    Eigen::MatrixXd m(rows, cols);
+    for (int j = 0; j < cols; ++j) {
+      for (int i = 0; i < rows; ++i) m(i, j) = normal(rng);
+    }
+    return m;
+  };
+  RandomModel out;
+  out.model.coordination =
+      Eigen::HouseholderQR<Eigen::MatrixXd>(random(d, r)).householderQ() * Eigen::MatrixXd::Identity(d, r);
+  out.model.mean = random(r * n, 1);
+  const Eigen::MatrixXd B = random(r * n, r * n) / std::sqrt(r * n);
+  out.model.covariance = B * B.transpose() + 0.05 * Eigen::MatrixXd::Identity(r * n, r * n);
+  const Eigen::MatrixXd C = random(d, d) / std::sqrt(d);
+  out.model.noise = 0.01 * (C * C.transpose() + Eigen::MatrixXd::Identity(d, d));
+  out.model.context_gain = Eigen::MatrixXd(r * n, 0);
+  if (trajectories == 0) return out;
+  const Eigen::MatrixXd L = bl::choleskyFactor(out.model.covariance), Ly = bl::choleskyFactor(out.model.noise);
+  bl::GaussianSampler sampler;
+  for (int k = 0; k < trajectories; ++k) {
+    const Eigen::VectorXd w = sampler.draw(out.model.mean, L, rng);
+    Eigen::MatrixXd y = bl::coordinatedValues(grid, {out.model.coordination}, w);
+    for (int t = 0; t < grid.steps(); ++t) y.row(t) += sampler.draw(Eigen::VectorXd::Zero(d), Ly, rng).transpose();
+    out.data.trajectories.push_back(y);
+  }
+  out.data.weights = Eigen::VectorXd::LinSpaced(trajectories, 0.5, 1.5);
+  out.data.contexts = Eigen::MatrixXd(trajectories, 0);
+  return out;
+}
+
+/// Median time of `call` in milliseconds over `repetitions` calls.
+double medianMilliseconds(int repetitions, const std::function<void()>& call) {
+  std::vector<double> times;
+  for (int i = 0; i < repetitions; ++i) {
+    const auto start = Clock::now();
+    call();
+    times.push_back(1e3 * seconds(start));
+  }
+  std::sort(times.begin(), times.end());
+  return times[times.size() / 2];
+}
+
+void estep(const Options& options, std::vector<Summary>& out) {
+  constexpr int steps = 100, d = 14, r = 4, kernels = 20, trajectories = 20;
+  bp::ProMpParameters promp;
+  promp.kernels = kernels;
+  const bl::CoordinationGrid grid = bp::DrProMp::grid(promp, steps);
+  std::mt19937 rng = bb::runGenerator(options, "estep", 0);
+  const RandomModel random = randomModel(grid, d, r, trajectories, rng);
+  bl::LatentPosterior fast, naive;
+  const double naive_ms = medianMilliseconds(options.quick ? 1 : 5,
+                                             [&]() { naive = bl::latentEStepNaive(grid, random.model, random.data); });
+  const double fast_ms =
+      medianMilliseconds(options.quick ? 5 : 101, [&]() { fast = bl::latentEStep(grid, random.model, random.data); });
+  const double mean_difference = (fast.means - naive.means).cwiseAbs().maxCoeff();
+  const double covariance_difference = (fast.covariance - naive.covariance).cwiseAbs().maxCoeff();
+  const double likelihood_fast = bl::latentLogLikelihood(grid, random.model, random.data);
+  const double likelihood_naive = bl::latentLogLikelihoodNaive(grid, random.model, random.data);
+  std::printf(
+      "  estep: N_t = %d, d = %d, r = %d, %d kernels, %d trajectories: naive %.2f ms, fast %.3f ms "
+      "(%.0fx), max |difference| %.2e (means) %.2e (covariance)\n",
+      steps, d, r, kernels, trajectories, naive_ms, fast_ms, naive_ms / fast_ms, mean_difference,
+      covariance_difference);
+  out.push_back({"estep",
+                 "E-step",
+                 {{"steps", steps},
+                  {"dofs", d},
+                  {"latent_dims", r},
+                  {"kernels", kernels},
+                  {"trajectories", trajectories},
+                  {"naive_ms", naive_ms},
+                  {"fast_ms", fast_ms},
+                  {"speedup", naive_ms / fast_ms},
+                  {"max_difference_means", mean_difference},
+                  {"max_difference_covariance", covariance_difference},
+                  {"log_likelihood_relative_difference",
+                   std::abs(likelihood_fast - likelihood_naive) / std::abs(likelihood_naive)},
+                  {"final_reward", std::numeric_limits<double>::quiet_NaN()}},
+                 {}});
+}
+
+// ---- em_vs_pca: KL(data ‖ model) of the EM and the PCA fits (Fig. 7.2, ρ of 7.21) ----
+
+void emVsPca(const Options& options, std::vector<Summary>& out) {
+  const std::vector<int> dofs = options.quick ? std::vector<int>{3, 5} : std::vector<int>{3, 5, 7, 10, 12};
+  const int runs = runsOf(options, 5, 1);
+  constexpr int steps = 100, kernels = 10, trajectories = 60;
+  bp::ProMpParameters promp;
+  promp.kernels = kernels;
+  const bl::CoordinationGrid grid = bp::DrProMp::grid(promp, steps);
+  struct Cell {
+    int d, r, run;
+    double kl_em = 0.0, kl_pca = 0.0;
+    int iterations = 0;
+  };
+  std::vector<Cell> cells;
+  for (const int d : dofs) {
+    for (int r = 1; r < d; ++r) {
+      for (int run = 0; run < runs; ++run) cells.push_back({d, r, run});
+    }
+  }
+  bl::LatentEmParameters em;
+  em.max_iterations = options.quick ? 5 : 100;
+  em.tolerance = 1e-9;
+  em.noise_floor = 1e-10;
+  std::ofstream csv(options.out + "/em_vs_pca.csv");
+  csv << "experiment,d,r,run,kl_em,kl_pca,rho,em_iterations\n";
+  csv.precision(10);
+  bb::parallelRuns(
+      static_cast<int>(cells.size()), options.jobs,
+      [&](int i) {
+        Cell& cell = cells[static_cast<std::size_t>(i)];
+        // The same data for every r of one (d, run): a full-rank d-DoF ProMP whose DoF are mixed by a random
+        // orthonormal matrix with decaying scales 0.7^j, plus observation noise of 0.01² (Sec. 7.1.3, "simulated
+        // ProMP data").
+        std::mt19937 rng = bb::runGenerator(options, "em_vs_pca/" + std::to_string(cell.d), cell.run);
+        bl::LatentTrajectoryModel generator = randomModel(grid, cell.d, cell.d, 0, rng).model;
+        Eigen::VectorXd scales(cell.d);
+        for (int j = 0; j < cell.d; ++j) scales[j] = std::pow(0.7, j);
+        generator.coordination = generator.coordination * scales.asDiagonal();
+        bl::WeightedTrajectories data;
+        const Eigen::MatrixXd L = bl::choleskyFactor(generator.covariance);
+        bl::GaussianSampler sampler;
+        for (int k = 0; k < trajectories; ++k) {
+          Eigen::MatrixXd y =
+              bl::coordinatedValues(grid, {generator.coordination}, sampler.draw(generator.mean, L, rng));
+          for (int t = 0; t < steps; ++t) {
+            for (int j = 0; j < cell.d; ++j) y(t, j) += 0.01 * sampler.standardNormal(rng);
+          }
+          data.trajectories.push_back(y);
+        }
+        data.weights = Eigen::VectorXd::Ones(trajectories);
+        data.contexts = Eigen::MatrixXd(trajectories, 0);
+        bl::LatentPcaParameters pca;
+        pca.noise_floor = 1e-10;
+        const bl::LatentTrajectoryModel initial = bl::latentPcaModel(grid, data, cell.r, pca);
+        const bl::LatentEmResult fitted = bl::latentEm(grid, data, initial, em);
+        cell.iterations = fitted.iterations;
+        // Σ_t KL(p(y_t; data) ‖ p(y_t; θ)), p(y_t; data) the Gaussian of the trajectories at step t.
+        for (int t = 0; t < steps; ++t) {
+          Eigen::MatrixXd at(trajectories, cell.d);
+          for (int k = 0; k < trajectories; ++k) at.row(k) = data.trajectories[static_cast<std::size_t>(k)].row(t);
+          const auto [mean, covariance] = bl::sampleMoments(at);
+          Eigen::VectorXd model_mean;
+          Eigen::MatrixXd model_covariance;
+          bl::latentMarginal(grid, fitted.model, t, Eigen::VectorXd(), model_mean, model_covariance);
+          cell.kl_em += bl::gaussianKl(mean, covariance, model_mean, model_covariance);
+          bl::latentMarginal(grid, initial, t, Eigen::VectorXd(), model_mean, model_covariance);
+          cell.kl_pca += bl::gaussianKl(mean, covariance, model_mean, model_covariance);
+        }
+      },
+      [&](int i) {
+        const Cell& c = cells[static_cast<std::size_t>(i)];
+        const double rho = (c.kl_em - c.kl_pca) / c.kl_pca;
+        csv << "em_vs_pca," << c.d << ',' << c.r << ',' << c.run << ',' << c.kl_em << ',' << c.kl_pca << ',' << rho
+            << ',' << c.iterations << '\n';
+        for (const bool is_em : {true, false}) {
+          out.push_back({"em_vs_pca",
+                         is_em ? "EM" : "PCA",
+                         {{"d", c.d},
+                          {"r", c.r},
+                          {"run", c.run},
+                          {"kl", is_em ? c.kl_em : c.kl_pca},
+                          {"rho", rho},
+                          {"final_reward", std::numeric_limits<double>::quiet_NaN()}},
+                         {{"method", is_em ? "EM" : "PCA"}}});
+        }
+      });
+  double em_sum = 0.0, pca_sum = 0.0;
+  for (const Cell& c : cells) {
+    em_sum += c.kl_em;
+    pca_sum += c.kl_pca;
+  }
+  double rho_mean = 0.0;
+  for (const Cell& c : cells) rho_mean += (c.kl_em - c.kl_pca) / c.kl_pca / cells.size();
+  std::printf("  em_vs_pca: %zu fits, mean rho %.3f, rho of the sums %.3f\n", cells.size(), rho_mean,
+              (em_sum - pca_sum) / pca_sum);
+  out.push_back({"em_vs_pca",
+                 "rho",
+                 {{"fits", static_cast<double>(cells.size())},
+                  {"rho_mean", rho_mean},
+                  {"rho_of_sums", (em_sum - pca_sum) / pca_sum},
+                  {"final_reward", std::numeric_limits<double>::quiet_NaN()}},
+                 {}});
+}
+
+// ---- planar15: Cartesian tracking with a 15-DoF planar arm (Fig. 7.5) ----
+
+/// Full-space weights (Ω ⊗ I_n) ω of latent weights.
+Eigen::VectorXd liftedWeights(const Eigen::MatrixXd& omega, const Eigen::VectorXd& latent, int n) {
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(omega.rows() * n);
+  for (Eigen::Index j = 0; j < omega.rows(); ++j) {
+    for (Eigen::Index i = 0; i < omega.cols(); ++i) out.segment(j * n, n) += omega(j, i) * latent.segment(i * n, n);
+  }
+  return out;
+}
+
+void planar15(const Options& options, std::vector<Summary>& out) {
+  constexpr int dofs = 15, kernels = 8;
+  const bt::PlanarTrackingTask task(dofs, options.seed);
+  const int samples = task.samples();
+  Protocol protocol;
+  protocol.runs = runsOf(options, 10, 2);
+  protocol.updates = options.quick ? 3 : 100;
+  protocol.rollouts = 20;
+  protocol.first_rollouts = 100;
+  bl::CoordinatedRepsParameters reps;
+  reps.reps.epsilon = 0.5;
+  reps.reps.reuse = 80;  // windows of 100 rollouts, 20 new per update
+  reps.em.max_iterations = 20;
+  reps.em.tolerance = 1e-6;
+  reps.em.noise_floor = 1e-8;
+  bp::ProMpParameters promp;
+  promp.kernels = kernels;
+  const auto grid = std::make_shared<const bl::CoordinationGrid>(bp::DrProMp::grid(promp, samples));
+  const bp::ProMp full = bp::ProMp::fit(promp, task.demonstrations(), 1.0);
+
+  std::vector<Algorithm> algorithms;
+  // DMP+REPS: a DMP per DoF (8 kernels), weights of each demonstration by least squares, N(μ, Σ) over them; as a
+  // DR-DMP with Ω = I fixed, which is exactly that DMP.
+  algorithms.push_back(
+      {"DMP+REPS", [&, grid]() {
+         bp::DrDmpParameters parameters;
+         parameters.dmp.kernels = kernels;
+         const bp::DrDmpFit fit = bp::DrDmp::fit(parameters, task.demonstrations(), task.dt(), dofs);
+         Eigen::MatrixXd weights(fit.latent_weights.rows(), dofs * kernels);
+         for (Eigen::Index k = 0; k < weights.rows(); ++k) {
+           weights.row(k) =
+               liftedWeights(fit.dmp.coordination().front(), fit.latent_weights.row(k).transpose(), kernels)
+                   .transpose();
+         }
+         auto [mean, covariance] = bl::sampleMoments(weights);
+         covariance.diagonal().array() += 1e-6;
+         const bp::DrDmp dmp = fit.dmp.withCoordination({Eigen::MatrixXd::Identity(dofs, dofs)}, mean);
+         const int steps = samples - 1;
+         const auto dmp_grid = std::make_shared<const bl::CoordinationGrid>(dmp.grid(task.dt(), steps));
+         Setup setup{reps, dmp_grid, {{Eigen::MatrixXd::Identity(dofs, dofs)}, mean, covariance, {}}, {}, {}};
+         setup.parameters.rule = bl::CoordinationRule::Fixed;
+         auto rollout = std::make_shared<bt::DrDmpRollout>();
+         setup.rollout = [&task, dmp, rollout, steps](const std::vector<Eigen::MatrixXd>& omega,
+                                                      const Eigen::VectorXd& w, std::mt19937* rng,
+                                                      Eigen::MatrixXd& values) {
+           std::mt19937 unused;
+           bt::rolloutDrDmp(dmp.withCoordination(omega, w), task.dt(), steps, 0.0, rng != nullptr ? *rng : unused,
+                            *rollout);
+           values = rollout->positions;
+           return task.reward(rollout->positions);
+         };
+         return setup;
+       }});
+  // ProMP+REPS: the ProMP of the demonstrations (Ω = I), REPS on its weights.
+  algorithms.push_back(
+      {"ProMP+REPS", [&, grid]() {
+         Setup setup{reps,
+                     grid,
+                     {{Eigen::MatrixXd::Identity(dofs, dofs)}, full.weightMean(), full.weightCovariance(), {}},
+                     {},
+                     {}};
+         setup.parameters.rule = bl::CoordinationRule::Fixed;
+         setup.rollout = [&task, grid](const std::vector<Eigen::MatrixXd>& omega, const Eigen::VectorXd& w,
+                                       std::mt19937*, Eigen::MatrixXd& values) {
+           values = bl::coordinatedValues(*grid, omega, w);
+           return task.reward(values);
+         };
+         return setup;
+       }});
+  // EM-ProMP+REPS (Alg. 7.1): DR-ProMP fitted by EM, REPS weights, EM on the rollouts; Ω perturbed by N(0, α²) per
+  // element before each rollout.
+  for (const auto& [r, alpha] : std::vector<std::pair<int, double>>{{dofs, 0.0}, {8, 0.0}, {8, 0.01}}) {
+    std::string name = "EM-ProMP(" + std::to_string(r) + ")";
+    if (alpha > 0.0) name += ", alpha=0.01";
+    algorithms.push_back({name, [&, grid, r = r, alpha = alpha]() {
+                            bp::DrProMpParameters parameters;
+                            parameters.promp = promp;
+                            parameters.latent_dims = r;
+                            parameters.em = reps.em;
+                            const bp::DrProMp model = bp::DrProMp::fit(parameters, task.demonstrations(), 1.0);
+                            Setup setup{reps,
+                                        grid,
+                                        {{model.coordination()},
+                                         model.latent().weightMean(),
+                                         model.latent().weightCovariance(),
+                                         model.observationCovariance()},
+                                        {},
+                                        {}};
+                            setup.parameters.rule = bl::CoordinationRule::Em;
+                            setup.rollout = [&task, grid, alpha](const std::vector<Eigen::MatrixXd>& omega,
+                                                                 const Eigen::VectorXd& w, std::mt19937* rng,
+                                                                 Eigen::MatrixXd& values) {
+                              Eigen::MatrixXd perturbed = omega.front();
+                              if (rng != nullptr && alpha > 0.0) {
+                                std::normal_distribution<double> normal(0.0, alpha);
+                                for (Eigen::Index i = 0; i < perturbed.size(); ++i) perturbed.data()[i] += normal(*rng);
+                              }
+                              values = bl::coordinatedValues(*grid, {perturbed}, w);
+                              return task.reward(values);
+                            };
+                            return setup;
+                          }});
+  }
+  runLearning(options, "planar15", protocol, algorithms, out);
+}
+
+// ---- DR-DMP variants of Tables 7.1–7.2 (planar10, wam_circle) ----
+
+struct DrDmpVariant {
+  std::string name;
+  int matrices;  ///< N_s
+  int r;         ///< Initial latent dimension.
+  bl::CoordinationRule rule;
+  double eta;  ///< ∞: fixed dimension.
+};
+
+/// DR-DMP⁰(r) and DR-DMP⁰_MCMU(N_s, r) are "DR-DMP0(r)" and "DR-DMP0_MCMU(Ns,r)".
+std::vector<DrDmpVariant> drDmpVariants(const std::string& experiment, int d, const std::vector<int>& dims, int ns,
+                                        double eta) {
+  std::vector<DrDmpVariant> out;
+  const std::string s = std::to_string(ns);
+  if (experiment == "wam_circle") {
+    for (const int r : dims)
+      out.push_back({"DR-DMP0(" + std::to_string(r) + ")", 1, r, bl::CoordinationRule::Fixed, kInfinity});
+  }
+  for (const int r : dims)
+    out.push_back({"DR-DMP_CMU(" + std::to_string(r) + ")", 1, r, bl::CoordinationRule::Cmu, kInfinity});
+  if (experiment == "wam_circle") {
+    for (const int r : dims) {
+      out.push_back(
+          {"DR-DMP0_MCMU(" + s + "," + std::to_string(r) + ")", ns, r, bl::CoordinationRule::Fixed, kInfinity});
+    }
+  }
+  for (const int r : dims) {
+    out.push_back({"DR-DMP_MCMU(" + s + "," + std::to_string(r) + ")", ns, r, bl::CoordinationRule::Cmu, kInfinity});
+  }
+  out.push_back({"IDR-DMP_CMU", 1, d, bl::CoordinationRule::Cmu, eta});
+  out.push_back({"IDR-DMP_MCMU(" + s + ")", ns, d, bl::CoordinationRule::Cmu, eta});
+  if (experiment == "wam_circle") {
+    for (const int r : dims) {
+      if (r < d) out.push_back({"EM DR-DMP(" + std::to_string(r) + ")", 1, r, bl::CoordinationRule::Em, kInfinity});
+    }
+  }
+  return out;
+}
+
+/// A DR-DMP task: demonstrations, dt, steps, exploration outside the latent space, and the reward of a rollout.
+struct DrDmpTask {
+  std::vector<Eigen::MatrixXd> demonstrations;
+  double dt = 0.01;
+  int steps = 100;
+  int kernels = 10;
+  double smoothing_hz = 20.0;
+  double exploration = 0.0;
+  /// Latent Σ_ω: the demonstrations' sample covariance plus `relative_prior` times its mean variance, or, with one
+  /// demonstration, `initial_variance` I.
+  double relative_prior = 0.01, initial_variance = 1.0;
+  bl::CoordinatedRepsParameters parameters;
+  std::function<std::function<double(const bt::DrDmpRollout&)>()> reward;  ///< A fresh reward (own scratch).
+};
+
+Algorithm drDmpAlgorithm(const DrDmpTask& task, const DrDmpVariant& variant) {
+  return {variant.name, [&task, variant]() {
+            bp::DrDmpParameters parameters;
+            parameters.dmp.kernels = task.kernels;
+            parameters.matrices = variant.matrices;
+            const bp::DrDmpFit fit =
+                bp::DrDmp::fit(parameters, task.demonstrations, task.dt, variant.r, task.smoothing_hz);
+            Eigen::VectorXd mean = fit.dmp.weights();
+            Eigen::MatrixXd covariance;
+            if (fit.latent_weights.rows() > 1) {
+              covariance = bl::sampleMoments(fit.latent_weights).second;
+              covariance.diagonal().array() += task.relative_prior * covariance.diagonal().mean();
+            } else {
+              covariance = task.initial_variance * Eigen::MatrixXd::Identity(mean.size(), mean.size());
+            }
+            Setup setup;
+            setup.parameters = task.parameters;
+            setup.parameters.rule = variant.rule;
+            setup.parameters.update.eta = variant.eta;
+            setup.grid = std::make_shared<const bl::CoordinationGrid>(fit.dmp.grid(task.dt, task.steps));
+            setup.policy = {fit.dmp.coordination(), mean, covariance, {}};
+            setup.excitation = fit.excitation;
+            if (variant.rule == bl::CoordinationRule::Em) {
+              // Σ_f: the residual covariance of the mean demonstrated forcing terms' latent reconstruction, plus the
+              // exploration noise outside the latent space.
+              const Eigen::MatrixXd residual = fit.excitation.front().transpose() -
+                                               bl::coordinatedValues(*setup.grid, setup.policy.coordination, mean);
+              Eigen::MatrixXd noise = residual.transpose() * residual / task.steps;
+              noise.diagonal().array() += task.parameters.em.noise_floor + task.exploration * task.exploration;
+              setup.policy.noise = noise;
+            }
+            const bp::DrDmp dmp = fit.dmp;
+            auto rollout = std::make_shared<bt::DrDmpRollout>();
+            auto reward = std::make_shared<std::function<double(const bt::DrDmpRollout&)>>(task.reward());
+            const double dt = task.dt, exploration = task.exploration;
+            const int steps = task.steps;
+            setup.rollout = [dmp, rollout, reward, dt, steps, exploration](const std::vector<Eigen::MatrixXd>& omega,
+                                                                           const Eigen::VectorXd& w, std::mt19937* rng,
+                                                                           Eigen::MatrixXd& values) {
+              std::mt19937 unused;
+              bt::rolloutDrDmp(dmp.withCoordination(omega, w), dt, steps, rng != nullptr ? exploration : 0.0,
+                               rng != nullptr ? *rng : unused, *rollout);
+              values = rollout->forcing;
+              return (*reward)(*rollout);
+            };
+            return setup;
+          }};
+}
+
+void planar10(const Options& options, std::vector<Summary>& out) {
+  constexpr int dofs = 10;
+  const bt::PlanarViaPointTask via(dofs, options.seed);
+  DrDmpTask task;
+  task.demonstrations = via.demonstrations();
+  task.dt = via.dt();
+  task.steps = via.steps();
+  task.kernels = 10;
+  task.exploration = std::sqrt(0.1);
+  task.parameters.reps.epsilon = 0.5;
+  task.parameters.reps.reuse = 80;
+  task.reward = [&via]() {
+    return [&via](const bt::DrDmpRollout& rollout) { return via.reward(rollout.positions, rollout.accelerations); };
+  };
+  Protocol protocol;
+  protocol.runs = runsOf(options, 20, 2);
+  protocol.updates = options.quick ? 3 : 200;
+  protocol.rollouts = protocol.first_rollouts = 20;
+  std::vector<Algorithm> algorithms;
+  for (const DrDmpVariant& variant : drDmpVariants("planar10", dofs, {10, 8, 5, 2, 1}, 2, 50.0)) {
+    algorithms.push_back(drDmpAlgorithm(task, variant));
+  }
+  runLearning(options, "planar10", protocol, algorithms, out);
+}
+
+void wamCircle(const Options& options, std::vector<Summary>& out) {
+  const bt::WamCircleTask circle(bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool"),
+                                 options.seed);
+  DrDmpTask task;
+  task.demonstrations = {circle.demonstration()};
+  task.dt = circle.dt();
+  task.steps = circle.steps();
+  task.kernels = 20;
+  task.smoothing_hz = 2.0;
+  task.exploration = std::sqrt(0.1);
+  task.initial_variance = 1.0;
+  task.parameters.reps.epsilon = 0.5;
+  task.parameters.reps.reuse = 80;  // the last 4 epochs of 20 rollouts
+  task.parameters.update.eta = 50.0;
+  task.parameters.em.max_iterations = 10;
+  task.parameters.em.tolerance = 1e-6;
+  task.parameters.em.noise_floor = 1e-6;
+  task.reward = [&circle]() {
+    auto own = std::make_shared<bt::WamCircleTask>(circle);
+    return [own](const bt::DrDmpRollout& rollout) { return own->reward(rollout.positions, rollout.accelerations); };
+  };
+  Protocol protocol;
+  protocol.runs = runsOf(options, 10, 2);
+  protocol.updates = options.quick ? 3 : 250;
+  protocol.rollouts = protocol.first_rollouts = 20;
+  std::vector<Algorithm> algorithms;
+  for (const DrDmpVariant& variant : drDmpVariants("wam_circle", 7, {7, 6, 5, 4, 3, 2, 1}, 3, 50.0)) {
+    algorithms.push_back(drDmpAlgorithm(task, variant));
+  }
+  runLearning(options, "wam_circle", protocol, algorithms, out);
+}
+
+void writeSummary(const Options& options, const std::vector<Summary>& rows) {
+  std::vector<bb::JsonRow> json;
+  for (const Summary& r : rows) {
+    bb::JsonRow& row = json.emplace_back();
+    row.add("experiment", r.experiment).add("algorithm", r.algorithm);
+    for (const auto& [key, value] : r.texts) row.add(key, value);
+    for (const auto& [key, value] : r.numbers) row.add(key, value);
+  }
+  bb::writeSummaryJson(options, "dr_benchmark", json);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bb::ExperimentProgram program;
+  program.name = "dr_benchmark";
+  program.description =
+      "The thesis' reward-oriented dimensionality-reduction experiments (Ch. 7): the fast E-step against the naive\n"
+      "one, EM vs PCA fits (Fig. 7.2), the 15-DoF planar tracking task (Fig. 7.5), the 10-DoF via-point task\n"
+      "(Table 7.3) and the WAM circle (Table 7.4). Writes DIR/<experiment>.csv, DIR/summary.json, learning-curve\n"
+      "PNGs (mean and 95 % interval over runs) and DIR/tables.md.";
+  program.experiments = {"estep", "em_vs_pca", "planar15", "planar10", "wam_circle", "all"};
+  program.with_runs = true;
+  program.with_jobs = true;
+  const Options options = bb::parseExperimentOptions(argc, argv, program);
+  try {
+    std::filesystem::create_directories(options.out);
+    std::printf("dr_benchmark: experiment %s, seed %u, %d jobs%s, output %s\n", options.experiment.c_str(),
+                options.seed, options.jobs, options.quick ? " (quick)" : "", options.out.c_str());
+    std::fflush(stdout);
+    std::vector<Summary> rows;
+    const auto wants = [&](const char* name) { return options.experiment == "all" || options.experiment == name; };
+    const auto timed = [&](const char* name, const std::function<void(const Options&, std::vector<Summary>&)>& run) {
+      if (!wants(name)) return;
+      const auto start = Clock::now();
+      run(options, rows);
+      std::printf("dr_benchmark: %s done in %.1f s\n", name, seconds(start));
+      std::fflush(stdout);
+    };
+    timed("estep", estep);
+    timed("em_vs_pca", emVsPca);
+    timed("planar15", planar15);
+    timed("planar10", planar10);
+    timed("wam_circle", wamCircle);
+    writeSummary(options, rows);
+    if (!bb::runPlotScript("dr_benchmark", kSourceDir + "/scripts/plot_dr_benchmark.py", options.out)) return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dr_benchmark: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
