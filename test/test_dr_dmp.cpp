@@ -1,8 +1,9 @@
 // DR-DMP (thesis Sec. 7.2) and its coordination matrices: the Kronecker-structured products equal the dense ones;
 // PCA gives the SVD's directions; Alg. 7.3 aligns permuted and sign-flipped bases; the reprojection (7.34–7.36) is
-// the printed pseudoinverse and keeps the forcing-term distribution when Ω does not change (or only turns within
-// its span); CMU drops a dimension exactly when σ_1/σ_r > η; a DR-DMP with one matrix is the DMP with weights Ω W
-// and blends several matrices by (7.39); the fixed-coordination learner is REPS; bad input throws.
+// the printed pseudoinverse, its least-squares variant stays bounded where the printed one amplifies, and both keep
+// the forcing-term distribution when Ω does not change (or only turns within its span); CMU drops a dimension exactly
+// when σ_1/σ_r > η; a DR-DMP with one matrix is the DMP with weights Ω W and blends several matrices by (7.39); the
+// fixed-coordination learner is REPS; bad input throws.
 #include "bimanual_skills/learning/coordinated_reps.hpp"
 #include "bimanual_skills/learning/coordination_matrix.hpp"
 #include "bimanual_skills/learning/gaussian.hpp"
@@ -172,20 +173,45 @@ TEST(CoordinationMatrix, ReprojectionKeepsTheForcingDistribution) {
   const Eigen::MatrixXd Sigma = B * B.transpose();
   const auto [f_mean, f_covariance] = valueDistribution(grid, omega, mu, Sigma);
   const double scale = f_covariance.cwiseAbs().maxCoeff();
-  // The same Ω: the same μ_ω and Σ_ω.
-  const bl::LatentReprojection same(grid, omega, omega);
-  EXPECT_LT((same.mean(mu) - mu).cwiseAbs().maxCoeff(), 1e-8 * mu.cwiseAbs().maxCoeff());
-  EXPECT_LT((same.covariance(mu, Sigma) - Sigma).cwiseAbs().maxCoeff(), 1e-8 * Sigma.cwiseAbs().maxCoeff());
-  // Ω turned within its span (another basis of the same latent space, as a new PCA may return): new μ_ω, Σ_ω, but the
-  // same distribution of the forcing terms.
   const Eigen::MatrixXd R = orthonormal(3, 3, rng);
   const std::vector<Eigen::MatrixXd> turned = {omega[0] * R, omega[1] * R};
-  const bl::LatentReprojection reprojection(grid, omega, turned);
-  const auto [g_mean, g_covariance] =
-      valueDistribution(grid, turned, reprojection.mean(mu), reprojection.covariance(mu, Sigma));
-  EXPECT_GT((reprojection.mean(mu) - mu).cwiseAbs().maxCoeff(), 1.0);
-  EXPECT_LT((g_mean - f_mean).cwiseAbs().maxCoeff(), 1e-8 * f_mean.cwiseAbs().maxCoeff());
-  EXPECT_LT((g_covariance - f_covariance).cwiseAbs().maxCoeff(), 1e-8 * scale);
+  for (const bl::ReprojectionRule rule : {bl::ReprojectionRule::Printed, bl::ReprojectionRule::LeastSquares}) {
+    const int which = static_cast<int>(rule);
+    // The same Ω: the same μ_ω and Σ_ω.
+    const bl::LatentReprojection same(grid, omega, omega, rule);
+    EXPECT_LT((same.mean(mu) - mu).cwiseAbs().maxCoeff(), 1e-8 * mu.cwiseAbs().maxCoeff()) << which;
+    EXPECT_LT((same.covariance(mu, Sigma) - Sigma).cwiseAbs().maxCoeff(), 1e-8 * Sigma.cwiseAbs().maxCoeff()) << which;
+    // Ω turned within its span (another basis of the same latent space, as a new PCA may return): new μ_ω, Σ_ω, but
+    // the same distribution of the forcing terms.
+    const bl::LatentReprojection reprojection(grid, omega, turned, rule);
+    const auto [g_mean, g_covariance] =
+        valueDistribution(grid, turned, reprojection.mean(mu), reprojection.covariance(mu, Sigma));
+    EXPECT_GT((reprojection.mean(mu) - mu).cwiseAbs().maxCoeff(), 1.0) << which;
+    EXPECT_LT((g_mean - f_mean).cwiseAbs().maxCoeff(), 1e-8 * f_mean.cwiseAbs().maxCoeff()) << which;
+    EXPECT_LT((g_covariance - f_covariance).cwiseAbs().maxCoeff(), 1e-8 * scale) << which;
+  }
+}
+
+TEST(CoordinationMatrix, LeastSquaresReprojectionStaysBoundedWherePrintedAmplifies) {
+  std::mt19937 rng(7);
+  const bl::CoordinationGrid grid = dmpGrid(6, 8, 1, 50);
+  const Eigen::MatrixXd basis = orthonormal(6, 6, rng);
+  // The new coordination keeps two old directions and turns the third almost out of the old span.
+  const std::vector<Eigen::MatrixXd> old_omega = {basis.leftCols(3)};
+  Eigen::MatrixXd new_omega = basis.leftCols(3);
+  new_omega.col(2) = (1e-3 * basis.col(2) + basis.col(4)).normalized();
+  const Eigen::VectorXd mu = randomMatrix(24, 1, rng);
+  const Eigen::MatrixXd B = randomMatrix(24, 24, rng);
+  const Eigen::MatrixXd Sigma = B * B.transpose();
+  const bl::LatentReprojection printed(grid, old_omega, {new_omega}, bl::ReprojectionRule::Printed);
+  const bl::LatentReprojection least(grid, old_omega, {new_omega}, bl::ReprojectionRule::LeastSquares);
+  EXPECT_GT(printed.mean(mu).norm(), 100.0 * mu.norm());
+  EXPECT_LT(least.mean(mu).norm(), 1.01 * mu.norm());
+  EXPECT_LT(least.covariance(mu, Sigma).norm(), 1.01 * Sigma.norm());
+  // The least-squares mean gives the values closest to the old ones: its residual is orthogonal to the new span.
+  const Eigen::MatrixXd A_old = bl::coordinatedDesign(grid, old_omega),
+                        A_new = bl::coordinatedDesign(grid, {new_omega});
+  EXPECT_LT((A_new.transpose() * (A_new * least.mean(mu) - A_old * mu)).cwiseAbs().maxCoeff(), 1e-9);
 }
 
 TEST(CoordinationMatrix, CmuDropsADimensionExactlyWhenTheRatioExceedsEta) {

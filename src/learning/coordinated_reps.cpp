@@ -91,6 +91,9 @@ CoordinatedRepsReport CoordinatedReps::update(const Eigen::MatrixXd& samples,
       policy_.coordination = std::move(result.matrices);
       policy_.mean = std::move(result.mean);
       policy_.covariance = std::move(result.covariance);
+      // M† Σ M†ᵀ (7.36) is singular where M† loses rank (a new direction the old coordination did not span): the
+      // same ridge as REPS' keeps it a sampling distribution.
+      policy_.covariance.diagonal().array() += regularisation;
       excitation_ = std::move(result.excitation);
       sample_map = std::move(result.sample_map);
       report.reduced = result.reduced;

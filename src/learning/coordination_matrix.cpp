@@ -218,27 +218,40 @@ void alignCoordinationMatrices(std::vector<Eigen::MatrixXd>& matrices) {
   }
 }
 
-LatentReprojection::LatentReprojection(const CoordinationGrid& grid, const std::vector<Eigen::MatrixXd>& old_matrices,
-                                       const std::vector<Eigen::MatrixXd>& new_matrices) {
-  checkMatrices(grid, old_matrices, "LatentReprojection");
-  checkMatrices(grid, new_matrices, "LatentReprojection");
-  // M = ((Ô Ψ̂ᵀ)ᵀ Ô Ψ̂ᵀ)⁻¹ (Ô Ψ̂ᵀ)ᵀ O Ψᵀ, the pseudoinverse of a matrix of full column rank.
-  const Eigen::LDLT<Eigen::MatrixXd> normal(coordinatedGram(grid, old_matrices, old_matrices));
+namespace {
+
+/// The LDLT of (O Ψᵀ)ᵀ O Ψᵀ, checked for full rank.
+Eigen::LDLT<Eigen::MatrixXd> normalEquations(const CoordinationGrid& grid, const std::vector<Eigen::MatrixXd>& matrices,
+                                             const char* which) {
+  const Eigen::LDLT<Eigen::MatrixXd> normal(coordinatedGram(grid, matrices, matrices));
   const Eigen::VectorXd& D = normal.vectorD();
   if (normal.info() != Eigen::Success || !(D.minCoeff() > 1e-12 * D.cwiseAbs().maxCoeff())) {
-    throw std::invalid_argument(
-        "LatentReprojection: the old coordination and basis do not have full column rank (a zero or repeated "
-        "column of a coordination matrix, or fewer steps than kernels)");
+    throw std::invalid_argument(std::string("LatentReprojection: the ") + which +
+                                " coordination and basis do not have full column rank (a zero or repeated column of "
+                                "a coordination matrix, or fewer steps than kernels)");
   }
-  M_ = normal.solve(coordinatedGram(grid, old_matrices, new_matrices));
+  return normal;
+}
+
+}  // namespace
+
+LatentReprojection::LatentReprojection(const CoordinationGrid& grid, const std::vector<Eigen::MatrixXd>& old_matrices,
+                                       const std::vector<Eigen::MatrixXd>& new_matrices, ReprojectionRule rule)
+    : rule_(rule) {
+  checkMatrices(grid, old_matrices, "LatentReprojection");
+  checkMatrices(grid, new_matrices, "LatentReprojection");
+  // M = ((Ô Ψ̂ᵀ)ᵀ Ô Ψ̂ᵀ)⁻¹ (Ô Ψ̂ᵀ)ᵀ O Ψᵀ and N = ((O Ψᵀ)ᵀ O Ψᵀ)⁻¹ (O Ψᵀ)ᵀ Ô Ψ̂ᵀ, pseudoinverses of full column rank.
+  const Eigen::MatrixXd cross = coordinatedGram(grid, old_matrices, new_matrices);
+  M_ = normalEquations(grid, old_matrices, "old").solve(cross);
   M_pinv_ = Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd>(M_).pseudoInverse();
+  N_ = normalEquations(grid, new_matrices, "new").solve(cross.transpose());
 }
 
 Eigen::VectorXd LatentReprojection::mean(const Eigen::VectorXd& old_mean) const {
   if (old_mean.size() != M_.rows()) {
     throw std::invalid_argument("LatentReprojection: the old mean needs " + std::to_string(M_.rows()) + " entries");
   }
-  return M_pinv_ * old_mean;
+  return sampleMap() * old_mean;
 }
 
 Eigen::MatrixXd LatentReprojection::covariance(const Eigen::VectorXd& old_mean,
@@ -247,8 +260,13 @@ Eigen::MatrixXd LatentReprojection::covariance(const Eigen::VectorXd& old_mean,
     throw std::invalid_argument("LatentReprojection: the old covariance must be " + std::to_string(M_.rows()) +
                                 " square");
   }
-  const Eigen::VectorXd residual = M_ * mean(old_mean) - old_mean;
-  Eigen::MatrixXd covariance = M_pinv_ * (old_covariance + residual * residual.transpose()) * M_pinv_.transpose();
+  Eigen::MatrixXd covariance;
+  if (rule_ == ReprojectionRule::Printed) {
+    const Eigen::VectorXd residual = M_ * mean(old_mean) - old_mean;
+    covariance = M_pinv_ * (old_covariance + residual * residual.transpose()) * M_pinv_.transpose();
+  } else {
+    covariance = N_ * old_covariance * N_.transpose();
+  }
   return 0.5 * (covariance + covariance.transpose());
 }
 
@@ -325,10 +343,10 @@ CoordinationUpdateResult coordinationMatrixUpdate(const CoordinationGrid& grid,
     alignCoordinationMatrices(out.matrices);
   }
   // Line 9.
-  const LatentReprojection reprojection(grid, matrices, out.matrices);
+  const LatentReprojection reprojection(grid, matrices, out.matrices, parameters.reprojection);
   out.mean = reprojection.mean(mean);
   out.covariance = reprojection.covariance(mean, covariance);
-  out.sample_map = reprojection.pseudoInverse();
+  out.sample_map = reprojection.sampleMap();
   return out;
 }
 

@@ -55,7 +55,8 @@ struct CoordinatedRepsReport {
 /// One learner for one run. Each update takes the latent weights ω_k the rollouts were drawn with (rows; in the
 /// coordinates of the current policy), the values each rollout executed (N_t × d: the forcing terms of a DR-DMP,
 /// exploration outside the latent space included, or the positions of a DR-ProMP) and the rewards. Rollouts kept
-/// for reuse (RepsParameters::reuse) are carried into new coordinates with the reprojection M† whenever Ω changes.
+/// for reuse (RepsParameters::reuse) are carried into new coordinates with the reprojection's sample map (M† or N)
+/// whenever Ω changes.
 class CoordinatedReps {
  public:
   /// `grid`: the basis and activations of the rollouts' N_t steps. `initial_excitation`: F_co^s of the

@@ -93,28 +93,47 @@ PcaCoordination pcaCoordination(const Eigen::MatrixXd& samples, int r,
 /// Ω_s ← Ω_s PCAROTᵀ. \throws std::invalid_argument for matrices of unequal sizes.
 void alignCoordinationMatrices(std::vector<Eigen::MatrixXd>& matrices);
 
+/// How LatentReprojection carries μ_ω, Σ_ω into new coordinates.
+enum class ReprojectionRule {
+  /// The printed KL minimiser (7.35–7.36) through M† (M below). Where a new direction is nearly outside the old span
+  /// M is ill-conditioned and M† amplifies: in the planar10 experiment with MCMU(2, 8) M† reached singular values of
+  /// 10²–10³ and Σ_ω eigenvalues of 10⁹ within three updates.
+  Printed,
+  /// The least-squares projection of the old values onto the new coordination, N = (O Ψᵀ)† Ô Ψ̂ᵀ (r n × r̂ n):
+  /// μ_ω = N μ̂_ω, Σ_ω = N Σ̂_ω Nᵀ, the moments of the values' distribution projected onto the new span. N = M⁻¹ (the
+  /// same result as Printed) whenever the new coordination spans what the old one spans; otherwise N is bounded by
+  /// the conditioning of O Ψᵀ alone.
+  LeastSquares,
+};
+
 /// The reprojection of the latent weight distribution when the coordination changes from Ω̂_s (r̂ latent DoF) to
 /// Ω_s (r) (7.29–7.36, and 7.42 for several matrices): M = (Ô Ψ̂ᵀ)† O Ψᵀ (r̂ n × r n) maps new latent weights to the
 /// old ones that give the closest values, and the new N(μ_ω, Σ_ω) minimises KL(N(μ̂_ω, Σ̂_ω) ‖ N(M μ_ω, M Σ_ω Mᵀ)):
-///   μ_ω = M† μ̂_ω (7.35),   Σ_ω = M† [Σ̂_ω + (M μ_ω − μ̂_ω)(M μ_ω − μ̂_ω)ᵀ] M†ᵀ (7.36).
-/// When Ω_s spans what Ω̂_s spans (r = r̂) the distribution of the values F = O Ψᵀ ω is kept exactly.
+///   μ_ω = M† μ̂_ω (7.35),   Σ_ω = M† [Σ̂_ω + (M μ_ω − μ̂_ω)(M μ_ω − μ̂_ω)ᵀ] M†ᵀ (7.36)
+/// (ReprojectionRule::Printed), or the least-squares projection of ReprojectionRule::LeastSquares. When Ω_s spans what
+/// Ω̂_s spans (r = r̂) both keep the distribution of the values F = O Ψᵀ ω exactly.
 class LatentReprojection {
  public:
-  /// \throws std::invalid_argument for counts other than grid.matrices(), inconsistent sizes, or an old
+  /// \throws std::invalid_argument for counts other than grid.matrices(), inconsistent sizes, or an old or new
   /// coordination whose O Ψᵀ does not have full column rank.
   LatentReprojection(const CoordinationGrid& grid, const std::vector<Eigen::MatrixXd>& old_matrices,
-                     const std::vector<Eigen::MatrixXd>& new_matrices);
+                     const std::vector<Eigen::MatrixXd>& new_matrices,
+                     ReprojectionRule rule = ReprojectionRule::Printed);
 
   const Eigen::MatrixXd& matrix() const noexcept { return M_; }              ///< M.
   const Eigen::MatrixXd& pseudoInverse() const noexcept { return M_pinv_; }  ///< M†.
-  /// μ_ω of (7.35); also maps one latent sample into the new coordinates. \throws std::invalid_argument for a size
-  /// other than r̂ n.
+  const Eigen::MatrixXd& projection() const noexcept { return N_; }          ///< N = (O Ψᵀ)† Ô Ψ̂ᵀ.
+  /// The map of old latent weights to new ones of the rule: M† or N.
+  const Eigen::MatrixXd& sampleMap() const noexcept { return rule_ == ReprojectionRule::Printed ? M_pinv_ : N_; }
+  /// μ_ω of the rule ((7.35) or N μ̂_ω); also maps one latent sample into the new coordinates. \throws
+  /// std::invalid_argument for a size other than r̂ n.
   Eigen::VectorXd mean(const Eigen::VectorXd& old_mean) const;
-  /// Σ_ω of (7.36) (symmetrised). \throws std::invalid_argument for sizes other than r̂ n.
+  /// Σ_ω of the rule ((7.36) or N Σ̂_ω Nᵀ), symmetrised. \throws std::invalid_argument for sizes other than r̂ n.
   Eigen::MatrixXd covariance(const Eigen::VectorXd& old_mean, const Eigen::MatrixXd& old_covariance) const;
 
  private:
-  Eigen::MatrixXd M_, M_pinv_;
+  ReprojectionRule rule_;
+  Eigen::MatrixXd M_, M_pinv_, N_;
 };
 
 /// Settings of the coordination matrix update (Alg. 7.2 and its MCMU variant).
@@ -123,6 +142,8 @@ struct CoordinationUpdateParameters {
   double eta = std::numeric_limits<double>::infinity();
   double filter = 1.0;      ///< α of line 2: F_co ← α F_co^new + (1 − α) F_co^previous, in (0, 1].
   int min_latent_dims = 1;  ///< r is never reduced below this.
+  /// Line 9: the printed (7.35–7.36) or the least-squares reprojection (see ReprojectionRule).
+  ReprojectionRule reprojection = ReprojectionRule::LeastSquares;
 
   void validate() const;
 };
@@ -135,7 +156,7 @@ struct CoordinationUpdateResult {
   bool reduced = false;                     ///< r dropped by one.
   Eigen::VectorXd mean;                     ///< μ_ω reprojected (7.35).
   Eigen::MatrixXd covariance;               ///< Σ_ω reprojected (7.36).
-  Eigen::MatrixXd sample_map;               ///< M†, which maps old latent samples into the new coordinates.
+  Eigen::MatrixXd sample_map;               ///< M† or N: maps old latent samples into the new coordinates.
 };
 
 /// Reward-weighted coordination matrix update, CMU (Alg. 7.2) and with N_s > 1 matrices MCMU (7.40):
@@ -146,7 +167,7 @@ struct CoordinationUpdateResult {
 ///  3–7. PCA (7.26–7.27) of the pooled Σ_s F_co^s; if σ_1/σ_r > η, r ← r − 1 (once per update, never below
 ///     min_latent_dims);
 ///  8. Ω_s = the r leading principal directions of each F_co^s (one matrix: of F_co), aligned by Alg. 7.3;
-///  9. μ_ω, Σ_ω reprojected (LatentReprojection).
+///  9. μ_ω, Σ_ω reprojected (LatentReprojection with parameters.reprojection).
 /// \throws std::invalid_argument for inconsistent sizes, non-finite values, negative or all-zero weights.
 CoordinationUpdateResult coordinationMatrixUpdate(const CoordinationGrid& grid,
                                                   const CoordinationUpdateParameters& parameters,
