@@ -10,6 +10,7 @@
 #include "bimanual_skills/learning/reps.hpp"
 #include "bimanual_skills/primitives/dmp.hpp"
 #include "bimanual_skills/primitives/dr_dmp.hpp"
+#include "testing/random_matrices.hpp"
 
 #include <gtest/gtest.h>
 
@@ -27,21 +28,10 @@
 namespace bl = bimanual_skills::learning;
 namespace bp = bimanual_skills::primitives;
 
+using bimanual_skills::testing::randomMatrix;
+const auto& orthonormal = bimanual_skills::testing::randomOrthonormal;
+
 namespace {
-
-Eigen::MatrixXd randomMatrix(int rows, int cols, std::mt19937& rng) {
-  std::normal_distribution<double> normal(0.0, 1.0);
-  Eigen::MatrixXd m(rows, cols);
-  for (int j = 0; j < cols; ++j) {
-    for (int i = 0; i < rows; ++i) m(i, j) = normal(rng);
-  }
-  return m;
-}
-
-Eigen::MatrixXd orthonormal(int rows, int cols, std::mt19937& rng) {
-  return Eigen::HouseholderQR<Eigen::MatrixXd>(randomMatrix(rows, cols, rng)).householderQ() *
-         Eigen::MatrixXd::Identity(rows, cols);
-}
 
 /// A DR-DMP's grid: `kernels` DMP kernels and `matrices` activations over `steps` steps of 10 ms.
 bl::CoordinationGrid dmpGrid(int dofs, int kernels, int matrices, int steps) {

@@ -6,6 +6,7 @@
 #include "bimanual_skills/learning/latent_trajectory_em.hpp"
 #include "bimanual_skills/primitives/dr_promp.hpp"
 #include "bimanual_skills/primitives/dr_promp_controller.hpp"
+#include "testing/random_matrices.hpp"
 
 #include <gtest/gtest.h>
 
@@ -23,21 +24,10 @@
 namespace bl = bimanual_skills::learning;
 namespace bp = bimanual_skills::primitives;
 
+using bimanual_skills::testing::randomMatrix;
+const auto& orthonormal = bimanual_skills::testing::randomOrthonormal;
+
 namespace {
-
-Eigen::MatrixXd randomMatrix(int rows, int cols, std::mt19937& rng) {
-  std::normal_distribution<double> normal(0.0, 1.0);
-  Eigen::MatrixXd m(rows, cols);
-  for (int j = 0; j < cols; ++j) {
-    for (int i = 0; i < rows; ++i) m(i, j) = normal(rng);
-  }
-  return m;
-}
-
-Eigen::MatrixXd orthonormal(int rows, int cols, std::mt19937& rng) {
-  return Eigen::HouseholderQR<Eigen::MatrixXd>(randomMatrix(rows, cols, rng)).householderQ() *
-         Eigen::MatrixXd::Identity(rows, cols);
-}
 
 bl::CoordinationGrid promPGrid(int kernels, int steps) {
   bp::ProMpParameters parameters;
