@@ -115,6 +115,51 @@ TEST(LatentEm, NeverDecreasesTheWeightedLogLikelihood) {
   }
 }
 
+TEST(LatentEm, MStepIsEquations716To719FromDenseProducts) {
+  // Independent reference: the M-step written with the dense Ψ_tᵀ = I_r ⊗ φ_tᵀ, step by step, from the printed
+  // E-step's posteriors (no contexts, no floors).
+  const bl::CoordinationGrid grid = promPGrid(5, 25);
+  const Problem p = randomProblem(grid, 4, 2, 0, 12, 0.02, 23);
+  bl::LatentTrajectoryModel model = bl::latentPcaModel(grid, p.data, 2, bl::LatentPcaParameters());
+  model.context_gain = Eigen::MatrixXd(model.mean.size(), 0);
+  const bl::LatentPosterior post = bl::latentEStepNaive(grid, model, p.data);
+  const bl::LatentTrajectoryModel out = bl::latentMStep(grid, model, p.data, post, bl::LatentEmParameters());
+  const int n = grid.kernels(), r = 2, d = 4, steps = grid.steps();
+  const Eigen::VectorXd w = p.data.weights / p.data.weights.sum();
+  const auto psiT = [&](int t) {  // r × r n
+    Eigen::MatrixXd m = Eigen::MatrixXd::Zero(r, r * n);
+    for (int j = 0; j < r; ++j) m.block(j, j * n, 1, n) = grid.basis().row(t);
+    return m;
+  };
+  Eigen::VectorXd mu = post.means * w;
+  Eigen::MatrixXd sigma = post.covariance, S = post.covariance, num = Eigen::MatrixXd::Zero(d, r),
+                  den = Eigen::MatrixXd::Zero(r, r);
+  for (int k = 0; k < post.means.cols(); ++k) {
+    sigma += w[k] * (post.means.col(k) - mu) * (post.means.col(k) - mu).transpose();  // (7.16)
+    S += w[k] * post.means.col(k) * post.means.col(k).transpose();
+    for (int t = 0; t < steps; ++t) {
+      num += w[k] * p.data.trajectories[static_cast<std::size_t>(k)].row(t).transpose() *
+             (psiT(t) * post.means.col(k)).transpose();
+    }
+  }
+  for (int t = 0; t < steps; ++t) den += psiT(t) * S * psiT(t).transpose();
+  const Eigen::MatrixXd omega = num * den.inverse();  // (7.17)
+  Eigen::MatrixXd noise = Eigen::MatrixXd::Zero(d, d);
+  for (int k = 0; k < post.means.cols(); ++k) {
+    for (int t = 0; t < steps; ++t) {
+      const Eigen::VectorXd e =
+          p.data.trajectories[static_cast<std::size_t>(k)].row(t).transpose() - omega * psiT(t) * post.means.col(k);
+      noise += w[k] *
+               (omega * psiT(t) * post.covariance * psiT(t).transpose() * omega.transpose() + e * e.transpose()) /
+               steps;  // (7.19)
+    }
+  }
+  EXPECT_LT((out.mean - mu).cwiseAbs().maxCoeff(), 1e-10 * (1.0 + mu.cwiseAbs().maxCoeff()));
+  EXPECT_LT((out.covariance - sigma).cwiseAbs().maxCoeff(), 1e-10 * sigma.cwiseAbs().maxCoeff());
+  EXPECT_LT((out.coordination - omega).cwiseAbs().maxCoeff(), 1e-8 * omega.cwiseAbs().maxCoeff());
+  EXPECT_LT((out.noise - noise).cwiseAbs().maxCoeff(), 1e-8 * noise.cwiseAbs().maxCoeff());
+}
+
 TEST(LatentEm, RecoversTheGeneratingSubspaceAndNoise) {
   const bl::CoordinationGrid grid = promPGrid(6, 40);
   const Problem p = randomProblem(grid, 6, 2, 0, 60, 1e-3, 31);
