@@ -20,6 +20,7 @@
 
 #include <chrono>
 #include <memory>
+#include <random>
 #include <string>
 #include <thread>
 #include <vector>
@@ -168,6 +169,7 @@ class BulletSimNode {
     std::vector<sim::ArmState> state;
     for (const Arm& arm : arms_) state.push_back({arm.initial, Eigen::VectorXd::Zero(arm.initial.size())});
     const sim::SimStatus status = simulation_->reset(state);
+    simulation_->setRandomGenerator(std::mt19937(simulation_->config().seed));
     if (status != sim::SimStatus::Ok) {
       throw std::invalid_argument(std::string("initial positions rejected: ") + sim::toString(status));
     }
@@ -338,11 +340,11 @@ class BulletSimNode {
 
   bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
     resetSimulation();
+    publishClock();  // before the states, so the controllers' clocks go back first
     publishJointStates();
-    publishClock();
     publishMarkers();
     response.success = true;
-    response.message = "reset to the initial positions at t = 0";
+    response.message = "reset to the initial positions at t = 0 (sensor noise reseeded)";
     ROS_INFO("bullet_sim: %s", response.message.c_str());
     return true;
   }

@@ -229,6 +229,17 @@ TEST(ArmController, SafetyReactions) {
   EXPECT_EQ(controller.mode(), bc::ControllerMode::Hold);
   // Torques stay within the limits even far from the target.
   EXPECT_LE((torque.cwiseAbs() - loop.model.effortLimits()).maxCoeff(), 1e-12);
+  // Time going backwards (a simulation reset: stamps and clock) restarts the controller in hold at the state it is
+  // given; an earlier stamp while the clock goes on is a delayed state: stale.
+  ASSERT_EQ(controller.setTrajectory(w), bc::TrajectoryStatus::Ok);
+  loop.step(controller);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Track);
+  const Eigen::VectorXd q_reset = Eigen::VectorXd::Constant(7, 0.1);
+  EXPECT_EQ(controller.update(loop.t, 0.0, q_reset, Eigen::VectorXd::Zero(7), torque),
+            bc::ControllerStatus::StaleState);
+  EXPECT_EQ(controller.update(0.0, 0.0, q_reset, Eigen::VectorXd::Zero(7), torque), bc::ControllerStatus::Ok);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Hold);
+  EXPECT_LT((controller.desiredPosition() - q_reset).norm(), 1e-15);
 }
 
 TEST(ArmController, ModesAndNoAllocation) {

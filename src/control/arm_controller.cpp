@@ -63,8 +63,8 @@ ArmController::ArmController(const kinematics::ChainModel& model, const dynamics
   q_d_ = qd_d_ = qdd_d_ = error_ = applied_ = accel_sign_ = Eigen::VectorXd::Zero(n);
 }
 
-void ArmController::holdAt(double now, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept {
-  trajectory_.hold(now, q);
+void ArmController::holdAt(double t, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept {
+  trajectory_.hold(t, q);
   mode_ = ControllerMode::Hold;
 }
 
@@ -92,7 +92,12 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
       !std::isfinite(now) || !std::isfinite(stamp)) {
     return ControllerStatus::InvalidState;
   }
-  if (now - stamp > timeout_) {
+  // Time went backwards (a simulation was reset): the clock of `now` and the stamp both went back; start afresh at
+  // this state. A stamp earlier than the last one while the clock did not go back is a delayed message: stale.
+  if (started_ && stamp < last_stamp_ && now < last_stamp_) {
+    started_ = false;
+    was_stale_ = false;
+  } else if (now - stamp > timeout_ || (started_ && stamp < last_stamp_)) {
     was_stale_ = started_;
     return ControllerStatus::StaleState;
   }
@@ -103,7 +108,7 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
     was_stale_ = false;
     trajectory_request_ = false;
     mode_request_ = false;
-    holdAt(now, q);
+    holdAt(stamp, q);
     q_d_ = q;
     qd_d_.setZero();
     qdd_d_.setZero();
@@ -116,7 +121,7 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
       mode_ = ControllerMode::GravityCompensation;
       trajectory_request_ = false;
     } else {
-      holdAt(now, q);
+      holdAt(stamp, q);
       q_d_ = q;
       qd_d_.setZero();
       qdd_d_.setZero();
@@ -129,11 +134,11 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
       qd_d_ = qd;
       qdd_d_.setZero();
     }
-    if (trajectory_.start(now, q_d_, qd_d_, qdd_d_) == TrajectoryStatus::Ok) mode_ = ControllerMode::Track;
+    if (trajectory_.start(stamp, q_d_, qd_d_, qdd_d_) == TrajectoryStatus::Ok) mode_ = ControllerMode::Track;
   }
   ControllerStatus status = ControllerStatus::Ok;
   if (((qd.array().abs() - velocity_limit_.array()) > 0.0).any()) {
-    holdAt(now, q);
+    holdAt(stamp, q);
     status = ControllerStatus::VelocityLimit;
   }
   if (mode_ == ControllerMode::GravityCompensation) {
@@ -150,7 +155,7 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
       }
     }
   } else {
-    trajectory_.sample(now, q_d_, qd_d_, qdd_d_);
+    trajectory_.sample(stamp, q_d_, qd_d_, qdd_d_);
     const ControlStatus control = ctc_.update(q, qd, q_d_, qd_d_, qdd_d_, torque);
     if (control == ControlStatus::InvalidInput) return ControllerStatus::InvalidState;
     if (control == ControlStatus::Saturated && status == ControllerStatus::Ok) status = ControllerStatus::Saturated;

@@ -48,8 +48,11 @@ class ArmController {
   ArmController(const kinematics::ChainModel& model, const dynamics::FrictionModel& friction,
                 ArmControllerConfig config);
 
-  /// One control step with the state measured at `stamp`, computed at `now` (same clock). Writes `torque` unless
-  /// the status is InvalidState or StaleState. The first valid state starts the controller in hold at that state.
+  /// One control step with the state measured at `stamp`, computed at `now` (same clock): `now` only decides
+  /// whether the state is stale; the trajectory runs on the stamps, so a run driven by the same states gives the
+  /// same torques whenever they are computed. Writes `torque` unless the status is InvalidState or StaleState. The
+  /// first valid state starts the controller in hold at that state, and so does a stamp earlier than the last one
+  /// when `now` went back too (a simulation was reset); an earlier stamp alone is a delayed, stale state.
   ControllerStatus update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
                           const Eigen::Ref<const Eigen::VectorXd>& qd, Eigen::Ref<Eigen::VectorXd> torque) noexcept;
 
@@ -59,8 +62,9 @@ class ArmController {
   /// Switches mode at the next update (hold: at the measured position then; track: the loaded trajectory, if any,
   /// else hold).
   void setMode(ControllerMode mode) noexcept;
-  /// Validates waypoints (times relative to the next update) and tracks them from the next update on, starting
-  /// from the current desired state (no jump when replacing a running trajectory). Anything but Ok changes nothing.
+  /// Validates waypoints (times relative to the stamp of the next update) and tracks them from the next update on,
+  /// starting from the current desired state (no jump when replacing a running trajectory). Anything but Ok changes
+  /// nothing.
   TrajectoryStatus setTrajectory(const Waypoints& waypoints) noexcept;
 
   ControllerMode mode() const noexcept { return mode_; }
@@ -79,7 +83,7 @@ class ArmController {
   const kinematics::ChainModel& model() const noexcept { return ctc_.model(); }
 
  private:
-  void holdAt(double now, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept;
+  void holdAt(double t, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept;
 
   ComputedTorqueController ctc_;
   DisturbanceObserver observer_;
