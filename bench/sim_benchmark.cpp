@@ -1,6 +1,6 @@
 // Experiments on the physics simulator (issue 11), as one seeded program:
 //
-//   sim_benchmark --experiment speed --seed S --out DIR [--quick]
+//   sim_benchmark --experiment speed|friction|payload|all --seed S --out DIR [--quick]
 //
 // speed: wall-clock speed of the simulation on one core (the process is pinned to CPU 0), as simulated seconds per
 // wall-clock second of BimanualSimulation::step() calls, with Bullet's share of that time:
@@ -9,14 +9,18 @@
 //                              and folded over onto the cloth, released, settled (no divergence allowed);
 //   two_arms_cloth_step_<N>ms  the same fold with the cloth at other steps (the rate comparison behind the choice);
 //   two_arms_cloth_no_self     the same fold without self-collision (its cost and what it prevents).
-// Writes DIR/speed.csv (one row per setting, appended as each ends) and DIR/summary.json; prints progress lines.
-// The controllers' own time is measured apart and not counted in realtime_factor.
-//
-// Other experiments (friction identification against the true plant, payload estimation) slot into kExperiments.
+// Writes DIR/speed.csv (one row per setting, appended as each ends). The controllers' own time is measured apart and
+// not counted in realtime_factor.
+// friction: thesis Table 4.1 and friction-compensated tracking (sim_friction_experiment.cpp).
+// payload: thesis Fig. 4.2, payload estimation by our observer and KDL's (sim_payload_experiment.cpp).
+// all: every experiment in turn. Every experiment adds its rows to DIR/summary.json; friction and payload also
+// write PNG plots and DIR/tables.md (scripts/plot_sim_benchmark.py).
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "experiment_cli.hpp"
+#include "sim_experiments.hpp"
+#include "summary_json.hpp"
 
 #include <sched.h>
 
@@ -317,7 +321,29 @@ class Writer {
   std::ofstream csv_;
 };
 
-void speed(const Options& options, std::vector<Row>& rows) {
+bs::bench::JsonRow summaryRow(const Row& r) {
+  bs::bench::JsonRow row;
+  row.add("experiment", "speed")
+      .add("setting", r.setting)
+      .add("realtime_factor", r.realtimeFactor())
+      .add("bullet_share", r.bulletShare())
+      .add("bullet_arms_share", r.timings.bullet_arms / r.timings.total)
+      .add("bullet_cloth_share", r.timings.cloth.bullet / r.timings.total)
+      .add("self_collision_share", r.timings.cloth.self_collision / r.timings.total)
+      .add("plant_share", r.timings.plant / r.timings.total)
+      .add("simulated_s", r.simulated)
+      .add("wall_s", r.wall)
+      .add("controller_s", r.controller_wall)
+      .add("arm_step_s", r.simulated / static_cast<double>(std::max(1L, r.timings.steps)))
+      .add("cloth_step_s", r.cloth_step)
+      .add("diverged", r.diverged)
+      .add("max_stretch", r.max_stretch)
+      .add("fold_on_top", r.fold_on_top)
+      .add("cpu", 0);
+  return row;
+}
+
+void speed(const Options& options, std::vector<bs::bench::JsonRow>& rows) {
   Writer writer(options);
   const auto report = [&](const Row& r) {
     std::printf(
@@ -329,7 +355,7 @@ void speed(const Options& options, std::vector<Row>& rows) {
         r.diverged ? ", DIVERGED" : "");
     std::fflush(stdout);
     writer.add(r);
-    rows.push_back(r);
+    rows.push_back(summaryRow(r));
   };
   report(twoArms(options));
   report(twoArmsCloth(options, "two_arms_cloth", 0.0, true));
@@ -341,32 +367,12 @@ void speed(const Options& options, std::vector<Row>& rows) {
   report(twoArmsCloth(options, "two_arms_cloth_no_self", 0.0, false));
 }
 
-void writeSummary(const Options& options, const std::vector<Row>& rows) {
-  std::ofstream json(options.out + "/summary.json");
-  json.precision(10);
-  json << "{\n  \"program\": \"sim_benchmark\",\n  \"experiment\": \"" << options.experiment
-       << "\",\n  \"seed\": " << options.seed << ",\n  \"quick\": " << (options.quick ? "true" : "false")
-       << ",\n  \"cpu\": 0,\n  \"results\": [\n";
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    const Row& r = rows[i];
-    json << "    {\"experiment\": \"" << options.experiment << "\", \"setting\": \"" << r.setting
-         << "\", \"realtime_factor\": " << r.realtimeFactor() << ", \"bullet_share\": " << r.bulletShare()
-         << ", \"bullet_arms_share\": " << r.timings.bullet_arms / r.timings.total
-         << ", \"bullet_cloth_share\": " << r.timings.cloth.bullet / r.timings.total
-         << ", \"self_collision_share\": " << r.timings.cloth.self_collision / r.timings.total
-         << ", \"plant_share\": " << r.timings.plant / r.timings.total << ", \"simulated_s\": " << r.simulated
-         << ", \"wall_s\": " << r.wall << ", \"controller_s\": " << r.controller_wall
-         << ", \"arm_step_s\": " << (r.simulated / static_cast<double>(std::max(1L, r.timings.steps)))
-         << ", \"cloth_step_s\": " << r.cloth_step << ", \"diverged\": " << (r.diverged ? "true" : "false")
-         << ", \"max_stretch\": " << r.max_stretch << ", \"fold_on_top\": " << r.fold_on_top << "}"
-         << (i + 1 < rows.size() ? "," : "") << "\n";
-  }
-  json << "  ]\n}\n";
-}
-
-/// The experiments of this program; friction and payload experiments go here.
-const std::vector<std::pair<std::string, std::function<void(const Options&, std::vector<Row>&)>>> kExperiments = {
-    {"speed", speed},
+/// The experiments of this program, in the order `all` runs them.
+const std::vector<std::pair<std::string, std::function<void(const Options&, std::vector<bs::bench::JsonRow>&)>>>
+    kExperiments = {
+        {"speed", speed},
+        {"friction", bs::bench::sim_experiments::friction},
+        {"payload", bs::bench::sim_experiments::payload},
 };
 
 }  // namespace
@@ -377,8 +383,13 @@ int main(int argc, char** argv) {
   program.description =
       "Experiments on the physics simulator. speed: simulated seconds per wall-clock second on one core (CPU 0) and\n"
       "Bullet's share of the time, for the two arms alone and with the folding cloth (several cloth steps); writes\n"
-      "DIR/speed.csv and DIR/summary.json. --quick: short runs, chosen cloth step only.";
+      "DIR/speed.csv. friction: thesis Table 4.1 (initial, basic and advanced friction models identified from\n"
+      "excitation runs, errors on validation runs) and tracking RMS with no, basic and advanced compensation;\n"
+      "writes DIR/friction_*.csv and the fitted models as YAML. payload: thesis Fig. 4.2, the tool's vertical force\n"
+      "estimated by our observer and KDL's for 0-2 kg; writes DIR/payload*.csv. all: every experiment. Each writes\n"
+      "DIR/summary.json; friction and payload also PNG plots and tables.md. --quick: short runs (a few seconds).";
   for (const auto& [name, function] : kExperiments) program.experiments.push_back(name);
+  program.experiments.push_back("all");
   const Options options = bs::bench::parseExperimentOptions(argc, argv, program);
   try {
     cpu_set_t one;
@@ -388,12 +399,18 @@ int main(int argc, char** argv) {
     std::filesystem::create_directories(options.out);
     std::printf("sim_benchmark: experiment %s, seed %u%s, output %s\n", options.experiment.c_str(), options.seed,
                 options.quick ? " (quick)" : "", options.out.c_str());
-    std::vector<Row> rows;
+    std::vector<bs::bench::JsonRow> rows;
     for (const auto& [name, function] : kExperiments) {
-      if (name == options.experiment) function(options, rows);
+      if (name == options.experiment || options.experiment == "all") {
+        function(options, rows);
+        bs::bench::writeSummaryJson(options, "sim_benchmark", rows);  // complete after each experiment
+      }
     }
-    writeSummary(options, rows);
-    std::printf("sim_benchmark: wrote %s/summary.json and %s/speed.csv\n", options.out.c_str(), options.out.c_str());
+    std::printf("sim_benchmark: wrote %s/summary.json\n", options.out.c_str());
+    if (options.experiment != "speed" &&
+        !bs::bench::runPlotScript("sim_benchmark", kSourceDir + "/scripts/plot_sim_benchmark.py", options.out)) {
+      return 1;
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sim_benchmark: %s\n", e.what());
     return 1;

@@ -1,13 +1,17 @@
-// Smoke test of sim_benchmark in --quick mode: it runs, writes summary.json with every field and the CSV, answers
-// --help on stdout with status 0 and rejects bad arguments with status 2. No assertion on time.
+// Smoke test of sim_benchmark in --quick mode: each experiment runs, writes summary.json with every field, its CSV
+// and PNG files; the quick friction and payload figures are sane (finite, ordered where the physics orders them);
+// --help answers on stdout with status 0 and bad arguments get status 2. No assertion on time.
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace fs = std::filesystem;
 
@@ -23,6 +27,42 @@ std::string readFile(const fs::path& path) {
   std::stringstream text;
   text << file.rdbuf();
   return text.str();
+}
+
+/// The rows of a CSV file as column → value maps.
+std::vector<std::map<std::string, std::string>> readCsv(const fs::path& path) {
+  std::ifstream file(path);
+  std::string line;
+  std::vector<std::string> header;
+  std::vector<std::map<std::string, std::string>> rows;
+  const auto split = [](const std::string& text) {
+    std::vector<std::string> cells;
+    std::stringstream stream(text);
+    std::string cell;
+    while (std::getline(stream, cell, ',')) cells.push_back(cell);
+    return cells;
+  };
+  if (std::getline(file, line)) header = split(line);
+  while (std::getline(file, line)) {
+    const std::vector<std::string> cells = split(line);
+    if (cells.size() != header.size()) {
+      ADD_FAILURE() << path << ": row with " << cells.size() << " cells, header has " << header.size();
+      continue;
+    }
+    std::map<std::string, std::string> row;
+    for (std::size_t i = 0; i < cells.size(); ++i) row[header[i]] = cells[i];
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+double number(const std::map<std::string, std::string>& row, const std::string& key) {
+  const auto found = row.find(key);
+  if (found == row.end()) {
+    ADD_FAILURE() << "no column " << key;
+    return std::nan("");
+  }
+  return std::stod(found->second);
 }
 
 }  // namespace
@@ -45,13 +85,74 @@ TEST(SimBenchmarkSmoke, QuickSpeedRunWritesEveryOutput) {
   fs::remove_all(out);
 }
 
+TEST(SimBenchmarkSmoke, QuickFrictionRunWritesTable41AndTracking) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_friction";
+  fs::remove_all(out);
+  ASSERT_EQ(run(std::string(SIM_BENCHMARK) + " --experiment friction --seed 3 --quick --out " + out.string()), 0);
+  const std::string summary = readFile(out / "summary.json");
+  for (const char* field : {"\"experiment\": \"friction\"", "\"table\": \"4.1\"", "\"model\": \"initial\"",
+                            "\"model\": \"basic\"", "\"model\": \"advanced\"", "\"table\": \"tracking\"",
+                            "\"compensation\": \"none\"", "\"compensation\": \"advanced\"", "\"rms_rad_mean\""}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field << "\n" << summary;
+  }
+  EXPECT_EQ(summary.find("null"), std::string::npos) << summary;  // no NaN or infinity anywhere
+  // Table 4.1: 3 models x 7 joints, finite errors, every joint excited by at least one validation run, max ≥ MAE.
+  const auto errors = readCsv(out / "friction_errors.csv");
+  ASSERT_EQ(errors.size(), 21u);
+  for (const auto& row : errors) {
+    EXPECT_GE(number(row, "validation_runs"), 1.0);
+    EXPECT_TRUE(std::isfinite(number(row, "mae")));
+    EXPECT_GT(number(row, "mae"), 0.0);
+    EXPECT_GE(number(row, "max_error"), number(row, "mae"));
+    EXPECT_LT(number(row, "mae"), 5.0) << row.at("model") << " joint " << row.at("joint");
+  }
+  // Tracking: friction compensation of either model must beat none on average (by far, even on quick data).
+  std::map<std::string, double> mean;
+  const auto tracking = readCsv(out / "friction_tracking.csv");
+  ASSERT_EQ(tracking.size(), 21u);
+  for (const auto& row : tracking) mean[row.at("compensation")] += number(row, "rms_rad") / 7.0;
+  EXPECT_LT(mean["basic"], 0.7 * mean["none"]);
+  EXPECT_LT(mean["advanced"], 0.7 * mean["none"]);
+  EXPECT_LT(mean["none"], 0.1);  // the arm followed the runs (no divergence, no runaway)
+  for (const char* file : {"friction_initial.yaml", "friction_basic.yaml", "friction_advanced.yaml",
+                           "friction_example.csv", "friction_table41.png", "friction_example.png", "tables.md"}) {
+    EXPECT_TRUE(fs::exists(out / file)) << file;
+  }
+  fs::remove_all(out);
+}
+
+TEST(SimBenchmarkSmoke, QuickPayloadRunEstimatesTheWeights) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_payload";
+  fs::remove_all(out);
+  ASSERT_EQ(run(std::string(SIM_BENCHMARK) + " --experiment payload --seed 3 --quick --out " + out.string()), 0);
+  const std::string summary = readFile(out / "summary.json");
+  for (const char* field : {"\"experiment\": \"payload\"", "\"observer\": \"ours\"", "\"observer\": \"kdl\"",
+                            "\"load_kg\": 0,", "\"load_kg\": 2,", "\"steady_error_pct\"", "\"transient_peak_n\""}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field << "\n" << summary;
+  }
+  EXPECT_EQ(summary.find("null"), std::string::npos) << summary;
+  const auto rows = readCsv(out / "payload_summary.csv");
+  ASSERT_GE(rows.size(), 4u);  // two observers, at least two loads
+  for (const auto& row : rows) {
+    // Even on the quick run's coarse friction model both observers see the weight within 15 % (0.75 N at 0 kg).
+    EXPECT_LT(number(row, "steady_error_pct"), 15.0) << row.at("observer") << " " << row.at("load_kg") << " kg";
+    EXPECT_NEAR(number(row, "steady_estimate_n"), number(row, "true_weight_n"), 0.15 * 9.81 * 2.0);
+    EXPECT_GE(number(row, "transient_peak_n"), 0.0);
+    EXPECT_LT(number(row, "transient_peak_n"), 20.0);
+  }
+  const auto series = readCsv(out / "payload.csv");
+  EXPECT_GT(series.size(), 1000u);
+  EXPECT_TRUE(fs::exists(out / "payload.png"));
+  fs::remove_all(out);
+}
+
 TEST(SimBenchmarkSmoke, HelpAndBadArguments) {
   const std::string program = SIM_BENCHMARK;
   const fs::path help = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_help.txt";
   const int status = std::system((program + " --help > " + help.string() + " 2>/dev/null").c_str());
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0);
-  EXPECT_NE(readFile(help).find("usage: sim_benchmark --experiment speed"), std::string::npos);
+  EXPECT_NE(readFile(help).find("usage: sim_benchmark --experiment speed|friction|payload|all"), std::string::npos);
   EXPECT_EQ(run(program + " --experiment nope --seed 1 --out /tmp/x"), 2);
   EXPECT_EQ(run(program + " --experiment speed --seed -4 --out /tmp/x"), 2);
   EXPECT_EQ(run(program + " --experiment speed --seed 1"), 2);
