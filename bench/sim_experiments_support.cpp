@@ -19,9 +19,9 @@ const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
 
 /// Ranges of the excitation (within the thesis' joint limits, away from self-collisions): centre interval and
 /// largest amplitude per joint [rad].
-const Eigen::VectorXd kCentreLow = (Eigen::VectorXd(7) << -1.0, -0.4, -0.8, 0.9, -1.9, -0.3, -0.5).finished();
-const Eigen::VectorXd kCentreHigh = (Eigen::VectorXd(7) << 1.0, 0.4, 0.8, 1.7, -1.4, 0.3, 0.5).finished();
-const Eigen::VectorXd kAmplitude = (Eigen::VectorXd(7) << 1.1, 0.9, 1.2, 0.9, 1.5, 1.0, 1.2).finished();
+const Eigen::VectorXd kCentreLow = (Eigen::VectorXd(7) << -1.0, -0.4, -0.8, 0.9, -1.0, -0.3, -0.5).finished();
+const Eigen::VectorXd kCentreHigh = (Eigen::VectorXd(7) << 1.0, 0.4, 0.8, 1.7, -0.2, 0.3, 0.5).finished();
+const Eigen::VectorXd kAmplitude = (Eigen::VectorXd(7) << 1.1, 0.9, 1.2, 0.9, 1.2, 1.0, 1.2).finished();
 
 /// Offline processing of one run's samples (rows): zero-phase low-pass, q̈ by central differences of the filtered
 /// q̇, ends trimmed; appended to the log.
@@ -203,18 +203,18 @@ dynamics::FrictionFit identifyFriction(const IdentificationData& data, dynamics:
   options.seed = seed;
   options.holdout = 1.0 - static_cast<double>(data.train_end) / data.log.samples();
   if (quick) {
-    options.restarts = 1;
+    options.restarts = 3;
     options.max_search_samples = 2000;
   }
   return dynamics::fitFriction(data.log, data.friction, data.signs, options);
 }
 
 std::vector<ExcitationTrajectory> trainingRuns(const ExperimentOptions& options) {
-  return excitationSet(options.seed, options.quick ? 1 : 3, options.quick ? 3.0 : 15.0);
+  return excitationSet(options.seed, options.quick ? 1 : 3, options.quick ? 4.0 : 15.0);
 }
 
 std::vector<ExcitationTrajectory> validationRuns(const ExperimentOptions& options) {
-  return excitationSet(options.seed + 7919u, options.quick ? 1 : 2, options.quick ? 3.0 : 15.0);
+  return excitationSet(options.seed + 7919u, options.quick ? 1 : 2, options.quick ? 4.0 : 15.0);
 }
 
 namespace {

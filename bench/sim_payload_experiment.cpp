@@ -72,6 +72,16 @@ struct Estimate {
   }
 };
 
+/// Our observer's gains: those of test_control (K11 = 10, K12 = 0, K21 = 100, K22 = 0, Σ = 10, diagonal) with a
+/// longer velocity FIR than its default: its noise, differentiated into ẋ̂2 (4.15), dominates the estimate otherwise.
+control::ObserverGains observerGains() {
+  control::ObserverGains gains = control::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0);
+  gains.rate_hz = 1.0 / kControlPeriod;
+  gains.fir_taps = 31;
+  gains.fir_cutoff_hz = 15.0;
+  return gains;
+}
+
 KDL::Chain kdlChain(const sim::SimConfig& config) {
   KDL::Tree tree;
   KDL::Chain chain;
@@ -101,8 +111,7 @@ void payload(const ExperimentOptions& options, Rows& rows) {
     }
     const kinematics::ChainModel model = controllerModel(simulation);
     control::ComputedTorqueController controller(model, friction, lowGains());
-    control::DisturbanceObserver observer(model, friction,
-                                          control::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0));
+    control::DisturbanceObserver observer(model, friction, observerGains());
     const Eigen::Vector3d gravity = model.gravity();
     const Eigen::Vector3d up = -gravity.normalized();  // the base frame's vertical
     KDL::ChainExternalWrenchEstimator kdl(chain, KDL::Vector(gravity.x(), gravity.y(), gravity.z()),

@@ -38,12 +38,14 @@ struct JointData {
   int size() const { return static_cast<int>(q.size()); }
 };
 
-/// Least-squares b for fixed nonlinear parameters, and the sum of squared residuals.
-double solveLinear(JointFriction& joint, const JointData& data, int stride) {
+/// Ridge least-squares b for fixed nonlinear parameters, min ‖Φ b − F‖² + λ ‖b‖² with λ = ridge · rows (solved as
+/// the least-squares problem of Φ stacked on √λ I), and that minimum (the search's objective: a fit that needs huge
+/// coefficients costs more).
+double solveLinear(JointFriction& joint, const JointData& data, int stride, double ridge) {
   const int p = linearParameterCount(joint.type);
   const int rows = (data.size() + stride - 1) / stride;
-  Eigen::MatrixXd phi(rows, p);
-  Eigen::VectorXd f(rows);
+  Eigen::MatrixXd phi = Eigen::MatrixXd::Zero(rows + p, p);
+  Eigen::VectorXd f = Eigen::VectorXd::Zero(rows + p);
   Eigen::VectorXd row(p);
   for (int k = 0, r = 0; k < data.size(); k += stride, ++r) {
     const auto i = static_cast<std::size_t>(k);
@@ -51,6 +53,7 @@ double solveLinear(JointFriction& joint, const JointData& data, int stride) {
     phi.row(r) = row.transpose();
     f[r] = data.f[i];
   }
+  phi.bottomRows(p).diagonal().setConstant(std::sqrt(ridge * rows));
   joint.b = phi.colPivHouseholderQr().solve(f);
   if (!joint.b.allFinite()) joint.b.setZero();
   return (phi * joint.b - f).squaredNorm();
@@ -60,6 +63,7 @@ struct SearchContext {
   JointFriction* joint;
   const JointData* data;
   int stride;
+  double ridge;
 };
 
 void setNonlinear(JointFriction& joint, const double* x) {
@@ -74,7 +78,7 @@ double objective(unsigned n, const double* x, double* gradient, void* context) {
   (void)gradient;  // derivative-free (BOBYQA)
   auto* c = static_cast<SearchContext*>(context);
   setNonlinear(*c->joint, x);
-  return solveLinear(*c->joint, *c->data, c->stride);
+  return solveLinear(*c->joint, *c->data, c->stride, c->ridge);
 }
 
 /// Best model of `type` for the samples, over seeded restarts of the nonlinear search.
@@ -87,7 +91,7 @@ JointFriction fitJoint(FrictionModelType type, const JointData& data, const Fric
   const int k = nonlinearCount(type);
   const int stride = std::max(1, data.size() / std::max(1, options.max_search_samples));
   if (k == 0) {
-    solveLinear(best, data, 1);
+    solveLinear(best, data, 1, options.ridge);
     return best;
   }
   const std::vector<double> lower = {options.s_min, options.z_min, options.h_min};
@@ -102,7 +106,7 @@ JointFriction fitJoint(FrictionModelType type, const JointData& data, const Fric
       x[j] = i == 0 ? std::exp(std::uniform_real_distribution<double>(std::log(lower[0]), std::log(upper[0]))(rng))
                     : std::uniform_real_distribution<double>(lower[j], upper[j])(rng);
     }
-    SearchContext context{&candidate, &data, stride};
+    SearchContext context{&candidate, &data, stride, options.ridge};
     nlopt::opt optimiser(nlopt::LN_BOBYQA, static_cast<unsigned>(k));
     optimiser.set_lower_bounds(std::vector<double>(lower.begin(), lower.begin() + k));
     optimiser.set_upper_bounds(std::vector<double>(upper.begin(), upper.begin() + k));
@@ -121,7 +125,7 @@ JointFriction fitJoint(FrictionModelType type, const JointData& data, const Fric
       best = candidate;
     }
   }
-  solveLinear(best, data, 1);  // final coefficients on every sample
+  solveLinear(best, data, 1, options.ridge);  // final coefficients on every sample
   return best;
 }
 
@@ -169,6 +173,7 @@ void FrictionFitOptions::validate() const {
   if (!(epsilon >= 0.0)) fail("epsilon must be >= 0");
   if (!(s_min > 0.0 && s_min < s_max && z_min < z_max && h_min > 0.0 && h_min < h_max)) fail("bad search bounds");
   if (max_search_samples < 10) fail("max_search_samples must be >= 10");
+  if (!(ridge >= 0.0)) fail("ridge must be >= 0");
 }
 
 std::vector<FrictionErrors> evaluateFriction(const FrictionModel& model, const FrictionLog& log,
