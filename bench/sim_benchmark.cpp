@@ -390,15 +390,23 @@ int main(int argc, char** argv) {
       "DIR/summary.json; friction and payload also PNG plots and tables.md. --quick: short runs (a few seconds).";
   for (const auto& [name, function] : kExperiments) program.experiments.push_back(name);
   program.experiments.push_back("all");
+  std::string plant_file;
+  program.extra = [&](bs::cli::CommandLine& line) {
+    line.option("--plant", "FILE",
+                "true plant of the friction and payload experiments (default: config/plant.yaml; for diagnosis)",
+                &plant_file);
+  };
   const Options options = bs::bench::parseExperimentOptions(argc, argv, program);
+  bs::bench::sim_experiments::usePlantFile(plant_file);
   try {
     cpu_set_t one;
     CPU_ZERO(&one);
     CPU_SET(0, &one);
     if (sched_setaffinity(0, sizeof(one), &one) != 0) std::fprintf(stderr, "sim_benchmark: could not pin to CPU 0\n");
     std::filesystem::create_directories(options.out);
-    std::printf("sim_benchmark: experiment %s, seed %u%s, output %s\n", options.experiment.c_str(), options.seed,
-                options.quick ? " (quick)" : "", options.out.c_str());
+    std::printf("sim_benchmark: experiment %s, seed %u%s, output %s%s%s\n", options.experiment.c_str(), options.seed,
+                options.quick ? " (quick)" : "", options.out.c_str(), plant_file.empty() ? "" : ", plant ",
+                plant_file.c_str());
     std::vector<bs::bench::JsonRow> rows;
     for (const auto& [name, function] : kExperiments) {
       if (name == options.experiment || options.experiment == "all") {

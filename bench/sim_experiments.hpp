@@ -33,8 +33,13 @@ void payload(const ExperimentOptions& options, Rows& rows);
 /// Control and observer rate of the thesis' WAM (500 Hz); the simulation runs at config/sim.yaml's 1 kHz.
 constexpr double kControlPeriod = 0.002;
 
-/// config/sim.yaml with only the left arm (no table, no cloth), its true plant from config/plant.yaml, seeded.
+/// config/sim.yaml with only the left arm (no table, no cloth), its true plant from config/plant.yaml (or the file
+/// given to usePlantFile), seeded.
 sim::SimConfig oneArmConfig(const ExperimentOptions& options);
+
+/// Makes the friction and payload experiments use another true plant (sim_benchmark --plant FILE), e.g. to find
+/// out which of the plant's effects the models miss. Empty: config/plant.yaml.
+void usePlantFile(const std::string& path);
 
 /// What the controllers know of the arm: the simulation's rigid-body model with the data-sheet reflected rotor
 /// inertias of shared/reference/wam.md (no friction: that is identified).

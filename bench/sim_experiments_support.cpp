@@ -49,8 +49,21 @@ void appendRun(const Eigen::MatrixXd& q, const Eigen::MatrixXd& qd, const Eigen:
 
 }  // namespace
 
+std::string& plantFile() {
+  static std::string path;
+  return path;
+}
+
+void usePlantFile(const std::string& path) {
+  plantFile() = path;
+}
+
 sim::SimConfig oneArmConfig(const ExperimentOptions& options) {
   sim::SimConfig config = sim::SimConfig::fromYamlFile(kSourceDir + "/config/sim.yaml");
+  if (!plantFile().empty()) {
+    config.plant = sim::PlantModel::fromYamlFile(plantFile());
+    config.plant_path = plantFile();
+  }
   config.seed = options.seed;
   config.arms.resize(1);  // left
   config.has_table = false;
