@@ -3,8 +3,8 @@
 // trajectory, then holds still for 2 s. The computed-torque controller (low gains, identified advanced friction)
 // tracks; in the same run our disturbance observer (thesis 4.15) and KDL's ChainExternalWrenchEstimator (momentum
 // observer) estimate the tool wrench. The vertical force is compared with the true weight:
-//   steady-state error: mean estimate over the motion away from the start and the reversal, t ∈ [1, 4.5] ∪ [6, 9.5];
-//   transient peaks: largest error around the reversal of joint 1 (t ∈ [4.5, 6]) and the stop (t ∈ [10, 11]);
+//   steady-state error: mean estimate over the motion away from the start and the reversal, t ∈ [1, 4.5] ∪ [7, 9.5];
+//   transient peaks: largest error around the reversal of joint 1 (t ∈ [4.5, 7]) and the stop (t ∈ [10, 11]);
 //   at rest: mean estimate over t ∈ [11, 12], where the joints stick (static friction holds part of the load).
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
@@ -59,7 +59,7 @@ struct Estimate {
   int steady_samples = 0, rest_samples = 0;
 
   void add(double t, double error) {
-    if ((t >= 1.0 && t < 4.5) || (t >= 6.0 && t < 9.5)) {
+    if ((t >= 1.0 && t < 4.5) || (t >= 7.0 && t < 9.5)) {
       steady_sum += error;
       ++steady_samples;
     }
@@ -67,7 +67,7 @@ struct Estimate {
       rest_sum += error;
       ++rest_samples;
     }
-    if (t >= 4.5 && t < 6.0) reversal_peak = std::max(reversal_peak, std::abs(error));
+    if (t >= 4.5 && t < 7.0) reversal_peak = std::max(reversal_peak, std::abs(error));
     if (t >= kMotionEnd && t < 11.0) stop_peak = std::max(stop_peak, std::abs(error));
   }
 };

@@ -76,7 +76,9 @@ def friction(directory, md):
         ax.set_ylabel("joint 1 friction [N m]")
         ax.set_title("A validation run of joint 1 on the simulated plant (cf. Fig. 4.6)", fontsize=10)
         ax.grid(alpha=0.3)
-        ax.legend()
+        low, high = ax.get_ylim()
+        ax.set_ylim(low, high + 0.25 * (high - low))  # room for the legend above the curves
+        ax.legend(loc="upper center", ncol=4, fontsize=8)
         fig.tight_layout()
         fig.savefig(os.path.join(directory, "friction_example.png"), dpi=110)
         plt.close(fig)

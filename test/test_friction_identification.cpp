@@ -163,8 +163,8 @@ TEST(FrictionIdentification, AdvancedModelBeatsTheSimplerOnesOnItsOwnData) {
 }
 
 /// The advanced model fitted on a joint that visited only ±0.4 rad, evaluated 1 rad beyond what it saw, against
-/// the basic truth that made the data with an unmodelled ripple. Without the ridge the linear and Fourier columns are nearly collinear there
-/// and the coefficients blow up into a polynomial that extrapolates wildly.
+/// the basic truth that made the data with an unmodelled ripple. Without the ridge the linear and Fourier columns are
+/// nearly collinear there and the coefficients blow up into a polynomial that extrapolates wildly.
 double advancedExtrapolationError(double ridge, double* largest_coefficient) {
   bd::JointFriction truth = truthJoint(FrictionModelType::Basic, 0, 1.0);
   const int m = 4000;
