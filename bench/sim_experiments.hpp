@@ -95,7 +95,8 @@ dynamics::FrictionFit identifyFriction(const IdentificationData& data, dynamics:
 dynamics::FrictionModel advancedFriction(const ExperimentOptions& options);
 void rememberAdvancedFriction(const ExperimentOptions& options, const dynamics::FrictionModel& model);
 
-/// The excitation of the friction experiment: training runs (`repeats` sets) and validation runs (fresh draws).
+/// The excitation of the friction experiment: 3 training sets and 2 validation sets (fresh draws) of 15 s runs;
+/// --quick: one of each, 4 s runs.
 std::vector<ExcitationTrajectory> trainingRuns(const ExperimentOptions& options);
 std::vector<ExcitationTrajectory> validationRuns(const ExperimentOptions& options);
 
