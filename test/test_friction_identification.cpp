@@ -52,6 +52,14 @@ bd::FrictionModel truthModel(FrictionModelType type) {
   return model;
 }
 
+/// A log of `samples` rows and `joints` columns, uninitialised.
+bd::FrictionLog sizedLog(int samples, int joints) {
+  bd::FrictionLog log;
+  log.t.resize(samples);
+  for (Eigen::MatrixXd* m : {&log.q, &log.qd, &log.qdd, &log.tau}) m->resize(samples, joints);
+  return log;
+}
+
 /// Sinusoidal joint motions within the limits, torques = RNEA + true friction (with pair switching) + noise.
 bd::FrictionLog syntheticLog(const bk::ChainModel& model, const bd::FrictionModel& truth, double seconds, double rate,
                              unsigned seed) {
@@ -59,12 +67,7 @@ bd::FrictionLog syntheticLog(const bk::ChainModel& model, const bd::FrictionMode
   std::uniform_real_distribution<double> u(0.0, 1.0);
   std::normal_distribution<double> noise(0.0, kNoise);
   const int m = static_cast<int>(seconds * rate);
-  bd::FrictionLog log;
-  log.t.resize(m);
-  log.q.resize(m, 7);
-  log.qd.resize(m, 7);
-  log.qdd.resize(m, 7);
-  log.tau.resize(m, 7);
+  bd::FrictionLog log = sizedLog(m, 7);
   Eigen::Matrix<double, 7, 3> amplitude, frequency, phase;
   for (int j = 0; j < 7; ++j) {
     const double range = model.upperLimits()[j] - model.lowerLimits()[j];
@@ -169,12 +172,7 @@ double advancedExtrapolationError(double ridge, double* largest_coefficient) {
   bd::JointFriction truth = truthJoint(FrictionModelType::Basic, 0, 1.0);
   const int m = 4000;
   const double rate = 200.0;
-  bd::FrictionLog log;
-  log.t.resize(m);
-  log.q.resize(m, 1);
-  log.qd.resize(m, 1);
-  log.qdd.resize(m, 1);
-  log.tau.resize(m, 1);
+  bd::FrictionLog log = sizedLog(m, 1);
   Eigen::MatrixXd friction(m, 1), signs(m, 1);
   std::mt19937 rng(5);
   std::normal_distribution<double> noise(0.0, kNoise);
