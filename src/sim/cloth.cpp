@@ -221,7 +221,13 @@ void Cloth::Impl::build() {
   table_body = std::make_unique<btRigidBody>(table_info);
   world->addRigidBody(table_body.get());
 
-  // Grippers: heavy bodies without gravity, in a collision group that collides with nothing.
+  // Grippers: heavy bodies without gravity, in a collision group that collides with nothing, parked above the
+  // cloth's centre until the owner moves them; always built there, so a rebuilt cloth starts as a new one does.
+  poses.assign(static_cast<std::size_t>(gripper_count), Eigen::Isometry3d::Identity());
+  for (int g = 0; g < gripper_count; ++g) {
+    poses[static_cast<std::size_t>(g)].translation() = parameters.pose * Eigen::Vector3d(0.0, 0.0, 0.5 + 0.1 * g);
+  }
+  twists.assign(static_cast<std::size_t>(gripper_count), Vector6d::Zero());
   gripper_shape = std::make_unique<btSphereShape>(0.01);
   for (int g = 0; g < gripper_count; ++g) {
     btRigidBody::btRigidBodyConstructionInfo info_g(kGripperMass, nullptr, gripper_shape.get(),
@@ -326,13 +332,6 @@ Cloth::Cloth(const ClothParameters& parameters, const Table& table, int grippers
   impl_->table = table;
   impl_->gravity = gravity;
   impl_->gripper_count = grippers;
-  impl_->poses.assign(static_cast<std::size_t>(grippers), Eigen::Isometry3d::Identity());
-  for (int g = 0; g < grippers; ++g) {
-    // Parked above the cloth's centre until the owner moves them.
-    impl_->poses[static_cast<std::size_t>(g)].translation() =
-        parameters.pose * Eigen::Vector3d(0.0, 0.0, 0.5 + 0.1 * g);
-  }
-  impl_->twists.assign(static_cast<std::size_t>(grippers), Vector6d::Zero());
   impl_->build();
 }
 

@@ -1,0 +1,91 @@
+/// \file
+/// The cloth-folding task of thesis Sec. 7.2.3 on the simulated pair of WAMs: a 12-D Cartesian DMP (both tools'
+/// positions and the 3-D quaternion-vector orientation relative to the start; 20 weights per DoF, 240 parameters)
+/// is turned on line into joint references by CLIK and tracked by the computed-torque controllers (friction model,
+/// observer) on the simulated plant, which folds the cloth. One rollout = reset, grasp, move, release, settle.
+/// Target bimanual_skills_fold (tasks floor: uses sim, control, primitives, kinematics).
+#pragma once
+
+#include "bimanual_skills/kinematics/clik.hpp"
+#include "bimanual_skills/primitives/cartesian_dmp.hpp"
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::tasks {
+
+struct ClothFoldConfig {
+  std::string sim_config;                                    ///< Simulation file with a cloth (config/sim.yaml).
+  int kernels = 20;                                          ///< DMP weights per DoF.
+  double duration = 4.0;                                     ///< Of the fold movement [s].
+  double hold_before = 0.2, hold_after = 0.3, settle = 1.0;  ///< Around the movement [s].
+  /// Computed-torque gains per joint (low, as in Ch. 4); empty: the defaults of config/ctc_controller.yaml.
+  Eigen::VectorXd kp, kv;
+  /// Friction model files per arm for the controllers and observers ("" = no friction compensation).
+  std::vector<std::string> friction_files;
+  std::string ik_method = "ED";     ///< CLIK method (a thesis name, e.g. "CTP+SD+SVF").
+  double max_ik_error = 0.05;       ///< Task error of the CLIK references beyond which the rollout fails [m].
+  double max_tracking_error = 0.3;  ///< Joint tracking error beyond which the rollout fails [rad].
+  double path_rate = 50.0;          ///< Samples per second of the recorded tool paths.
+  /// The scripted demonstration (deliberately imperfect, as a first kinesthetic attempt would be): the far corners
+  /// are carried on arcs of radius `demo_reach` × the cloth's half length and put down `demo_drop` above the table.
+  double demo_reach = 0.85, demo_lift = 0.6, demo_drop = 0.06;
+};
+
+/// Why a rollout ended.
+enum class FoldOutcome {
+  Ok,
+  InvalidPolicy,       ///< Wrong size or NaN/Inf parameters.
+  GraspFailed,         ///< A tool started with no cloth node within the grasp radius.
+  IkFailed,            ///< The CLIK references could not follow the DMP (task error beyond max_ik_error).
+  ControllerFailed,    ///< Tracking error beyond max_tracking_error (or an invalid controller input).
+  SimulationDiverged,  ///< The arms or the cloth left their bounds (NaN, speeds, stretch).
+};
+const char* toString(FoldOutcome outcome) noexcept;
+
+struct FoldRollout {
+  FoldOutcome outcome = FoldOutcome::Ok;
+  std::string reason;               ///< Empty when Ok.
+  double acceleration_cost = 0.0;   ///< ∫ ‖q̈_ref‖² dt over both arms [rad²/s³] (R_acceleration's raw value).
+  double max_tracking_error = 0.0;  ///< [rad]
+  double max_ik_error = 0.0;        ///< [m]
+  int grasped_nodes[2] = {0, 0};
+  std::vector<Eigen::Matrix3Xd> commanded_path, actual_path;  ///< Tool positions (world) per arm, at path_rate.
+  Eigen::Matrix3Xd cloth_vertices;                            ///< Final cloth mesh (world frame).
+  Eigen::Matrix3Xi cloth_triangles;
+  Eigen::Matrix3Xd cloth_rest_vertices;
+  double simulated_seconds = 0.0, wall_seconds = 0.0;
+};
+
+/// The task. Construction builds the simulation, controllers and the demonstration (allocates, throws
+/// std::invalid_argument with the reason); run() resets and reuses them. One object per thread.
+class ClothFoldTask {
+ public:
+  explicit ClothFoldTask(const ClothFoldConfig& config);
+  ~ClothFoldTask();
+  ClothFoldTask(const ClothFoldTask&) = delete;
+  ClothFoldTask& operator=(const ClothFoldTask&) = delete;
+
+  /// Policy parameters: per arm (left, right), position weights (3 × kernels, row by row) then orientation weights.
+  int parameterCount() const noexcept;
+  /// The demonstration's two Cartesian DMPs (world frame) and their parameter vector.
+  const std::vector<primitives::CartesianDmp>& demonstration() const noexcept;
+  Eigen::VectorXd demonstrationParameters() const;
+  /// The two DMPs with the demonstration's start, goal and duration and the weights `theta`.
+  /// \throws std::invalid_argument for a wrong size.
+  std::vector<primitives::CartesianDmp> dmps(const Eigen::VectorXd& theta) const;
+
+  /// One rollout of the policy `theta` (same theta, same result: the simulation and its noise are reset).
+  FoldRollout run(const Eigen::VectorXd& theta);
+
+  const ClothFoldConfig& config() const noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace bimanual_skills::tasks

@@ -1,0 +1,330 @@
+#include "bimanual_skills/tasks/cloth_fold.hpp"
+
+#include "bimanual_skills/control/computed_torque_controller.hpp"
+#include "bimanual_skills/control/disturbance_observer.hpp"
+#include "bimanual_skills/dynamics/friction_yaml.hpp"
+#include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/sim/bimanual_simulation.hpp"
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace bimanual_skills::tasks {
+
+namespace {
+
+using primitives::CartesianDmp;
+using primitives::CartesianDmpState;
+using primitives::Pose;
+
+/// Low computed-torque gains (about a tenth of libbarrett's stiff position gains; config/ctc_controller.yaml).
+const Eigen::VectorXd kDefaultKp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
+const Eigen::VectorXd kDefaultKv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
+/// Samples per second of the scripted demonstration the DMPs are fitted to.
+constexpr double kDemonstrationRate = 100.0;
+
+}  // namespace
+
+const char* toString(FoldOutcome outcome) noexcept {
+  switch (outcome) {
+    case FoldOutcome::Ok:
+      return "Ok";
+    case FoldOutcome::InvalidPolicy:
+      return "InvalidPolicy";
+    case FoldOutcome::GraspFailed:
+      return "GraspFailed";
+    case FoldOutcome::IkFailed:
+      return "IkFailed";
+    case FoldOutcome::ControllerFailed:
+      return "ControllerFailed";
+    case FoldOutcome::SimulationDiverged:
+      return "SimulationDiverged";
+  }
+  return "Unknown";
+}
+
+struct ClothFoldTask::Impl {
+  ClothFoldConfig config;
+  sim::SimConfig sim_config;
+  std::unique_ptr<sim::BimanualSimulation> simulation;
+  std::vector<std::unique_ptr<control::ComputedTorqueController>> controllers;
+  std::vector<std::unique_ptr<control::DisturbanceObserver>> observers;
+  std::vector<kinematics::ClikData> clik;
+  kinematics::ClikParameters clik_parameters;
+  std::vector<CartesianDmp> demonstration;
+  std::vector<Eigen::VectorXd> start_q;
+
+  /// One fold arc per arm: from the far corner (x = centre + half length) over the cloth towards the near edge.
+  std::vector<Pose> demonstrationPath(int arm) const {
+    const double top = sim_config.table.topCentre().z();
+    const Eigen::Vector3d centre = sim_config.cloth.pose.translation();
+    const double half = 0.5 * sim_config.cloth.length, radius = config.demo_reach * half;
+    const double side = simulation->basePose(arm).translation().y() > centre.y() ? 1.0 : -1.0;
+    const double y = centre.y() + side * (0.5 * sim_config.cloth.width - 0.01);
+    const double lift = 0.015;
+    const int samples = static_cast<int>(std::lround(config.duration * kDemonstrationRate)) + 1;
+    std::vector<Pose> path;
+    for (int k = 0; k < samples; ++k) {
+      double s = static_cast<double>(k) / (samples - 1);
+      s = s * s * s * (10.0 + s * (-15.0 + 6.0 * s));  // minimum jerk
+      const double angle = M_PI * s;
+      Pose pose;
+      // The arc's radius shrinks from the corner's distance to the centre line to `radius`: it ends short of (or
+      // beyond) the near edge, and `demo_drop` above the table.
+      const double r = (half - 0.01) * (1.0 - s) + radius * s;
+      pose.position = Eigen::Vector3d(centre.x() + r * std::cos(angle), y,
+                                      top + lift + config.demo_drop * s + config.demo_lift * r * std::sin(angle));
+      pose.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI - 0.35 * std::sin(angle), Eigen::Vector3d::UnitY()));
+      path.push_back(pose);
+    }
+    return path;
+  }
+};
+
+ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.config = config;
+  if (config.kernels < 2 || !(config.duration > 0.0) || config.hold_before < 0.0 || config.hold_after < 0.0 ||
+      config.settle < 0.0 || !(config.max_ik_error > 0.0) || !(config.max_tracking_error > 0.0) ||
+      !(config.path_rate > 0.0)) {
+    throw std::invalid_argument("cloth fold: kernels >= 2, positive duration, limits and path rate, holds >= 0");
+  }
+  m.sim_config = sim::SimConfig::fromYamlFile(config.sim_config);
+  if (!m.sim_config.has_cloth) throw std::invalid_argument("cloth fold: '" + config.sim_config + "' has no cloth");
+  m.simulation = std::make_unique<sim::BimanualSimulation>(m.sim_config);
+  if (m.simulation->armCount() != 2) throw std::invalid_argument("cloth fold: the simulation needs two arms");
+  kinematics::InverseOperator op;
+  kinematics::LimitScheme scheme;
+  if (!kinematics::parseMethodName(config.ik_method, op, scheme)) {
+    throw std::invalid_argument("cloth fold: unknown IK method '" + config.ik_method + "'");
+  }
+  m.clik_parameters.inverse = op;
+  m.clik_parameters.limits = scheme;
+  const Eigen::VectorXd kp = config.kp.size() ? config.kp : kDefaultKp;
+  const Eigen::VectorXd kv = config.kv.size() ? config.kv : kDefaultKv;
+  for (int arm = 0; arm < 2; ++arm) {
+    const kinematics::ChainModel& model = m.simulation->armModel(arm);
+    dynamics::FrictionModel friction;
+    const bool with_friction = arm < static_cast<int>(config.friction_files.size()) &&
+                               !config.friction_files[static_cast<std::size_t>(arm)].empty();
+    if (with_friction) {
+      friction = dynamics::loadFrictionModel(config.friction_files[static_cast<std::size_t>(arm)]);
+    } else {
+      friction.joints.assign(static_cast<std::size_t>(model.nq()), dynamics::JointFriction{});
+    }
+    control::ComputedTorqueGains gains;
+    gains.kp = kp;
+    gains.kv = kv;
+    m.controllers.push_back(std::make_unique<control::ComputedTorqueController>(model, friction, gains));
+    m.controllers.back()->setFrictionCompensation(with_friction);
+    control::ObserverGains observer = control::ObserverGains::diagonal(model.nq(), 10.0, 0.0, 100.0, 0.0, 10.0);
+    observer.rate_hz = 1.0 / m.simulation->stepSize();
+    m.observers.push_back(std::make_unique<control::DisturbanceObserver>(model, friction, observer));
+    m.clik.emplace_back(model, m.clik_parameters);
+  }
+
+  // The demonstration: the scripted arcs fitted by two Cartesian DMPs; the start configurations by global IK.
+  primitives::DmpParameters dmp;
+  dmp.kernels = config.kernels;
+  const Eigen::VectorXd seed = (Eigen::VectorXd(7) << 0.0, 0.8, 0.0, 1.6, 0.0, 0.7, 0.0).finished();
+  for (int arm = 0; arm < 2; ++arm) {
+    const std::vector<Pose> path = m.demonstrationPath(arm);
+    m.demonstration.push_back(
+        CartesianDmp::fit(dmp, primitives::OrientationEncoding::QuaternionVector, path, 1.0 / kDemonstrationRate, 0.0));
+    kinematics::GlobalIkParameters parameters;
+    kinematics::GlobalIkSolver solver(m.simulation->armModel(arm), parameters);
+    Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+    target.translation() = path.front().position;
+    target.linear() = path.front().orientation.toRotationMatrix();
+    Eigen::VectorXd q(7);
+    const auto result = solver.solve(m.simulation->basePose(arm).inverse() * target, seed, q);
+    if (result.status != kinematics::IkStatus::Converged) {
+      throw std::invalid_argument("cloth fold: no IK solution for the start of arm " + std::to_string(arm));
+    }
+    m.start_q.push_back(q);
+  }
+}
+
+ClothFoldTask::~ClothFoldTask() = default;
+
+const ClothFoldConfig& ClothFoldTask::config() const noexcept {
+  return impl_->config;
+}
+
+int ClothFoldTask::parameterCount() const noexcept {
+  return 2 * 6 * impl_->config.kernels;
+}
+
+const std::vector<CartesianDmp>& ClothFoldTask::demonstration() const noexcept {
+  return impl_->demonstration;
+}
+
+Eigen::VectorXd ClothFoldTask::demonstrationParameters() const {
+  const int k = impl_->config.kernels;
+  Eigen::VectorXd theta(parameterCount());
+  for (int arm = 0; arm < 2; ++arm) {
+    const CartesianDmp& d = impl_->demonstration[static_cast<std::size_t>(arm)];
+    for (int row = 0; row < 3; ++row) {
+      theta.segment((arm * 6 + row) * k, k) = d.positionWeights().row(row).transpose();
+      theta.segment((arm * 6 + 3 + row) * k, k) = d.orientationWeights().row(row).transpose();
+    }
+  }
+  return theta;
+}
+
+std::vector<CartesianDmp> ClothFoldTask::dmps(const Eigen::VectorXd& theta) const {
+  if (theta.size() != parameterCount()) {
+    throw std::invalid_argument("cloth fold: " + std::to_string(parameterCount()) + " parameters expected, got " +
+                                std::to_string(theta.size()));
+  }
+  const int k = impl_->config.kernels;
+  std::vector<CartesianDmp> out;
+  for (int arm = 0; arm < 2; ++arm) {
+    const CartesianDmp& d = impl_->demonstration[static_cast<std::size_t>(arm)];
+    Eigen::MatrixXd position(3, k), orientation(3, k);
+    for (int row = 0; row < 3; ++row) {
+      position.row(row) = theta.segment((arm * 6 + row) * k, k).transpose();
+      orientation.row(row) = theta.segment((arm * 6 + 3 + row) * k, k).transpose();
+    }
+    out.emplace_back(d.parameters(), d.encoding(), position, orientation, d.start(), d.goal(), d.duration());
+  }
+  return out;
+}
+
+FoldRollout ClothFoldTask::run(const Eigen::VectorXd& theta) {
+  Impl& m = *impl_;
+  FoldRollout out;
+  if (theta.size() != parameterCount() || !theta.allFinite()) {
+    out.outcome = FoldOutcome::InvalidPolicy;
+    out.reason = "the policy needs " + std::to_string(parameterCount()) + " finite parameters";
+    return out;
+  }
+  const auto wall_start = std::chrono::steady_clock::now();
+  const std::vector<CartesianDmp> dmps = this->dmps(theta);
+  // A new simulation for every rollout: after reset() a simulation whose cloth was grasped differs from a new one in
+  // the last bits, which the contacts amplify (0.6 mm on the cloth after a fold); a new one makes rollouts
+  // repeatable bit for bit whichever worker runs them.
+  m.simulation = std::make_unique<sim::BimanualSimulation>(m.sim_config);
+  sim::BimanualSimulation& simulation = *m.simulation;
+  std::vector<sim::ArmState> start;
+  for (const Eigen::VectorXd& q : m.start_q) start.push_back({q, Eigen::VectorXd::Zero(q.size())});
+  if (simulation.reset(start) != sim::SimStatus::Ok) throw std::logic_error("cloth fold: reset rejected");
+  for (int arm = 0; arm < 2; ++arm) {
+    if (simulation.grasp(arm, &out.grasped_nodes[arm]) != sim::SimStatus::Ok || out.grasped_nodes[arm] == 0) {
+      out.outcome = FoldOutcome::GraspFailed;
+      out.reason = "arm " + std::to_string(arm) + " grasped no cloth node";
+      return out;
+    }
+  }
+
+  const double dt = simulation.stepSize();
+  const int n = 7;
+  std::array<CartesianDmpState, 2> dmp_state = {dmps[0].initialState(), dmps[1].initialState()};
+  std::vector<Eigen::VectorXd> q_ref = m.start_q, qd_ref(2, Eigen::VectorXd::Zero(n)), qdd_ref = qd_ref;
+  std::vector<Eigen::VectorXd> q_next = q_ref, qd_next = qd_ref;
+  std::vector<sim::JointState> measured(2, sim::JointState(n));
+  Eigen::VectorXd torque(n), accel_sign(n), applied_0 = Eigen::VectorXd::Zero(n), applied_1 = applied_0;
+  std::vector<Eigen::VectorXd*> applied = {&applied_0, &applied_1};
+  for (int arm = 0; arm < 2; ++arm) {
+    simulation.readJointState(arm, measured[static_cast<std::size_t>(arm)]);
+    m.observers[static_cast<std::size_t>(arm)]->reset(measured[static_cast<std::size_t>(arm)].position,
+                                                      measured[static_cast<std::size_t>(arm)].velocity);
+  }
+  const int move_start = static_cast<int>(std::lround(m.config.hold_before / dt));
+  const int move_end = move_start + static_cast<int>(std::lround(m.config.duration / dt));
+  const int release = move_end + static_cast<int>(std::lround(m.config.hold_after / dt));
+  const int steps = release + static_cast<int>(std::lround(m.config.settle / dt));
+  const int path_every = std::max(1, static_cast<int>(std::lround(1.0 / (m.config.path_rate * dt))));
+  std::vector<std::vector<Eigen::Vector3d>> commanded(2), actual(2);
+  const auto fail = [&](FoldOutcome outcome, const std::string& reason) {
+    out.outcome = outcome;
+    out.reason = reason + " at t = " + std::to_string(simulation.time()) + " s";
+  };
+
+  for (int k = 0; k < steps && out.outcome == FoldOutcome::Ok; ++k) {
+    if (k == release) {
+      for (int arm = 0; arm < 2; ++arm) (void)simulation.release(arm);
+    }
+    for (int arm = 0; arm < 2 && out.outcome == FoldOutcome::Ok; ++arm) {
+      const auto a = static_cast<std::size_t>(arm);
+      const kinematics::ChainModel& model = simulation.armModel(arm);
+      // Reference: the DMP's pose (held before and after the movement), followed by one CLIK step per period.
+      if (k >= move_start && k < move_end && dmps[a].step(dmp_state[a], dt) == primitives::DmpStatus::InvalidInput) {
+        fail(FoldOutcome::IkFailed, "the DMP of arm " + std::to_string(arm) + " produced an invalid state");
+        break;
+      }
+      Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+      target.translation() = dmp_state[a].position.y;
+      target.linear() = dmp_state[a].orientation.toRotationMatrix();
+      target = simulation.basePose(arm).inverse() * target;
+      kinematics::ClikData& clik = m.clik[a];
+      if (kinematics::step(model, m.clik_parameters, clik, q_ref[a], target) != kinematics::IkStatus::StepComputed) {
+        fail(FoldOutcome::IkFailed, "CLIK failed on arm " + std::to_string(arm));
+        break;
+      }
+      const double ik_error = clik.error.head<3>().norm();
+      out.max_ik_error = std::max(out.max_ik_error, ik_error);
+      if (ik_error > m.config.max_ik_error) {
+        fail(FoldOutcome::IkFailed,
+             "arm " + std::to_string(arm) + "'s references are " + std::to_string(ik_error) + " m from the DMP's pose");
+        break;
+      }
+      q_next[a] = q_ref[a] + clik.dq;
+      qd_next[a] = (q_next[a] - q_ref[a]) / dt;
+      qdd_ref[a] = (qd_next[a] - qd_ref[a]) / dt;
+      out.acceleration_cost += qdd_ref[a].squaredNorm() * dt;
+      q_ref[a] = q_next[a];
+      qd_ref[a] = qd_next[a];
+
+      // The controller on the measured state.
+      sim::JointState& state = measured[a];
+      simulation.readJointState(arm, state);
+      const double tracking = (q_ref[a] - state.position).cwiseAbs().maxCoeff();
+      out.max_tracking_error = std::max(out.max_tracking_error, tracking);
+      if (tracking > m.config.max_tracking_error) {
+        fail(FoldOutcome::ControllerFailed,
+             "arm " + std::to_string(arm) + " is " + std::to_string(tracking) + " rad off its references");
+        break;
+      }
+      if (m.controllers[a]->update(state.position, state.velocity, q_ref[a], qd_ref[a], qdd_ref[a], torque) ==
+          control::ControlStatus::InvalidInput) {
+        fail(FoldOutcome::ControllerFailed, "invalid controller input on arm " + std::to_string(arm));
+        break;
+      }
+      for (int j = 0; j < n; ++j)
+        accel_sign[j] = std::abs(qdd_ref[a][j]) < 1e-3 ? 0.0 : std::copysign(1.0, qdd_ref[a][j]);
+      (void)m.observers[a]->update(state.position, state.velocity, *applied[a], accel_sign);
+      *applied[a] = torque;
+      simulation.writeJointTorques(arm, torque);
+      if (k % path_every == 0) {
+        commanded[a].push_back(simulation.basePose(arm) * Eigen::Vector3d(clik.kinematics.tipPose().translation()));
+        actual[a].push_back(simulation.toolPose(arm).translation());
+      }
+    }
+    if (out.outcome != FoldOutcome::Ok) break;
+    const sim::SimStatus status = simulation.step();
+    if (status == sim::SimStatus::ArmDiverged) fail(FoldOutcome::SimulationDiverged, "an arm diverged");
+    if (status == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the cloth diverged");
+  }
+
+  for (int arm = 0; arm < 2; ++arm) {
+    const auto a = static_cast<std::size_t>(arm);
+    Eigen::Matrix3Xd c(3, static_cast<Eigen::Index>(commanded[a].size())), r(3, c.cols());
+    for (Eigen::Index i = 0; i < c.cols(); ++i) {
+      c.col(i) = commanded[a][static_cast<std::size_t>(i)];
+      r.col(i) = actual[a][static_cast<std::size_t>(i)];
+    }
+    out.commanded_path.push_back(c);
+    out.actual_path.push_back(r);
+  }
+  out.cloth_vertices = simulation.cloth().vertices();
+  out.cloth_triangles = simulation.cloth().triangles();
+  out.cloth_rest_vertices = simulation.cloth().restVertices();
+  out.simulated_seconds = simulation.time();
+  out.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  return out;
+}
+
+}  // namespace bimanual_skills::tasks

@@ -1,0 +1,100 @@
+// The cloth-folding task on the simulated WAMs: the demonstration folds the cloth, rollouts are repeatable, and bad
+// or wild policies end with a reason instead of a crash.
+#include "bimanual_skills/tasks/cloth_fold.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+namespace bt = bimanual_skills::tasks;
+
+namespace {
+
+bt::ClothFoldConfig config() {
+  bt::ClothFoldConfig c;
+  c.sim_config = BIMANUAL_SKILLS_SOURCE_DIR "/config/sim.yaml";
+  c.duration = 3.0;
+  c.settle = 0.7;
+  return c;
+}
+
+/// Fraction of the far half's nodes (rest x beyond the centre) that ended over the near half, above the bottom layer.
+double foldedFraction(const bt::FoldRollout& r, double centre_x, double table_top) {
+  int far = 0, folded = 0;
+  for (Eigen::Index i = 0; i < r.cloth_vertices.cols(); ++i) {
+    if (r.cloth_rest_vertices(0, i) < centre_x + 0.05) continue;
+    ++far;
+    folded += r.cloth_vertices(0, i) < centre_x && r.cloth_vertices(2, i) > table_top + 0.006;
+  }
+  return far > 0 ? static_cast<double>(folded) / far : 0.0;
+}
+
+}  // namespace
+
+TEST(ClothFold, TheDemonstrationFoldsTheClothRepeatably) {
+  bt::ClothFoldTask task(config());
+  EXPECT_EQ(task.parameterCount(), 240);
+  const Eigen::VectorXd theta = task.demonstrationParameters();
+  const bt::FoldRollout first = task.run(theta);
+  ASSERT_EQ(first.outcome, bt::FoldOutcome::Ok) << first.reason;
+  EXPECT_GT(first.grasped_nodes[0], 0);
+  EXPECT_GT(first.grasped_nodes[1], 0);
+  EXPECT_LT(first.max_ik_error, 0.01);
+  EXPECT_LT(first.max_tracking_error, 0.1);
+  const double fraction = foldedFraction(first, 0.5, 0.15);
+  std::printf(
+      "demonstration: %.2f s simulated in %.2f s (%.1fx), IK error %.4f m, tracking %.4f rad, "
+      "acceleration cost %.1f, folded %.0f %%\n",
+      first.simulated_seconds, first.wall_seconds, first.simulated_seconds / first.wall_seconds, first.max_ik_error,
+      first.max_tracking_error, first.acceleration_cost, 100.0 * fraction);
+  EXPECT_GT(fraction, 0.5);
+  ASSERT_EQ(first.commanded_path.size(), 2u);
+  EXPECT_GT(first.commanded_path[0].cols(), 100);
+  // Same policy, same rollout, bit for bit.
+  const bt::FoldRollout second = task.run(theta);
+  ASSERT_EQ(second.outcome, bt::FoldOutcome::Ok);
+  EXPECT_EQ((first.cloth_vertices - second.cloth_vertices).cwiseAbs().maxCoeff(), 0.0);
+  EXPECT_EQ(first.acceleration_cost, second.acceleration_cost);
+}
+
+TEST(ClothFold, ParametersRoundTrip) {
+  bt::ClothFoldTask task(config());
+  const auto dmps = task.dmps(task.demonstrationParameters());
+  for (int arm = 0; arm < 2; ++arm) {
+    EXPECT_EQ(dmps[arm].positionWeights(), task.demonstration()[arm].positionWeights());
+    EXPECT_EQ(dmps[arm].orientationWeights(), task.demonstration()[arm].orientationWeights());
+  }
+  EXPECT_THROW(task.dmps(Eigen::VectorXd::Zero(3)), std::invalid_argument);
+}
+
+TEST(ClothFold, BadAndWildPoliciesEndWithAReason) {
+  bt::ClothFoldTask task(config());
+  Eigen::VectorXd theta = task.demonstrationParameters();
+  theta[17] = std::nan("");
+  EXPECT_EQ(task.run(theta).outcome, bt::FoldOutcome::InvalidPolicy);
+  EXPECT_EQ(task.run(Eigen::VectorXd::Zero(5)).outcome, bt::FoldOutcome::InvalidPolicy);
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 3e4);
+  theta = task.demonstrationParameters();
+  for (Eigen::Index i = 0; i < theta.size(); ++i) theta[i] += noise(rng);
+  const bt::FoldRollout wild = task.run(theta);
+  EXPECT_NE(wild.outcome, bt::FoldOutcome::Ok);
+  EXPECT_FALSE(wild.reason.empty());
+  std::printf("wild policy: %s: %s\n", bt::toString(wild.outcome), wild.reason.c_str());
+  // The task is usable again afterwards.
+  EXPECT_EQ(task.run(task.demonstrationParameters()).outcome, bt::FoldOutcome::Ok);
+}
+
+TEST(ClothFold, BadConfiguration) {
+  bt::ClothFoldConfig c = config();
+  c.ik_method = "XYZ";
+  EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
+  c = config();
+  c.duration = 0.0;
+  EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
+  c = config();
+  c.sim_config = "/nonexistent.yaml";
+  EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
+}
