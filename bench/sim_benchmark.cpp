@@ -1,6 +1,6 @@
 // Experiments on the physics simulator (issue 11), as one seeded program:
 //
-//   sim_benchmark --experiment speed|friction|payload|all --seed S --out DIR [--quick]
+//   sim_benchmark --experiment speed|friction|payload|fold_rollout|all --seed S --out DIR [--quick]
 //
 // speed: wall-clock speed of the simulation on one core (the process is pinned to CPU 0), as simulated seconds per
 // wall-clock second of BimanualSimulation::step() calls, with Bullet's share of that time:
@@ -13,11 +13,13 @@
 // not counted in realtime_factor.
 // friction: thesis Table 4.1 and friction-compensated tracking (sim_friction_experiment.cpp).
 // payload: thesis Fig. 4.2, payload estimation by our observer and KDL's (sim_payload_experiment.cpp).
+// fold_rollout: the real-time factor of a whole 10 s cloth-folding rollout (tasks/cloth_fold) per CLIK method.
 // all: every experiment in turn. Every experiment adds its rows to DIR/summary.json; friction and payload also
 // write PNG plots and DIR/tables.md (scripts/plot_sim_benchmark.py).
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
+#include "bimanual_skills/tasks/cloth_fold.hpp"
 #include "experiment_cli.hpp"
 #include "sim_experiments.hpp"
 #include "summary_json.hpp"
@@ -367,12 +369,55 @@ void speed(const Options& options, std::vector<bs::bench::JsonRow>& rows) {
   report(twoArmsCloth(options, "two_arms_cloth_no_self", 0.0, false));
 }
 
+/// fold_rollout: one rollout of the cloth-folding task's demonstration (tasks/cloth_fold), 10 s of simulated time
+/// (0.2 s hold, 8.5 s movement, 0.3 s hold, 1 s settle) on one core, with each CLIK method the task may use:
+/// the real-time factor of the whole rollout (simulation, CLIK, controllers) and how well the references follow the
+/// DMP and the arms the references.
+void foldRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows) {
+  std::ofstream csv(options.out + "/fold_rollout.csv");
+  csv << "ik_method,outcome,simulated_s,wall_s,realtime_factor,max_ik_error_m,max_tracking_error_rad,"
+         "acceleration_cost\n";
+  for (const char* method : {"ED", "CTP+SD+SVF"}) {
+    bs::tasks::ClothFoldConfig config;
+    config.sim_config = kSourceDir + "/config/sim.yaml";
+    config.duration = options.quick ? 1.5 : 8.5;
+    config.settle = options.quick ? 0.2 : 1.0;
+    config.ik_method = method;
+    bs::tasks::ClothFoldTask task(config);
+    const bs::tasks::FoldRollout r = task.run(task.demonstrationParameters());
+    const double factor = r.simulated_seconds / r.wall_seconds;
+    std::printf(
+        "sim_benchmark: fold_rollout %-11s %s, %5.2f s simulated in %5.2f s: %5.2fx real time, IK error "
+        "%.5f m, tracking error %.4f rad\n",
+        method, bs::tasks::toString(r.outcome), r.simulated_seconds, r.wall_seconds, factor, r.max_ik_error,
+        r.max_tracking_error);
+    std::fflush(stdout);
+    csv << method << ',' << bs::tasks::toString(r.outcome) << ',' << r.simulated_seconds << ',' << r.wall_seconds << ','
+        << factor << ',' << r.max_ik_error << ',' << r.max_tracking_error << ',' << r.acceleration_cost << '\n';
+    csv.flush();
+    bs::bench::JsonRow row;
+    row.add("experiment", "fold_rollout")
+        .add("setting", std::string("fold_rollout_") + method)
+        .add("ik_method", method)
+        .add("outcome", bs::tasks::toString(r.outcome))
+        .add("realtime_factor", factor)
+        .add("simulated_s", r.simulated_seconds)
+        .add("wall_s", r.wall_seconds)
+        .add("max_ik_error_m", r.max_ik_error)
+        .add("max_tracking_error_rad", r.max_tracking_error)
+        .add("acceleration_cost", r.acceleration_cost)
+        .add("cpu", 0);
+    rows.push_back(row);
+  }
+}
+
 /// The experiments of this program, in the order `all` runs them.
 const std::vector<std::pair<std::string, std::function<void(const Options&, std::vector<bs::bench::JsonRow>&)>>>
     kExperiments = {
         {"speed", speed},
         {"friction", bs::bench::sim_experiments::friction},
         {"payload", bs::bench::sim_experiments::payload},
+        {"fold_rollout", foldRollout},
 };
 
 }  // namespace
@@ -386,7 +431,9 @@ int main(int argc, char** argv) {
       "DIR/speed.csv. friction: thesis Table 4.1 (initial, basic and advanced friction models identified from\n"
       "excitation runs, errors on validation runs) and tracking RMS with no, basic and advanced compensation;\n"
       "writes DIR/friction_*.csv and the fitted models as YAML. payload: thesis Fig. 4.2, the tool's vertical force\n"
-      "estimated by our observer and KDL's for 0-2 kg; writes DIR/payload*.csv. all: every experiment. Each writes\n"
+      "estimated by our observer and KDL's for 0-2 kg; writes DIR/payload*.csv. fold_rollout: one 10 s rollout of\n"
+      "the cloth-folding task's demonstration with the CLIK methods ED and CTP+SD+SVF (real-time factor, reference\n"
+      "and tracking errors); writes DIR/fold_rollout.csv. all: every experiment. Each writes\n"
       "DIR/summary.json; friction and payload also PNG plots and tables.md. --quick: short runs (a few seconds).";
   for (const auto& [name, function] : kExperiments) program.experiments.push_back(name);
   program.experiments.push_back("all");

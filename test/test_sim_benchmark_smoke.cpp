@@ -146,13 +146,30 @@ TEST(SimBenchmarkSmoke, QuickPayloadRunEstimatesTheWeights) {
   fs::remove_all(out);
 }
 
+TEST(SimBenchmarkSmoke, QuickFoldRolloutFollowsTheDemonstration) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_fold";
+  fs::remove_all(out);
+  ASSERT_EQ(run(std::string(SIM_BENCHMARK) + " --experiment fold_rollout --seed 3 --quick --out " + out.string()), 0);
+  const auto rows = readCsv(out / "fold_rollout.csv");
+  ASSERT_EQ(rows.size(), 2u);  // ED and CTP+SD+SVF
+  for (const auto& row : rows) {
+    EXPECT_EQ(row.at("outcome"), "Ok") << row.at("ik_method");
+    EXPECT_LT(number(row, "max_ik_error_m"), 0.005) << row.at("ik_method");
+    EXPECT_LT(number(row, "max_tracking_error_rad"), 0.1) << row.at("ik_method");
+    EXPECT_GT(number(row, "realtime_factor"), 0.0);
+  }
+  EXPECT_NE(readFile(out / "summary.json").find("\"experiment\": \"fold_rollout\""), std::string::npos);
+  fs::remove_all(out);
+}
+
 TEST(SimBenchmarkSmoke, HelpAndBadArguments) {
   const std::string program = SIM_BENCHMARK;
   const fs::path help = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_help.txt";
   const int status = std::system((program + " --help > " + help.string() + " 2>/dev/null").c_str());
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0);
-  EXPECT_NE(readFile(help).find("usage: sim_benchmark --experiment speed|friction|payload|all"), std::string::npos);
+  EXPECT_NE(readFile(help).find("usage: sim_benchmark --experiment speed|friction|payload|fold_rollout|all"),
+            std::string::npos);
   EXPECT_EQ(run(program + " --experiment nope --seed 1 --out /tmp/x"), 2);
   EXPECT_EQ(run(program + " --experiment speed --seed -4 --out /tmp/x"), 2);
   EXPECT_EQ(run(program + " --experiment speed --seed 1"), 2);
