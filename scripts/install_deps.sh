@@ -20,6 +20,8 @@ PACKAGES=(
   libeigen3-dev libnlopt-cxx-dev libyaml-cpp-dev
   # physics simulator (sim/): Bullet, with its double-precision build and pkg-config files
   libbullet-dev libbullet-extras-dev pkg-config
+  # vision (vision/): rendered camera images and the image terms of the folding reward
+  libopencv-dev
   # build and test
   cmake g++ make colcon python3-colcon-ros python3-colcon-cmake python3-colcon-test-result python3-colcon-bash
   libgtest-dev googletest libbenchmark-dev

@@ -1,0 +1,177 @@
+// The vision module per call: rendering a 20 × 24-node cloth (flat and folded in half) as a top-down colour and
+// depth image at 320 × 240 and 640 × 480, without and with sensor noise; the noise of the same frame drawn with
+// std::normal_distribution on a std::mt19937 (the peer); and the reward's image terms (segmentation, minimum-area
+// rectangle, Sobel) on the rendered images. Seed 7 for the noise.
+//
+//   vision_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
+//   vision_bench --figures      writes the flat and half-folded cloth's images as PNG into the current directory
+#include "bench_timing.hpp"
+#include "benchmark_main.hpp"
+#include "bimanual_skills/vision/cloth_renderer.hpp"
+#include "bimanual_skills/vision/image_reward.hpp"
+#include "bimanual_skills/vision/synthetic_cloth.hpp"
+
+#include <benchmark/benchmark.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <cstdio>
+#include <random>
+#include <string>
+
+namespace bv = bimanual_skills::vision;
+using bimanual_skills::bench::timeBatches;
+
+namespace {
+
+constexpr unsigned kSeed = 7;
+
+/// The default scene seen by a `columns` × `rows` camera covering 1 m of table across, centred on the cloth.
+bv::ClothRendererParameters scene(int columns, int rows) {
+  bv::ClothRendererParameters p;
+  p.camera = bv::TopDownCamera::covering(columns, rows, 1.0, Eigen::Vector2d(0.5, 0.0), 1.5);
+  return p;
+}
+
+/// The polo-shirt-sized cloth of config/sim.yaml (0.5 × 0.6 m, 20 × 24 nodes) lying on the table; folded: its far
+/// half laid over the near half over a crease of radius 4 mm.
+bv::ClothMesh cloth(const bv::ClothRendererParameters& p, bool folded) {
+  const bv::ClothMesh flat = bv::flatCloth(0.5, 0.6, 20, 24, Eigen::Vector3d(0.5, 0.0, p.table.height + 0.004));
+  return folded ? bv::foldCloth(flat, 0.5, 0.004) : flat;
+}
+
+int columnsOf(const benchmark::State& state) {
+  return static_cast<int>(state.range(0));
+}
+int rowsOf(const benchmark::State& state) {
+  return columnsOf(state) * 3 / 4;
+}
+
+/// render(): args {columns, folded, noise}.
+void BM_Render(benchmark::State& state) {
+  const bv::ClothRendererParameters p = scene(columnsOf(state), rowsOf(state));
+  bv::ClothRenderer renderer(p);
+  const bv::ClothMesh mesh = cloth(p, state.range(1) != 0);
+  const bool noisy = state.range(2) != 0;
+  std::mt19937 rng(kSeed);
+  timeBatches(
+      state, 1,
+      [&](int) {
+        const bv::VisionStatus status = noisy ? renderer.render(mesh.vertices, mesh.triangles, rng)
+                                              : renderer.render(mesh.vertices, mesh.triangles);
+        benchmark::DoNotOptimize(status);
+        benchmark::DoNotOptimize(renderer.depth().data);
+      },
+      1);
+  state.counters["cloth_pixels"] = renderer.clothPixelCount();
+}
+
+/// The peer of the noise: the same per-pixel draws (depth and three colour channels) from std::normal_distribution
+/// on the std::mt19937 itself.
+void BM_NoiseWithStdNormal(benchmark::State& state) {
+  const bv::ClothRendererParameters p = scene(columnsOf(state), rowsOf(state));
+  cv::Mat depth(p.camera.rows, p.camera.columns, CV_32FC1, cv::Scalar(1.35));
+  cv::Mat bgr(p.camera.rows, p.camera.columns, CV_8UC3, cv::Scalar(100, 150, 200));
+  std::mt19937 rng(kSeed);
+  std::normal_distribution<float> normal(0.0f, 1.0f);
+  const float depth_sigma = float(p.noise.depth_stddev), colour_sigma = float(p.noise.colour_stddev);
+  timeBatches(
+      state, 1,
+      [&](int) {
+        for (int v = 0; v < depth.rows; ++v) {
+          float* d = depth.ptr<float>(v);
+          unsigned char* c = bgr.ptr<unsigned char>(v);
+          for (int u = 0; u < depth.cols; ++u) {
+            d[u] += depth_sigma * normal(rng);
+            for (int k = 0; k < 3; ++k)
+              c[3 * u + k] = cv::saturate_cast<unsigned char>(c[3 * u + k] + colour_sigma * normal(rng));
+          }
+        }
+        benchmark::DoNotOptimize(depth.data);
+      },
+      1);
+}
+
+/// ImageReward::evaluate() on a noisy rendered frame: args {columns, folded}.
+void BM_ImageReward(benchmark::State& state) {
+  const bv::ClothRendererParameters p = scene(columnsOf(state), rowsOf(state));
+  bv::ClothRenderer renderer(p);
+  const bv::ClothMesh mesh = cloth(p, state.range(1) != 0);
+  std::mt19937 rng(kSeed);
+  renderer.render(mesh.vertices, mesh.triangles, rng);
+  bv::ImageReward reward(p.camera, {});
+  bv::ImageRewardTerms terms;
+  timeBatches(
+      state, 1,
+      [&](int) {
+        terms = reward.evaluate(renderer.bgr(), renderer.depth());
+        benchmark::DoNotOptimize(terms);
+      },
+      1);
+  state.counters["fill_ratio"] = terms.colour.fill_ratio;
+  state.counters["mean_gradient"] = terms.depth.mean_gradient;
+}
+
+/// Writes NAME_rgb.png and NAME_depth.png for NAME = flat, folded and crumpled, and NAME_segmented.png (the
+/// minimum-area rectangle of the segmented cloth) for folded and crumpled, at 640 × 480 with noise (seed 7), and
+/// prints their reward terms.
+int writeFigures() {
+  const bv::ClothRendererParameters p = scene(640, 480);
+  bv::ClothRenderer renderer(p);
+  bv::ImageReward reward(p.camera, {});
+  std::mt19937 rng(kSeed);
+  std::printf("image,fill_ratio,mean_gradient,r_color,r_depth,vision_reward,area_ratio,aspect\n");
+  for (const std::string name : {"flat", "folded", "crumpled"}) {
+    const bv::ClothMesh mesh = name == "crumpled" ? bv::crumpleCloth(cloth(p, false), rng) : cloth(p, name == "folded");
+    if (renderer.render(mesh.vertices, mesh.triangles, rng) != bv::VisionStatus::Ok) return 1;
+    const bv::ImageRewardTerms terms = reward.evaluate(renderer.bgr(), renderer.depth());
+    const bv::FoldFacts facts = reward.foldFacts(reward.mask(), 0.5 * 0.6);
+    std::printf("%s,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.3f\n", name.c_str(), terms.colour.fill_ratio,
+                terms.depth.mean_gradient, terms.r_color, terms.r_depth, terms.reward(), facts.area_ratio,
+                facts.aspect);
+    // Depth shown in a colour map from 1 cm below the table top (dark blue) to 5 cm above it (dark red).
+    const double table_depth = p.camera.height - p.table.height;
+    cv::Mat depth_view;
+    renderer.depth().convertTo(depth_view, CV_8UC1, -255.0 / 0.06, 255.0 * (table_depth + 0.01) / 0.06);
+    cv::applyColorMap(depth_view, depth_view, cv::COLORMAP_TURBO);
+    bool written = cv::imwrite(name + "_rgb.png", renderer.bgr()) && cv::imwrite(name + "_depth.png", depth_view);
+    if (name != "flat") {
+      cv::Mat overlay = renderer.bgr().clone();
+      cv::Point2f corners[4];
+      terms.colour.rectangle.points(corners);
+      for (int k = 0; k < 4; ++k) cv::line(overlay, corners[k], corners[(k + 1) % 4], cv::Scalar(0, 0, 255), 2);
+      written = written && cv::imwrite(name + "_segmented.png", overlay);
+    }
+    if (!written) {
+      std::fprintf(stderr, "vision_bench: could not write the %s images\n", name.c_str());
+      return 1;
+    }
+  }
+  return 0;
+}
+
+}  // namespace
+
+BENCHMARK(BM_Render)
+    ->ArgsProduct({{320, 640}, {0, 1}, {0, 1}})
+    ->ArgNames({"columns", "folded", "noise"})
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_NoiseWithStdNormal)->Arg(320)->Arg(640)->ArgName("columns")->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_ImageReward)
+    ->ArgsProduct({{320, 640}, {0, 1}})
+    ->ArgNames({"columns", "folded"})
+    ->Unit(benchmark::kMicrosecond);
+
+int main(int argc, char** argv) {
+  const std::vector<bool> given = bimanual_skills::bench::initialiseBenchmarks(
+      argc, argv, "vision_bench",
+      "Rendering of the 20 x 24-node cloth (flat, folded) at 320 x 240 and 640 x 480, with and without noise, its "
+      "std::normal_distribution peer, and the reward's image terms, per call.",
+      {{"--figures", "write the flat and folded cloth's colour and depth images (PNG) into the current directory"}});
+  if (given[0]) return writeFigures();
+  benchmark::AddCustomContext("cloth", "0.5 x 0.6 m, 20 x 24 nodes, 874 triangles; noise seed 7");
+  benchmark::AddCustomContext("camera", "top-down orthographic, 1 m of table across the image");
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}

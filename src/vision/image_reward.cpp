@@ -1,0 +1,197 @@
+#include "bimanual_skills/vision/image_reward.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace bimanual_skills::vision {
+
+namespace {
+
+[[noreturn]] void fail(const char* where, const std::string& what) {
+  throw std::invalid_argument(std::string(where) + ": " + what);
+}
+
+bool nonNegative(double x) {
+  return std::isfinite(x) && x >= 0.0;
+}
+
+}  // namespace
+
+void ImageRewardParameters::validate(const char* where) const {
+  const ClothSegmentation& s = segmentation;
+  if (s.hue_min < 0 || s.hue_max > 179 || s.hue_min > s.hue_max) {
+    fail(where, "segmentation hue range must satisfy 0 <= hue_min <= hue_max <= 179");
+  }
+  if (s.saturation_min < 0 || s.saturation_min > 255 || s.value_min < 0 || s.value_min > 255) {
+    fail(where, "segmentation saturation_min and value_min must be in [0, 255]");
+  }
+  if (!nonNegative(colour_weight) || !nonNegative(depth_weight)) fail(where, "weights must be finite and >= 0");
+  if (border_erosion < 0 || border_erosion > 100) fail(where, "border_erosion must be in [0, 100]");
+  if (!nonNegative(depth_smoothing)) fail(where, "depth_smoothing must be finite and >= 0");
+  if (!nonNegative(no_cloth_gradient)) fail(where, "no_cloth_gradient must be finite and >= 0");
+}
+
+ImageReward::ImageReward(const TopDownCamera& camera, const ImageRewardParameters& parameters)
+    : camera_(camera), parameters_(parameters) {
+  camera_.validate("ImageReward");
+  parameters_.validate("ImageReward");
+  const int rows = camera_.rows, columns = camera_.columns;
+  hsv_.create(rows, columns, CV_8UC3);
+  mask_.create(rows, columns, CV_8UC1);
+  opened_.create(rows, columns, CV_8UC1);
+  eroded_.create(rows, columns, CV_8UC1);
+  weights_.create(rows, columns, CV_32FC1);
+  weighted_.create(rows, columns, CV_32FC1);
+  smoothed_.create(rows, columns, CV_32FC1);
+  gx_.create(rows, columns, CV_32FC1);
+  gy_.create(rows, columns, CV_32FC1);
+  points_.reserve(static_cast<std::size_t>(rows) * static_cast<std::size_t>(columns));
+  mask_.setTo(0);
+}
+
+bool ImageReward::fits(const cv::Mat& image, int type) const noexcept {
+  return !image.empty() && image.type() == type && image.rows == camera_.rows && image.cols == camera_.columns &&
+         image.dims == 2;
+}
+
+VisionStatus ImageReward::segment(const cv::Mat& bgr) {
+  if (!fits(bgr, CV_8UC3)) {
+    mask_.setTo(0);
+    return VisionStatus::WrongImageSize;
+  }
+  const ClothSegmentation& s = parameters_.segmentation;
+  cv::cvtColor(bgr, hsv_, cv::COLOR_BGR2HSV);
+  cv::inRange(hsv_, cv::Scalar(s.hue_min, s.saturation_min, s.value_min), cv::Scalar(s.hue_max, 255, 255), mask_);
+  if (s.remove_speckles) {
+    cv::morphologyEx(mask_, opened_, cv::MORPH_OPEN, cv::Mat());
+    std::swap(mask_, opened_);
+  }
+  return cv::countNonZero(mask_) > 0 ? VisionStatus::Ok : VisionStatus::NoCloth;
+}
+
+ColourTerm ImageReward::colourTerm(const cv::Mat& mask) {
+  ColourTerm term;
+  if (!fits(mask, CV_8UC1)) {
+    term.status = VisionStatus::WrongImageSize;
+    return term;
+  }
+  points_.clear();
+  cv::findNonZero(mask, points_);
+  term.cloth_pixels = static_cast<int>(points_.size());
+  if (points_.empty()) return term;  // NoCloth, ρ = 0.
+  term.rectangle = cv::minAreaRect(points_);
+  // The rectangle passes through pixel centres: each side gains one pixel of extent.
+  const double area = (double(term.rectangle.size.width) + 1.0) * (double(term.rectangle.size.height) + 1.0);
+  term.fill_ratio = std::min(1.0, term.cloth_pixels / area);
+  term.status = VisionStatus::Ok;
+  return term;
+}
+
+DepthTerm ImageReward::depthTerm(const cv::Mat& depth, const cv::Mat& mask) {
+  DepthTerm term;
+  if (!fits(depth, CV_32FC1) || !fits(mask, CV_8UC1)) {
+    term.status = VisionStatus::WrongImageSize;
+    return term;
+  }
+  if (cv::countNonZero(mask) == 0) return term;  // NoCloth.
+  const cv::Mat* source = &depth;
+  if (parameters_.depth_smoothing > 0.0) {
+    // Normalised convolution over the cloth: blur(d·m) / blur(m), the raw depth where no cloth is near.
+    for (int v = 0; v < camera_.rows; ++v) {
+      const unsigned char* m = mask.ptr<unsigned char>(v);
+      const float* d = depth.ptr<float>(v);
+      float* w = weights_.ptr<float>(v);
+      float* wd = weighted_.ptr<float>(v);
+      for (int u = 0; u < camera_.columns; ++u) {
+        const bool use = m[u] != 0 && std::isfinite(d[u]);
+        w[u] = use ? 1.0f : 0.0f;
+        wd[u] = use ? d[u] : 0.0f;
+      }
+    }
+    const double sigma = parameters_.depth_smoothing / camera_.pixel_size;
+    cv::GaussianBlur(weights_, weights_, cv::Size(0, 0), sigma, sigma, cv::BORDER_CONSTANT);
+    cv::GaussianBlur(weighted_, weighted_, cv::Size(0, 0), sigma, sigma, cv::BORDER_CONSTANT);
+    for (int v = 0; v < camera_.rows; ++v) {
+      const float* d = depth.ptr<float>(v);
+      const float* w = weights_.ptr<float>(v);
+      const float* wd = weighted_.ptr<float>(v);
+      float* out = smoothed_.ptr<float>(v);
+      for (int u = 0; u < camera_.columns; ++u) out[u] = w[u] > 1e-3f ? wd[u] / w[u] : d[u];
+    }
+    source = &smoothed_;
+  }
+  // Sobel 3 × 3: [−1 0 1; −2 0 2; −1 0 1] is 8 s times ∂d/∂x for pixels of side s.
+  const double scale = 1.0 / (8.0 * camera_.pixel_size);
+  cv::Sobel(*source, gx_, CV_32F, 1, 0, 3, scale, 0.0, cv::BORDER_REPLICATE);
+  cv::Sobel(*source, gy_, CV_32F, 0, 1, 3, scale, 0.0, cv::BORDER_REPLICATE);
+
+  const cv::Mat* region = &mask;
+  if (parameters_.border_erosion > 0) {
+    cv::erode(mask, eroded_, cv::Mat(), cv::Point(-1, -1), parameters_.border_erosion, cv::BORDER_CONSTANT,
+              cv::Scalar(0));
+    if (cv::countNonZero(eroded_) > 0) region = &eroded_;
+  }
+  double sum = 0.0;
+  int count = 0;
+  for (int v = 0; v < camera_.rows; ++v) {
+    const unsigned char* m = region->ptr<unsigned char>(v);
+    const float* d = depth.ptr<float>(v);
+    const float* gx = gx_.ptr<float>(v);
+    const float* gy = gy_.ptr<float>(v);
+    for (int u = 0; u < camera_.columns; ++u) {
+      if (m[u] == 0 || !std::isfinite(d[u])) continue;
+      const double g = std::hypot(double(gx[u]), double(gy[u]));
+      if (!std::isfinite(g)) continue;
+      sum += g;
+      ++count;
+    }
+  }
+  term.pixels = count;
+  if (count == 0) return term;  // Every cloth pixel had a non-finite depth: nothing seen.
+  term.mean_gradient = sum / count;
+  term.status = VisionStatus::Ok;
+  return term;
+}
+
+FoldFacts ImageReward::foldFacts(const cv::Mat& mask, double flat_area) {
+  if (!(std::isfinite(flat_area) && flat_area > 0.0)) {
+    throw std::invalid_argument("ImageReward::foldFacts: flat_area must be finite and > 0");
+  }
+  FoldFacts facts;
+  const ColourTerm colour = colourTerm(mask);
+  facts.status = colour.status;
+  if (colour.status != VisionStatus::Ok) return facts;
+  const double s = camera_.pixel_size;
+  facts.cloth_pixels = colour.cloth_pixels;
+  facts.cloth_area = colour.cloth_pixels * camera_.pixelArea();
+  facts.area_ratio = facts.cloth_area / flat_area;
+  const double a = (colour.rectangle.size.width + 1.0) * s;
+  const double b = (colour.rectangle.size.height + 1.0) * s;
+  facts.rectangle_length = std::max(a, b);
+  facts.rectangle_width = std::min(a, b);
+  facts.aspect = facts.rectangle_length / facts.rectangle_width;
+  facts.fill_ratio = colour.fill_ratio;
+  return facts;
+}
+
+ImageRewardTerms ImageReward::evaluate(const cv::Mat& bgr, const cv::Mat& depth) {
+  ImageRewardTerms terms;
+  const VisionStatus segmented = segment(bgr);
+  if (segmented == VisionStatus::WrongImageSize || !fits(depth, CV_32FC1)) {
+    terms.status = VisionStatus::WrongImageSize;
+  } else {
+    terms.colour = colourTerm(mask_);
+    terms.depth = depthTerm(depth, mask_);
+    terms.status = terms.colour.status != VisionStatus::Ok ? terms.colour.status : terms.depth.status;
+  }
+  const bool seen = terms.status == VisionStatus::Ok;
+  terms.r_color = parameters_.colour_weight * (seen ? 1.0 - terms.colour.fill_ratio : 1.0);
+  terms.r_depth = parameters_.depth_weight * (seen ? terms.depth.mean_gradient : parameters_.no_cloth_gradient);
+  return terms;
+}
+
+}  // namespace bimanual_skills::vision
