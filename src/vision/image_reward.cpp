@@ -49,7 +49,7 @@ ImageReward::ImageReward(const TopDownCamera& camera, const ImageRewardParameter
   smoothed_.create(rows, columns, CV_32FC1);
   gx_.create(rows, columns, CV_32FC1);
   gy_.create(rows, columns, CV_32FC1);
-  points_.reserve(static_cast<std::size_t>(rows) * static_cast<std::size_t>(columns));
+  points_.reserve(4 * static_cast<std::size_t>(rows + columns));
   mask_.setTo(0);
 }
 
@@ -79,10 +79,12 @@ ColourTerm ImageReward::colourTerm(const cv::Mat& mask) {
     term.status = VisionStatus::WrongImageSize;
     return term;
   }
+  term.cloth_pixels = cv::countNonZero(mask);
+  if (term.cloth_pixels == 0) return term;  // NoCloth, ρ = 0.
+  // The convex hull of the pixel centres is that of the outer contours' points: fit the rectangle to those only.
+  cv::findContours(mask, contours_, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
   points_.clear();
-  cv::findNonZero(mask, points_);
-  term.cloth_pixels = static_cast<int>(points_.size());
-  if (points_.empty()) return term;  // NoCloth, ρ = 0.
+  for (const std::vector<cv::Point>& contour : contours_) points_.insert(points_.end(), contour.begin(), contour.end());
   term.rectangle = cv::minAreaRect(points_);
   // The rectangle passes through pixel centres: each side gains one pixel of extent.
   const double area = (double(term.rectangle.size.width) + 1.0) * (double(term.rectangle.size.height) + 1.0);
@@ -144,7 +146,7 @@ DepthTerm ImageReward::depthTerm(const cv::Mat& depth, const cv::Mat& mask) {
     const float* gy = gy_.ptr<float>(v);
     for (int u = 0; u < camera_.columns; ++u) {
       if (m[u] == 0 || !std::isfinite(d[u])) continue;
-      const double g = std::hypot(double(gx[u]), double(gy[u]));
+      const double g = std::sqrt(double(gx[u]) * gx[u] + double(gy[u]) * gy[u]);
       if (!std::isfinite(g)) continue;
       sum += g;
       ++count;

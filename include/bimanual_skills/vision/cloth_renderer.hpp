@@ -12,6 +12,7 @@
 #include <opencv2/core.hpp>
 
 #include <random>
+#include <vector>
 
 namespace bimanual_skills::vision {
 
@@ -22,11 +23,11 @@ struct TableTop {
   Eigen::Vector2d size = Eigen::Vector2d(0.7, 1.2);     ///< Full extents along world x and y [m], > 0.
 };
 
-/// Sensor noise added by render(vertices, triangles, rng): independent per pixel and channel, zero mean, of the
-/// given standard deviations. Each draw is the sum of four uniform 16-bit draws scaled to unit variance (Irwin–Hall,
-/// n = 4): its cumulative distribution is within 0.0074 of the Gaussian's, its tails end at ±3.46 σ. The caller's
-/// std::mt19937 seeds (two draws per render) a SplitMix64 stream that supplies them: 2.7 ms of noise per 640 × 480
-/// frame instead of 18 ms with std::normal_distribution on the std::mt19937.
+/// Sensor noise added by render(vertices, triangles, rng): independent per pixel and channel, zero mean, Gaussian
+/// of the given standard deviations. Each draw is one of the 2^16 equiprobable quantiles of N(0, 1) (tails at
+/// ±4.2 σ, rescaled to unit variance), picked by 16 bits of a SplitMix64 word; the caller's std::mt19937 seeds that
+/// stream (two draws per render), and one 64-bit word serves a pixel's depth and three colours. std::mt19937 with
+/// std::normal_distribution would cost 6–7× more (vision_bench, docs/RESULTS.md "Vision").
 struct RenderNoise {
   double depth_stddev = 0.001;  ///< Depth noise σ_d [m] (a Kinect-class sensor at ~1.5 m: 1–3 mm).
   double colour_stddev = 2.0;   ///< Colour noise per channel [levels of 0–255].
@@ -87,7 +88,8 @@ class ClothRenderer {
   void addNoise(std::mt19937& rng) noexcept;
 
   ClothRendererParameters parameters_;
-  Eigen::Vector3d light_;  ///< Unit light direction.
+  std::vector<float> normal_quantiles_;  ///< 2^16 quantiles of N(0, 1): the noise's draws.
+  Eigen::Vector3d light_;                ///< Unit light direction.
   cv::Mat background_bgr_, background_depth_;
   cv::Mat bgr_, depth_, mask_;
   int cloth_pixels_ = 0;

@@ -135,6 +135,7 @@ class ImageReward {
   TopDownCamera camera_;
   ImageRewardParameters parameters_;
   cv::Mat hsv_, mask_, opened_, eroded_, weights_, weighted_, smoothed_, gx_, gy_;
+  std::vector<std::vector<cv::Point>> contours_;
   std::vector<cv::Point> points_;
 };
 
