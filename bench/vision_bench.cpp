@@ -112,11 +112,11 @@ void BM_ImageReward(benchmark::State& state) {
   state.counters["mean_gradient"] = terms.depth.mean_gradient;
 }
 
-/// Writes NAME_rgb.png and NAME_depth.png for NAME = flat, folded and crumpled, and NAME_segmented.png (the
-/// minimum-area rectangle of the segmented cloth) for folded and crumpled, at 640 × 480 with noise (seed 7), and
-/// prints their reward terms.
+/// Writes flat_rgb.png, flat_depth.png, folded_rgb.png, folded_depth.png, crumpled_segmented.png (the colour image
+/// with the minimum-area rectangle of the segmented cloth) and crumpled_depth.png at 320 × 240 with noise (seed 7),
+/// and prints their reward terms.
 int writeFigures() {
-  const bv::ClothRendererParameters p = scene(640, 480);
+  const bv::ClothRendererParameters p = scene(320, 240);
   bv::ClothRenderer renderer(p);
   bv::ImageReward reward(p.camera, {});
   std::mt19937 rng(kSeed);
@@ -134,13 +134,15 @@ int writeFigures() {
     cv::Mat depth_view;
     renderer.depth().convertTo(depth_view, CV_8UC1, -255.0 / 0.06, 255.0 * (table_depth + 0.01) / 0.06);
     cv::applyColorMap(depth_view, depth_view, cv::COLORMAP_TURBO);
-    bool written = cv::imwrite(name + "_rgb.png", renderer.bgr()) && cv::imwrite(name + "_depth.png", depth_view);
-    if (name != "flat") {
+    bool written = cv::imwrite(name + "_depth.png", depth_view);
+    if (name == "crumpled") {
       cv::Mat overlay = renderer.bgr().clone();
       cv::Point2f corners[4];
       terms.colour.rectangle.points(corners);
-      for (int k = 0; k < 4; ++k) cv::line(overlay, corners[k], corners[(k + 1) % 4], cv::Scalar(0, 0, 255), 2);
+      for (int k = 0; k < 4; ++k) cv::line(overlay, corners[k], corners[(k + 1) % 4], cv::Scalar(0, 0, 255), 1);
       written = written && cv::imwrite(name + "_segmented.png", overlay);
+    } else {
+      written = written && cv::imwrite(name + "_rgb.png", renderer.bgr());
     }
     if (!written) {
       std::fprintf(stderr, "vision_bench: could not write the %s images\n", name.c_str());

@@ -284,6 +284,20 @@ TEST(ImageReward, PerfectRectangleFillsItsRectangle) {
   EXPECT_NEAR(reward.colourTerm(reward.mask()).fill_ratio, 1.0, 0.03);
 }
 
+TEST(ImageReward, StrayPixelsAreRemovedBeforeTheRectangleIsFitted) {
+  const bv::TopDownCamera camera = scene().camera;
+  cv::Mat image = paint(camera, {{60, 50}, {219, 50}, {219, 169}, {60, 169}});
+  image.at<cv::Vec3b>(220, 300) = cv::Vec3b(184, 60, 26);  // One misclassified pixel far from the cloth.
+  bv::ImageReward reward(camera, {});
+  ASSERT_EQ(reward.segment(image), bv::VisionStatus::Ok);
+  EXPECT_NEAR(reward.colourTerm(reward.mask()).fill_ratio, 1.0, 1e-9);
+  bv::ImageRewardParameters raw;
+  raw.segmentation.remove_speckles = false;
+  bv::ImageReward unfiltered(camera, raw);
+  ASSERT_EQ(unfiltered.segment(image), bv::VisionStatus::Ok);
+  EXPECT_LT(unfiltered.colourTerm(unfiltered.mask()).fill_ratio, 0.9);
+}
+
 TEST(ImageReward, CrumpledShapesFillLess) {
   const bv::TopDownCamera camera = scene().camera;
   bv::ImageReward reward(camera, {});
