@@ -1,7 +1,7 @@
 # bimanual_skills: the two commands.
 #   make demo   install what is missing, build, run the most complete end-to-end job
 #   make test   install what is missing, build, run every gtest and rostest; non-zero exit on any failure
-# Also: make build, make bench (kinematics, dynamics/control, primitives and policy-update benchmarks), make format, make deps.
+# Also: make build, make bench (kinematics, dynamics/control, primitives, policy-update and vision benchmarks), make format, make deps.
 
 SHELL := /bin/bash
 # catkin needs Debian's python3 (with catkin_pkg), not a pyenv interpreter earlier on PATH.
@@ -37,6 +37,8 @@ bench: build
 	  --benchmark_report_aggregates_only=true --benchmark_out=build/primitives_bench.json --benchmark_out_format=json
 	./build/bimanual_skills/devel/lib/bimanual_skills/learning_bench --benchmark_repetitions=5 \
 	  --benchmark_report_aggregates_only=true --benchmark_out=build/learning_bench.json --benchmark_out_format=json
+	./build/bimanual_skills/devel/lib/bimanual_skills/vision_bench --benchmark_repetitions=5 \
+	  --benchmark_report_aggregates_only=true --benchmark_out=build/vision_bench.json --benchmark_out_format=json
 
 format:
 	clang-format -i $$(git ls-files '*.cpp' '*.hpp')

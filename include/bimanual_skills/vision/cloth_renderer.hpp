@@ -27,7 +27,7 @@ struct TableTop {
 /// of the given standard deviations. Each draw is one of the 2^16 equiprobable quantiles of N(0, 1) (tails at
 /// ±4.3 σ, rescaled to unit variance), picked by 16 bits of a SplitMix64 word; the caller's std::mt19937 seeds that
 /// stream (two draws per render), and one 64-bit word serves a pixel's depth and three colours. std::mt19937 with
-/// std::normal_distribution would cost 15–25 times more (vision_bench, docs/RESULTS.md "Vision").
+/// std::normal_distribution costs about 16 times more (vision_bench, docs/RESULTS.md "Vision").
 struct RenderNoise {
   double depth_stddev = 0.001;  ///< Depth noise σ_d [m] (a Kinect-class sensor at ~1.5 m: 1–3 mm).
   double colour_stddev = 2.0;   ///< Colour noise per channel [levels of 0–255].
