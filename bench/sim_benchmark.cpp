@@ -437,14 +437,17 @@ int main(int argc, char** argv) {
       "DIR/summary.json; friction and payload also PNG plots and tables.md. --quick: short runs (a few seconds).";
   for (const auto& [name, function] : kExperiments) program.experiments.push_back(name);
   program.experiments.push_back("all");
-  std::string plant_file;
+  std::string plant_file, arm_name = "left";
   program.extra = [&](bs::cli::CommandLine& line) {
     line.option("--plant", "FILE",
                 "true plant of the friction and payload experiments (default: config/plant.yaml; for diagnosis)",
                 &plant_file);
+    line.option("--arm", "NAME", "arm of config/sim.yaml the friction and payload experiments use (default left)",
+                &arm_name);
   };
   const Options options = bs::bench::parseExperimentOptions(argc, argv, program);
   bs::bench::sim_experiments::usePlantFile(plant_file);
+  bs::bench::sim_experiments::useArm(arm_name);
   try {
     cpu_set_t one;
     CPU_ZERO(&one);

@@ -40,6 +40,10 @@ sim::SimConfig oneArmConfig(const ExperimentOptions& options);
 /// Makes the friction and payload experiments use another true plant (sim_benchmark --plant FILE), e.g. to find
 /// out which of the plant's effects the models miss. Empty: config/plant.yaml.
 void usePlantFile(const std::string& path);
+/// The arm of config/sim.yaml the friction and payload experiments simulate (default "left").
+void useArm(const std::string& name);
+/// Its name.
+std::string& armName();
 
 /// What the controllers know of the arm: the simulation's rigid-body model with the data-sheet reflected rotor
 /// inertias of shared/reference/wam.md (no friction: that is identified).

@@ -58,6 +58,15 @@ void usePlantFile(const std::string& path) {
   plantFile() = path;
 }
 
+std::string& armName() {
+  static std::string name = "left";
+  return name;
+}
+
+void useArm(const std::string& name) {
+  armName() = name;
+}
+
 sim::SimConfig oneArmConfig(const ExperimentOptions& options) {
   sim::SimConfig config = sim::SimConfig::fromYamlFile(kSourceDir + "/config/sim.yaml");
   if (!plantFile().empty()) {
@@ -65,7 +74,10 @@ sim::SimConfig oneArmConfig(const ExperimentOptions& options) {
     config.plant_path = plantFile();
   }
   config.seed = options.seed;
-  config.arms.resize(1);  // left
+  const auto arm =
+      std::find_if(config.arms.begin(), config.arms.end(), [](const sim::ArmConfig& a) { return a.name == armName(); });
+  if (arm == config.arms.end()) throw std::invalid_argument("no arm called '" + armName() + "' in config/sim.yaml");
+  config.arms = {*arm};
   config.has_table = false;
   config.has_cloth = false;
   return config;

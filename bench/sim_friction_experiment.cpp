@@ -87,7 +87,8 @@ void friction(const ExperimentOptions& options, Rows& rows) {
     const std::string name = dynamics::toString(type);
     dynamics::saveFrictionModel(fit.model, options.out + "/friction_" + name + ".yaml",
                                 "Identified by sim_benchmark --experiment friction --seed " +
-                                    std::to_string(options.seed) + " on the simulated left WAM");
+                                    std::to_string(options.seed) + " --arm " + armName() + " on the simulated " +
+                                    armName() + " WAM");
     std::vector<TableEntry> table(7);
     for (std::size_t v = 0; v < validation.size(); ++v) {
       const int run = first_validation + static_cast<int>(v);
