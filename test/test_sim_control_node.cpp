@@ -217,8 +217,13 @@ TEST_F(SimControl, RejectsNanCommandsAndHoldsOnStaleStates) {
   old.name = jointNames("left");
   old.position = armPositions("left");
   old.velocity.assign(7, 0.0);
-  ASSERT_TRUE(waitWall([this] { return fake_states_.getNumSubscribers() >= 2; }, 10.0));
-  fake_states_.publish(old);
+  // robot_state_publisher, both controllers and this node subscribe; a new connection may still be settling, so the
+  // old state goes out a few times.
+  ASSERT_TRUE(waitWall([this] { return fake_states_.getNumSubscribers() >= 4; }, 10.0));
+  for (int k = 0; k < 3; ++k) {
+    fake_states_.publish(old);
+    waitWall([] { return false; }, 0.02);
+  }
   waitSim(0.2);
   const double q_at_stale = armPositions("left")[0];
   waitSim(3.5);
