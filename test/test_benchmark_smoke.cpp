@@ -1,6 +1,8 @@
 // Smoke test of the experiment programs (ik_benchmark, ps_benchmark, dr_benchmark) in --quick mode: they run, write
 // summary.json with every field, CSV, PNG and tables.md, reject bad arguments with exit code 2 (--help: usage, 0), and
 // dr_benchmark writes the same results with any number of jobs. No assertion on time.
+#include "testing/program_output.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -12,27 +14,14 @@
 
 namespace fs = std::filesystem;
 
-namespace {
-
-int run(const std::string& command) {
-  const int status = std::system((command + " > /dev/null 2>&1").c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-std::string readFile(const fs::path& path) {
-  std::ifstream file(path);
-  std::stringstream text;
-  text << file.rdbuf();
-  return text.str();
-}
-
-}  // namespace
+using bimanual_skills::testing::readTextFile;
+using bimanual_skills::testing::runQuietly;
 
 TEST(IkBenchmarkSmoke, QuickRunWritesEveryOutput) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_ik_benchmark_smoke";
   fs::remove_all(out);
-  ASSERT_EQ(run(std::string(IK_BENCHMARK) + " --experiment all --seed 3 --quick --out " + out.string()), 0);
-  const std::string summary = readFile(out / "summary.json");
+  ASSERT_EQ(runQuietly(std::string(IK_BENCHMARK) + " --experiment all --seed 3 --quick --out " + out.string()), 0);
+  const std::string summary = readTextFile(out / "summary.json");
   for (const char* field :
        {"\"solver\"", "\"setting\"", "\"samples\"", "\"success_rate\"", "\"within_limits_rate\"", "\"median_us\"",
         "\"p99_us\"", "\"mean_iterations\"", "\"mean_residual_failed\"", "\"seed\": 3", "\"CTP+SD+SVF\"", "\"KDL\"",
@@ -49,17 +38,18 @@ TEST(IkBenchmarkSmoke, QuickRunWritesEveryOutput) {
 
 TEST(IkBenchmarkSmoke, BadArgumentsAreRejected) {
   const std::string program = IK_BENCHMARK;
-  EXPECT_EQ(run(program + " --experiment nope --seed 1 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment table34 --seed -4 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment table34 --seed 1"), 2);
-  EXPECT_EQ(run(program + " --experiment table34 --seed 1 --out /tmp/x --fast"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment nope --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment table34 --seed -4 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment table34 --seed 1"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment table34 --seed 1 --out /tmp/x --fast"), 2);
 }
 
 TEST(PsBenchmarkSmoke, QuickRunWritesEveryOutput) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_ps_benchmark_smoke";
   fs::remove_all(out);
-  ASSERT_EQ(run(std::string(PS_BENCHMARK) + " --experiment all --runs 2 --seed 3 --quick --out " + out.string()), 0);
-  const std::string summary = readFile(out / "summary.json");
+  ASSERT_EQ(runQuietly(std::string(PS_BENCHMARK) + " --experiment all --runs 2 --seed 3 --quick --out " + out.string()),
+            0);
+  const std::string summary = readTextFile(out / "summary.json");
   for (const char* field : {"\"algorithm\": \"REPS\"", "\"algorithm\": \"DREPS\"", "\"algorithm\": \"nDREPS\"",
                             "\"algorithm\": \"PI2-CMA\"", "\"runs\": 2", "\"satisfactory_runs\"",
                             "\"mean_unsatisfactory_reward\"", "\"plateau_runs\"", "\"seed\": 3"}) {
@@ -77,18 +67,19 @@ TEST(PsBenchmarkSmoke, QuickRunWritesEveryOutput) {
 
 TEST(PsBenchmarkSmoke, BadArgumentsAreRejected) {
   const std::string program = PS_BENCHMARK;
-  EXPECT_EQ(run(program + " --experiment nope --runs 2 --seed 1 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment bottles --runs 0 --seed 1 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment bottles --runs -3 --seed 1 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment bottles --seed 1"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment nope --runs 2 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment bottles --runs 0 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment bottles --runs -3 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment bottles --seed 1"), 2);
 }
 
 TEST(DrBenchmarkSmoke, QuickRunWritesEveryOutput) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_smoke";
   fs::remove_all(out);
-  ASSERT_EQ(
-      run(std::string(DR_BENCHMARK) + " --experiment all --runs 2 --seed 3 --jobs 2 --quick --out " + out.string()), 0);
-  const std::string summary = readFile(out / "summary.json");
+  ASSERT_EQ(runQuietly(std::string(DR_BENCHMARK) + " --experiment all --runs 2 --seed 3 --jobs 2 --quick --out " +
+                       out.string()),
+            0);
+  const std::string summary = readTextFile(out / "summary.json");
   for (const char* field : {"\"experiment\": \"estep\"",
                             "\"speedup\"",
                             "\"max_difference_means\"",
@@ -123,22 +114,22 @@ TEST(DrBenchmarkSmoke, ResultsDoNotDependOnTheNumberOfJobs) {
   const fs::path one = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_jobs1";
   const fs::path three = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_jobs3";
   const std::string command = std::string(DR_BENCHMARK) + " --experiment planar10 --runs 3 --seed 5 --quick";
-  ASSERT_EQ(run(command + " --jobs 1 --out " + one.string()), 0);
-  ASSERT_EQ(run(command + " --jobs 3 --out " + three.string()), 0);
-  const std::string csv = readFile(one / "planar10.csv");
+  ASSERT_EQ(runQuietly(command + " --jobs 1 --out " + one.string()), 0);
+  ASSERT_EQ(runQuietly(command + " --jobs 3 --out " + three.string()), 0);
+  const std::string csv = readTextFile(one / "planar10.csv");
   EXPECT_GT(csv.size(), 1000u);
-  EXPECT_EQ(csv, readFile(three / "planar10.csv"));
+  EXPECT_EQ(csv, readTextFile(three / "planar10.csv"));
   fs::remove_all(one);
   fs::remove_all(three);
 }
 
 TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   const std::string program = DR_BENCHMARK;
-  EXPECT_EQ(run(program + " --help"), 0);
-  EXPECT_EQ(run(program + " --experiment nope --runs 2 --seed 1 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment planar10 --runs 0 --seed 1 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment planar10 --jobs 0 --seed 1 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment planar10 --jobs -2 --seed 1 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment planar10 --seed 1"), 2);
-  EXPECT_EQ(run(program + " --experiment planar10 --seed 1 --out /tmp/x --fast"), 2);
+  EXPECT_EQ(runQuietly(program + " --help"), 0);
+  EXPECT_EQ(runQuietly(program + " --experiment nope --runs 2 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --runs 0 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --jobs 0 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --jobs -2 --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --fast"), 2);
 }

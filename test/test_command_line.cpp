@@ -1,6 +1,8 @@
 // Every program of the project answers --help and -h with its usage on stdout and exit status 0, and an unknown
 // argument with the error and the usage on stderr and exit status 2. The programs' paths come from CMake
 // (PROGRAMS: a comma-separated list).
+#include "testing/program_output.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -22,13 +24,6 @@ std::vector<std::string> programs() {
   return out;
 }
 
-std::string readFile(const std::string& path) {
-  std::ifstream file(path);
-  std::stringstream text;
-  text << file.rdbuf();
-  return text.str();
-}
-
 struct Outcome {
   int status = -1;
   std::string out, err;
@@ -39,8 +34,8 @@ Outcome run(const std::string& program, const std::string& arguments) {
   const int raw = std::system((program + " " + arguments + " > " + out + " 2> " + err + " < /dev/null").c_str());
   Outcome outcome;
   outcome.status = WIFEXITED(raw) ? WEXITSTATUS(raw) : -1;
-  outcome.out = readFile(out);
-  outcome.err = readFile(err);
+  outcome.out = bimanual_skills::testing::readTextFile(out);
+  outcome.err = bimanual_skills::testing::readTextFile(err);
   return outcome;
 }
 

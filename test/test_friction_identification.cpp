@@ -5,6 +5,8 @@
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 
+#include "testing/program_output.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -113,11 +115,6 @@ bd::FrictionFitOptions quickOptions(FrictionModelType type) {
   options.restarts = 4;
   options.max_search_samples = 2000;
   return options;
-}
-
-int run(const std::string& command) {
-  const int status = std::system((command + " > /dev/null 2>&1").c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
 }  // namespace
@@ -252,13 +249,15 @@ TEST(FrictionIdentification, FitFrictionToolEndToEnd) {
   bd::writeFrictionLog(syntheticLog(model, truthModel(FrictionModelType::Basic), 20.0, 100.0, 3),
                        (dir / "log.csv").string());
   const std::string tool = FIT_FRICTION;
-  ASSERT_EQ(run(tool + " --model basic --in " + (dir / "log.csv").string() + " --out " + (dir / "f.yaml").string() +
-                " --restarts 2"),
+  ASSERT_EQ(bimanual_skills::testing::runQuietly(tool + " --model basic --in " + (dir / "log.csv").string() +
+                                                 " --out " + (dir / "f.yaml").string() + " --restarts 2"),
             0);
   const bd::FrictionModel fitted = bd::loadFrictionModel((dir / "f.yaml").string());
   EXPECT_EQ(fitted.joints.size(), 7U);
   EXPECT_EQ(fitted.pairs.size(), 2U);
-  EXPECT_EQ(run(tool + " --model dahl --in x --out y"), 2);
-  EXPECT_EQ(run(tool + " --model basic --in " + (dir / "none.csv").string() + " --out y"), 1);
+  EXPECT_EQ(bimanual_skills::testing::runQuietly(tool + " --model dahl --in x --out y"), 2);
+  EXPECT_EQ(
+      bimanual_skills::testing::runQuietly(tool + " --model basic --in " + (dir / "none.csv").string() + " --out y"),
+      1);
   fs::remove_all(dir);
 }

@@ -1,6 +1,8 @@
 // Smoke test of sim_benchmark in --quick mode: each experiment runs, writes summary.json with every field, its CSV
 // and PNG files; the quick friction and payload figures are sane (finite, ordered where the physics orders them);
 // --help answers on stdout with status 0 and bad arguments get status 2. No assertion on time.
+#include "testing/program_output.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
@@ -17,52 +19,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
-int run(const std::string& command) {
-  const int status = std::system((command + " > /dev/null 2>&1").c_str());
-  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
+using bimanual_skills::testing::readCsv;
+using bimanual_skills::testing::readTextFile;
+using bimanual_skills::testing::runQuietly;
 
-std::string readFile(const fs::path& path) {
-  std::ifstream file(path);
-  std::stringstream text;
-  text << file.rdbuf();
-  return text.str();
-}
-
-/// The rows of a CSV file as column → value maps.
-std::vector<std::map<std::string, std::string>> readCsv(const fs::path& path) {
-  std::ifstream file(path);
-  std::string line;
-  std::vector<std::string> header;
-  std::vector<std::map<std::string, std::string>> rows;
-  const auto split = [](const std::string& text) {
-    std::vector<std::string> cells;
-    std::stringstream stream(text);
-    std::string cell;
-    while (std::getline(stream, cell, ',')) cells.push_back(cell);
-    return cells;
-  };
-  if (std::getline(file, line)) header = split(line);
-  while (std::getline(file, line)) {
-    const std::vector<std::string> cells = split(line);
-    if (cells.size() != header.size()) {
-      ADD_FAILURE() << path << ": row with " << cells.size() << " cells, header has " << header.size();
-      continue;
-    }
-    std::map<std::string, std::string> row;
-    for (std::size_t i = 0; i < cells.size(); ++i) row[header[i]] = cells[i];
-    rows.push_back(row);
-  }
-  return rows;
-}
-
-double number(const std::map<std::string, std::string>& row, const std::string& key) {
-  const auto found = row.find(key);
-  if (found == row.end()) {
-    ADD_FAILURE() << "no column " << key;
-    return std::nan("");
-  }
-  return std::stod(found->second);
+double number(const bimanual_skills::testing::CsvRow& row, const std::string& key) {
+  return bimanual_skills::testing::csvNumber(row, key);
 }
 
 }  // namespace
@@ -70,15 +32,15 @@ double number(const std::map<std::string, std::string>& row, const std::string& 
 TEST(SimBenchmarkSmoke, QuickSpeedRunWritesEveryOutput) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_smoke";
   fs::remove_all(out);
-  ASSERT_EQ(run(std::string(SIM_BENCHMARK) + " --experiment speed --seed 3 --quick --out " + out.string()), 0);
-  const std::string summary = readFile(out / "summary.json");
+  ASSERT_EQ(runQuietly(std::string(SIM_BENCHMARK) + " --experiment speed --seed 3 --quick --out " + out.string()), 0);
+  const std::string summary = readTextFile(out / "summary.json");
   for (const char* field :
        {"\"program\": \"sim_benchmark\"", "\"seed\": 3", "\"setting\": \"two_arms\"", "\"setting\": \"two_arms_cloth\"",
         "\"realtime_factor\"", "\"bullet_share\"", "\"diverged\": false", "\"fold_on_top\""}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field << "\n" << summary;
   }
   EXPECT_EQ(summary.find("\"diverged\": true"), std::string::npos) << summary;
-  const std::string csv = readFile(out / "speed.csv");
+  const std::string csv = readTextFile(out / "speed.csv");
   EXPECT_EQ(csv.rfind("setting,cloth_step_s,", 0), 0u);
   EXPECT_NE(csv.find("\ntwo_arms,"), std::string::npos);
   EXPECT_NE(csv.find("\ntwo_arms_cloth,"), std::string::npos);
@@ -88,8 +50,9 @@ TEST(SimBenchmarkSmoke, QuickSpeedRunWritesEveryOutput) {
 TEST(SimBenchmarkSmoke, QuickFrictionRunWritesTable41AndTracking) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_friction";
   fs::remove_all(out);
-  ASSERT_EQ(run(std::string(SIM_BENCHMARK) + " --experiment friction --seed 3 --quick --out " + out.string()), 0);
-  const std::string summary = readFile(out / "summary.json");
+  ASSERT_EQ(runQuietly(std::string(SIM_BENCHMARK) + " --experiment friction --seed 3 --quick --out " + out.string()),
+            0);
+  const std::string summary = readTextFile(out / "summary.json");
   for (const char* field : {"\"experiment\": \"friction\"", "\"table\": \"4.1\"", "\"model\": \"initial\"",
                             "\"model\": \"basic\"", "\"model\": \"advanced\"", "\"table\": \"tracking\"",
                             "\"compensation\": \"none\"", "\"compensation\": \"advanced\"", "\"rms_rad_mean\""}) {
@@ -124,8 +87,8 @@ TEST(SimBenchmarkSmoke, QuickFrictionRunWritesTable41AndTracking) {
 TEST(SimBenchmarkSmoke, QuickPayloadRunEstimatesTheWeights) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_payload";
   fs::remove_all(out);
-  ASSERT_EQ(run(std::string(SIM_BENCHMARK) + " --experiment payload --seed 3 --quick --out " + out.string()), 0);
-  const std::string summary = readFile(out / "summary.json");
+  ASSERT_EQ(runQuietly(std::string(SIM_BENCHMARK) + " --experiment payload --seed 3 --quick --out " + out.string()), 0);
+  const std::string summary = readTextFile(out / "summary.json");
   for (const char* field : {"\"experiment\": \"payload\"", "\"observer\": \"ours\"", "\"observer\": \"kdl\"",
                             "\"load_kg\": 0,", "\"load_kg\": 2,", "\"steady_error_pct\"", "\"transient_peak_n\""}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field << "\n" << summary;
@@ -149,7 +112,8 @@ TEST(SimBenchmarkSmoke, QuickPayloadRunEstimatesTheWeights) {
 TEST(SimBenchmarkSmoke, QuickFoldRolloutFollowsTheDemonstration) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_fold";
   fs::remove_all(out);
-  ASSERT_EQ(run(std::string(SIM_BENCHMARK) + " --experiment fold_rollout --seed 3 --quick --out " + out.string()), 0);
+  ASSERT_EQ(
+      runQuietly(std::string(SIM_BENCHMARK) + " --experiment fold_rollout --seed 3 --quick --out " + out.string()), 0);
   const auto rows = readCsv(out / "fold_rollout.csv");
   ASSERT_EQ(rows.size(), 2u);  // ED and CTP+SD+SVF
   for (const auto& row : rows) {
@@ -158,7 +122,7 @@ TEST(SimBenchmarkSmoke, QuickFoldRolloutFollowsTheDemonstration) {
     EXPECT_LT(number(row, "max_tracking_error_rad"), 0.1) << row.at("ik_method");
     EXPECT_GT(number(row, "realtime_factor"), 0.0);
   }
-  EXPECT_NE(readFile(out / "summary.json").find("\"experiment\": \"fold_rollout\""), std::string::npos);
+  EXPECT_NE(readTextFile(out / "summary.json").find("\"experiment\": \"fold_rollout\""), std::string::npos);
   fs::remove_all(out);
 }
 
@@ -168,10 +132,10 @@ TEST(SimBenchmarkSmoke, HelpAndBadArguments) {
   const int status = std::system((program + " --help > " + help.string() + " 2>/dev/null").c_str());
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0);
-  EXPECT_NE(readFile(help).find("usage: sim_benchmark --experiment speed|friction|payload|fold_rollout|all"),
+  EXPECT_NE(readTextFile(help).find("usage: sim_benchmark --experiment speed|friction|payload|fold_rollout|all"),
             std::string::npos);
-  EXPECT_EQ(run(program + " --experiment nope --seed 1 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment speed --seed -4 --out /tmp/x"), 2);
-  EXPECT_EQ(run(program + " --experiment speed --seed 1"), 2);
-  EXPECT_EQ(run(program + " --experiment speed --seed 1 --out /tmp/x --fast"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment nope --seed 1 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment speed --seed -4 --out /tmp/x"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment speed --seed 1"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment speed --seed 1 --out /tmp/x --fast"), 2);
 }

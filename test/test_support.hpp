@@ -4,13 +4,12 @@
 
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "testing/program_output.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
 #include <random>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -19,10 +18,7 @@ namespace bimanual_skills::test_support {
 inline const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
 
 inline std::string readFile(const std::string& path) {
-  std::ifstream file(path);
-  std::stringstream text;
-  text << file.rdbuf();
-  return text.str();
+  return bimanual_skills::testing::readTextFile(path);
 }
 
 /// The single-arm WAM, base to tool.
