@@ -1,8 +1,8 @@
 // The true plant in joint space (no Bullet): rotor inertia and payload against the project's forward dynamics,
 // stick-slip, hysteresis, viscous and ripple friction, the cable-differential coupling, and the sensors.
 #include "bimanual_skills/sim/arm_plant.hpp"
-#include "testing/no_alloc_guard.hpp"
 #include "test_support.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 
@@ -358,9 +358,9 @@ TEST(SimArmPlant, StepAndMeasureDoNotAllocate) {
   EXPECT_EQ(status, SimStatus::Ok);
 }
 
-TEST(SimArmPlant, ItsMassMatrixIsTheProjectsRneaMassMatrix) {
-  // The plant builds M(q) by the composite-rigid-body algorithm; dynamics::massMatrix (unit-acceleration RNEA
-  // passes) is the reference, with a payload and on a chain with a prismatic joint.
+TEST(SimArmPlant, WithoutFrictionItFollowsTheProjectsForwardDynamics) {
+  // An ideal plant's step (its own M(q) + h solve) against dynamics::forwardDynamics, with a payload and on a chain
+  // with a prismatic joint.
   std::vector<bs::kinematics::ChainModel> models = {bs::test_support::wam()};
   {
     std::vector<bs::kinematics::ChainJoint> joints = verticalChain(3).joints();

@@ -1,7 +1,5 @@
 #include "bimanual_skills/sim/arm_plant.hpp"
 
-#include "composite_inertia.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -27,8 +25,7 @@ double signOf(double x) noexcept {
 ArmPlant::ArmPlant(kinematics::ChainModel model, ArmPlantParameters parameters)
     : model_(model.withRotorInertia(Eigen::VectorXd::Zero(model.nq()))),
       parameters_(std::move(parameters)),
-      data_(model_),
-      composite_(std::make_unique<CompositeInertiaData>(model_)) {
+      data_(model_) {
   const int n = model_.nq();
   parameters_.validate(n, "plant of the chain " + model_.baseLink() + " -> " + model_.tipLink());
   rotor_ = orZeros(parameters_.rotor_inertia, n);
@@ -122,7 +119,10 @@ SimStatus ArmPlant::step(const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen
     return SimStatus::InvalidArgument;
   }
   // M(q) and h = C q̇ + G with the payload; A = M + J_m + Δt D.
-  compositeMassMatrix(model_, *composite_, q, payload, mass_);
+  if (dynamics::massMatrix(model_, data_, q, payload) != dynamics::DynamicsStatus::Success) {
+    return SimStatus::InvalidArgument;
+  }
+  mass_ = data_.mass_matrix;
   if (dynamics::inverseDynamics(model_, data_, q, qd, zeros_, bias_, payload) != dynamics::DynamicsStatus::Success) {
     return SimStatus::InvalidArgument;
   }

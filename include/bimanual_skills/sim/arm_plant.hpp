@@ -17,8 +17,6 @@
 
 namespace bimanual_skills::sim {
 
-struct CompositeInertiaData;
-
 /// One arm's true plant. Construction may allocate and throw; step() and measure() are
 /// real-time safe (no allocation, no exceptions). The object keeps the friction memory (which channels stick, the
 /// hysteresis direction), so use one per simulated arm.
@@ -124,9 +122,8 @@ class ArmPlant {
   Eigen::MatrixXd D_;  ///< Σ b_k g_k g_kᵀ.
 
   dynamics::DynamicsData data_;
-  std::unique_ptr<CompositeInertiaData> composite_;  ///< Mass matrix scratch (internal).
-  Eigen::MatrixXd mass_;                             ///< M(q) with the payload, no rotors.
-  Eigen::MatrixXd A_, inverse_, Y_, W_;              ///< A = M + J_m + Δt D; A⁻¹; Y = A⁻¹ Gᵀ; W = G Y.
+  Eigen::MatrixXd mass_;                 ///< M(q) with the payload, no rotors.
+  Eigen::MatrixXd A_, inverse_, Y_, W_;  ///< A = M + J_m + Δt D; A⁻¹; Y = A⁻¹ Gᵀ; W = G Y.
   Eigen::LLT<Eigen::MatrixXd> llt_;
   Eigen::VectorXd mass_times_qdd_, bias_, rhs_, v_free_, qd_next_, friction_torque_, zeros_;
   Eigen::VectorXd u_free_, lambda_, lo_, hi_, target_;  ///< Per row (channels, then limit rows).
