@@ -103,3 +103,17 @@ TEST(Signal, FilteringDoesNotAllocateAtProductionSizes) {
     }
   }
 }
+
+TEST(Signal, SignWithDeadBand) {
+  const Eigen::VectorXd values = (Eigen::VectorXd(6) << -2.0, -1e-3, -1e-4, 0.0, 5e-4, 0.3).finished();
+  const Eigen::VectorXd banded = (Eigen::VectorXd(6) << -1, 0, 0, 0, 0, 1).finished();
+  const Eigen::VectorXd exact = (Eigen::VectorXd(6) << -1, -1, -1, 0, 1, 1).finished();
+  Eigen::VectorXd sign(6);
+  {
+    NoAllocGuard guard;
+    bs::signWithDeadBand(values, 1e-3, sign);
+  }
+  EXPECT_EQ(sign, banded);
+  bs::signWithDeadBand(values, 0.0, sign);
+  EXPECT_EQ(sign, exact);
+}

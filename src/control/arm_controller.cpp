@@ -1,5 +1,7 @@
 #include "bimanual_skills/control/arm_controller.hpp"
 
+#include "bimanual_skills/signal/acceleration_sign.hpp"
+
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -161,9 +163,7 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
     if (control == ControlStatus::Saturated && status == ControllerStatus::Ok) status = ControllerStatus::Saturated;
   }
   error_ = q_d_ - q;
-  for (Eigen::Index i = 0; i < n; ++i) {
-    accel_sign_[i] = std::abs(qdd_d_[i]) < kAccelerationDeadBand ? 0.0 : std::copysign(1.0, qdd_d_[i]);
-  }
+  signal::signWithDeadBand(qdd_d_, kAccelerationDeadBand, accel_sign_);
   // The measured state results from the torque applied over the last period.
   (void)observer_.update(q, qd, applied_, accel_sign_);
   applied_ = torque;

@@ -1,5 +1,7 @@
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 
+#include "bimanual_skills/signal/acceleration_sign.hpp"
+
 #include <stdexcept>
 #include <string>
 
@@ -75,7 +77,7 @@ ControlStatus ComputedTorqueController::update(const Eigen::Ref<const Eigen::Vec
     return ControlStatus::InvalidInput;
   }
   if (friction_enabled_ && !learned) {
-    for (int i = 0; i < n; ++i) sign_[i] = qdd_desired[i] > 0.0 ? 1.0 : qdd_desired[i] < 0.0 ? -1.0 : 0.0;
+    signal::signWithDeadBand(qdd_desired, 0.0, sign_);
     if (dynamics::frictionTorques(friction_, friction_state_, q, qd_desired, sign_, friction_torque_) ==
         dynamics::DynamicsStatus::Success) {
       feedforward_ += friction_torque_;

@@ -52,4 +52,11 @@ void AccelerationSign::reset() noexcept {
   sign_.setZero();
 }
 
+void signWithDeadBand(const Eigen::Ref<const Eigen::VectorXd>& values, double dead_band,
+                      Eigen::Ref<Eigen::VectorXd> sign) noexcept {
+  for (Eigen::Index i = 0; i < values.size(); ++i) {
+    sign[i] = values[i] > dead_band ? 1.0 : values[i] < -dead_band ? -1.0 : 0.0;
+  }
+}
+
 }  // namespace bimanual_skills::signal

@@ -4,6 +4,7 @@
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/signal/acceleration_sign.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 
 #include <array>
@@ -22,6 +23,8 @@ using primitives::Pose;
 /// Low computed-torque gains (about a tenth of libbarrett's stiff position gains; config/ctc_controller.yaml).
 const Eigen::VectorXd kDefaultKp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
 const Eigen::VectorXd kDefaultKv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
+/// |q̈_ref| below this counts as no acceleration for the observer's friction sign [rad/s²].
+constexpr double kAccelerationDeadBand = 1e-3;
 /// Samples per second of the scripted demonstration the DMPs are fitted to.
 constexpr double kDemonstrationRate = 100.0;
 
@@ -225,8 +228,8 @@ FoldRollout ClothFoldTask::run(const Eigen::VectorXd& theta) {
   std::vector<Eigen::VectorXd> q_ref = m.start_q, qd_ref(2, Eigen::VectorXd::Zero(n)), qdd_ref = qd_ref;
   std::vector<Eigen::VectorXd> q_next = q_ref, qd_next = qd_ref;
   std::vector<sim::JointState> measured(2, sim::JointState(n));
-  Eigen::VectorXd torque(n), accel_sign(n), applied_0 = Eigen::VectorXd::Zero(n), applied_1 = applied_0;
-  std::vector<Eigen::VectorXd*> applied = {&applied_0, &applied_1};
+  Eigen::VectorXd torque(n), accel_sign(n);
+  std::vector<Eigen::VectorXd> applied(2, Eigen::VectorXd::Zero(n));  // torque of the last period, per arm
   for (int arm = 0; arm < 2; ++arm) {
     simulation.readJointState(arm, measured[static_cast<std::size_t>(arm)]);
     m.observers[static_cast<std::size_t>(arm)]->reset(measured[static_cast<std::size_t>(arm)].position,
@@ -293,10 +296,9 @@ FoldRollout ClothFoldTask::run(const Eigen::VectorXd& theta) {
         fail(FoldOutcome::ControllerFailed, "invalid controller input on arm " + std::to_string(arm));
         break;
       }
-      for (int j = 0; j < n; ++j)
-        accel_sign[j] = std::abs(qdd_ref[a][j]) < 1e-3 ? 0.0 : std::copysign(1.0, qdd_ref[a][j]);
-      (void)m.observers[a]->update(state.position, state.velocity, *applied[a], accel_sign);
-      *applied[a] = torque;
+      signal::signWithDeadBand(qdd_ref[a], kAccelerationDeadBand, accel_sign);
+      (void)m.observers[a]->update(state.position, state.velocity, applied[a], accel_sign);
+      applied[a] = torque;
       simulation.writeJointTorques(arm, torque);
       if (k % path_every == 0) {
         commanded[a].push_back(simulation.basePose(arm) * Eigen::Vector3d(clik.kinematics.tipPose().translation()));

@@ -14,7 +14,8 @@ namespace bimanual_skills::signal {
 /// sign only flips when the filtered q̈ crosses ±`dead_band` (a Schmitt trigger), so sensor noise around q̈ = 0 does
 /// not make the friction chatter. Defaults sized by simulation: a 0.5 Hz, 0.5 rad/s oscillation sampled at 500 Hz
 /// with 2–5 mrad/s velocity noise gives exactly its 4 sign changes in 4 s (one first-order stage at 20 Hz: 61–253).
-/// With a desired trajectory available (computed-torque control), sign(q̈_d) can be used directly instead.
+/// With a desired trajectory available (computed-torque control), sign(q̈_d) can be used directly instead: see
+/// signWithDeadBand().
 class AccelerationSign {
  public:
   /// \throws std::invalid_argument for n < 1, period ≤ 0, cut-off ≤ 0 or dead band < 0.
@@ -33,5 +34,10 @@ class AccelerationSign {
   bool primed_ = false;
   Eigen::VectorXd previous_, stage_, filtered_, sign_;
 };
+
+/// sign[i] = sign(values[i]), 0 where |values[i]| ≤ dead_band (e.g. sign(q̈_d) of a desired trajectory for the
+/// friction models). Real-time safe: no allocation, no exceptions; `sign` must have the size of `values`.
+void signWithDeadBand(const Eigen::Ref<const Eigen::VectorXd>& values, double dead_band,
+                      Eigen::Ref<Eigen::VectorXd> sign) noexcept;
 
 }  // namespace bimanual_skills::signal
