@@ -1,5 +1,5 @@
 # bimanual_skills: the two commands.
-#   make demo   install what is missing, build, run the most complete end-to-end job
+#   make demo   install what is missing, build, and let the two simulated WAMs learn to fold a cloth (build/fold_demo)
 #   make test   install what is missing, build, run every gtest and rostest; non-zero exit on any failure
 # Also: make build, make bench (kinematics, dynamics/control, primitives, policy-update and vision benchmarks), make format, make deps.
 
@@ -16,14 +16,22 @@ deps:
 build: deps
 	colcon build $(COLCON_BUILD_FLAGS)
 
+# The main job: two simulated WAMs learn to fold a cloth (config/fold_demo.yaml). A second run resumes from the
+# rollouts already in build/fold_demo (delete it to start over).
+FOLD_DEMO := $(CURDIR)/build/fold_demo
 demo: build
-	@echo "make demo: bimanual WAM model, robot_state_publisher and ik_server; a two-handed grasp solved through the"
-	@echo "           IK service, commanded, and checked against the published tf (the cloth-folding demo replaces"
-	@echo "           this when it exists)"
-	set -o pipefail; source install/setup.bash && roslaunch bimanual_skills demo.launch 2>&1 | tee build/demo.log
-	@if grep -q -E 'NOT REACHED|not available|failed|FATAL' build/demo.log || ! grep -q 'target reached' build/demo.log; then \
-	  echo "make demo: FAILED (see above)"; exit 1; fi
-	@echo "make demo: done; both arms reached their IK targets"
+	@echo "make demo: two simulated WAMs learn to fold a cloth: IDR-DMP_CMU with REPS, 1 run x 8 updates x 12 rollouts"
+	@echo "           on the Bullet simulation (config/fold_demo.yaml), results in $(FOLD_DEMO)"
+	set -o pipefail; source install/setup.bash && roslaunch bimanual_skills fold.launch \
+	  config:=$(CURDIR)/config/fold_demo.yaml out:=$(FOLD_DEMO) 2>&1 | tee build/fold_demo.log
+	/usr/bin/python3 scripts/plot_fold_learning.py $(FOLD_DEMO)
+	@for f in summary.json epochs.csv rollouts.csv learning_curve.png coordination.png initial.png final.png best_rollout.bag; do \
+	  if [ ! -s "$(FOLD_DEMO)/$$f" ]; then echo "make demo: FAILED: $(FOLD_DEMO)/$$f is missing (see build/fold_demo.log)"; exit 1; fi; done
+	@if grep -q FATAL build/fold_demo.log; then echo "make demo: FAILED (see build/fold_demo.log)"; exit 1; fi
+	@echo "make demo: done. In $(FOLD_DEMO): summary.json (one row per epoch), learning_curve.png, coordination.png,"
+	@echo "           initial.png and final.png (top-down camera), table75.md, rollouts.csv, best_rollout.bag"
+	@echo "           Replay the best rollout in rviz:"
+	@echo "             source install/setup.bash && roslaunch bimanual_skills fold.launch replay:=$(FOLD_DEMO)/best_rollout.bag"
 
 test: build
 	@bash scripts/run_tests.sh

@@ -7,6 +7,7 @@
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/sim/torque_command_gate.hpp"
 #include "node_cli.hpp"
+#include "scene_markers.hpp"
 
 #include <ros/callback_queue.h>
 #include <ros/package.h>
@@ -275,56 +276,11 @@ class BulletSimNode {
   void publishMarkers() {
     visualization_msgs::MarkerArray markers;
     const ros::Time stamp(simulation_->time());
-    if (simulation_->config().has_table) {
-      const sim::Table& table = simulation_->config().table;
-      visualization_msgs::Marker m;
-      m.header.frame_id = "world";
-      m.header.stamp = stamp;
-      m.ns = "table";
-      m.type = visualization_msgs::Marker::CUBE;
-      const Eigen::Quaterniond r(table.pose.rotation());
-      m.pose.position.x = table.pose.translation().x();
-      m.pose.position.y = table.pose.translation().y();
-      m.pose.position.z = table.pose.translation().z();
-      m.pose.orientation.w = r.w();
-      m.pose.orientation.x = r.x();
-      m.pose.orientation.y = r.y();
-      m.pose.orientation.z = r.z();
-      m.scale.x = table.size.x();
-      m.scale.y = table.size.y();
-      m.scale.z = table.size.z();
-      m.color.r = 0.55f;
-      m.color.g = 0.42f;
-      m.color.b = 0.3f;
-      m.color.a = 1.0f;
-      markers.markers.push_back(m);
-    }
+    if (simulation_->config().has_table)
+      markers.markers.push_back(bs::nodes::tableMarker(simulation_->config().table, stamp));
     if (simulation_->hasCloth()) {
-      const sim::Cloth& cloth = simulation_->cloth();
-      visualization_msgs::Marker m;
-      m.header.frame_id = "world";
-      m.header.stamp = stamp;
-      m.ns = "cloth";
-      m.type = visualization_msgs::Marker::TRIANGLE_LIST;
-      m.pose.orientation.w = 1.0;
-      m.scale.x = m.scale.y = m.scale.z = 1.0;
-      m.color.r = 0.15f;
-      m.color.g = 0.35f;
-      m.color.b = 0.8f;
-      m.color.a = 1.0f;
-      const Eigen::Matrix3Xd& v = cloth.vertices();
-      const Eigen::Matrix3Xi& triangles = cloth.triangles();
-      m.points.reserve(3 * triangles.cols());
-      for (Eigen::Index t = 0; t < triangles.cols(); ++t) {
-        for (int c = 0; c < 3; ++c) {
-          geometry_msgs::Point p;
-          p.x = v(0, triangles(c, t));
-          p.y = v(1, triangles(c, t));
-          p.z = v(2, triangles(c, t));
-          m.points.push_back(p);
-        }
-      }
-      markers.markers.push_back(m);
+      markers.markers.push_back(
+          bs::nodes::clothMarker(simulation_->cloth().vertices(), simulation_->cloth().triangles(), stamp));
     }
     marker_publisher_.publish(markers);
   }

@@ -21,7 +21,7 @@ PACKAGES=(
   # physics simulator (sim/): Bullet, with its double-precision build and pkg-config files
   libbullet-dev libbullet-extras-dev pkg-config
   # vision (vision/): rendered camera images and the image terms of the folding reward
-  libopencv-dev
+  libopencv-dev libcv-bridge-dev librosbag-dev python3-rosbag
   # build and test
   cmake g++ make colcon python3-colcon-ros python3-colcon-cmake python3-colcon-test-result python3-colcon-bash
   libgtest-dev googletest libbenchmark-dev

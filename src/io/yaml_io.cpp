@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -21,6 +22,12 @@ YAML::Node loadYamlFile(const std::string& path, const std::string& where) {
   } catch (const YAML::Exception& e) {
     fail(where + ": not valid YAML: " + e.what());
   }
+}
+
+std::string resolvePath(const std::string& file, const std::string& relative) {
+  const std::filesystem::path p(relative);
+  if (p.is_absolute()) return relative;
+  return (std::filesystem::path(file).parent_path() / p).lexically_normal().string();
 }
 
 void checkKeys(const YAML::Node& node, const std::string& where, std::initializer_list<const char*> allowed) {

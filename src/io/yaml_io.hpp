@@ -27,6 +27,9 @@ YAML::Node loadYamlFile(const std::string& path, const std::string& where);
 /// Fails on any key of the map `node` that is not in `allowed` (catches misspelt entries).
 void checkKeys(const YAML::Node& node, const std::string& where, std::initializer_list<const char*> allowed);
 
+/// `relative` as written in the file `file`: unchanged when absolute, else relative to the file's directory.
+std::string resolvePath(const std::string& file, const std::string& relative);
+
 /// `node[key]`, which must exist.
 YAML::Node required(const YAML::Node& node, const std::string& key, const std::string& where);
 

@@ -30,18 +30,12 @@ bool validDmpState(const DmpState& s) noexcept {
          std::isfinite(s.t);
 }
 
-/// q_s⁻¹ ∗ q with w ≥ 0 (the thesis' encoding relative to the start), its vector part.
-Eigen::Vector3d relativeVector(const Eigen::Quaterniond& start, const Eigen::Quaterniond& q) noexcept {
-  const Eigen::Quaterniond relative = nearestSign(start.conjugate() * q, Eigen::Quaterniond::Identity());
-  return relative.vec();
-}
-
 /// Coordinates of the goal orientation for the orientation Dmp: 2 log(g ∗ q̄_s) or vec(q_s⁻¹ ∗ g).
 Eigen::Vector3d orientationGoal(OrientationEncoding encoding, const Eigen::Quaterniond& start,
                                 const Eigen::Quaterniond& goal) noexcept {
   return encoding == OrientationEncoding::UnitQuaternion
              ? Eigen::Vector3d(2.0 * quaternionLog(goal * start.conjugate()))
-             : relativeVector(start, goal);
+             : relativeQuaternionVector(start, goal);
 }
 
 /// Checks what the members' constructors would report less precisely; returns the encoding.
@@ -58,6 +52,11 @@ OrientationEncoding checkedInputs(OrientationEncoding encoding, const Eigen::Mat
 }
 
 }  // namespace
+
+Eigen::Vector3d relativeQuaternionVector(const Eigen::Quaterniond& start, const Eigen::Quaterniond& q) noexcept {
+  const Eigen::Quaterniond relative = nearestSign(start.conjugate() * q, Eigen::Quaterniond::Identity());
+  return relative.vec();
+}
 
 Eigen::Vector3d quaternionLog(const Eigen::Quaterniond& q) noexcept {
   const double n = q.vec().norm();
@@ -107,7 +106,7 @@ CartesianDmp CartesianDmp::fit(const DmpParameters& parameters, OrientationEncod
 
   if (encoding == OrientationEncoding::QuaternionVector) {
     Eigen::MatrixXd v(samples, 3);
-    for (Eigen::Index k = 0; k < samples; ++k) v.row(k) = relativeVector(start.orientation, q[k]).transpose();
+    for (Eigen::Index k = 0; k < samples; ++k) v.row(k) = relativeQuaternionVector(start.orientation, q[k]).transpose();
     const Dmp vector = Dmp::fit(parameters, v, dt, smoothing_hz);
     return CartesianDmp(parameters, encoding, position.weights(), vector.weights(), start, goal, tau);
   }
@@ -159,6 +158,17 @@ CartesianDmpState CartesianDmp::initialState() const {
 }
 
 DmpStatus CartesianDmp::step(CartesianDmpState& state, double dt) const noexcept {
+  return stepWith(state, dt, nullptr);
+}
+
+DmpStatus CartesianDmp::step(CartesianDmpState& state, double dt,
+                             const Eigen::Ref<const Eigen::VectorXd>& forcing) const noexcept {
+  if (forcing.size() != 6 || !forcing.allFinite()) return DmpStatus::InvalidInput;
+  return stepWith(state, dt, &forcing);
+}
+
+DmpStatus CartesianDmp::stepWith(CartesianDmpState& state, double dt,
+                                 const Eigen::Ref<const Eigen::VectorXd>* forcing) const noexcept {
   const bool vector_encoding = encoding_ == OrientationEncoding::QuaternionVector;
   if (!(dt > 0.0) || !std::isfinite(dt) || !validDmpState(state.position) || !isUnit(state.orientation) ||
       !isUnit(state.goal_orientation) || !state.angular_velocity.allFinite() ||
@@ -173,10 +183,15 @@ DmpStatus CartesianDmp::step(CartesianDmpState& state, double dt) const noexcept
   if (vector_encoding) {
     // The DMP of v = vec(q_s⁻¹ ∗ q), on the position's phase, then q = q_s ∗ (√(1 − ‖v‖²), v).
     DmpState& v_state = state.orientation_vector;
-    v_state.goal = relativeVector(q_s, state.goal_orientation);
+    v_state.goal = relativeQuaternionVector(q_s, state.goal_orientation);
     v_state.x = state.position.x;
     v_state.t = state.position.t;
-    static_cast<void>(orientation_.step(v_state, dt));  // cannot fail: validated above
+    // Cannot fail: validated above.
+    if (forcing != nullptr) {
+      static_cast<void>(orientation_.step(v_state, dt, forcing->tail<3>()));
+    } else {
+      static_cast<void>(orientation_.step(v_state, dt));
+    }
     Eigen::Vector3d v = v_state.y;
     const double n = v.norm();
     clamped = n > 1.0;
@@ -190,18 +205,27 @@ DmpStatus CartesianDmp::step(CartesianDmpState& state, double dt) const noexcept
     state.angular_velocity = omega;
   } else {
     // Ude et al. (2014): τ² ω̇ = α_z (β_z 2 log(g ∗ q̄) − τ ω) + f(x), q ← exp(dt ω / 2) ∗ q.
-    double g_storage[kDmpMaxKernels];
-    Eigen::Map<Eigen::VectorXd> g(g_storage, p.kernels);
-    orientation_.basis(state.position.x, g);
     Eigen::Vector3d f;
-    f.noalias() = orientation_.weights() * g;
-    if (p.goal_scaled_forcing) f = f.cwiseProduct(2.0 * quaternionLog(state.goal_orientation * q_s.conjugate()));
+    if (forcing != nullptr) {
+      f = forcing->tail<3>();
+    } else {
+      double g_storage[kDmpMaxKernels];
+      Eigen::Map<Eigen::VectorXd> g(g_storage, p.kernels);
+      orientation_.basis(state.position.x, g);
+      f.noalias() = orientation_.weights() * g;
+      if (p.goal_scaled_forcing) f = f.cwiseProduct(2.0 * quaternionLog(state.goal_orientation * q_s.conjugate()));
+    }
     const Eigen::Vector3d error = 2.0 * quaternionLog(state.goal_orientation * state.orientation.conjugate());
     state.angular_acceleration = transformationAcceleration(p, tau, error, state.angular_velocity, f);
     state.angular_velocity += dt * state.angular_acceleration;
     state.orientation = (quaternionExp(0.5 * dt * state.angular_velocity) * state.orientation).normalized();
   }
-  static_cast<void>(position_.step(state.position, dt));  // advances the shared phase; validated above
+  // Advances the shared phase; validated above.
+  if (forcing != nullptr) {
+    static_cast<void>(position_.step(state.position, dt, forcing->head<3>()));
+  } else {
+    static_cast<void>(position_.step(state.position, dt));
+  }
   return clamped ? DmpStatus::VectorClamped : DmpStatus::Success;
 }
 

@@ -3,7 +3,6 @@
 #include "io/yaml_io.hpp"
 
 #include <cmath>
-#include <filesystem>
 #include <set>
 #include <stdexcept>
 
@@ -24,12 +23,6 @@ Eigen::Isometry3d readPose(const YAML::Node& node, const std::string& where) {
             .toRotationMatrix();
   }
   return pose;
-}
-
-std::string resolve(const std::string& file, const std::string& relative) {
-  const std::filesystem::path p(relative);
-  if (p.is_absolute()) return relative;
-  return (std::filesystem::path(file).parent_path() / p).lexically_normal().string();
 }
 
 ClothParameters readCloth(const YAML::Node& node, const std::string& where, double& grasp_radius) {
@@ -120,7 +113,7 @@ SimConfig SimConfig::fromYamlFile(const std::string& path) {
   if (!root.IsMap()) fail(where + ": must be a map");
   io::checkKeys(root, where, {"urdf", "plant", "step", "seed", "gravity", "arms", "table", "cloth"});
   SimConfig config;
-  config.urdf_path = resolve(path, io::readString(root, "urdf", where));
+  config.urdf_path = io::resolvePath(path, io::readString(root, "urdf", where));
   config.step = io::readDouble(root, "step", where, config.step);
   if (root["seed"]) {
     const double seed = io::readDouble(root, "seed", where);
@@ -150,7 +143,7 @@ SimConfig SimConfig::fromYamlFile(const std::string& path) {
   config.has_cloth = static_cast<bool>(root["cloth"]);
   if (config.has_cloth) config.cloth = readCloth(root["cloth"], where + " cloth", config.grasp_radius);
 
-  config.plant_path = resolve(path, io::readString(root, "plant", where));
+  config.plant_path = io::resolvePath(path, io::readString(root, "plant", where));
   config.plant = PlantModel::fromYamlFile(config.plant_path);
   for (const ArmConfig& arm : config.arms) {
     if (!config.plant.hasArm(arm.name)) {

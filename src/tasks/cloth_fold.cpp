@@ -4,9 +4,11 @@
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/primitives/dr_dmp.hpp"
 #include "bimanual_skills/signal/acceleration_sign.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
@@ -57,6 +59,7 @@ struct ClothFoldTask::Impl {
   std::vector<kinematics::ClikData> clik;
   kinematics::ClikParameters clik_parameters;
   std::vector<CartesianDmp> demonstration;
+  std::vector<std::vector<Pose>> demonstration_paths;
   std::vector<Eigen::VectorXd> start_q;
 
   /// One fold arc per arm: from the far corner (x = centre + half length) over the cloth towards the near edge.
@@ -133,7 +136,7 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
   dmp.kernels = config.kernels;
   const Eigen::VectorXd seed = (Eigen::VectorXd(7) << 0.0, 0.8, 0.0, 1.6, 0.0, 0.7, 0.0).finished();
   for (int arm = 0; arm < 2; ++arm) {
-    const std::vector<Pose> path = m.demonstrationPath(arm);
+    const std::vector<Pose>& path = m.demonstration_paths.emplace_back(m.demonstrationPath(arm));
     m.demonstration.push_back(
         CartesianDmp::fit(dmp, primitives::OrientationEncoding::QuaternionVector, path, 1.0 / kDemonstrationRate, 0.0));
     kinematics::GlobalIkParameters parameters;
@@ -154,6 +157,10 @@ ClothFoldTask::~ClothFoldTask() = default;
 
 const ClothFoldConfig& ClothFoldTask::config() const noexcept {
   return impl_->config;
+}
+
+const sim::SimConfig& ClothFoldTask::simConfig() const noexcept {
+  return impl_->sim_config;
 }
 
 int ClothFoldTask::parameterCount() const noexcept {
@@ -177,6 +184,29 @@ Eigen::VectorXd ClothFoldTask::demonstrationParameters() const {
   return theta;
 }
 
+const primitives::DmpParameters& ClothFoldTask::dmpParameters() const noexcept {
+  return impl_->demonstration.front().parameters();
+}
+
+Eigen::MatrixXd ClothFoldTask::demonstrationTrajectory() const {
+  const auto samples = static_cast<Eigen::Index>(impl_->demonstration_paths.front().size());
+  Eigen::MatrixXd out(samples, kDofs);
+  for (int arm = 0; arm < 2; ++arm) {
+    const std::vector<Pose>& path = impl_->demonstration_paths[static_cast<std::size_t>(arm)];
+    for (Eigen::Index k = 0; k < samples; ++k) {
+      const Pose& pose = path[static_cast<std::size_t>(k)];
+      out.row(k).segment<3>(6 * arm) = pose.position.transpose();
+      out.row(k).segment<3>(6 * arm + 3) =
+          primitives::relativeQuaternionVector(path.front().orientation, pose.orientation).transpose();
+    }
+  }
+  return out;
+}
+
+double ClothFoldTask::demonstrationStep() const noexcept {
+  return 1.0 / kDemonstrationRate;
+}
+
 std::vector<CartesianDmp> ClothFoldTask::dmps(const Eigen::VectorXd& theta) const {
   if (theta.size() != parameterCount()) {
     throw std::invalid_argument("cloth fold: " + std::to_string(parameterCount()) + " parameters expected, got " +
@@ -197,19 +227,51 @@ std::vector<CartesianDmp> ClothFoldTask::dmps(const Eigen::VectorXd& theta) cons
 }
 
 FoldRollout ClothFoldTask::run(const Eigen::VectorXd& theta) {
-  Impl& m = *impl_;
-  FoldRollout out;
   if (theta.size() != parameterCount() || !theta.allFinite()) {
+    FoldRollout out;
     out.outcome = FoldOutcome::InvalidPolicy;
     out.reason = "the policy needs " + std::to_string(parameterCount()) + " finite parameters";
     return out;
   }
+  return run({Eigen::MatrixXd::Identity(kDofs, kDofs)}, theta);
+}
+
+FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
+                               const Eigen::VectorXd& latent_weights) {
+  return run(coordination, latent_weights, impl_->sim_config.seed);
+}
+
+FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights,
+                               std::uint32_t seed) {
+  Impl& m = *impl_;
+  FoldRollout out;
   const auto wall_start = std::chrono::steady_clock::now();
-  const std::vector<CartesianDmp> dmps = this->dmps(theta);
+  const std::vector<CartesianDmp>& dmps = m.demonstration;
+  // The forcing terms of both arms: a 12-DoF DR-DMP whose own transformation system is not used.
+  std::unique_ptr<primitives::DrDmp> forcing;
+  bool finite = latent_weights.allFinite();
+  for (const Eigen::MatrixXd& omega : coordination) finite = finite && omega.allFinite();
+  try {
+    if (!finite) throw std::invalid_argument("non-finite coordination or weights");
+    primitives::DrDmpParameters parameters;
+    parameters.dmp = dmpParameters();
+    parameters.matrices = static_cast<int>(coordination.size());
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(kDofs);
+    forcing =
+        std::make_unique<primitives::DrDmp>(parameters, coordination, latent_weights, zero, zero, m.config.duration);
+  } catch (const std::invalid_argument& e) {
+    out.outcome = FoldOutcome::InvalidPolicy;
+    out.reason = std::string("the coordinated policy does not fit 12 DoF and ") + std::to_string(m.config.kernels) +
+                 " kernels: " + e.what();
+    return out;
+  }
+  primitives::DrDmpState forcing_state = forcing->initialState();
   // A new simulation for every rollout: after reset() a simulation whose cloth was grasped differs from a new one in
   // the last bits, which the contacts amplify (0.6 mm on the cloth after a fold); a new one makes rollouts
   // repeatable bit for bit whichever worker runs them.
-  m.simulation = std::make_unique<sim::BimanualSimulation>(m.sim_config);
+  sim::SimConfig sim_config = m.sim_config;
+  sim_config.seed = seed;
+  m.simulation = std::make_unique<sim::BimanualSimulation>(sim_config);
   sim::BimanualSimulation& simulation = *m.simulation;
   std::vector<sim::ArmState> start;
   for (const Eigen::VectorXd& q : m.start_q) start.push_back({q, Eigen::VectorXd::Zero(q.size())});
@@ -240,7 +302,11 @@ FoldRollout ClothFoldTask::run(const Eigen::VectorXd& theta) {
   const int release = move_end + static_cast<int>(std::lround(m.config.hold_after / dt));
   const int steps = release + static_cast<int>(std::lround(m.config.settle / dt));
   const int path_every = std::max(1, static_cast<int>(std::lround(1.0 / (m.config.path_rate * dt))));
+  const int cloth_every =
+      m.config.cloth_rate > 0.0 ? std::max(1, static_cast<int>(std::lround(1.0 / (m.config.cloth_rate * dt)))) : 0;
   std::vector<std::vector<Eigen::Vector3d>> commanded(2), actual(2);
+  std::vector<std::vector<Eigen::VectorXd>> joints(2);
+  std::vector<double> path_times, cloth_times;
   const auto fail = [&](FoldOutcome outcome, const std::string& reason) {
     out.outcome = outcome;
     out.reason = reason + " at t = " + std::to_string(simulation.time()) + " s";
@@ -250,11 +316,22 @@ FoldRollout ClothFoldTask::run(const Eigen::VectorXd& theta) {
     if (k == release) {
       for (int arm = 0; arm < 2; ++arm) (void)simulation.release(arm);
     }
+    const bool moving = k >= move_start && k < move_end;
+    if (moving && forcing->step(forcing_state, dt) != primitives::DmpStatus::Success) {
+      fail(FoldOutcome::InvalidPolicy, "the coordinated forcing terms are not finite");
+      break;
+    }
+    if (k % path_every == 0) path_times.push_back(simulation.time());
+    if (cloth_every > 0 && k % cloth_every == 0) {
+      out.cloth_frames.push_back(simulation.cloth().vertices());
+      cloth_times.push_back(simulation.time());
+    }
     for (int arm = 0; arm < 2 && out.outcome == FoldOutcome::Ok; ++arm) {
       const auto a = static_cast<std::size_t>(arm);
       const kinematics::ChainModel& model = simulation.armModel(arm);
       // Reference: the DMP's pose (held before and after the movement), followed by one CLIK step per period.
-      if (k >= move_start && k < move_end && dmps[a].step(dmp_state[a], dt) == primitives::DmpStatus::InvalidInput) {
+      if (moving && dmps[a].step(dmp_state[a], dt, forcing_state.forcing.segment<6>(6 * arm)) ==
+                        primitives::DmpStatus::InvalidInput) {
         fail(FoldOutcome::IkFailed, "the DMP of arm " + std::to_string(arm) + " produced an invalid state");
         break;
       }
@@ -303,6 +380,7 @@ FoldRollout ClothFoldTask::run(const Eigen::VectorXd& theta) {
       if (k % path_every == 0) {
         commanded[a].push_back(simulation.basePose(arm) * Eigen::Vector3d(clik.kinematics.tipPose().translation()));
         actual[a].push_back(simulation.toolPose(arm).translation());
+        joints[a].push_back(state.position);
       }
     }
     if (out.outcome != FoldOutcome::Ok) break;
@@ -311,16 +389,25 @@ FoldRollout ClothFoldTask::run(const Eigen::VectorXd& theta) {
     if (status == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the cloth diverged");
   }
 
+  // A failure may stop the loop between the arms: keep the samples both arms have.
+  const std::size_t samples = std::min({path_times.size(), commanded[0].size(), commanded[1].size()});
+  path_times.resize(samples);
   for (int arm = 0; arm < 2; ++arm) {
     const auto a = static_cast<std::size_t>(arm);
-    Eigen::Matrix3Xd c(3, static_cast<Eigen::Index>(commanded[a].size())), r(3, c.cols());
+    Eigen::Matrix3Xd c(3, static_cast<Eigen::Index>(samples)), r(3, c.cols());
     for (Eigen::Index i = 0; i < c.cols(); ++i) {
       c.col(i) = commanded[a][static_cast<std::size_t>(i)];
       r.col(i) = actual[a][static_cast<std::size_t>(i)];
     }
     out.commanded_path.push_back(c);
     out.actual_path.push_back(r);
+    Eigen::MatrixXd j(n, static_cast<Eigen::Index>(joints[a].size()));
+    for (Eigen::Index i = 0; i < j.cols(); ++i) j.col(i) = joints[a][static_cast<std::size_t>(i)];
+    out.joint_path.push_back(j);
   }
+  out.path_times = Eigen::Map<const Eigen::VectorXd>(path_times.data(), static_cast<Eigen::Index>(path_times.size()));
+  out.cloth_times =
+      Eigen::Map<const Eigen::VectorXd>(cloth_times.data(), static_cast<Eigen::Index>(cloth_times.size()));
   out.cloth_vertices = simulation.cloth().vertices();
   out.cloth_triangles = simulation.cloth().triangles();
   out.cloth_rest_vertices = simulation.cloth().restVertices();

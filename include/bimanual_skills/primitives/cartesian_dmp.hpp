@@ -100,8 +100,17 @@ class CartesianDmp {
   /// Validates the whole state first and leaves it unchanged on InvalidInput.
   /// Real-time safe: no allocation, no exceptions.
   DmpStatus step(CartesianDmpState& state, double dt) const noexcept;
+  /// The same step with the forcing terms given by the caller instead of the weights' (a coordinated DR-DMP's
+  /// Ω^t W g(x), 7.24): `forcing` holds the position's 3 values, then the orientation's 3 (of v for
+  /// QuaternionVector, of ω for UnitQuaternion), used as given. InvalidInput (state unchanged) also for a forcing of
+  /// another size or not finite. Real-time safe: no allocation, no exceptions.
+  DmpStatus step(CartesianDmpState& state, double dt, const Eigen::Ref<const Eigen::VectorXd>& forcing) const noexcept;
 
  private:
+  /// step() with the forcing from the weights (forcing == nullptr) or given.
+  DmpStatus stepWith(CartesianDmpState& state, double dt,
+                     const Eigen::Ref<const Eigen::VectorXd>* forcing) const noexcept;
+
   OrientationEncoding encoding_;
   Dmp position_, orientation_;
   Pose start_, goal_;
@@ -116,5 +125,8 @@ Eigen::Quaterniond quaternionExp(const Eigen::Vector3d& r) noexcept;
 /// `q` or −q, whichever is nearer `reference` (non-negative dot product): the same orientation, the sign a
 /// UnitQuaternion DMP's goal should have. Real-time safe: no allocation, no exceptions.
 Eigen::Quaterniond nearestSign(const Eigen::Quaterniond& q, const Eigen::Quaterniond& reference) noexcept;
+/// The thesis' orientation coordinates relative to the start (QuaternionVector): vec(q_s⁻¹ ∗ q) with the sign that
+/// makes w ≥ 0. Real-time safe: no allocation, no exceptions.
+Eigen::Vector3d relativeQuaternionVector(const Eigen::Quaterniond& start, const Eigen::Quaterniond& q) noexcept;
 
 }  // namespace bimanual_skills::primitives

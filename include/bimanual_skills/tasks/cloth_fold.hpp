@@ -8,9 +8,11 @@
 
 #include "bimanual_skills/kinematics/clik.hpp"
 #include "bimanual_skills/primitives/cartesian_dmp.hpp"
+#include "bimanual_skills/sim/sim_config.hpp"
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -29,7 +31,8 @@ struct ClothFoldConfig {
   std::string ik_method = "ED";     ///< CLIK method (a thesis name, e.g. "CTP+SD+SVF").
   double max_ik_error = 0.05;       ///< Task error of the CLIK references beyond which the rollout fails [m].
   double max_tracking_error = 0.3;  ///< Joint tracking error beyond which the rollout fails [rad].
-  double path_rate = 50.0;          ///< Samples per second of the recorded tool paths.
+  double path_rate = 50.0;          ///< Samples per second of the recorded tool and joint paths.
+  double cloth_rate = 0.0;          ///< Cloth meshes recorded per second (FoldRollout::cloth_frames); 0: none.
   /// The scripted demonstration (deliberately imperfect, as a first kinesthetic attempt would be): the far corners
   /// are carried on arcs of radius `demo_reach` × the cloth's half length and put down `demo_drop` above the table.
   double demo_reach = 0.85, demo_lift = 0.6, demo_drop = 0.06;
@@ -54,6 +57,10 @@ struct FoldRollout {
   double max_ik_error = 0.0;        ///< [m]
   int grasped_nodes[2] = {0, 0};
   std::vector<Eigen::Matrix3Xd> commanded_path, actual_path;  ///< Tool positions (world) per arm, at path_rate.
+  std::vector<Eigen::MatrixXd> joint_path;                    ///< Measured joint positions per arm (7 × samples).
+  Eigen::VectorXd path_times;                                 ///< Simulated time of each path sample [s].
+  std::vector<Eigen::Matrix3Xd> cloth_frames;                 ///< Cloth meshes at cloth_rate (world frame).
+  Eigen::VectorXd cloth_times;                                ///< Simulated time of each cloth frame [s].
   Eigen::Matrix3Xd cloth_vertices;                            ///< Final cloth mesh (world frame).
   Eigen::Matrix3Xi cloth_triangles;
   Eigen::Matrix3Xd cloth_rest_vertices;
@@ -80,8 +87,28 @@ class ClothFoldTask {
 
   /// One rollout of the policy `theta` (same theta, same result: the simulation and its noise are reset).
   FoldRollout run(const Eigen::VectorXd& theta);
+  /// One rollout of a coordinated policy (DR-DMP, thesis 7.24 and 7.39): the 12 forcing terms (per arm: position,
+  /// then orientation vector) are f(x_t) = Ω^t W g(x_t) on the DMPs' phase and kernels, Ω^t blending the N_s
+  /// matrices `coordination` (12 × r each) in time, W the r × kernels latent weights `latent_weights` (latent DoF
+  /// by latent DoF). run(theta) is this with Ω = I. Sizes that do not fit, or non-finite values: InvalidPolicy.
+  FoldRollout run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights);
+  /// As above with the simulation's sensor noise seeded by `seed` instead of the simulation file's seed (a rollout
+  /// seed: the same policy and seed give the same rollout).
+  FoldRollout run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights,
+                  std::uint32_t seed);
+
+  /// The DoF of the policy's forcing terms: 2 arms × (position + orientation vector).
+  static constexpr int kDofs = 12;
+  /// The DMPs' kernels and transformation system.
+  const primitives::DmpParameters& dmpParameters() const noexcept;
+  /// The demonstration in the DMPs' coordinates: samples × 12 (per arm the tool position, then
+  /// vec(q_s⁻¹ ∗ q), thesis Sec. 7.2.3), every demonstrationStep() seconds; what a DR-DMP is fitted to.
+  Eigen::MatrixXd demonstrationTrajectory() const;
+  double demonstrationStep() const noexcept;
 
   const ClothFoldConfig& config() const noexcept;
+  /// The simulation file's contents (table, cloth, arms).
+  const sim::SimConfig& simConfig() const noexcept;
 
  private:
   struct Impl;

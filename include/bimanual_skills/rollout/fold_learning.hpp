@@ -1,0 +1,161 @@
+/// \file
+/// Learning to fold the cloth (thesis Sec. 7.2.3, Table 7.5): policy search with reward-oriented dimensionality
+/// reduction over the 12-DoF coordinated DMP of both tools, each rollout executed on the simulated pair of WAMs
+/// (tasks::ClothFoldTask) and scored by (7.52) on the rendered cloth (tasks::FoldReward).
+///
+/// Protocol of one run of one algorithm: the DR-DMP is fitted to the scripted demonstration (PCA coordination,
+/// 7.26–7.27; r = 12 for IDR and the standard DMP); the latent weights start at the fit with an isotropic
+/// covariance; each epoch e = 0 … updates draws `rollouts` latent weight vectors, evaluates them in parallel, and
+/// (e < updates) updates the policy with REPS (reusing the previous epoch's rollouts) and, for the CMU variants, the
+/// coordination matrices (Alg. 7.2, η for IDR). The mean policy is also executed without exploration before the
+/// first and after the last update.
+///
+/// Nothing is lost: every finished rollout is appended at once to DIR/rollouts.csv (terms, outcome, reason) and
+/// DIR/rollout_parameters.csv (its latent weights). The learning is deterministic for a seed, so a restarted run
+/// regenerates the same rollouts and takes those already on disk instead of simulating them again (after checking
+/// that their parameters are the same to the last bit). Results do not depend on the number of threads.
+/// Target bimanual_skills_rollout (rollout floor). Offline: allocates and throws std::invalid_argument.
+#pragma once
+
+#include "bimanual_skills/learning/coordinated_reps.hpp"
+#include "bimanual_skills/tasks/cloth_fold.hpp"
+#include "bimanual_skills/tasks/fold_reward.hpp"
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::rollout {
+
+/// A DR-DMP variant of Tables 7.1–7.2, by the thesis' name.
+struct DrDmpVariant {
+  std::string name;
+  int matrices = 1;     ///< N_s
+  int latent_dims = 1;  ///< Initial r.
+  learning::CoordinationRule rule = learning::CoordinationRule::Fixed;
+  double eta = 0.0;  ///< η of the CMU (infinity: r fixed).
+};
+
+/// "DR-DMP0(r)" (fixed PCA coordination; r = d is the standard DMP), "DR-DMP_CMU(r)", "DR-DMP_MCMU(Ns,r)",
+/// "IDR-DMP_CMU" and "IDR-DMP_MCMU(Ns)" (r = d, reduced by η) for `dofs` DoF.
+/// \throws std::invalid_argument for another name or r outside [1, dofs], N_s < 1.
+DrDmpVariant parseDrDmpVariant(const std::string& name, int dofs, double eta);
+
+struct FoldLearningConfig {
+  tasks::ClothFoldConfig task;
+  tasks::FoldRewardConfig reward;  ///< Its renderer's camera and table follow the task's simulation file.
+  std::vector<std::string> algorithms = {"IDR-DMP_CMU"};
+  int runs = 1;
+  int updates = 8;
+  int rollouts = 12;            ///< Per epoch.
+  int reuse = 12;               ///< Rollouts of the previous epochs reused by REPS.
+  double epsilon = 0.5;         ///< REPS KL bound.
+  double eta = 50.0;            ///< IDR: σ_1/σ_r beyond which the last latent DoF is dropped.
+  double initial_stddev = 5.0;  ///< Of each latent weight at the start.
+  int repetitions = 0;          ///< Noise-free repetitions of the initial policy (varying only the sensors' noise).
+  std::uint32_t seed = 1;
+  int jobs = 0;  ///< Rollouts evaluated in parallel (0: the hardware's threads).
+
+  /// Reads a learning file (config/fold_demo.yaml); relative paths are relative to its directory. Entries absent
+  /// keep their defaults. \throws std::invalid_argument naming the file and the entry at fault.
+  static FoldLearningConfig fromYamlFile(const std::string& path);
+  /// \throws std::invalid_argument for out-of-range values or unknown algorithms.
+  void validate() const;
+};
+
+/// What a rollout was.
+enum class RolloutKind {
+  Sample,      ///< Drawn from the policy (exploration).
+  Policy,      ///< The mean policy without exploration (before the first and after the last update).
+  Repetition,  ///< The initial mean policy again, another sensor-noise seed (the reward's variance).
+};
+const char* toString(RolloutKind kind) noexcept;
+
+/// One finished rollout, as written to DIR/rollouts.csv.
+struct FoldRolloutRecord {
+  std::string algorithm;
+  int run = 0, epoch = 0, index = 0;
+  RolloutKind kind = RolloutKind::Sample;
+  std::uint32_t seed = 0;  ///< The simulation's sensor noise and the camera's.
+  tasks::FoldRewardTerms terms;
+  std::string reason;  ///< Why it failed; empty when Ok.
+  double wall_seconds = 0.0;
+  bool resumed = false;                       ///< Read from the run directory rather than simulated.
+  std::vector<Eigen::MatrixXd> coordination;  ///< Ω_s of the policy it was drawn from.
+  Eigen::VectorXd weights;                    ///< Its latent weights ω.
+};
+
+/// The rollouts of one epoch of one run.
+struct FoldEpochStats {
+  std::string algorithm;
+  int run = 0, epoch = 0;
+  int latent_dims = 0;  ///< r of the policy the epoch's rollouts were drawn from.
+  int failures = 0;
+  double mean_reward = 0.0, std_reward = 0.0;
+  /// Means over the epoch's rollouts that finished (all of them when none did).
+  double r_acceleration = 0.0, r_color = 0.0, r_depth = 0.0, fill_ratio = 0.0, mean_gradient = 0.0, area_ratio = 0.0;
+};
+
+struct FoldRunResult {
+  std::string algorithm;
+  int run = 0;
+  std::vector<FoldEpochStats> epochs;
+  FoldRolloutRecord initial_policy, final_policy;
+  FoldRolloutRecord best;  ///< The best rollout of the run (any kind).
+  learning::CoordinatedPolicy final;
+  double seconds = 0.0;
+};
+
+struct FoldLearningResult {
+  std::vector<FoldRunResult> runs;
+  std::vector<FoldRolloutRecord> repetitions;
+  int simulated = 0, resumed = 0;  ///< Rollouts simulated now and taken from disk.
+  double seconds = 0.0;
+};
+
+/// Hooks for a user interface (a ROS node, a console). Called from one thread at a time, in completion order.
+struct FoldLearningObserver {
+  /// A rollout finished (or was read from disk: then `rollout` has no paths or mesh and `reward` no images).
+  std::function<void(const FoldRolloutRecord& record, const tasks::FoldRollout& rollout,
+                     const tasks::FoldReward& reward)>
+      rollout;
+  std::function<void(const FoldEpochStats&)> epoch;
+  /// Polled between rollouts: true stops the learning (learn() then throws std::runtime_error("stopped")); what
+  /// finished is on disk.
+  std::function<bool()> stop;
+};
+
+class FoldLearner {
+ public:
+  /// Builds the workers (one simulation, controllers and renderer per thread) and opens `out_dir` (created if
+  /// missing), reading the rollouts already there. \throws std::invalid_argument for a bad configuration or an
+  /// unwritable directory.
+  FoldLearner(const FoldLearningConfig& config, const std::string& out_dir, FoldLearningObserver observer = {});
+  ~FoldLearner();
+  FoldLearner(const FoldLearner&) = delete;
+  FoldLearner& operator=(const FoldLearner&) = delete;
+
+  /// Runs every algorithm and run of the configuration. \throws std::invalid_argument when the directory holds
+  /// rollouts of another configuration or seed.
+  FoldLearningResult learn();
+
+  /// Executes a recorded rollout again with paths and cloth meshes recorded at `cloth_rate` frames per second:
+  /// the same result (same policy, same seed), for replays.
+  tasks::FoldRollout replay(const FoldRolloutRecord& record, double cloth_rate);
+
+  /// Renders and scores a rollout as the learning does (same seed, same images).
+  tasks::FoldRewardTerms score(const tasks::FoldRollout& rollout, std::uint32_t seed, cv::Mat& bgr, cv::Mat& depth);
+
+  /// The configuration in use: the renderer set from the simulation file, jobs resolved.
+  const FoldLearningConfig& config() const noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace bimanual_skills::rollout

@@ -1,0 +1,72 @@
+/// \file
+/// The cloth-folding reward of thesis eq. 7.52 on a simulated rollout:
+///
+///   R = −R_acceleration − R_color − R_depth                                                        (7.52)
+///
+/// R_acceleration = w_a ∫ ‖q̈_ref‖² dt over both arms (FoldRollout::acceleration_cost); R_color and R_depth are the
+/// image terms of vision::ImageReward on the final cloth rendered by a top-down camera over the table
+/// (vision::ClothRenderer, with sensor noise). A rollout that failed (IK, controller, divergence, invalid policy)
+/// gets `failure_reward`, below any reward a finished fold can reach with the default weights. Target
+/// bimanual_skills_fold. Runs once per rollout, off the control loop: allocates (OpenCV), never throws after
+/// construction.
+#pragma once
+
+#include "bimanual_skills/tasks/cloth_fold.hpp"
+#include "bimanual_skills/vision/cloth_renderer.hpp"
+#include "bimanual_skills/vision/image_reward.hpp"
+
+#include <random>
+
+namespace bimanual_skills::tasks {
+
+struct FoldRewardConfig {
+  vision::ClothRendererParameters renderer;  ///< Camera, table and noise (see rendererFor()).
+  vision::ImageRewardParameters image;       ///< Segmentation and w_c, w_d.
+  double acceleration_weight = 0.01;         ///< w_a ≥ 0 [s³/rad²].
+  double failure_reward = -3.0;              ///< Reward of a failed rollout, finite.
+
+  /// Throws std::invalid_argument naming `where` and the parameter that is out of range.
+  void validate(const char* where) const;
+};
+
+/// The camera and table of a simulation: the table top of `sim` (height, centre, extent) and a 320 × 240 camera
+/// 1.5 m above it centred on the cloth, covering 1 m of table across (3.125 mm pixels).
+vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim);
+
+/// The reward's terms of one rollout.
+struct FoldRewardTerms {
+  FoldOutcome outcome = FoldOutcome::Ok;
+  vision::VisionStatus vision = vision::VisionStatus::NoCloth;
+  double r_acceleration = 0.0;  ///< w_a ∫ ‖q̈_ref‖² dt
+  double r_color = 0.0;         ///< w_c (1 − ρ)
+  double r_depth = 0.0;         ///< w_d ḡ
+  double fill_ratio = 0.0;      ///< ρ
+  double mean_gradient = 0.0;   ///< ḡ [m/m]
+  double area_ratio = 0.0;      ///< Visible cloth area over the flat cloth's (½ when folded in half).
+  double aspect = 0.0;          ///< Long over short side of the cloth's minimum-area rectangle.
+  double reward = 0.0;          ///< (7.52), or failure_reward.
+};
+
+/// Renders and scores rollouts. One object per thread (it holds the images).
+class FoldReward {
+ public:
+  /// `flat_area` [m²] (> 0): the flat cloth's area, for the area ratio. \throws std::invalid_argument.
+  FoldReward(const FoldRewardConfig& config, double flat_area);
+
+  /// Renders the rollout's final cloth with noise drawn from `rng` and evaluates (7.52). A rollout without a
+  /// cloth mesh renders the empty table.
+  FoldRewardTerms evaluate(const FoldRollout& rollout, std::mt19937& rng);
+
+  const FoldRewardConfig& config() const noexcept { return config_; }
+  /// The images of the last evaluate(): colour (bgr8) and depth (32FC1, metres).
+  const cv::Mat& bgr() const noexcept { return renderer_.bgr(); }
+  const cv::Mat& depth() const noexcept { return renderer_.depth(); }
+
+ private:
+  FoldRewardConfig config_;
+  double flat_area_;
+  vision::ClothRenderer renderer_;
+  vision::ImageReward image_;
+};
+
+}  // namespace bimanual_skills::tasks

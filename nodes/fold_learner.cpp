@@ -1,0 +1,414 @@
+// fold_learner: the two simulated WAMs learn to fold the cloth (rollout::FoldLearner) while rviz watches. A thin
+// shell: it runs the library's learning, publishes each rollout (cloth, tool paths, camera images, robot), prints
+// the progress, and writes the results, the top-down images and a rosbag of the best rollout.
+#include "bimanual_skills/kinematics/chain_model.hpp"
+#include "bimanual_skills/rollout/fold_learning.hpp"
+#include "node_cli.hpp"
+#include "scene_markers.hpp"
+#include "summary_json.hpp"
+
+#include <cv_bridge/cv_bridge.h>
+#include <ros/package.h>
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/JointState.h>
+#include <visualization_msgs/MarkerArray.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <deque>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace bs = bimanual_skills;
+namespace br = bimanual_skills::rollout;
+namespace bt = bimanual_skills::tasks;
+
+namespace {
+
+const char* const kUsage =
+    "usage: rosrun bimanual_skills fold_learner [_config:=FILE] [_out:=DIR] [_jobs:=N] [_replay_best:=true|false]\n"
+    "\n"
+    "Two simulated WAMs learn to fold a cloth (thesis Sec. 7.2.3, Table 7.5): DR-DMP policies over both tools,\n"
+    "executed by CLIK and computed-torque control on the Bullet simulation, scored by eq. 7.52 on rendered top-down\n"
+    "colour and depth images, improved by REPS with reward-oriented dimensionality reduction. Rollouts run in\n"
+    "parallel, are written to DIR as they finish, and a restarted run resumes where it stopped.\n"
+    "\n"
+    "Parameters (private):\n"
+    "  ~config       learning file (default: the package's config/fold_demo.yaml; config/fold_table75.yaml is\n"
+    "                the full Table 7.5 setting)\n"
+    "  ~out          results directory (default: fold_learning in the working directory)\n"
+    "  ~jobs         rollouts in parallel (default: the learning file's, 0 = one per core)\n"
+    "  ~replay_best  after learning, replay the best rollout on the topics in a loop until shut down (default\n"
+    "                false: exit when done)\n"
+    "\n"
+    "Writes into DIR: rollouts.csv and rollout_parameters.csv (every rollout, as it finishes), epochs.csv,\n"
+    "coordination.csv (final coordination matrices), summary.json (one row per algorithm and epoch), initial.png\n"
+    "and final.png (top-down camera images of the initial and the best final policy, with depth_*.png), and\n"
+    "best_rollout.bag (replay: roslaunch bimanual_skills fold.launch replay:=DIR/best_rollout.bag).\n"
+    "\n"
+    "Topics: /joint_states (sensor_msgs/JointState: the last rollout's final pose, or the replay), ~cloth\n"
+    "  (visualization_msgs/Marker TRIANGLE_LIST: the last rollout's cloth), ~scene (the table), ~tool_paths\n"
+    "  (visualization_msgs/MarkerArray: the tool paths of the last rollouts, red = worst to green = best reward),\n"
+    "  ~camera/image_raw (sensor_msgs/Image bgr8) and ~camera/depth/image_raw (32FC1, metres).\n";
+
+constexpr double kBagStart = 1.0;  ///< Bag time of the rollout's t = 0 [s] (ROS time 0 means "unset").
+
+std::string formatSeconds(double s) {
+  char text[32];
+  if (s >= 3600.0) {
+    std::snprintf(text, sizeof text, "%dh%02dm", static_cast<int>(s / 3600.0), static_cast<int>(s / 60.0) % 60);
+  } else if (s >= 60.0) {
+    std::snprintf(text, sizeof text, "%dm%02ds", static_cast<int>(s / 60.0), static_cast<int>(s) % 60);
+  } else {
+    std::snprintf(text, sizeof text, "%.0fs", s);
+  }
+  return text;
+}
+
+class FoldLearnerNode {
+ public:
+  FoldLearnerNode() : private_node_("~") {
+    const std::string package = ros::package::getPath("bimanual_skills");
+    private_node_.param<std::string>("config", config_path_, package + "/config/fold_demo.yaml");
+    private_node_.param<std::string>("out", out_, "fold_learning");
+    private_node_.param("replay_best", replay_best_, false);
+    config_ = br::FoldLearningConfig::fromYamlFile(config_path_);
+    int jobs = config_.jobs;
+    private_node_.param("jobs", jobs, jobs);
+    if (jobs < 0) throw std::invalid_argument("~jobs must be >= 0");
+    config_.jobs = jobs;
+
+    cloth_publisher_ = private_node_.advertise<visualization_msgs::Marker>("cloth", 1, true);
+    scene_publisher_ = private_node_.advertise<visualization_msgs::Marker>("scene", 1, true);
+    path_publisher_ = private_node_.advertise<visualization_msgs::MarkerArray>("tool_paths", 1, true);
+    image_publisher_ = private_node_.advertise<sensor_msgs::Image>("camera/image_raw", 1, true);
+    depth_publisher_ = private_node_.advertise<sensor_msgs::Image>("camera/depth/image_raw", 1, true);
+    joint_publisher_ = node_.advertise<sensor_msgs::JointState>("/joint_states", 10, true);
+
+    br::FoldLearningObserver observer;
+    observer.rollout = [this](const br::FoldRolloutRecord& record, const bt::FoldRollout& rollout,
+                              const bt::FoldReward& reward) { onRollout(record, rollout, reward); };
+    observer.epoch = [this](const br::FoldEpochStats& s) { onEpoch(s); };
+    observer.stop = [] { return !ros::ok(); };
+    learner_ = std::make_unique<br::FoldLearner>(config_, out_, observer);
+    const bt::ClothFoldConfig& task = learner_->config().task;
+    const bs::sim::SimConfig sim = bs::sim::SimConfig::fromYamlFile(task.sim_config);
+    for (const bs::sim::ArmConfig& arm : sim.arms) {
+      const std::vector<std::string> names =
+          bs::kinematics::ChainModel::fromUrdfFile(sim.urdf_path, arm.base_link, arm.tip_link).jointNames();
+      joint_names_.insert(joint_names_.end(), names.begin(), names.end());
+    }
+    table_ = sim.table;
+    scene_publisher_.publish(bs::nodes::tableMarker(table_, ros::Time::now()));
+    total_ = config_.repetitions + static_cast<int>(config_.algorithms.size()) * config_.runs *
+                                       ((config_.updates + 1) * config_.rollouts + 2);
+  }
+
+  void run() {
+    ROS_INFO(
+        "fold_learner: %s -> %s: %zu algorithm(s) x %d run(s) x %d update(s) x %d rollouts, seed %u, %d "
+        "thread(s)",
+        config_path_.c_str(), out_.c_str(), config_.algorithms.size(), config_.runs, config_.updates, config_.rollouts,
+        config_.seed, learner_->config().jobs);
+    start_ = std::chrono::steady_clock::now();
+    const br::FoldLearningResult result = learner_->learn();
+    ROS_INFO("fold_learner: %d rollouts simulated and %d read from %s in %s", result.simulated, result.resumed,
+             out_.c_str(), formatSeconds(result.seconds).c_str());
+    writeSummary(result);
+    const br::FoldRunResult* best_run = &result.runs.front();
+    for (const br::FoldRunResult& r : result.runs) {
+      if (r.final_policy.terms.reward > best_run->final_policy.terms.reward) best_run = &r;
+    }
+    writeImage(result.runs.front().initial_policy, "initial");
+    writeImage(best_run->final_policy, "final");
+    const br::FoldRolloutRecord* best = &result.runs.front().best;
+    for (const br::FoldRunResult& r : result.runs) {
+      if (r.best.terms.reward > best->terms.reward) best = &r.best;
+    }
+    const bt::FoldRollout replay = learner_->replay(*best, 20.0);
+    writeBag(*best, replay);
+    std::printf(
+        "fold_learner: results in %s: summary.json, epochs.csv, rollouts.csv, initial.png, final.png, "
+        "best_rollout.bag\n"
+        "fold_learner: best rollout: %s run %d epoch %d (%s %d), R = %.4f; replay it in rviz with\n"
+        "  roslaunch bimanual_skills fold.launch replay:=%s/best_rollout.bag\n",
+        out_.c_str(), best->algorithm.c_str(), best->run + 1, best->epoch, br::toString(best->kind), best->index,
+        best->terms.reward, out_.c_str());
+    std::fflush(stdout);
+    if (replay_best_) replayLoop(replay);
+  }
+
+ private:
+  void onRollout(const br::FoldRolloutRecord& record, const bt::FoldRollout& rollout, const bt::FoldReward& reward) {
+    ++done_;
+    if (record.resumed) ++resumed_;
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    const int simulated = done_ - resumed_;
+    const double eta = simulated > 0 ? elapsed / simulated * (total_ - done_) : 0.0;
+    std::printf(
+        "[%s run %d] epoch %d/%d %s %d: R = %.4f (acc %.3f, color %.3f, depth %.3f, area %.2f) %s%s%s | "
+        "%d/%d rollouts, ETA %s\n",
+        record.algorithm.c_str(), record.run + 1, record.epoch, config_.updates, br::toString(record.kind),
+        record.index + 1, record.terms.reward, record.terms.r_acceleration, record.terms.r_color, record.terms.r_depth,
+        record.terms.area_ratio, bt::toString(record.terms.outcome), record.reason.empty() ? "" : ": ",
+        record.reason.c_str(), done_, total_, formatSeconds(eta).c_str());
+    std::fflush(stdout);
+    if (record.resumed || rollout.cloth_vertices.cols() == 0) return;
+    const ros::Time now = ros::Time::now();
+    cloth_publisher_.publish(bs::nodes::clothMarker(rollout.cloth_vertices, rollout.cloth_triangles, now));
+    std_msgs::Header header;
+    header.stamp = now;
+    header.frame_id = "top_down_camera";
+    image_publisher_.publish(cv_bridge::CvImage(header, "bgr8", reward.bgr()).toImageMsg());
+    depth_publisher_.publish(cv_bridge::CvImage(header, "32FC1", reward.depth()).toImageMsg());
+    if (!rollout.joint_path.empty() && rollout.joint_path.front().cols() > 0) {
+      joint_publisher_.publish(jointState(rollout, rollout.joint_path.front().cols() - 1, now));
+    }
+    // The paths of the last rollouts, coloured by reward from the worst (red) to the best (green) shown.
+    paths_.push_back({record.terms.reward, rollout.actual_path});
+    while (static_cast<int>(paths_.size()) > config_.rollouts) paths_.pop_front();
+    double lo = paths_.front().reward, hi = lo;
+    for (const Paths& p : paths_) {
+      lo = std::min(lo, p.reward);
+      hi = std::max(hi, p.reward);
+    }
+    visualization_msgs::MarkerArray markers;
+    visualization_msgs::Marker clear;
+    clear.action = visualization_msgs::Marker::DELETEALL;
+    markers.markers.push_back(clear);
+    int id = 0;
+    for (const Paths& p : paths_) {
+      const double s = hi > lo ? (p.reward - lo) / (hi - lo) : 1.0;
+      for (const Eigen::Matrix3Xd& path : p.tools) {
+        visualization_msgs::Marker m = bs::nodes::pathMarker("tool_paths", id++, path, 0.004, now);
+        m.color.r = static_cast<float>(1.0 - s);
+        m.color.g = static_cast<float>(s);
+        m.color.b = 0.1f;
+        markers.markers.push_back(m);
+      }
+    }
+    path_publisher_.publish(markers);
+  }
+
+  void onEpoch(const br::FoldEpochStats& s) {
+    ROS_INFO(
+        "fold_learner: %s run %d epoch %d/%d: mean reward %.4f +- %.4f (acc %.3f, color %.3f, depth %.3f, "
+        "area %.2f), r = %d, %d failed",
+        s.algorithm.c_str(), s.run + 1, s.epoch, config_.updates, s.mean_reward, s.std_reward, s.r_acceleration,
+        s.r_color, s.r_depth, s.area_ratio, s.latent_dims, s.failures);
+  }
+
+  sensor_msgs::JointState jointState(const bt::FoldRollout& rollout, Eigen::Index sample,
+                                     const ros::Time& stamp) const {
+    sensor_msgs::JointState js;
+    js.header.stamp = stamp;
+    js.name = joint_names_;
+    for (const Eigen::MatrixXd& arm : rollout.joint_path) {
+      for (Eigen::Index j = 0; j < arm.rows(); ++j) js.position.push_back(arm(j, sample));
+    }
+    return js;
+  }
+
+  void writeImage(const br::FoldRolloutRecord& record, const std::string& name) {
+    const bt::FoldRollout rollout = learner_->replay(record, 0.0);
+    cv::Mat bgr, depth;
+    learner_->score(rollout, record.seed, bgr, depth);
+    cv::imwrite(out_ + "/" + name + ".png", bgr);
+    cv::Mat shown;
+    double lo = 0.0, hi = 0.0;
+    cv::minMaxLoc(depth, &lo, &hi);
+    depth.convertTo(shown, CV_8U, hi > lo ? -255.0 / (hi - lo) : 0.0, hi > lo ? 255.0 * hi / (hi - lo) : 0.0);
+    cv::imwrite(out_ + "/depth_" + name + ".png", shown);
+  }
+
+  void writeBag(const br::FoldRolloutRecord& best, const bt::FoldRollout& rollout) {
+    rosbag::Bag bag(out_ + "/best_rollout.bag", rosbag::bagmode::Write);
+    const std::string ns = private_node_.getNamespace();
+    const ros::Time begin(kBagStart);
+    bag.write(ns + "/scene", begin, bs::nodes::tableMarker(table_, begin));
+    for (Eigen::Index k = 0; k < rollout.path_times.size(); ++k) {
+      const ros::Time t(kBagStart + rollout.path_times[k]);
+      bag.write("/joint_states", t, jointState(rollout, k, t));
+    }
+    for (std::size_t k = 0; k < rollout.cloth_frames.size(); ++k) {
+      const ros::Time t(kBagStart + rollout.cloth_times[static_cast<Eigen::Index>(k)]);
+      bag.write(ns + "/cloth", t, bs::nodes::clothMarker(rollout.cloth_frames[k], rollout.cloth_triangles, t));
+    }
+    const ros::Time end(kBagStart + rollout.simulated_seconds);
+    visualization_msgs::MarkerArray paths;
+    for (std::size_t arm = 0; arm < rollout.actual_path.size(); ++arm) {
+      visualization_msgs::Marker m =
+          bs::nodes::pathMarker("tool_paths", static_cast<int>(arm), rollout.actual_path[arm], 0.004, begin);
+      m.color.g = 1.0f;
+      paths.markers.push_back(m);
+    }
+    bag.write(ns + "/tool_paths", begin, paths);
+    cv::Mat bgr, depth;
+    learner_->score(rollout, best.seed, bgr, depth);
+    std_msgs::Header header;
+    header.stamp = end;
+    header.frame_id = "top_down_camera";
+    bag.write(ns + "/camera/image_raw", end, cv_bridge::CvImage(header, "bgr8", bgr).toImageMsg());
+    bag.write(ns + "/camera/depth/image_raw", end, cv_bridge::CvImage(header, "32FC1", depth).toImageMsg());
+    bag.close();
+  }
+
+  void writeSummary(const br::FoldLearningResult& result) const {
+    std::vector<bs::bench::JsonRow> rows;
+    std::map<std::string, std::vector<const br::FoldRunResult*>> by_algorithm;
+    for (const br::FoldRunResult& r : result.runs) by_algorithm[r.algorithm].push_back(&r);
+    for (const std::string& algorithm : config_.algorithms) {
+      const std::vector<const br::FoldRunResult*>& runs = by_algorithm[algorithm];
+      for (int e = 0; e <= config_.updates; ++e) {
+        // Over the runs: the mean of the epoch's rollout rewards, its std across runs and the rollouts' std.
+        const auto n = static_cast<double>(runs.size());
+        double mean = 0.0, spread = 0.0, within = 0.0, acc = 0.0, color = 0.0, depth = 0.0, rho = 0.0, g = 0.0,
+               area = 0.0, dims = 0.0, failures = 0.0;
+        for (const br::FoldRunResult* r : runs) {
+          const br::FoldEpochStats& s = r->epochs[static_cast<std::size_t>(e)];
+          mean += s.mean_reward / n;
+          within += s.std_reward / n;
+          acc += s.r_acceleration / n;
+          color += s.r_color / n;
+          depth += s.r_depth / n;
+          rho += s.fill_ratio / n;
+          g += s.mean_gradient / n;
+          area += s.area_ratio / n;
+          dims += s.latent_dims / n;
+          failures += s.failures;
+        }
+        for (const br::FoldRunResult* r : runs) {
+          const double d = r->epochs[static_cast<std::size_t>(e)].mean_reward - mean;
+          spread += runs.size() > 1 ? d * d / (n - 1) : 0.0;
+        }
+        bs::bench::JsonRow& row = rows.emplace_back();
+        row.add("experiment", "fold")
+            .add("algorithm", algorithm)
+            .add("epoch", e)
+            .add("runs", static_cast<int>(runs.size()))
+            .add("mean_reward", mean)
+            .add("std_reward", runs.size() > 1 ? std::sqrt(spread) : within)
+            .add("std_reward_within_runs", within)
+            .add("r_acceleration", acc)
+            .add("r_color", color)
+            .add("r_depth", depth)
+            .add("fill_ratio", rho)
+            .add("mean_gradient", g)
+            .add("area_ratio", area)
+            .add("latent_dims", dims)
+            .add("failures", failures);
+      }
+      double initial = 0.0, final_reward = 0.0;
+      for (const br::FoldRunResult* r : runs) {
+        initial += r->initial_policy.terms.reward / runs.size();
+        final_reward += r->final_policy.terms.reward / runs.size();
+      }
+      rows.emplace_back()
+          .add("experiment", "fold_policy")
+          .add("algorithm", algorithm)
+          .add("initial_policy_reward", initial)
+          .add("final_policy_reward", final_reward)
+          .add("final_latent_dims", runs.front()->final.latentDims());
+    }
+    if (!result.repetitions.empty()) {
+      const auto n = static_cast<double>(result.repetitions.size());
+      double m[4] = {0, 0, 0, 0}, s[4] = {0, 0, 0, 0};
+      const auto values = [](const br::FoldRolloutRecord& r) {
+        return std::array<double, 4>{r.terms.reward, r.terms.fill_ratio, r.terms.mean_gradient, r.terms.r_acceleration};
+      };
+      for (const br::FoldRolloutRecord& r : result.repetitions) {
+        for (int i = 0; i < 4; ++i) m[i] += values(r)[static_cast<std::size_t>(i)] / n;
+      }
+      for (const br::FoldRolloutRecord& r : result.repetitions) {
+        for (int i = 0; i < 4; ++i) {
+          const double d = values(r)[static_cast<std::size_t>(i)] - m[i];
+          s[i] += n > 1 ? d * d / (n - 1) : 0.0;
+        }
+      }
+      rows.emplace_back()
+          .add("experiment", "repetitions")
+          .add("algorithm", "demonstration")
+          .add("repetitions", static_cast<int>(n))
+          .add("mean_reward", m[0])
+          .add("std_reward", std::sqrt(s[0]))
+          .add("fill_ratio", m[1])
+          .add("fill_ratio_std", std::sqrt(s[1]))
+          .add("mean_gradient", m[2])
+          .add("mean_gradient_std", std::sqrt(s[2]))
+          .add("r_acceleration", m[3])
+          .add("r_acceleration_std", std::sqrt(s[3]));
+    }
+    bs::bench::ExperimentOptions options;
+    options.experiment = "fold";
+    options.out = out_;
+    options.seed = config_.seed;
+    bs::bench::writeSummaryJson(options, "fold_learner", rows);
+  }
+
+  /// Publishes the best rollout on the live topics in real time, in a loop.
+  void replayLoop(const bt::FoldRollout& rollout) {
+    ROS_INFO("fold_learner: replaying the best rollout until shut down");
+    while (ros::ok()) {
+      const ros::WallTime start = ros::WallTime::now();
+      std::size_t frame = 0;
+      for (Eigen::Index k = 0; k < rollout.path_times.size() && ros::ok(); ++k) {
+        ros::WallTime::sleepUntil(start + ros::WallDuration(rollout.path_times[k]));
+        const ros::Time now = ros::Time::now();
+        joint_publisher_.publish(jointState(rollout, k, now));
+        while (frame < rollout.cloth_frames.size() &&
+               rollout.cloth_times[static_cast<Eigen::Index>(frame)] <= rollout.path_times[k]) {
+          cloth_publisher_.publish(bs::nodes::clothMarker(rollout.cloth_frames[frame], rollout.cloth_triangles, now));
+          ++frame;
+        }
+      }
+      ros::WallDuration(1.0).sleep();
+    }
+  }
+
+  struct Paths {
+    double reward;
+    std::vector<Eigen::Matrix3Xd> tools;
+  };
+
+  ros::NodeHandle node_, private_node_;
+  std::string config_path_, out_;
+  bool replay_best_ = false;
+  br::FoldLearningConfig config_;
+  std::unique_ptr<br::FoldLearner> learner_;
+  std::vector<std::string> joint_names_;
+  bs::sim::Table table_;
+  ros::Publisher cloth_publisher_, scene_publisher_, path_publisher_, image_publisher_, depth_publisher_,
+      joint_publisher_;
+  std::deque<Paths> paths_;
+  std::chrono::steady_clock::time_point start_;
+  int done_ = 0, resumed_ = 0, total_ = 0;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bs::nodes::handleCommandLine(argc, argv, kUsage);
+  ros::init(argc, argv, "fold_learner");
+  try {
+    FoldLearnerNode node;
+    node.run();
+  } catch (const std::runtime_error& e) {
+    if (!ros::ok()) {
+      ROS_WARN("fold_learner: stopped; the finished rollouts are on disk, run again to resume");
+      return 0;
+    }
+    ROS_FATAL("fold_learner: %s", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    ROS_FATAL("fold_learner: %s", e.what());
+    return 1;
+  }
+  return 0;
+}

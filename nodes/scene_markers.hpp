@@ -1,0 +1,88 @@
+/// \file
+/// rviz markers of the simulated scene shared by the nodes: the table as a box, the cloth as a TRIANGLE_LIST, a tool
+/// path as a LINE_STRIP (frame "world").
+#pragma once
+
+#include "bimanual_skills/sim/table.hpp"
+
+#include <ros/time.h>
+#include <visualization_msgs/Marker.h>
+#include <Eigen/Core>
+
+#include <string>
+
+namespace bimanual_skills::nodes {
+
+inline visualization_msgs::Marker worldMarker(const std::string& ns, int id, int type, const ros::Time& stamp) {
+  visualization_msgs::Marker m;
+  m.header.frame_id = "world";
+  m.header.stamp = stamp;
+  m.ns = ns;
+  m.id = id;
+  m.type = type;
+  m.action = visualization_msgs::Marker::ADD;
+  m.pose.orientation.w = 1.0;
+  m.scale.x = m.scale.y = m.scale.z = 1.0;
+  m.color.a = 1.0f;
+  return m;
+}
+
+inline visualization_msgs::Marker tableMarker(const sim::Table& table, const ros::Time& stamp) {
+  visualization_msgs::Marker m = worldMarker("table", 0, visualization_msgs::Marker::CUBE, stamp);
+  const Eigen::Quaterniond r(table.pose.rotation());
+  m.pose.position.x = table.pose.translation().x();
+  m.pose.position.y = table.pose.translation().y();
+  m.pose.position.z = table.pose.translation().z();
+  m.pose.orientation.w = r.w();
+  m.pose.orientation.x = r.x();
+  m.pose.orientation.y = r.y();
+  m.pose.orientation.z = r.z();
+  m.scale.x = table.size.x();
+  m.scale.y = table.size.y();
+  m.scale.z = table.size.z();
+  m.color.r = 0.55f;
+  m.color.g = 0.42f;
+  m.color.b = 0.3f;
+  return m;
+}
+
+/// The cloth mesh (3 × N vertices, 3 × M triangles, world frame) in the renderer's blue.
+inline visualization_msgs::Marker clothMarker(const Eigen::Matrix3Xd& vertices, const Eigen::Matrix3Xi& triangles,
+                                              const ros::Time& stamp) {
+  visualization_msgs::Marker m = worldMarker("cloth", 0, visualization_msgs::Marker::TRIANGLE_LIST, stamp);
+  m.color.r = 0.15f;
+  m.color.g = 0.35f;
+  m.color.b = 0.8f;
+  m.points.reserve(static_cast<std::size_t>(3 * triangles.cols()));
+  for (Eigen::Index t = 0; t < triangles.cols(); ++t) {
+    for (int c = 0; c < 3; ++c) {
+      const Eigen::Index i = triangles(c, t);
+      if (i < 0 || i >= vertices.cols()) continue;
+      geometry_msgs::Point p;
+      p.x = vertices(0, i);
+      p.y = vertices(1, i);
+      p.z = vertices(2, i);
+      m.points.push_back(p);
+    }
+  }
+  if (m.points.size() % 3 != 0) m.points.clear();
+  return m;
+}
+
+/// A path (3 × N points, world frame) as a line of `width` metres.
+inline visualization_msgs::Marker pathMarker(const std::string& ns, int id, const Eigen::Matrix3Xd& path, double width,
+                                             const ros::Time& stamp) {
+  visualization_msgs::Marker m = worldMarker(ns, id, visualization_msgs::Marker::LINE_STRIP, stamp);
+  m.scale.x = width;
+  m.points.reserve(static_cast<std::size_t>(path.cols()));
+  for (Eigen::Index k = 0; k < path.cols(); ++k) {
+    geometry_msgs::Point p;
+    p.x = path(0, k);
+    p.y = path(1, k);
+    p.z = path(2, k);
+    m.points.push_back(p);
+  }
+  return m;
+}
+
+}  // namespace bimanual_skills::nodes

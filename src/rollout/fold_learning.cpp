@@ -1,0 +1,658 @@
+#include "bimanual_skills/rollout/fold_learning.hpp"
+
+#include "bimanual_skills/learning/gaussian.hpp"
+#include "bimanual_skills/primitives/dr_dmp.hpp"
+#include "io/yaml_io.hpp"
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <mutex>
+#include <regex>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+namespace bimanual_skills::rollout {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr double kInfinity = std::numeric_limits<double>::infinity();
+
+double secondsSince(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+std::string key(const std::string& algorithm, int run, int epoch, RolloutKind kind, int index) {
+  return algorithm + '|' + std::to_string(run) + '|' + std::to_string(epoch) + '|' + toString(kind) + '|' +
+         std::to_string(index);
+}
+
+/// Fields of one CSV line; a field in double quotes may hold commas and doubled quotes.
+std::vector<std::string> splitCsv(const std::string& line) {
+  std::vector<std::string> out(1);
+  bool quoted = false;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+        out.back() += '"';
+        ++i;
+      } else if (c == '"') {
+        quoted = false;
+      } else {
+        out.back() += c;
+      }
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      out.emplace_back();
+    } else {
+      out.back() += c;
+    }
+  }
+  return out;
+}
+
+std::string quoted(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '\n') {
+      out += ' ';
+    } else {
+      if (c == '"') out += '"';
+      out += c;
+    }
+  }
+  return out + '"';
+}
+
+std::string number(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.17g", value);
+  return buffer;
+}
+
+RolloutKind kindFromString(const std::string& text, const std::string& where) {
+  for (const RolloutKind kind : {RolloutKind::Sample, RolloutKind::Policy, RolloutKind::Repetition}) {
+    if (text == toString(kind)) return kind;
+  }
+  throw std::invalid_argument(where + ": unknown rollout kind '" + text + "'");
+}
+
+tasks::FoldOutcome outcomeFromString(const std::string& text, const std::string& where) {
+  using tasks::FoldOutcome;
+  for (const FoldOutcome outcome :
+       {FoldOutcome::Ok, FoldOutcome::InvalidPolicy, FoldOutcome::GraspFailed, FoldOutcome::IkFailed,
+        FoldOutcome::ControllerFailed, FoldOutcome::SimulationDiverged}) {
+    if (text == tasks::toString(outcome)) return outcome;
+  }
+  throw std::invalid_argument(where + ": unknown outcome '" + text + "'");
+}
+
+const char* const kRolloutColumns =
+    "algorithm,run,epoch,kind,index,seed,outcome,reward,r_acceleration,r_color,r_depth,fill_ratio,mean_gradient,"
+    "area_ratio,aspect,latent_dims,wall_seconds,reason";
+constexpr std::size_t kRolloutFields = 18;
+
+double toDouble(const std::string& text, const std::string& where) {
+  std::size_t used = 0;
+  double value = 0.0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != text.size() || text.empty()) throw std::invalid_argument(where + ": '" + text + "' is not a number");
+  return value;
+}
+
+int toInt(const std::string& text, const std::string& where) {
+  const double value = toDouble(text, where);
+  if (value != std::floor(value) || std::abs(value) > 2147483647.0) {
+    throw std::invalid_argument(where + ": '" + text + "' is not an integer");
+  }
+  return static_cast<int>(value);
+}
+
+/// What a rollout needs to run.
+struct Worker {
+  Worker(const FoldLearningConfig& config)
+      : task(config.task), reward(config.reward, task.simConfig().cloth.length * task.simConfig().cloth.width) {}
+  tasks::ClothFoldTask task;
+  tasks::FoldReward reward;
+};
+
+FoldLearningConfig withRenderer(FoldLearningConfig config, const tasks::ClothFoldTask& task) {
+  const vision::RenderNoise noise = config.reward.renderer.noise;
+  config.reward.renderer = tasks::rendererFor(task.simConfig());
+  config.reward.renderer.noise = noise;
+  return config;
+}
+
+std::mt19937 noiseGenerator(std::uint32_t seed) {
+  std::seed_seq sequence{seed, 0x5eedu};
+  return std::mt19937(sequence);
+}
+
+}  // namespace
+
+const char* toString(RolloutKind kind) noexcept {
+  switch (kind) {
+    case RolloutKind::Sample:
+      return "sample";
+    case RolloutKind::Policy:
+      return "policy";
+    case RolloutKind::Repetition:
+      return "repetition";
+  }
+  return "unknown";
+}
+
+DrDmpVariant parseDrDmpVariant(const std::string& name, int dofs, double eta) {
+  std::smatch m;
+  DrDmpVariant v;
+  v.name = name;
+  v.eta = kInfinity;
+  const auto count = [&](const std::string& text) { return std::stoi(text); };
+  if (std::regex_match(name, m, std::regex(R"(DR-DMP0\((\d+)\))"))) {
+    v.latent_dims = count(m[1]);
+  } else if (std::regex_match(name, m, std::regex(R"(DR-DMP_CMU\((\d+)\))"))) {
+    v.latent_dims = count(m[1]);
+    v.rule = learning::CoordinationRule::Cmu;
+  } else if (std::regex_match(name, m, std::regex(R"(DR-DMP_MCMU\((\d+),(\d+)\))"))) {
+    v.matrices = count(m[1]);
+    v.latent_dims = count(m[2]);
+    v.rule = learning::CoordinationRule::Cmu;
+  } else if (name == "IDR-DMP_CMU") {
+    v.latent_dims = dofs;
+    v.rule = learning::CoordinationRule::Cmu;
+    v.eta = eta;
+  } else if (std::regex_match(name, m, std::regex(R"(IDR-DMP_MCMU\((\d+)\))"))) {
+    v.matrices = count(m[1]);
+    v.latent_dims = dofs;
+    v.rule = learning::CoordinationRule::Cmu;
+    v.eta = eta;
+  } else {
+    throw std::invalid_argument("unknown algorithm '" + name +
+                                "' (DR-DMP0(r), DR-DMP_CMU(r), DR-DMP_MCMU(Ns,r), IDR-DMP_CMU, IDR-DMP_MCMU(Ns))");
+  }
+  if (v.latent_dims < 1 || v.latent_dims > dofs || v.matrices < 1 || v.matrices > 20) {
+    throw std::invalid_argument("algorithm '" + name + "': r must be in [1, " + std::to_string(dofs) +
+                                "] and Ns in [1, 20]");
+  }
+  return v;
+}
+
+void FoldLearningConfig::validate() const {
+  if (algorithms.empty()) throw std::invalid_argument("fold learning: no algorithm");
+  for (const std::string& a : algorithms) parseDrDmpVariant(a, tasks::ClothFoldTask::kDofs, eta);
+  if (runs < 1 || updates < 0 || rollouts < 2 || reuse < 0 || repetitions < 0 || jobs < 0) {
+    throw std::invalid_argument("fold learning: runs >= 1, updates >= 0, rollouts >= 2, reuse, repetitions, jobs >= 0");
+  }
+  if (!(epsilon > 0.0) || !(eta > 1.0) || !(initial_stddev > 0.0) || !std::isfinite(initial_stddev)) {
+    throw std::invalid_argument("fold learning: epsilon > 0, eta > 1 and a finite initial_stddev > 0");
+  }
+  reward.validate("fold learning reward");
+}
+
+FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
+  const std::string where = "fold learning file '" + path + "'";
+  const YAML::Node root = io::loadYamlFile(path, where);
+  if (!root.IsMap()) io::fail(where + ": must be a map");
+  io::checkKeys(root, where, {"sim", "friction", "task", "reward", "learning"});
+  FoldLearningConfig c;
+  c.task.sim_config = io::resolvePath(path, io::readString(root, "sim", where));
+  if (const YAML::Node friction = root["friction"]) {
+    if (!friction.IsSequence()) io::fail(where + ": 'friction' must be a list of files, one per arm");
+    for (const YAML::Node& file : friction)
+      c.task.friction_files.push_back(io::resolvePath(path, file.as<std::string>()));
+  }
+  if (const YAML::Node task = root["task"]) {
+    const std::string at = where + " task";
+    io::checkKeys(task, at,
+                  {"kernels", "duration", "ik_method", "max_ik_error", "max_tracking_error", "demo_reach", "demo_lift",
+                   "demo_drop"});
+    if (task["kernels"]) c.task.kernels = io::readInt(task, "kernels", at);
+    c.task.duration = io::readDouble(task, "duration", at, c.task.duration);
+    if (task["ik_method"]) c.task.ik_method = io::readString(task, "ik_method", at);
+    c.task.max_ik_error = io::readDouble(task, "max_ik_error", at, c.task.max_ik_error);
+    c.task.max_tracking_error = io::readDouble(task, "max_tracking_error", at, c.task.max_tracking_error);
+    c.task.demo_reach = io::readDouble(task, "demo_reach", at, c.task.demo_reach);
+    c.task.demo_lift = io::readDouble(task, "demo_lift", at, c.task.demo_lift);
+    c.task.demo_drop = io::readDouble(task, "demo_drop", at, c.task.demo_drop);
+  }
+  if (const YAML::Node reward = root["reward"]) {
+    const std::string at = where + " reward";
+    io::checkKeys(
+        reward, at,
+        {"acceleration_weight", "colour_weight", "depth_weight", "failure_reward", "depth_noise", "colour_noise"});
+    c.reward.acceleration_weight = io::readDouble(reward, "acceleration_weight", at, c.reward.acceleration_weight);
+    c.reward.image.colour_weight = io::readDouble(reward, "colour_weight", at, c.reward.image.colour_weight);
+    c.reward.image.depth_weight = io::readDouble(reward, "depth_weight", at, c.reward.image.depth_weight);
+    c.reward.failure_reward = io::readDouble(reward, "failure_reward", at, c.reward.failure_reward);
+    c.reward.renderer.noise.depth_stddev =
+        io::readDouble(reward, "depth_noise", at, c.reward.renderer.noise.depth_stddev);
+    c.reward.renderer.noise.colour_stddev =
+        io::readDouble(reward, "colour_noise", at, c.reward.renderer.noise.colour_stddev);
+  }
+  if (const YAML::Node learning = root["learning"]) {
+    const std::string at = where + " learning";
+    io::checkKeys(learning, at,
+                  {"algorithms", "runs", "updates", "rollouts", "reuse", "epsilon", "eta", "initial_stddev",
+                   "repetitions", "seed", "jobs"});
+    if (const YAML::Node algorithms = learning["algorithms"]) {
+      if (!algorithms.IsSequence()) io::fail(at + ": 'algorithms' must be a list of names");
+      c.algorithms.clear();
+      for (const YAML::Node& a : algorithms) c.algorithms.push_back(a.as<std::string>());
+    }
+    if (learning["runs"]) c.runs = io::readInt(learning, "runs", at);
+    if (learning["updates"]) c.updates = io::readInt(learning, "updates", at);
+    if (learning["rollouts"]) c.rollouts = io::readInt(learning, "rollouts", at);
+    if (learning["reuse"]) c.reuse = io::readInt(learning, "reuse", at);
+    c.epsilon = io::readDouble(learning, "epsilon", at, c.epsilon);
+    c.eta = io::readDouble(learning, "eta", at, c.eta);
+    c.initial_stddev = io::readDouble(learning, "initial_stddev", at, c.initial_stddev);
+    if (learning["repetitions"]) c.repetitions = io::readInt(learning, "repetitions", at);
+    if (learning["seed"]) {
+      const int seed = io::readInt(learning, "seed", at);
+      if (seed < 0) io::fail(at + ": 'seed' must be >= 0");
+      c.seed = static_cast<std::uint32_t>(seed);
+    }
+    if (learning["jobs"]) c.jobs = io::readInt(learning, "jobs", at);
+  }
+  io::withContext(where, [&] { c.validate(); });
+  return c;
+}
+
+struct FoldLearner::Impl {
+  FoldLearningConfig config;
+  std::string dir;
+  FoldLearningObserver observer;
+  std::vector<std::unique_ptr<Worker>> workers;
+  std::map<std::string, FoldRolloutRecord> stored;  ///< Rollouts found in the directory.
+  std::ofstream rollouts_csv, parameters_csv;
+  std::mutex mutex;  ///< Guards the files, the observer and the counters.
+  int simulated = 0, resumed = 0;
+
+  void readStored() {
+    const std::string rollouts = dir + "/rollouts.csv", parameters = dir + "/rollout_parameters.csv";
+    std::map<std::string, Eigen::VectorXd> weights;
+    std::ifstream p(parameters);
+    std::string line;
+    for (int n = 1; std::getline(p, line); ++n) {
+      if (n == 1 || line.empty()) continue;
+      const std::string where = parameters + " line " + std::to_string(n);
+      const std::vector<std::string> f = splitCsv(line);
+      if (f.size() < 6) throw std::invalid_argument(where + ": too few fields");
+      const int size = toInt(f[5], where);
+      if (size < 0 || f.size() != 6 + static_cast<std::size_t>(size)) {
+        throw std::invalid_argument(where + ": not the " + f[5] + " weights it announces");
+      }
+      Eigen::VectorXd w(size);
+      for (int i = 0; i < size; ++i) w[i] = toDouble(f[6 + static_cast<std::size_t>(i)], where);
+      weights[key(f[0], toInt(f[1], where), toInt(f[2], where), kindFromString(f[3], where), toInt(f[4], where))] = w;
+    }
+    std::ifstream r(rollouts);
+    for (int n = 1; std::getline(r, line); ++n) {
+      if (n == 1 || line.empty()) continue;
+      const std::string where = rollouts + " line " + std::to_string(n);
+      const std::vector<std::string> f = splitCsv(line);
+      if (f.size() != kRolloutFields) throw std::invalid_argument(where + ": expected " + kRolloutColumns);
+      FoldRolloutRecord rec;
+      rec.algorithm = f[0];
+      rec.run = toInt(f[1], where);
+      rec.epoch = toInt(f[2], where);
+      rec.kind = kindFromString(f[3], where);
+      rec.index = toInt(f[4], where);
+      rec.seed = static_cast<std::uint32_t>(toDouble(f[5], where));
+      rec.terms.outcome = outcomeFromString(f[6], where);
+      rec.terms.reward = toDouble(f[7], where);
+      rec.terms.r_acceleration = toDouble(f[8], where);
+      rec.terms.r_color = toDouble(f[9], where);
+      rec.terms.r_depth = toDouble(f[10], where);
+      rec.terms.fill_ratio = toDouble(f[11], where);
+      rec.terms.mean_gradient = toDouble(f[12], where);
+      rec.terms.area_ratio = toDouble(f[13], where);
+      rec.terms.aspect = toDouble(f[14], where);
+      rec.wall_seconds = toDouble(f[16], where);
+      rec.reason = f[17];
+      rec.resumed = true;
+      const std::string k = key(rec.algorithm, rec.run, rec.epoch, rec.kind, rec.index);
+      const auto w = weights.find(k);
+      if (w == weights.end()) continue;  // interrupted between the two files: run it again
+      rec.weights = w->second;
+      stored[k] = rec;
+    }
+  }
+
+  void openFiles() {
+    const auto open = [&](std::ofstream& file, const std::string& name, const std::string& header) {
+      const std::string path = dir + "/" + name;
+      const bool fresh = !std::filesystem::exists(path) || std::filesystem::file_size(path) == 0;
+      file.open(path, std::ios::app);
+      if (!file) throw std::invalid_argument("fold learning: cannot write '" + path + "'");
+      if (fresh) file << header << '\n' << std::flush;
+    };
+    open(rollouts_csv, "rollouts.csv", kRolloutColumns);
+    open(parameters_csv, "rollout_parameters.csv", "algorithm,run,epoch,kind,index,size,weights...");
+  }
+
+  /// Under the lock.
+  void write(const FoldRolloutRecord& rec) {
+    const tasks::FoldRewardTerms& t = rec.terms;
+    rollouts_csv << quoted(rec.algorithm) << ',' << rec.run << ',' << rec.epoch << ',' << toString(rec.kind) << ','
+                 << rec.index << ',' << rec.seed << ',' << tasks::toString(t.outcome) << ',' << number(t.reward) << ','
+                 << number(t.r_acceleration) << ',' << number(t.r_color) << ',' << number(t.r_depth) << ','
+                 << number(t.fill_ratio) << ',' << number(t.mean_gradient) << ',' << number(t.area_ratio) << ','
+                 << number(t.aspect) << ',' << (rec.coordination.empty() ? 0 : rec.coordination.front().cols()) << ','
+                 << number(rec.wall_seconds) << ',' << quoted(rec.reason) << '\n';
+    // The parameters last: a rollout counts as stored once both lines are complete.
+    rollouts_csv.flush();
+    parameters_csv << quoted(rec.algorithm) << ',' << rec.run << ',' << rec.epoch << ',' << toString(rec.kind) << ','
+                   << rec.index << ',' << rec.weights.size();
+    for (Eigen::Index i = 0; i < rec.weights.size(); ++i) parameters_csv << ',' << number(rec.weights[i]);
+    parameters_csv << '\n' << std::flush;
+  }
+
+  /// Evaluates a batch (records with coordination, weights and seed set): stored ones from disk, the others on
+  /// the workers in parallel.
+  void evaluate(std::vector<FoldRolloutRecord>& batch) {
+    std::vector<std::size_t> pending;
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      FoldRolloutRecord& rec = batch[i];
+      const auto found = stored.find(key(rec.algorithm, rec.run, rec.epoch, rec.kind, rec.index));
+      if (found == stored.end()) {
+        pending.push_back(i);
+        continue;
+      }
+      if (found->second.weights.size() != rec.weights.size() || found->second.weights != rec.weights ||
+          found->second.seed != rec.seed) {
+        throw std::invalid_argument("fold learning: '" + dir + "' holds rollout " + found->first +
+                                    " with other parameters: it belongs to another configuration or seed (use a "
+                                    "new directory)");
+      }
+      rec.terms = found->second.terms;
+      rec.reason = found->second.reason;
+      rec.wall_seconds = found->second.wall_seconds;
+      rec.resumed = true;
+      ++resumed;
+      if (observer.rollout) observer.rollout(rec, tasks::FoldRollout{}, workers.front()->reward);
+    }
+    std::atomic<std::size_t> next{0};
+    std::exception_ptr error;
+    bool stopped = false;
+    const auto work = [&](Worker& worker) {
+      for (;;) {
+        const std::size_t n = next++;
+        if (n >= pending.size()) return;
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          if (error || stopped) return;
+          if (observer.stop && observer.stop()) {
+            stopped = true;
+            return;
+          }
+        }
+        FoldRolloutRecord& rec = batch[pending[n]];
+        try {
+          const auto start = Clock::now();
+          const tasks::FoldRollout result = worker.task.run(rec.coordination, rec.weights, rec.seed);
+          std::mt19937 rng = noiseGenerator(rec.seed);
+          rec.terms = worker.reward.evaluate(result, rng);
+          rec.reason = result.reason;
+          rec.wall_seconds = secondsSince(start);
+          std::lock_guard<std::mutex> lock(mutex);
+          write(rec);
+          ++simulated;
+          if (observer.rollout) observer.rollout(rec, result, worker.reward);
+        } catch (...) {
+          std::lock_guard<std::mutex> lock(mutex);
+          if (!error) error = std::current_exception();
+          return;
+        }
+      }
+    };
+    std::vector<std::thread> threads;
+    for (std::size_t w = 1; w < workers.size() && w < pending.size(); ++w)
+      threads.emplace_back(work, std::ref(*workers[w]));
+    work(*workers.front());
+    for (std::thread& t : threads) t.join();
+    if (error) std::rethrow_exception(error);
+    if (stopped) throw std::runtime_error("stopped");
+  }
+
+  FoldEpochStats epochStats(const std::string& algorithm, int run, int epoch, int latent_dims,
+                            const std::vector<FoldRolloutRecord>& batch) const {
+    FoldEpochStats s;
+    s.algorithm = algorithm;
+    s.run = run;
+    s.epoch = epoch;
+    s.latent_dims = latent_dims;
+    double sum = 0.0, squares = 0.0;
+    int samples = 0, finished = 0;
+    for (const FoldRolloutRecord& rec : batch) {
+      if (rec.kind != RolloutKind::Sample) continue;
+      ++samples;
+      sum += rec.terms.reward;
+      squares += rec.terms.reward * rec.terms.reward;
+      if (rec.terms.outcome != tasks::FoldOutcome::Ok) ++s.failures;
+    }
+    s.mean_reward = sum / samples;
+    s.std_reward = samples > 1
+                       ? std::sqrt(std::max(0.0, (squares - samples * s.mean_reward * s.mean_reward) / (samples - 1)))
+                       : 0.0;
+    const bool only_finished = s.failures < samples;
+    for (const FoldRolloutRecord& rec : batch) {
+      if (rec.kind != RolloutKind::Sample || (only_finished && rec.terms.outcome != tasks::FoldOutcome::Ok)) continue;
+      ++finished;
+      s.r_acceleration += rec.terms.r_acceleration;
+      s.r_color += rec.terms.r_color;
+      s.r_depth += rec.terms.r_depth;
+      s.fill_ratio += rec.terms.fill_ratio;
+      s.mean_gradient += rec.terms.mean_gradient;
+      s.area_ratio += rec.terms.area_ratio;
+    }
+    for (double* v : {&s.r_acceleration, &s.r_color, &s.r_depth, &s.fill_ratio, &s.mean_gradient, &s.area_ratio}) {
+      *v /= finished;
+    }
+    return s;
+  }
+
+  void writeEpochs(const std::vector<FoldRunResult>& runs) const {
+    std::ofstream csv(dir + "/epochs.csv");
+    csv << "algorithm,run,epoch,latent_dims,failures,mean_reward,std_reward,r_acceleration,r_color,r_depth,"
+           "fill_ratio,mean_gradient,area_ratio\n";
+    for (const FoldRunResult& run : runs) {
+      for (const FoldEpochStats& s : run.epochs) {
+        csv << quoted(s.algorithm) << ',' << s.run << ',' << s.epoch << ',' << s.latent_dims << ',' << s.failures << ','
+            << number(s.mean_reward) << ',' << number(s.std_reward) << ',' << number(s.r_acceleration) << ','
+            << number(s.r_color) << ',' << number(s.r_depth) << ',' << number(s.fill_ratio) << ','
+            << number(s.mean_gradient) << ',' << number(s.area_ratio) << '\n';
+      }
+    }
+  }
+
+  void writeCoordination(const std::vector<FoldRunResult>& runs) const {
+    std::ofstream csv(dir + "/coordination.csv");
+    csv << "algorithm,run,matrix,row,values...\n";
+    for (const FoldRunResult& run : runs) {
+      for (std::size_t s = 0; s < run.final.coordination.size(); ++s) {
+        const Eigen::MatrixXd& omega = run.final.coordination[s];
+        for (Eigen::Index i = 0; i < omega.rows(); ++i) {
+          csv << quoted(run.algorithm) << ',' << run.run << ',' << s << ',' << i;
+          for (Eigen::Index j = 0; j < omega.cols(); ++j) csv << ',' << number(omega(i, j));
+          csv << '\n';
+        }
+      }
+    }
+  }
+
+  FoldRunResult learnRun(const std::string& algorithm, int algorithm_index, int run, std::vector<FoldRunResult>& done) {
+    const auto start = Clock::now();
+    const DrDmpVariant variant = parseDrDmpVariant(algorithm, tasks::ClothFoldTask::kDofs, config.eta);
+    const tasks::ClothFoldTask& task = workers.front()->task;
+    primitives::DrDmpParameters parameters;
+    parameters.dmp = task.dmpParameters();
+    parameters.matrices = variant.matrices;
+    const Eigen::MatrixXd demonstration = task.demonstrationTrajectory();
+    const primitives::DrDmpFit fit =
+        primitives::DrDmp::fit(parameters, {demonstration}, task.demonstrationStep(), variant.latent_dims, 0.0);
+    const learning::CoordinationGrid grid =
+        fit.dmp.grid(task.demonstrationStep(), static_cast<int>(demonstration.rows()) - 1);
+    learning::CoordinatedRepsParameters reps;
+    reps.reps.epsilon = config.epsilon;
+    reps.reps.reuse = config.reuse;
+    reps.rule = variant.rule;
+    reps.update.eta = variant.eta;
+    const Eigen::VectorXd mean = fit.dmp.weights();
+    learning::CoordinatedPolicy initial{
+        fit.dmp.coordination(),
+        mean,
+        config.initial_stddev * config.initial_stddev * Eigen::MatrixXd::Identity(mean.size(), mean.size()),
+        {}};
+    learning::CoordinatedReps learner(reps, grid, initial, fit.excitation);
+
+    std::seed_seq sequence{config.seed, static_cast<std::uint32_t>(algorithm_index), static_cast<std::uint32_t>(run)};
+    std::mt19937 rng(sequence);
+    learning::GaussianSampler sampler;
+    FoldRunResult result;
+    result.algorithm = algorithm;
+    result.run = run;
+    result.best.terms.reward = -kInfinity;
+    const auto record = [&](int epoch, RolloutKind kind, int index, const Eigen::VectorXd& w) {
+      FoldRolloutRecord rec;
+      rec.algorithm = algorithm;
+      rec.run = run;
+      rec.epoch = epoch;
+      rec.kind = kind;
+      rec.index = index;
+      rec.coordination = learner.policy().coordination;
+      rec.weights = w;
+      rec.seed = static_cast<std::uint32_t>(rng());
+      return rec;
+    };
+    for (int epoch = 0; epoch <= config.updates; ++epoch) {
+      const learning::CoordinatedPolicy& policy = learner.policy();
+      const Eigen::MatrixXd factor = learning::choleskyFactor(policy.covariance);
+      std::vector<FoldRolloutRecord> batch;
+      Eigen::MatrixXd samples(config.rollouts, policy.mean.size());
+      if (epoch == 0) batch.push_back(record(epoch, RolloutKind::Policy, 0, policy.mean));
+      for (int k = 0; k < config.rollouts; ++k) {
+        samples.row(k) = sampler.draw(policy.mean, factor, rng).transpose();
+        batch.push_back(record(epoch, RolloutKind::Sample, k, samples.row(k).transpose()));
+      }
+      if (epoch == config.updates) batch.push_back(record(epoch, RolloutKind::Policy, 0, policy.mean));
+      evaluate(batch);
+      Eigen::VectorXd rewards(config.rollouts);
+      std::vector<Eigen::MatrixXd> values;
+      for (const FoldRolloutRecord& rec : batch) {
+        if (rec.terms.outcome == tasks::FoldOutcome::Ok && rec.terms.reward > result.best.terms.reward) {
+          result.best = rec;
+        }
+        if (rec.kind == RolloutKind::Policy) (epoch == 0 ? result.initial_policy : result.final_policy) = rec;
+        if (rec.kind != RolloutKind::Sample) continue;
+        rewards[rec.index] = rec.terms.reward;
+        values.push_back(learning::coordinatedValues(grid, policy.coordination, rec.weights));
+      }
+      result.epochs.push_back(epochStats(algorithm, run, epoch, policy.latentDims(), batch));
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (observer.epoch) observer.epoch(result.epochs.back());
+      }
+      std::vector<FoldRunResult> so_far = done;
+      so_far.push_back(result);
+      writeEpochs(so_far);
+      if (epoch < config.updates) learner.update(samples, values, rewards);
+    }
+    result.final = learner.policy();
+    result.seconds = secondsSince(start);
+    return result;
+  }
+};
+
+FoldLearner::FoldLearner(const FoldLearningConfig& config, const std::string& out_dir, FoldLearningObserver observer)
+    : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  config.validate();
+  m.dir = out_dir;
+  m.observer = std::move(observer);
+  std::error_code error;
+  std::filesystem::create_directories(out_dir, error);
+  if (error || !std::filesystem::is_directory(out_dir)) {
+    throw std::invalid_argument("fold learning: cannot create the directory '" + out_dir + "'");
+  }
+  const int jobs = config.jobs > 0 ? config.jobs : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const tasks::ClothFoldTask probe(config.task);
+  m.config = withRenderer(config, probe);
+  m.config.jobs = jobs;
+  for (int j = 0; j < jobs; ++j) m.workers.push_back(std::make_unique<Worker>(m.config));
+  m.readStored();
+  m.openFiles();
+}
+
+FoldLearner::~FoldLearner() = default;
+
+const FoldLearningConfig& FoldLearner::config() const noexcept {
+  return impl_->config;
+}
+
+FoldLearningResult FoldLearner::learn() {
+  Impl& m = *impl_;
+  const auto start = Clock::now();
+  FoldLearningResult result;
+  if (m.config.repetitions > 0) {
+    const tasks::ClothFoldTask& task = m.workers.front()->task;
+    std::seed_seq sequence{m.config.seed, 0xde70u};
+    std::mt19937 rng(sequence);
+    std::vector<FoldRolloutRecord> batch;
+    for (int k = 0; k < m.config.repetitions; ++k) {
+      FoldRolloutRecord rec;
+      rec.algorithm = "demonstration";
+      rec.kind = RolloutKind::Repetition;
+      rec.index = k;
+      rec.coordination = {Eigen::MatrixXd::Identity(tasks::ClothFoldTask::kDofs, tasks::ClothFoldTask::kDofs)};
+      rec.weights = task.demonstrationParameters();
+      rec.seed = static_cast<std::uint32_t>(rng());
+      batch.push_back(rec);
+    }
+    m.evaluate(batch);
+    result.repetitions = batch;
+  }
+  for (std::size_t a = 0; a < m.config.algorithms.size(); ++a) {
+    for (int run = 0; run < m.config.runs; ++run) {
+      result.runs.push_back(m.learnRun(m.config.algorithms[a], static_cast<int>(a), run, result.runs));
+      m.writeCoordination(result.runs);
+    }
+  }
+  result.simulated = m.simulated;
+  result.resumed = m.resumed;
+  result.seconds = secondsSince(start);
+  return result;
+}
+
+tasks::FoldRollout FoldLearner::replay(const FoldRolloutRecord& record, double cloth_rate) {
+  tasks::ClothFoldConfig task = impl_->config.task;
+  task.cloth_rate = cloth_rate;
+  tasks::ClothFoldTask replay(task);
+  return replay.run(record.coordination, record.weights, record.seed);
+}
+
+tasks::FoldRewardTerms FoldLearner::score(const tasks::FoldRollout& rollout, std::uint32_t seed, cv::Mat& bgr,
+                                          cv::Mat& depth) {
+  tasks::FoldReward& reward = impl_->workers.front()->reward;
+  std::mt19937 rng = noiseGenerator(seed);
+  const tasks::FoldRewardTerms terms = reward.evaluate(rollout, rng);
+  reward.bgr().copyTo(bgr);
+  reward.depth().copyTo(depth);
+  return terms;
+}
+
+}  // namespace bimanual_skills::rollout

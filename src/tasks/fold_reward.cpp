@@ -1,0 +1,62 @@
+#include "bimanual_skills/tasks/fold_reward.hpp"
+
+#include "bimanual_skills/sim/sim_config.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace bimanual_skills::tasks {
+
+void FoldRewardConfig::validate(const char* where) const {
+  renderer.validate(where);
+  image.validate(where);
+  if (!(acceleration_weight >= 0.0) || !std::isfinite(acceleration_weight)) {
+    throw std::invalid_argument(std::string(where) + ": acceleration_weight must be finite and >= 0");
+  }
+  if (!std::isfinite(failure_reward)) throw std::invalid_argument(std::string(where) + ": failure_reward not finite");
+}
+
+vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim) {
+  vision::ClothRendererParameters p;
+  const Eigen::Vector3d top = sim.table.topCentre();
+  p.table.height = top.z();
+  p.table.centre = top.head<2>();
+  p.table.size = sim.table.size.head<2>();
+  p.floor_height = top.z() - sim.table.size.z();
+  const Eigen::Vector2d centre =
+      sim.has_cloth ? Eigen::Vector2d(sim.cloth.pose.translation().head<2>()) : p.table.centre;
+  p.camera = vision::TopDownCamera::covering(320, 240, 1.0, centre, top.z() + 1.5);
+  return p;
+}
+
+FoldReward::FoldReward(const FoldRewardConfig& config, double flat_area)
+    : config_(config),
+      flat_area_(flat_area),
+      renderer_((config.validate("fold reward"), config.renderer)),
+      image_(config.renderer.camera, config.image) {
+  if (!(flat_area > 0.0) || !std::isfinite(flat_area)) {
+    throw std::invalid_argument("fold reward: the flat cloth's area must be > 0");
+  }
+}
+
+FoldRewardTerms FoldReward::evaluate(const FoldRollout& rollout, std::mt19937& rng) {
+  FoldRewardTerms t;
+  t.outcome = rollout.outcome;
+  renderer_.render(rollout.cloth_vertices, rollout.cloth_triangles, rng);
+  const vision::ImageRewardTerms image = image_.evaluate(renderer_.bgr(), renderer_.depth());
+  const vision::FoldFacts facts = image_.foldFacts(image_.mask(), flat_area_);
+  t.vision = image.status;
+  t.r_color = image.r_color;
+  t.r_depth = image.r_depth;
+  t.fill_ratio = image.colour.fill_ratio;
+  t.mean_gradient = image.depth.mean_gradient;
+  t.area_ratio = facts.area_ratio;
+  t.aspect = facts.aspect;
+  t.r_acceleration = config_.acceleration_weight * rollout.acceleration_cost;
+  t.reward = rollout.outcome == FoldOutcome::Ok ? -t.r_acceleration + image.reward() : config_.failure_reward;
+  if (!std::isfinite(t.reward)) t.reward = config_.failure_reward;
+  return t;
+}
+
+}  // namespace bimanual_skills::tasks

@@ -1,0 +1,193 @@
+// Learning to fold: the reward of the demonstration, the coordinated policy against the plain one, variant names,
+// learning files, and a small learning run that is the same on one or two threads and resumes from its directory.
+#include "bimanual_skills/rollout/fold_learning.hpp"
+
+#include "testing/program_output.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+namespace br = bimanual_skills::rollout;
+namespace bt = bimanual_skills::tasks;
+
+namespace {
+
+const std::string kSource = BIMANUAL_SKILLS_SOURCE_DIR;
+
+br::FoldLearningConfig smallConfig() {
+  br::FoldLearningConfig c;
+  c.task.sim_config = kSource + "/config/sim.yaml";
+  c.task.duration = 3.0;
+  c.task.settle = 0.7;
+  c.algorithms = {"IDR-DMP_CMU"};
+  c.updates = 1;
+  c.rollouts = 3;
+  c.reuse = 3;
+  c.jobs = 2;
+  c.seed = 5;
+  return c;
+}
+
+std::string freshDirectory(const std::string& name) {
+  const std::string dir = ::testing::TempDir() + "/fold_learning_" + name;
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+}  // namespace
+
+TEST(FoldLearning, VariantNames) {
+  const br::DrDmpVariant standard = br::parseDrDmpVariant("DR-DMP0(12)", 12, 50.0);
+  EXPECT_EQ(standard.latent_dims, 12);
+  EXPECT_EQ(standard.matrices, 1);
+  EXPECT_EQ(standard.rule, bimanual_skills::learning::CoordinationRule::Fixed);
+  EXPECT_TRUE(std::isinf(standard.eta));
+  const br::DrDmpVariant idr = br::parseDrDmpVariant("IDR-DMP_MCMU(3)", 12, 50.0);
+  EXPECT_EQ(idr.latent_dims, 12);
+  EXPECT_EQ(idr.matrices, 3);
+  EXPECT_EQ(idr.rule, bimanual_skills::learning::CoordinationRule::Cmu);
+  EXPECT_EQ(idr.eta, 50.0);
+  const br::DrDmpVariant mcmu = br::parseDrDmpVariant("DR-DMP_MCMU(2,4)", 12, 50.0);
+  EXPECT_EQ(mcmu.matrices, 2);
+  EXPECT_EQ(mcmu.latent_dims, 4);
+  EXPECT_THROW(br::parseDrDmpVariant("DR-DMP0(13)", 12, 50.0), std::invalid_argument);
+  EXPECT_THROW(br::parseDrDmpVariant("PoWER", 12, 50.0), std::invalid_argument);
+}
+
+TEST(FoldLearning, LearningFiles) {
+  const br::FoldLearningConfig demo = br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_demo.yaml");
+  EXPECT_EQ(demo.task.friction_files.size(), 2u);
+  EXPECT_TRUE(std::filesystem::exists(demo.task.sim_config));
+  const br::FoldLearningConfig table = br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_table75.yaml");
+  EXPECT_EQ(table.algorithms.size(), 3u);
+  EXPECT_EQ(table.runs, 3);
+  EXPECT_EQ(table.updates, 15);
+  EXPECT_EQ(table.rollouts, 12);
+
+  const std::string dir = freshDirectory("files");
+  std::filesystem::create_directories(dir);
+  const auto write = [&](const std::string& text) {
+    std::ofstream(dir + "/bad.yaml") << text;
+    return dir + "/bad.yaml";
+  };
+  const auto message = [&](const std::string& text) {
+    try {
+      br::FoldLearningConfig::fromYamlFile(write(text));
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nlearning: {algorithms: [PoWER]}\n").find("PoWER"),
+            std::string::npos);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nlearning: {rollouts: 1}\n").find("rollouts"),
+            std::string::npos);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nlearnin: {}\n").find("learnin"), std::string::npos);
+  EXPECT_NE(message("sim: [1, 2\n").find("YAML"), std::string::npos);
+}
+
+TEST(FoldLearning, CoordinatedPolicyDrivesTheSameMotion) {
+  bt::ClothFoldConfig c = smallConfig().task;
+  bt::ClothFoldTask task(c);
+  const Eigen::VectorXd theta = task.demonstrationParameters();
+  const bt::FoldRollout plain = task.run(theta);
+  ASSERT_EQ(plain.outcome, bt::FoldOutcome::Ok) << plain.reason;
+  // The same forcing terms through a random orthonormal Ω and ω = Ωᵀ θ (per kernel), blended from two equal
+  // matrices: the commanded tool paths (kinematic: DMP and CLIK only) agree to rounding.
+  std::mt19937 rng(3);
+  std::normal_distribution<double> normal;
+  Eigen::MatrixXd a(12, 12);
+  for (Eigen::Index i = 0; i < a.size(); ++i) a.data()[i] = normal(rng);
+  const Eigen::MatrixXd omega = Eigen::HouseholderQR<Eigen::MatrixXd>(a).householderQ();
+  const int k = task.config().kernels;
+  const Eigen::MatrixXd full = Eigen::Map<const Eigen::MatrixXd>(theta.data(), k, 12).transpose();
+  const Eigen::MatrixXd latent = omega.transpose() * full;  // r × kernels
+  Eigen::VectorXd w(12 * k);
+  for (int j = 0; j < 12; ++j) w.segment(j * k, k) = latent.row(j).transpose();
+  const bt::FoldRollout coordinated = task.run({omega, omega}, w);
+  ASSERT_EQ(coordinated.outcome, bt::FoldOutcome::Ok) << coordinated.reason;
+  for (int arm = 0; arm < 2; ++arm) {
+    ASSERT_EQ(plain.commanded_path[arm].cols(), coordinated.commanded_path[arm].cols());
+    EXPECT_LT((plain.commanded_path[arm] - coordinated.commanded_path[arm]).cwiseAbs().maxCoeff(), 1e-9);
+    EXPECT_EQ(plain.joint_path[arm].cols(), plain.path_times.size());
+  }
+  // Policies that do not fit: a reason, no crash.
+  for (const auto& [matrices, weights] : std::vector<std::pair<std::vector<Eigen::MatrixXd>, Eigen::VectorXd>>{
+           {{Eigen::MatrixXd::Identity(11, 11)}, Eigen::VectorXd::Zero(11 * k)},
+           {{Eigen::MatrixXd::Identity(12, 3)}, Eigen::VectorXd::Zero(4 * k)},
+           {{Eigen::MatrixXd::Identity(12, 3)}, Eigen::VectorXd::Constant(3 * k, NAN)},
+           {{}, Eigen::VectorXd::Zero(3 * k)}}) {
+    const bt::FoldRollout r = task.run(matrices, weights);
+    EXPECT_EQ(r.outcome, bt::FoldOutcome::InvalidPolicy);
+    EXPECT_FALSE(r.reason.empty());
+  }
+}
+
+TEST(FoldLearning, DemonstrationReward) {
+  const br::FoldLearningConfig config = smallConfig();
+  bt::ClothFoldTask task(config.task);
+  bt::FoldRewardConfig reward_config = config.reward;
+  reward_config.renderer = bt::rendererFor(task.simConfig());
+  bt::FoldReward reward(reward_config, 0.5 * 0.6);
+  const bt::FoldRollout r = task.run(task.demonstrationParameters());
+  ASSERT_EQ(r.outcome, bt::FoldOutcome::Ok) << r.reason;
+  std::mt19937 rng(1);
+  const bt::FoldRewardTerms t = reward.evaluate(r, rng);
+  std::printf(
+      "demonstration: R = %.4f: R_acc %.4f, R_color %.4f (rho %.3f), R_depth %.4f (g %.4f), area %.3f, "
+      "aspect %.2f\n",
+      t.reward, t.r_acceleration, t.r_color, t.fill_ratio, t.r_depth, t.mean_gradient, t.area_ratio, t.aspect);
+  EXPECT_EQ(t.vision, bimanual_skills::vision::VisionStatus::Ok);
+  EXPECT_NEAR(t.reward, -t.r_acceleration - t.r_color - t.r_depth, 1e-12);
+  // Folded in half: about half the flat area visible, a nearly rectangular outline.
+  EXPECT_GT(t.area_ratio, 0.4);
+  EXPECT_LT(t.area_ratio, 0.6);
+  EXPECT_GT(t.fill_ratio, 0.9);
+  EXPECT_GT(t.reward, config.reward.failure_reward);
+  bt::FoldRollout failed = r;
+  failed.outcome = bt::FoldOutcome::ControllerFailed;
+  EXPECT_EQ(reward.evaluate(failed, rng).reward, config.reward.failure_reward);
+}
+
+TEST(FoldLearning, SameOnAnyThreadsAndResumes) {
+  br::FoldLearningConfig config = smallConfig();
+  config.jobs = 1;
+  const std::string serial_dir = freshDirectory("serial"), parallel_dir = freshDirectory("parallel");
+  int seen = 0;
+  br::FoldLearningObserver observer;
+  observer.rollout = [&](const br::FoldRolloutRecord&, const bt::FoldRollout&, const bt::FoldReward&) { ++seen; };
+  const br::FoldLearningResult serial = br::FoldLearner(config, serial_dir, observer).learn();
+  ASSERT_EQ(serial.runs.size(), 1u);
+  EXPECT_EQ(seen, 8);  // 2 epochs × 3 samples + 2 mean-policy rollouts
+  EXPECT_EQ(serial.simulated, 8);
+  config.jobs = 2;
+  const br::FoldLearningResult parallel = br::FoldLearner(config, parallel_dir).learn();
+  for (std::size_t e = 0; e < serial.runs[0].epochs.size(); ++e) {
+    EXPECT_EQ(serial.runs[0].epochs[e].mean_reward, parallel.runs[0].epochs[e].mean_reward) << "epoch " << e;
+  }
+  EXPECT_EQ(serial.runs[0].final_policy.terms.reward, parallel.runs[0].final_policy.terms.reward);
+  EXPECT_EQ(bimanual_skills::testing::readTextFile(serial_dir + "/epochs.csv"),
+            bimanual_skills::testing::readTextFile(parallel_dir + "/epochs.csv"));
+
+  // Interrupted after three rollouts: the rest is simulated on restart, the result is the same.
+  const std::string resumed_dir = freshDirectory("resumed");
+  int finished = 0;
+  br::FoldLearningObserver stopper;
+  stopper.rollout = [&](const br::FoldRolloutRecord&, const bt::FoldRollout&, const bt::FoldReward&) { ++finished; };
+  stopper.stop = [&] { return finished >= 3; };
+  EXPECT_THROW(br::FoldLearner(config, resumed_dir, stopper).learn(), std::runtime_error);
+  const br::FoldLearningResult resumed = br::FoldLearner(config, resumed_dir).learn();
+  EXPECT_GE(resumed.resumed, 3);
+  EXPECT_EQ(resumed.resumed + resumed.simulated, 8);
+  EXPECT_EQ(resumed.runs[0].final_policy.terms.reward, serial.runs[0].final_policy.terms.reward);
+  EXPECT_EQ(bimanual_skills::testing::readTextFile(resumed_dir + "/epochs.csv"),
+            bimanual_skills::testing::readTextFile(serial_dir + "/epochs.csv"));
+
+  // Another seed in the same directory is refused, not mixed in.
+  config.seed = 6;
+  EXPECT_THROW(br::FoldLearner(config, resumed_dir).learn(), std::invalid_argument);
+}
