@@ -46,26 +46,32 @@ inline visualization_msgs::Marker tableMarker(const sim::Table& table, const ros
   return m;
 }
 
-/// The cloth mesh (3 × N vertices, 3 × M triangles, world frame) in the renderer's blue.
+/// The cloth mesh (3 × N vertices, 3 × M triangles, world frame) in the renderer's blue. rviz lights only a
+/// triangle's front: each triangle is wound so that its front faces up (world +z), the side a camera over the table
+/// sees, whichever way the cloth was folded. An index out of range gives an empty marker.
 inline visualization_msgs::Marker clothMarker(const Eigen::Matrix3Xd& vertices, const Eigen::Matrix3Xi& triangles,
                                               const ros::Time& stamp) {
   visualization_msgs::Marker m = worldMarker("cloth", 0, visualization_msgs::Marker::TRIANGLE_LIST, stamp);
   m.color.r = 0.15f;
   m.color.g = 0.35f;
   m.color.b = 0.8f;
+  if (triangles.size() > 0 && (triangles.minCoeff() < 0 || triangles.maxCoeff() >= vertices.cols())) return m;
   m.points.reserve(static_cast<std::size_t>(3 * triangles.cols()));
+  const auto point = [&](Eigen::Index i) {
+    geometry_msgs::Point p;
+    p.x = vertices(0, i);
+    p.y = vertices(1, i);
+    p.z = vertices(2, i);
+    m.points.push_back(p);
+  };
   for (Eigen::Index t = 0; t < triangles.cols(); ++t) {
-    for (int c = 0; c < 3; ++c) {
-      const Eigen::Index i = triangles(c, t);
-      if (i < 0 || i >= vertices.cols()) continue;
-      geometry_msgs::Point p;
-      p.x = vertices(0, i);
-      p.y = vertices(1, i);
-      p.z = vertices(2, i);
-      m.points.push_back(p);
-    }
+    const Eigen::Vector3d a = vertices.col(triangles(0, t)), b = vertices.col(triangles(1, t)),
+                          c = vertices.col(triangles(2, t));
+    const bool up = (b - a).cross(c - a).z() >= 0.0;
+    point(triangles(0, t));
+    point(triangles(up ? 1 : 2, t));
+    point(triangles(up ? 2 : 1, t));
   }
-  if (m.points.size() % 3 != 0) m.points.clear();
   return m;
 }
 

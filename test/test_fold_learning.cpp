@@ -191,3 +191,24 @@ TEST(FoldLearning, SameOnAnyThreadsAndResumes) {
   config.seed = 6;
   EXPECT_THROW(br::FoldLearner(config, resumed_dir).learn(), std::invalid_argument);
 }
+
+TEST(FoldLearning, FailedRolloutsGetTheFailureRewardAndTheLearningGoesOn) {
+  br::FoldLearningConfig config = smallConfig();
+  config.initial_stddev = 400.0;  // wild exploration: most rollouts leave the IK or tracking bounds
+  const std::string dir = freshDirectory("failures");
+  const br::FoldLearningResult result = br::FoldLearner(config, dir).learn();
+  ASSERT_EQ(result.runs.size(), 1u);
+  ASSERT_EQ(result.runs[0].epochs.size(), 2u);
+  int failures = 0;
+  for (const br::FoldEpochStats& s : result.runs[0].epochs) failures += s.failures;
+  EXPECT_GT(failures, 0);
+  int failed_rows = 0;
+  for (const bimanual_skills::testing::CsvRow& row : bimanual_skills::testing::readCsv(dir + "/rollouts.csv")) {
+    if (row.at("outcome") == "Ok") continue;
+    ++failed_rows;
+    EXPECT_EQ(bimanual_skills::testing::csvNumber(row, "reward"), config.reward.failure_reward);
+    EXPECT_GT(row.at("reason").size(), 2u) << "a failed rollout is written with its reason";
+  }
+  EXPECT_EQ(failed_rows, failures + (result.runs[0].initial_policy.terms.outcome != bt::FoldOutcome::Ok) +
+                             (result.runs[0].final_policy.terms.outcome != bt::FoldOutcome::Ok));
+}

@@ -1,0 +1,98 @@
+// rostest (test/fold_learner.test): fold_learner learning a tiny fold headless. Checks that every rollout's camera
+// images, cloth mesh and tool paths reach their topics, that the results directory gets summary.json, the top-down
+// images and rollouts.csv, and that best_rollout.bag holds a replay: joint states of both arms, cloth frames, the
+// camera image.
+#include <ros/ros.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/JointState.h>
+#include <visualization_msgs/Marker.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace {
+
+std::string outDir() {
+  std::string out;
+  ros::param::get("/fold_learner/out", out);  // the learner's own parameter: one directory per launch
+  return out;
+}
+
+}  // namespace
+
+TEST(FoldLearnerNode, PublishesEachRolloutAndWritesTheResults) {
+  ros::NodeHandle node;
+  int images = 0, depths = 0, cloths = 0, paths = 0;
+  sensor_msgs::Image last_image;
+  visualization_msgs::Marker last_cloth;
+  const auto image_sub = node.subscribe<sensor_msgs::Image>("/fold_learner/camera/image_raw", 10,
+                                                            [&](const sensor_msgs::ImageConstPtr& m) {
+                                                              ++images;
+                                                              last_image = *m;
+                                                            });
+  const auto depth_sub = node.subscribe<sensor_msgs::Image>("/fold_learner/camera/depth/image_raw", 10,
+                                                            [&](const sensor_msgs::ImageConstPtr&) { ++depths; });
+  const auto cloth_sub = node.subscribe<visualization_msgs::Marker>("/fold_learner/cloth", 10,
+                                                                    [&](const visualization_msgs::MarkerConstPtr& m) {
+                                                                      ++cloths;
+                                                                      last_cloth = *m;
+                                                                    });
+  const auto path_sub = node.subscribe<visualization_msgs::MarkerArray>(
+      "/fold_learner/tool_paths", 10, [&](const visualization_msgs::MarkerArrayConstPtr&) { ++paths; });
+  const std::string bag_path = outDir() + "/best_rollout.bag";
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(200.0);
+  // The bag is written last, after summary.json and the images.
+  while (ros::ok() && ros::WallTime::now() < deadline &&
+         !(std::filesystem::exists(bag_path) && std::filesystem::exists(outDir() + "/summary.json") && images > 0)) {
+    ros::spinOnce();
+    ros::WallDuration(0.05).sleep();
+  }
+  ros::WallDuration(2.0).sleep();  // the bag is closed after the file appears
+  ros::spinOnce();
+  EXPECT_GT(images, 0);
+  EXPECT_GT(depths, 0);
+  EXPECT_GT(cloths, 0);
+  EXPECT_GT(paths, 0);
+  EXPECT_EQ(last_image.encoding, "bgr8");
+  EXPECT_EQ(last_image.width, 320u);
+  EXPECT_EQ(last_image.height, 240u);
+  EXPECT_EQ(last_cloth.type, visualization_msgs::Marker::TRIANGLE_LIST);
+  EXPECT_GT(last_cloth.points.size(), 300u);
+  for (const char* file : {"summary.json", "epochs.csv", "rollouts.csv", "initial.png", "final.png"}) {
+    EXPECT_TRUE(std::filesystem::exists(outDir() + "/" + file)) << file;
+  }
+  std::ifstream rollouts(outDir() + "/rollouts.csv");
+  int lines = 0;
+  for (std::string line; std::getline(rollouts, line);) ++lines;
+  EXPECT_EQ(lines, 1 + 2 * 3 + 2);  // header, 2 epochs x 3 samples, 2 mean-policy rollouts
+
+  ASSERT_TRUE(std::filesystem::exists(bag_path));
+  rosbag::Bag bag(bag_path, rosbag::bagmode::Read);
+  int states = 0, frames = 0, bag_images = 0;
+  for (const rosbag::MessageInstance& m : rosbag::View(bag)) {
+    if (const auto js = m.instantiate<sensor_msgs::JointState>()) {
+      ++states;
+      EXPECT_EQ(js->position.size(), 14u);
+      EXPECT_EQ(js->name.size(), 14u);
+    }
+    if (m.getTopic() == "/fold_learner/cloth") ++frames;
+    if (m.getTopic() == "/fold_learner/camera/image_raw") ++bag_images;
+  }
+  EXPECT_GT(states, 100);  // 50 Hz over the rollout
+  EXPECT_GT(frames, 40);   // 20 Hz
+  EXPECT_EQ(bag_images, 1);
+  bag.close();
+  std::filesystem::remove_all(outDir());
+}
+
+int main(int argc, char** argv) {
+  ::testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_fold_learner_node");
+  return RUN_ALL_TESTS();
+}
