@@ -305,17 +305,18 @@ class FoldLearnerNode {
             .add("latent_dims", dims)
             .add("failures", failures);
       }
-      double initial = 0.0, final_reward = 0.0;
+      double initial = 0.0, final_reward = 0.0, final_dims = 0.0;
       for (const br::FoldRunResult* r : runs) {
         initial += r->initial_policy.terms.reward / runs.size();
         final_reward += r->final_policy.terms.reward / runs.size();
+        final_dims += static_cast<double>(r->final.latentDims()) / runs.size();
       }
       rows.emplace_back()
           .add("experiment", "fold_policy")
           .add("algorithm", algorithm)
           .add("initial_policy_reward", initial)
           .add("final_policy_reward", final_reward)
-          .add("final_latent_dims", runs.front()->final.latentDims());
+          .add("final_latent_dims", final_dims);
     }
     if (!result.repetitions.empty()) {
       const auto n = static_cast<double>(result.repetitions.size());
