@@ -212,3 +212,25 @@ TEST(FoldLearning, FailedRolloutsGetTheFailureRewardAndTheLearningGoesOn) {
   EXPECT_EQ(failed_rows, failures + (result.runs[0].initial_policy.terms.outcome != bt::FoldOutcome::Ok) +
                              (result.runs[0].final_policy.terms.outcome != bt::FoldOutcome::Ok));
 }
+
+TEST(FoldLearning, DemonstrationDmpFilesGiveTheSameRollout) {
+  bt::ClothFoldConfig c = smallConfig().task;
+  const bt::ClothFoldTask scripted(c);
+  const std::string dir = freshDirectory("demonstration");
+  std::filesystem::create_directories(dir);
+  scripted.saveDemonstration(dir + "/demo_");
+  c.demonstration_files = {dir + "/demo_left.yaml", dir + "/demo_right.yaml"};
+  bt::ClothFoldTask loaded(c);
+  EXPECT_EQ(loaded.demonstrationParameters(), scripted.demonstrationParameters());
+  const bt::FoldRollout r = loaded.run(loaded.demonstrationParameters());
+  ASSERT_EQ(r.outcome, bt::FoldOutcome::Ok) << r.reason;
+  bt::ClothFoldTask again(smallConfig().task);
+  const bt::FoldRollout expected = again.run(again.demonstrationParameters());
+  for (int arm = 0; arm < 2; ++arm) EXPECT_EQ(r.commanded_path[arm], expected.commanded_path[arm]);
+  // The integrated demonstration follows the scripted one closely (the DMP's fit error).
+  EXPECT_LT((loaded.demonstrationTrajectory() - scripted.demonstrationTrajectory()).cwiseAbs().maxCoeff(), 0.01);
+  c.demonstration_files = {dir + "/demo_left.yaml"};
+  EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
+  c.demonstration_files = {dir + "/demo_left.yaml", dir + "/missing.yaml"};
+  EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
+}

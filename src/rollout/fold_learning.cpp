@@ -219,7 +219,7 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     const std::string at = where + " task";
     io::checkKeys(task, at,
                   {"kernels", "duration", "ik_method", "max_ik_error", "max_tracking_error", "demo_reach", "demo_lift",
-                   "demo_drop"});
+                   "demo_drop", "demonstration"});
     if (task["kernels"]) c.task.kernels = io::readInt(task, "kernels", at);
     c.task.duration = io::readDouble(task, "duration", at, c.task.duration);
     if (task["ik_method"]) c.task.ik_method = io::readString(task, "ik_method", at);
@@ -228,6 +228,12 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     c.task.demo_reach = io::readDouble(task, "demo_reach", at, c.task.demo_reach);
     c.task.demo_lift = io::readDouble(task, "demo_lift", at, c.task.demo_lift);
     c.task.demo_drop = io::readDouble(task, "demo_drop", at, c.task.demo_drop);
+    if (const YAML::Node files = task["demonstration"]) {
+      if (!files.IsSequence() || files.size() != 2)
+        io::fail(at + ": 'demonstration' must list two DMP files (left, right)");
+      for (const YAML::Node& file : files)
+        c.task.demonstration_files.push_back(io::resolvePath(path, file.as<std::string>()));
+    }
   }
   if (const YAML::Node reward = root["reward"]) {
     const std::string at = where + " reward";
@@ -596,6 +602,7 @@ FoldLearner::FoldLearner(const FoldLearningConfig& config, const std::string& ou
   for (int j = 0; j < jobs; ++j) m.workers.push_back(std::make_unique<Worker>(m.config));
   m.readStored();
   m.openFiles();
+  m.workers.front()->task.saveDemonstration(out_dir + "/demonstration_");
 }
 
 FoldLearner::~FoldLearner() = default;

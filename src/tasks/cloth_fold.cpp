@@ -4,6 +4,7 @@
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/primitives/dmp_yaml.hpp"
 #include "bimanual_skills/primitives/dr_dmp.hpp"
 #include "bimanual_skills/signal/acceleration_sign.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
@@ -61,6 +62,21 @@ struct ClothFoldTask::Impl {
   std::vector<CartesianDmp> demonstration;
   std::vector<std::vector<Pose>> demonstration_paths;
   std::vector<Eigen::VectorXd> start_q;
+
+  /// The poses of a DMP integrated from its start at the demonstration's rate (the path of a loaded demonstration).
+  std::vector<Pose> integrate(const CartesianDmp& dmp) const {
+    const double dt = 1.0 / kDemonstrationRate;
+    const int samples = static_cast<int>(std::lround(dmp.duration() * kDemonstrationRate)) + 1;
+    CartesianDmpState state = dmp.initialState();
+    std::vector<Pose> path{state.pose()};
+    for (int k = 1; k < samples; ++k) {
+      if (dmp.step(state, dt) == primitives::DmpStatus::InvalidInput) {
+        throw std::invalid_argument("cloth fold: the demonstration DMP cannot be integrated");
+      }
+      path.push_back(state.pose());
+    }
+    return path;
+  }
 
   /// One fold arc per arm: from the far corner (x = centre + half length) over the cloth towards the near edge.
   std::vector<Pose> demonstrationPath(int arm) const {
@@ -135,10 +151,26 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
   primitives::DmpParameters dmp;
   dmp.kernels = config.kernels;
   const Eigen::VectorXd seed = (Eigen::VectorXd(7) << 0.0, 0.8, 0.0, 1.6, 0.0, 0.7, 0.0).finished();
+  if (!config.demonstration_files.empty() && config.demonstration_files.size() != 2) {
+    throw std::invalid_argument("cloth fold: demonstration_files needs one DMP file per arm (left, right)");
+  }
   for (int arm = 0; arm < 2; ++arm) {
-    const std::vector<Pose>& path = m.demonstration_paths.emplace_back(m.demonstrationPath(arm));
-    m.demonstration.push_back(
-        CartesianDmp::fit(dmp, primitives::OrientationEncoding::QuaternionVector, path, 1.0 / kDemonstrationRate, 0.0));
+    if (config.demonstration_files.empty()) {
+      const std::vector<Pose>& path = m.demonstration_paths.emplace_back(m.demonstrationPath(arm));
+      m.demonstration.push_back(CartesianDmp::fit(dmp, primitives::OrientationEncoding::QuaternionVector, path,
+                                                  1.0 / kDemonstrationRate, 0.0));
+    } else {
+      const std::string& file = config.demonstration_files[static_cast<std::size_t>(arm)];
+      const CartesianDmp loaded = primitives::loadCartesianDmp(file);
+      if (loaded.encoding() != primitives::OrientationEncoding::QuaternionVector ||
+          loaded.parameters().kernels != config.kernels || loaded.parameters().goal_scaled_forcing) {
+        throw std::invalid_argument("cloth fold: '" + file + "' must be a quaternion-vector Cartesian DMP of " +
+                                    std::to_string(config.kernels) + " kernels without goal scaling");
+      }
+      m.demonstration.push_back(loaded.withDuration(config.duration));
+      m.demonstration_paths.push_back(m.integrate(m.demonstration.back()));
+    }
+    const std::vector<Pose>& path = m.demonstration_paths.back();
     kinematics::GlobalIkParameters parameters;
     kinematics::GlobalIkSolver solver(m.simulation->armModel(arm), parameters);
     Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
@@ -201,6 +233,15 @@ Eigen::MatrixXd ClothFoldTask::demonstrationTrajectory() const {
     }
   }
   return out;
+}
+
+void ClothFoldTask::saveDemonstration(const std::string& prefix) const {
+  const char* const names[2] = {"left", "right"};
+  for (int arm = 0; arm < 2; ++arm) {
+    primitives::saveCartesianDmp(impl_->demonstration[static_cast<std::size_t>(arm)], prefix + names[arm] + ".yaml",
+                                 std::string("The cloth fold's demonstration, ") + names[arm] +
+                                     " tool (world frame); tasks::ClothFoldConfig::demonstration_files reads it.");
+  }
 }
 
 double ClothFoldTask::demonstrationStep() const noexcept {

@@ -10,6 +10,8 @@
 /// coordination matrices (Alg. 7.2, η for IDR). The mean policy is also executed without exploration before the
 /// first and after the last update.
 ///
+/// The demonstration's DMPs are written as DIR/demonstration_left.yaml and demonstration_right.yaml (DMP files; a
+/// learning file's `task: {demonstration: [left.yaml, right.yaml]}` starts from them instead of the scripted fold).
 /// Nothing is lost: every finished rollout is appended at once to DIR/rollouts.csv (terms, outcome, reason) and
 /// DIR/rollout_parameters.csv (its latent weights). The learning is deterministic for a seed, so a restarted run
 /// regenerates the same rollouts and takes those already on disk instead of simulating them again (after checking

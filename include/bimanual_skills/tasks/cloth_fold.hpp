@@ -36,6 +36,9 @@ struct ClothFoldConfig {
   /// The scripted demonstration (deliberately imperfect, as a first kinesthetic attempt would be): the far corners
   /// are carried on arcs of radius `demo_reach` × the cloth's half length and put down `demo_drop` above the table.
   double demo_reach = 0.85, demo_lift = 0.6, demo_drop = 0.06;
+  /// Instead of the scripted demonstration: one Cartesian DMP file per arm (left, right; primitives/dmp_yaml.hpp,
+  /// quaternion-vector encoding, `kernels` kernels), e.g. those saveDemonstration() wrote, run over `duration`.
+  std::vector<std::string> demonstration_files;
 };
 
 /// Why a rollout ended.
@@ -78,6 +81,9 @@ class ClothFoldTask {
 
   /// Policy parameters: per arm (left, right), position weights (3 × kernels, row by row) then orientation weights.
   int parameterCount() const noexcept;
+  /// Writes the demonstration's DMPs as DMP files (primitives/dmp_yaml.hpp), `prefix` + "left.yaml" and
+  /// + "right.yaml"; ClothFoldConfig::demonstration_files reads them back. \throws std::invalid_argument.
+  void saveDemonstration(const std::string& prefix) const;
   /// The demonstration's two Cartesian DMPs (world frame) and their parameter vector.
   const std::vector<primitives::CartesianDmp>& demonstration() const noexcept;
   Eigen::VectorXd demonstrationParameters() const;
