@@ -142,7 +142,7 @@ class FoldLearnerNode {
         out_.c_str(), best->algorithm.c_str(), best->run + 1, best->epoch, br::toString(best->kind), best->index,
         best->terms.reward, out_.c_str());
     std::fflush(stdout);
-    if (replay_best_) replayLoop(replay);
+    if (replay_best_) replayLoop(*best, replay);
   }
 
  private:
@@ -353,9 +353,28 @@ class FoldLearnerNode {
     bs::bench::writeSummaryJson(options, "fold_learner", rows);
   }
 
-  /// Publishes the best rollout on the live topics in real time, in a loop.
-  void replayLoop(const bt::FoldRollout& rollout) {
+  /// Publishes the best rollout on the live topics in real time, in a loop: its camera images and tool paths once,
+  /// the robot and the cloth as they move.
+  void replayLoop(const br::FoldRolloutRecord& best, const bt::FoldRollout& rollout) {
     ROS_INFO("fold_learner: replaying the best rollout until shut down");
+    cv::Mat bgr, depth;
+    learner_->score(rollout, best.seed, bgr, depth);
+    std_msgs::Header header;
+    header.stamp = ros::Time::now();
+    header.frame_id = "top_down_camera";
+    image_publisher_.publish(cv_bridge::CvImage(header, "bgr8", bgr).toImageMsg());
+    depth_publisher_.publish(cv_bridge::CvImage(header, "32FC1", depth).toImageMsg());
+    visualization_msgs::MarkerArray paths;
+    visualization_msgs::Marker clear;
+    clear.action = visualization_msgs::Marker::DELETEALL;
+    paths.markers.push_back(clear);
+    for (std::size_t arm = 0; arm < rollout.actual_path.size(); ++arm) {
+      visualization_msgs::Marker m =
+          bs::nodes::pathMarker("tool_paths", static_cast<int>(arm), rollout.actual_path[arm], 0.004, header.stamp);
+      m.color.g = 1.0f;
+      paths.markers.push_back(m);
+    }
+    path_publisher_.publish(paths);
     while (ros::ok()) {
       const ros::WallTime start = ros::WallTime::now();
       std::size_t frame = 0;
