@@ -152,6 +152,28 @@ INSTANTIATE_TEST_SUITE_P(BothEncodings, CartesianDmpEncodings,
                          ::testing::Values(bp::OrientationEncoding::UnitQuaternion,
                                            bp::OrientationEncoding::QuaternionVector));
 
+TEST_P(CartesianDmpEncodings, GivenForcingEqualToTheWeightsGivesTheSameSteps) {
+  // The weights' own forcing terms W g(x), passed to step(state, dt, forcing), reproduce step(state, dt) exactly.
+  const bp::CartesianDmp dmp =
+      bp::CartesianDmp::fit(bp::DmpParameters(), GetParam(), demonstration(75.0 * M_PI / 180.0, 1.5), kDt);
+  bp::CartesianDmpState own = dmp.initialState(), given = dmp.initialState();
+  Eigen::VectorXd g(dmp.parameters().kernels), forcing(6);
+  for (int k = 0; k < 300; ++k) {
+    dmp.position().basis(given.position.x, g);
+    forcing << dmp.positionWeights() * g, dmp.orientationWeights() * g;
+    ASSERT_NE(dmp.step(own, kDt), bp::DmpStatus::InvalidInput);
+    ASSERT_NE(dmp.step(given, kDt, forcing), bp::DmpStatus::InvalidInput);
+    ASSERT_LE((own.position.y - given.position.y).norm(), 1e-12) << k;
+    ASSERT_LE((own.orientation.coeffs() - given.orientation.coeffs()).norm(), 1e-12) << k;
+  }
+  // A forcing of the wrong size or not finite is refused and leaves the state as it was.
+  const bp::CartesianDmpState before = given;
+  EXPECT_EQ(dmp.step(given, kDt, Eigen::VectorXd::Zero(5)), bp::DmpStatus::InvalidInput);
+  EXPECT_EQ(dmp.step(given, kDt, Eigen::VectorXd::Constant(6, NAN)), bp::DmpStatus::InvalidInput);
+  EXPECT_EQ(given.position.y, before.position.y);
+  EXPECT_EQ(given.position.t, before.position.t);
+}
+
 TEST(CartesianDmp, OnlyTheUnitQuaternionDmpFollowsARotationBeyondPi) {
   const std::vector<bp::Pose> demo = demonstration(270.0 * M_PI / 180.0, 0.0);  // 270° about a fixed axis
   // The encoding itself: v = vec(q_s⁻¹ ∗ q) with w ≥ 0 jumps from u to −u as the rotation passes π.

@@ -192,8 +192,10 @@ TEST(ProductionSizes, DmpStepsDoNotAllocate) {
     }
     const bp::CartesianDmp dmp = bp::CartesianDmp::fit(parameters, encoding, poses, 0.002);
     bp::CartesianDmpState state = dmp.initialState();
+    const Eigen::VectorXd forcing = Eigen::VectorXd::Constant(12, 0.5);  // a coordinated DMP's, as the fold task
     NoAllocGuard guard;
     for (int k = 0; k < 10; ++k) EXPECT_EQ(dmp.step(state, 0.002), bp::DmpStatus::Success);
+    for (int k = 0; k < 10; ++k) EXPECT_EQ(dmp.step(state, 0.002, forcing.segment<6>(6)), bp::DmpStatus::Success);
   }
 }
 
