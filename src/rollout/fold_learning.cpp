@@ -2,22 +2,19 @@
 
 #include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/primitives/dr_dmp.hpp"
+#include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "io/yaml_io.hpp"
 
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
-#include <mutex>
 #include <regex>
 #include <sstream>
 #include <stdexcept>
-#include <thread>
 
 namespace bimanual_skills::rollout {
 
@@ -122,24 +119,11 @@ int toInt(const std::string& text, const std::string& where) {
   return static_cast<int>(value);
 }
 
-/// What a rollout needs to run.
-struct Worker {
-  Worker(const FoldLearningConfig& config)
-      : task(config.task), reward(config.reward, task.simConfig().cloth.length * task.simConfig().cloth.width) {}
-  tasks::ClothFoldTask task;
-  tasks::FoldReward reward;
-};
-
 FoldLearningConfig withRenderer(FoldLearningConfig config, const tasks::ClothFoldTask& task) {
   const vision::RenderNoise noise = config.reward.renderer.noise;
   config.reward.renderer = tasks::rendererFor(task.simConfig());
   config.reward.renderer.noise = noise;
   return config;
-}
-
-std::mt19937 noiseGenerator(std::uint32_t seed) {
-  std::seed_seq sequence{seed, 0x5eedu};
-  return std::mt19937(sequence);
 }
 
 }  // namespace
@@ -282,10 +266,9 @@ struct FoldLearner::Impl {
   FoldLearningConfig config;
   std::string dir;
   FoldLearningObserver observer;
-  std::vector<std::unique_ptr<Worker>> workers;
+  std::unique_ptr<ParallelEvaluator> evaluator;     ///< One FoldRolloutTask per thread.
   std::map<std::string, FoldRolloutRecord> stored;  ///< Rollouts found in the directory.
   std::ofstream rollouts_csv, parameters_csv;
-  std::mutex mutex;  ///< Guards the files, the observer and the counters.
   int simulated = 0, resumed = 0;
 
   void readStored() {
@@ -369,7 +352,7 @@ struct FoldLearner::Impl {
   }
 
   /// Evaluates a batch (records with coordination, weights and seed set): stored ones from disk, the others on
-  /// the workers in parallel.
+  /// the evaluator's threads.
   void evaluate(std::vector<FoldRolloutRecord>& batch) {
     std::vector<std::size_t> pending;
     for (std::size_t i = 0; i < batch.size(); ++i) {
@@ -390,50 +373,29 @@ struct FoldLearner::Impl {
       rec.wall_seconds = found->second.wall_seconds;
       rec.resumed = true;
       ++resumed;
-      if (observer.rollout) observer.rollout(rec, tasks::FoldRollout{}, workers.front()->reward);
+      if (observer.rollout) observer.rollout(rec, tasks::FoldRollout{}, firstTask().reward());
     }
-    std::atomic<std::size_t> next{0};
-    std::exception_ptr error;
-    bool stopped = false;
-    const auto work = [&](Worker& worker) {
-      for (;;) {
-        const std::size_t n = next++;
-        if (n >= pending.size()) return;
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          if (error || stopped) return;
-          if (observer.stop && observer.stop()) {
-            stopped = true;
-            return;
-          }
-        }
-        FoldRolloutRecord& rec = batch[pending[n]];
-        try {
-          const auto start = Clock::now();
-          const tasks::FoldRollout result = worker.task.run(rec.coordination, rec.weights, rec.seed);
-          std::mt19937 rng = noiseGenerator(rec.seed);
-          rec.terms = worker.reward.evaluate(result, rng);
+    std::vector<RolloutRequest> requests;
+    for (const std::size_t i : pending) {
+      requests.push_back({FoldRolloutTask::encode(batch[i].coordination, batch[i].weights), batch[i].seed});
+    }
+    // done() runs under the evaluator's lock: the files, the counters and the observer see one rollout at a time.
+    evaluator->evaluate(
+        requests,
+        [&](std::size_t n, const RolloutResult& result, RolloutTask& task) {
+          auto& fold = static_cast<FoldRolloutTask&>(task);
+          FoldRolloutRecord& rec = batch[pending[n]];
+          rec.terms = fold.lastTerms();
           rec.reason = result.reason;
-          rec.wall_seconds = secondsSince(start);
-          std::lock_guard<std::mutex> lock(mutex);
+          rec.wall_seconds = result.wall_seconds;
           write(rec);
           ++simulated;
-          if (observer.rollout) observer.rollout(rec, result, worker.reward);
-        } catch (...) {
-          std::lock_guard<std::mutex> lock(mutex);
-          if (!error) error = std::current_exception();
-          return;
-        }
-      }
-    };
-    std::vector<std::thread> threads;
-    for (std::size_t w = 1; w < workers.size() && w < pending.size(); ++w)
-      threads.emplace_back(work, std::ref(*workers[w]));
-    work(*workers.front());
-    for (std::thread& t : threads) t.join();
-    if (error) std::rethrow_exception(error);
-    if (stopped) throw std::runtime_error("stopped");
+          if (observer.rollout) observer.rollout(rec, fold.lastRollout(), fold.reward());
+        },
+        observer.stop);
   }
+
+  FoldRolloutTask& firstTask() { return static_cast<FoldRolloutTask&>(evaluator->task(0)); }
 
   FoldEpochStats epochStats(const std::string& algorithm, int run, int epoch, int latent_dims,
                             const std::vector<FoldRolloutRecord>& batch) const {
@@ -504,7 +466,7 @@ struct FoldLearner::Impl {
   FoldRunResult learnRun(const std::string& algorithm, int algorithm_index, int run, std::vector<FoldRunResult>& done) {
     const auto start = Clock::now();
     const DrDmpVariant variant = parseDrDmpVariant(algorithm, tasks::ClothFoldTask::kDofs, config.eta);
-    const tasks::ClothFoldTask& task = workers.front()->task;
+    const tasks::ClothFoldTask& task = firstTask().task();
     primitives::DrDmpParameters parameters;
     parameters.dmp = task.dmpParameters();
     parameters.matrices = variant.matrices;
@@ -569,10 +531,7 @@ struct FoldLearner::Impl {
         values.push_back(learning::coordinatedValues(grid, policy.coordination, rec.weights));
       }
       result.epochs.push_back(epochStats(algorithm, run, epoch, policy.latentDims(), batch));
-      {
-        std::lock_guard<std::mutex> lock(mutex);
-        if (observer.epoch) observer.epoch(result.epochs.back());
-      }
+      if (observer.epoch) observer.epoch(result.epochs.back());
       std::vector<FoldRunResult> so_far = done;
       so_far.push_back(result);
       writeEpochs(so_far);
@@ -595,14 +554,14 @@ FoldLearner::FoldLearner(const FoldLearningConfig& config, const std::string& ou
   if (error || !std::filesystem::is_directory(out_dir)) {
     throw std::invalid_argument("fold learning: cannot create the directory '" + out_dir + "'");
   }
-  const int jobs = config.jobs > 0 ? config.jobs : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
   const tasks::ClothFoldTask probe(config.task);
   m.config = withRenderer(config, probe);
-  m.config.jobs = jobs;
-  for (int j = 0; j < jobs; ++j) m.workers.push_back(std::make_unique<Worker>(m.config));
+  m.evaluator = std::make_unique<ParallelEvaluator>(
+      [&m] { return std::make_unique<FoldRolloutTask>(m.config.task, m.config.reward); }, config.jobs);
+  m.config.jobs = m.evaluator->threads();
   m.readStored();
   m.openFiles();
-  m.workers.front()->task.saveDemonstration(out_dir + "/demonstration_");
+  m.firstTask().task().saveDemonstration(out_dir + "/demonstration_");
 }
 
 FoldLearner::~FoldLearner() = default;
@@ -616,7 +575,7 @@ FoldLearningResult FoldLearner::learn() {
   const auto start = Clock::now();
   FoldLearningResult result;
   if (m.config.repetitions > 0) {
-    const tasks::ClothFoldTask& task = m.workers.front()->task;
+    const tasks::ClothFoldTask& task = m.firstTask().task();
     std::seed_seq sequence{m.config.seed, 0xde70u};
     std::mt19937 rng(sequence);
     std::vector<FoldRolloutRecord> batch;
@@ -654,11 +613,10 @@ tasks::FoldRollout FoldLearner::replay(const FoldRolloutRecord& record, double c
 
 tasks::FoldRewardTerms FoldLearner::score(const tasks::FoldRollout& rollout, std::uint32_t seed, cv::Mat& bgr,
                                           cv::Mat& depth) {
-  tasks::FoldReward& reward = impl_->workers.front()->reward;
-  std::mt19937 rng = noiseGenerator(seed);
-  const tasks::FoldRewardTerms terms = reward.evaluate(rollout, rng);
-  reward.bgr().copyTo(bgr);
-  reward.depth().copyTo(depth);
+  FoldRolloutTask& task = impl_->firstTask();
+  const tasks::FoldRewardTerms terms = task.score(rollout, seed);
+  task.reward().bgr().copyTo(bgr);
+  task.reward().depth().copyTo(depth);
   return terms;
 }
 

@@ -1,0 +1,47 @@
+/// \file
+/// The cloth fold (tasks::ClothFoldTask scored by tasks::FoldReward) as a RolloutTask: one parameter vector holds a
+/// whole coordinated policy, so that any evaluator (threads here, rollout workers elsewhere) can run it unchanged.
+/// Target bimanual_skills_rollout.
+#pragma once
+
+#include "bimanual_skills/rollout/parallel_evaluator.hpp"
+#include "bimanual_skills/tasks/cloth_fold.hpp"
+#include "bimanual_skills/tasks/fold_reward.hpp"
+
+#include <vector>
+
+namespace bimanual_skills::rollout {
+
+class FoldRolloutTask : public RolloutTask {
+ public:
+  /// \throws std::invalid_argument as ClothFoldTask and FoldReward.
+  FoldRolloutTask(const tasks::ClothFoldConfig& task, const tasks::FoldRewardConfig& reward);
+
+  /// A coordinated policy as one vector: [N_s, r, ω (r × kernels, latent DoF by latent DoF), vec(Ω_1), …,
+  /// vec(Ω_Ns)] with each Ω_s (12 × r) column by column.
+  static Eigen::VectorXd encode(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& weights);
+  /// The inverse of encode(); false when `parameters` holds no policy of `dofs` DoF and `kernels` kernels.
+  static bool decode(const Eigen::VectorXd& parameters, int dofs, int kernels,
+                     std::vector<Eigen::MatrixXd>& coordination, Eigen::VectorXd& weights);
+
+  /// r_acceleration, r_color, r_depth, fill_ratio, mean_gradient, area_ratio, aspect (tasks::FoldRewardTerms).
+  std::vector<std::string> termNames() const override;
+  /// One rollout of the encoded policy with the simulation's and the camera's noise seeded by `seed`.
+  RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override;
+
+  tasks::ClothFoldTask& task() noexcept { return task_; }
+  tasks::FoldReward& reward() noexcept { return reward_; }
+  /// The last rollout, its terms (its images are reward().bgr() and depth()).
+  const tasks::FoldRollout& lastRollout() const noexcept { return last_; }
+  const tasks::FoldRewardTerms& lastTerms() const noexcept { return last_terms_; }
+  /// Renders and scores `rollout` with the camera noise of `seed`, as run() does.
+  tasks::FoldRewardTerms score(const tasks::FoldRollout& rollout, std::uint32_t seed);
+
+ private:
+  tasks::ClothFoldTask task_;
+  tasks::FoldReward reward_;
+  tasks::FoldRollout last_;
+  tasks::FoldRewardTerms last_terms_;
+};
+
+}  // namespace bimanual_skills::rollout

@@ -1,0 +1,77 @@
+#include "bimanual_skills/rollout/fold_rollout_task.hpp"
+
+#include <cmath>
+#include <random>
+
+namespace bimanual_skills::rollout {
+
+FoldRolloutTask::FoldRolloutTask(const tasks::ClothFoldConfig& task, const tasks::FoldRewardConfig& reward)
+    : task_(task), reward_(reward, task_.simConfig().cloth.length * task_.simConfig().cloth.width) {}
+
+Eigen::VectorXd FoldRolloutTask::encode(const std::vector<Eigen::MatrixXd>& coordination,
+                                        const Eigen::VectorXd& weights) {
+  Eigen::Index size = 2 + weights.size();
+  for (const Eigen::MatrixXd& omega : coordination) size += omega.size();
+  Eigen::VectorXd out(size);
+  out[0] = static_cast<double>(coordination.size());
+  out[1] = coordination.empty() ? 0.0 : static_cast<double>(coordination.front().cols());
+  out.segment(2, weights.size()) = weights;
+  Eigen::Index at = 2 + weights.size();
+  for (const Eigen::MatrixXd& omega : coordination) {
+    out.segment(at, omega.size()) = Eigen::Map<const Eigen::VectorXd>(omega.data(), omega.size());
+    at += omega.size();
+  }
+  return out;
+}
+
+bool FoldRolloutTask::decode(const Eigen::VectorXd& parameters, int dofs, int kernels,
+                             std::vector<Eigen::MatrixXd>& coordination, Eigen::VectorXd& weights) {
+  if (parameters.size() < 2 || !std::isfinite(parameters[0]) || !std::isfinite(parameters[1])) return false;
+  const double ns = parameters[0], r = parameters[1];
+  if (ns != std::floor(ns) || r != std::floor(r) || ns < 1 || ns > 20 || r < 1 || r > dofs) return false;
+  const auto matrices = static_cast<Eigen::Index>(ns), latent = static_cast<Eigen::Index>(r);
+  if (parameters.size() != 2 + latent * kernels + matrices * dofs * latent) return false;
+  weights = parameters.segment(2, latent * kernels);
+  coordination.clear();
+  Eigen::Index at = 2 + latent * kernels;
+  for (Eigen::Index s = 0; s < matrices; ++s) {
+    coordination.push_back(Eigen::Map<const Eigen::MatrixXd>(parameters.data() + at, dofs, latent));
+    at += dofs * latent;
+  }
+  return true;
+}
+
+std::vector<std::string> FoldRolloutTask::termNames() const {
+  return {"r_acceleration", "r_color", "r_depth", "fill_ratio", "mean_gradient", "area_ratio", "aspect"};
+}
+
+tasks::FoldRewardTerms FoldRolloutTask::score(const tasks::FoldRollout& rollout, std::uint32_t seed) {
+  std::seed_seq sequence{seed, 0x5eedu};
+  std::mt19937 rng(sequence);
+  return reward_.evaluate(rollout, rng);
+}
+
+RolloutResult FoldRolloutTask::run(const Eigen::VectorXd& parameters, std::uint32_t seed) {
+  std::vector<Eigen::MatrixXd> coordination;
+  Eigen::VectorXd weights;
+  if (decode(parameters, tasks::ClothFoldTask::kDofs, task_.config().kernels, coordination, weights)) {
+    last_ = task_.run(coordination, weights, seed);
+  } else {
+    last_ = tasks::FoldRollout{};
+    last_.outcome = tasks::FoldOutcome::InvalidPolicy;
+    last_.reason = "the parameters do not encode a coordinated policy of 12 DoF and " +
+                   std::to_string(task_.config().kernels) + " kernels";
+  }
+  last_terms_ = score(last_, seed);
+  const tasks::FoldRewardTerms& t = last_terms_;
+  RolloutResult result;
+  result.reward = t.reward;
+  result.terms.resize(7);
+  result.terms << t.r_acceleration, t.r_color, t.r_depth, t.fill_ratio, t.mean_gradient, t.area_ratio, t.aspect;
+  result.ok = last_.outcome == tasks::FoldOutcome::Ok;
+  result.outcome = tasks::toString(last_.outcome);
+  result.reason = last_.reason;
+  return result;
+}
+
+}  // namespace bimanual_skills::rollout
