@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <thread>
 
 namespace br = bimanual_skills::rollout;
 namespace bt = bimanual_skills::tasks;
@@ -21,6 +22,9 @@ const std::string kSource = BIMANUAL_SKILLS_SOURCE_DIR;
 br::FoldLearningConfig smallConfig() {
   br::FoldLearningConfig c;
   c.task.sim_config = kSource + "/config/sim.yaml";
+  // As the learning files: the controllers compensate the identified friction (their state must not leak from one
+  // rollout into the next).
+  c.task.friction_files = {kSource + "/config/friction/left.yaml", kSource + "/config/friction/right.yaml"};
   c.task.duration = 3.0;
   c.task.settle = 0.7;
   c.algorithms = {"IDR-DMP_CMU"};
@@ -233,4 +237,43 @@ TEST(FoldLearning, DemonstrationDmpFilesGiveTheSameRollout) {
   EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
   c.demonstration_files = {dir + "/demo_left.yaml", dir + "/missing.yaml"};
   EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
+}
+
+TEST(FoldLearning, ARolloutDoesNotDependOnTheRolloutsBeforeIt) {
+  // Parallel rollouts are spread over the workers by timing: a rollout must give the same result whatever its
+  // worker ran before (a fresh task, or one that ran another policy first).
+  const bt::ClothFoldConfig c = smallConfig().task;
+  bt::ClothFoldTask fresh(c), used(c);
+  const Eigen::VectorXd theta = fresh.demonstrationParameters();
+  Eigen::VectorXd other = theta;
+  for (Eigen::Index i = 0; i < other.size(); ++i) other[i] += 8.0 * std::sin(1.7 * i);
+  ASSERT_EQ(used.run({Eigen::MatrixXd::Identity(12, 12)}, other, 7).outcome, bt::FoldOutcome::Ok);
+  const bt::FoldRollout a = fresh.run({Eigen::MatrixXd::Identity(12, 12)}, theta, 11);
+  const bt::FoldRollout b = used.run({Eigen::MatrixXd::Identity(12, 12)}, theta, 11);
+  ASSERT_EQ(a.outcome, bt::FoldOutcome::Ok);
+  EXPECT_EQ(a.acceleration_cost, b.acceleration_cost);
+  EXPECT_EQ(a.cloth_vertices, b.cloth_vertices);
+  for (int arm = 0; arm < 2; ++arm) EXPECT_EQ(a.joint_path[arm], b.joint_path[arm]);
+}
+
+TEST(FoldLearning, ConcurrentRolloutsEqualSerialOnes) {
+  // Two tasks stepping their simulations at the same time on two threads give the results each gives alone.
+  const bt::ClothFoldConfig c = smallConfig().task;
+  bt::ClothFoldTask first(c), second(c);
+  const Eigen::VectorXd theta = first.demonstrationParameters();
+  Eigen::VectorXd other = theta;
+  for (Eigen::Index i = 0; i < other.size(); ++i) other[i] += 8.0 * std::sin(1.7 * i);
+  const std::vector<Eigen::MatrixXd> identity = {Eigen::MatrixXd::Identity(12, 12)};
+  const bt::FoldRollout alone_a = first.run(identity, theta, 11);
+  const bt::FoldRollout alone_b = second.run(identity, other, 12);
+  bt::FoldRollout together_a, together_b;
+  std::thread thread([&] { together_b = second.run(identity, other, 12); });
+  together_a = first.run(identity, theta, 11);
+  thread.join();
+  EXPECT_EQ(alone_a.cloth_vertices, together_a.cloth_vertices);
+  EXPECT_EQ(alone_b.cloth_vertices, together_b.cloth_vertices);
+  for (int arm = 0; arm < 2; ++arm) {
+    EXPECT_EQ(alone_a.joint_path[arm], together_a.joint_path[arm]);
+    EXPECT_EQ(alone_b.joint_path[arm], together_b.joint_path[arm]);
+  }
 }

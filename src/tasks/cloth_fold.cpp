@@ -55,6 +55,9 @@ struct ClothFoldTask::Impl {
   ClothFoldConfig config;
   sim::SimConfig sim_config;
   std::unique_ptr<sim::BimanualSimulation> simulation;
+  control::ComputedTorqueGains gains;
+  std::vector<dynamics::FrictionModel> friction;
+  std::vector<bool> with_friction;
   std::vector<std::unique_ptr<control::ComputedTorqueController>> controllers;
   std::vector<std::unique_ptr<control::DisturbanceObserver>> observers;
   std::vector<kinematics::ClikData> clik;
@@ -62,6 +65,24 @@ struct ClothFoldTask::Impl {
   std::vector<CartesianDmp> demonstration;
   std::vector<std::vector<Pose>> demonstration_paths;
   std::vector<Eigen::VectorXd> start_q;
+
+  /// New controllers, observers and CLIK data for both arms: a rollout must not depend on which rollouts ran before
+  /// it on this task (their filters, warm starts and damping carry state).
+  void resetControl() {
+    controllers.clear();
+    observers.clear();
+    clik.clear();
+    for (int arm = 0; arm < 2; ++arm) {
+      const auto a = static_cast<std::size_t>(arm);
+      const kinematics::ChainModel& model = simulation->armModel(arm);
+      controllers.push_back(std::make_unique<control::ComputedTorqueController>(model, friction[a], gains));
+      controllers.back()->setFrictionCompensation(with_friction[a]);
+      control::ObserverGains observer = control::ObserverGains::diagonal(model.nq(), 10.0, 0.0, 100.0, 0.0, 10.0);
+      observer.rate_hz = 1.0 / simulation->stepSize();
+      observers.push_back(std::make_unique<control::DisturbanceObserver>(model, friction[a], observer));
+      clik.emplace_back(model, clik_parameters);
+    }
+  }
 
   /// The poses of a DMP integrated from its start at the demonstration's rate (the path of a loaded demonstration).
   std::vector<Pose> integrate(const CartesianDmp& dmp) const {
@@ -124,8 +145,10 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
   }
   m.clik_parameters.inverse = op;
   m.clik_parameters.limits = scheme;
-  const Eigen::VectorXd kp = config.kp.size() ? config.kp : kDefaultKp;
-  const Eigen::VectorXd kv = config.kv.size() ? config.kv : kDefaultKv;
+  control::ComputedTorqueGains gains;
+  gains.kp = config.kp.size() ? config.kp : kDefaultKp;
+  gains.kv = config.kv.size() ? config.kv : kDefaultKv;
+  m.gains = gains;
   for (int arm = 0; arm < 2; ++arm) {
     const kinematics::ChainModel& model = m.simulation->armModel(arm);
     dynamics::FrictionModel friction;
@@ -136,16 +159,10 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
     } else {
       friction.joints.assign(static_cast<std::size_t>(model.nq()), dynamics::JointFriction{});
     }
-    control::ComputedTorqueGains gains;
-    gains.kp = kp;
-    gains.kv = kv;
-    m.controllers.push_back(std::make_unique<control::ComputedTorqueController>(model, friction, gains));
-    m.controllers.back()->setFrictionCompensation(with_friction);
-    control::ObserverGains observer = control::ObserverGains::diagonal(model.nq(), 10.0, 0.0, 100.0, 0.0, 10.0);
-    observer.rate_hz = 1.0 / m.simulation->stepSize();
-    m.observers.push_back(std::make_unique<control::DisturbanceObserver>(model, friction, observer));
-    m.clik.emplace_back(model, m.clik_parameters);
+    m.friction.push_back(friction);
+    m.with_friction.push_back(with_friction);
   }
+  m.resetControl();
 
   // The demonstration: the scripted arcs fitted by two Cartesian DMPs; the start configurations by global IK.
   primitives::DmpParameters dmp;
@@ -307,12 +324,14 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
     return out;
   }
   primitives::DrDmpState forcing_state = forcing->initialState();
-  // A new simulation for every rollout: after reset() a simulation whose cloth was grasped differs from a new one in
-  // the last bits, which the contacts amplify (0.6 mm on the cloth after a fold); a new one makes rollouts
-  // repeatable bit for bit whichever worker runs them.
+  // A new simulation and new controllers for every rollout: after reset() a simulation whose cloth was grasped
+  // differs from a new one in the last bits, which the contacts amplify (0.6 mm on the cloth after a fold), and the
+  // CLIK data and controllers carry state from the last rollout; new ones make rollouts repeatable bit for bit
+  // whichever worker runs them and whatever it ran before.
   sim::SimConfig sim_config = m.sim_config;
   sim_config.seed = seed;
   m.simulation = std::make_unique<sim::BimanualSimulation>(sim_config);
+  m.resetControl();
   sim::BimanualSimulation& simulation = *m.simulation;
   std::vector<sim::ArmState> start;
   for (const Eigen::VectorXd& q : m.start_q) start.push_back({q, Eigen::VectorXd::Zero(q.size())});
