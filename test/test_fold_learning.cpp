@@ -36,6 +36,13 @@ br::FoldLearningConfig smallConfig() {
   return c;
 }
 
+/// Another policy than `theta`, far enough to move the cloth differently.
+Eigen::VectorXd perturbed(const Eigen::VectorXd& theta) {
+  Eigen::VectorXd other = theta;
+  for (Eigen::Index i = 0; i < other.size(); ++i) other[i] += 8.0 * std::sin(1.7 * i);
+  return other;
+}
+
 std::string freshDirectory(const std::string& name) {
   const std::string dir = ::testing::TempDir() + "/fold_learning_" + name;
   std::filesystem::remove_all(dir);
@@ -245,8 +252,7 @@ TEST(FoldLearning, ARolloutDoesNotDependOnTheRolloutsBeforeIt) {
   const bt::ClothFoldConfig c = smallConfig().task;
   bt::ClothFoldTask fresh(c), used(c);
   const Eigen::VectorXd theta = fresh.demonstrationParameters();
-  Eigen::VectorXd other = theta;
-  for (Eigen::Index i = 0; i < other.size(); ++i) other[i] += 8.0 * std::sin(1.7 * i);
+  const Eigen::VectorXd other = perturbed(theta);
   ASSERT_EQ(used.run({Eigen::MatrixXd::Identity(12, 12)}, other, 7).outcome, bt::FoldOutcome::Ok);
   const bt::FoldRollout a = fresh.run({Eigen::MatrixXd::Identity(12, 12)}, theta, 11);
   const bt::FoldRollout b = used.run({Eigen::MatrixXd::Identity(12, 12)}, theta, 11);
@@ -261,8 +267,7 @@ TEST(FoldLearning, ConcurrentRolloutsEqualSerialOnes) {
   const bt::ClothFoldConfig c = smallConfig().task;
   bt::ClothFoldTask first(c), second(c);
   const Eigen::VectorXd theta = first.demonstrationParameters();
-  Eigen::VectorXd other = theta;
-  for (Eigen::Index i = 0; i < other.size(); ++i) other[i] += 8.0 * std::sin(1.7 * i);
+  const Eigen::VectorXd other = perturbed(theta);
   const std::vector<Eigen::MatrixXd> identity = {Eigen::MatrixXd::Identity(12, 12)};
   const bt::FoldRollout alone_a = first.run(identity, theta, 11);
   const bt::FoldRollout alone_b = second.run(identity, other, 12);

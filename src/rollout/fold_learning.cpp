@@ -119,9 +119,10 @@ int toInt(const std::string& text, const std::string& where) {
   return static_cast<int>(value);
 }
 
-FoldLearningConfig withRenderer(FoldLearningConfig config, const tasks::ClothFoldTask& task) {
+/// The configuration with the reward's camera and table those of the task's simulation file (noise kept).
+FoldLearningConfig withRenderer(FoldLearningConfig config) {
   const vision::RenderNoise noise = config.reward.renderer.noise;
-  config.reward.renderer = tasks::rendererFor(task.simConfig());
+  config.reward.renderer = tasks::rendererFor(sim::SimConfig::fromYamlFile(config.task.sim_config));
   config.reward.renderer.noise = noise;
   return config;
 }
@@ -434,12 +435,16 @@ struct FoldLearner::Impl {
     return s;
   }
 
-  void writeEpochs(const std::vector<FoldRunResult>& runs) const {
+  /// Rewrites epochs.csv: the finished runs, then the epochs so far of the current one.
+  void writeEpochs(const std::vector<FoldRunResult>& finished, const FoldRunResult& current) const {
     std::ofstream csv(dir + "/epochs.csv");
     csv << "algorithm,run,epoch,latent_dims,failures,mean_reward,std_reward,r_acceleration,r_color,r_depth,"
            "fill_ratio,mean_gradient,area_ratio\n";
-    for (const FoldRunResult& run : runs) {
-      for (const FoldEpochStats& s : run.epochs) {
+    std::vector<const FoldRunResult*> runs;
+    for (const FoldRunResult& run : finished) runs.push_back(&run);
+    runs.push_back(&current);
+    for (const FoldRunResult* run : runs) {
+      for (const FoldEpochStats& s : run->epochs) {
         csv << quoted(s.algorithm) << ',' << s.run << ',' << s.epoch << ',' << s.latent_dims << ',' << s.failures << ','
             << number(s.mean_reward) << ',' << number(s.std_reward) << ',' << number(s.r_acceleration) << ','
             << number(s.r_color) << ',' << number(s.r_depth) << ',' << number(s.fill_ratio) << ','
@@ -463,7 +468,8 @@ struct FoldLearner::Impl {
     }
   }
 
-  FoldRunResult learnRun(const std::string& algorithm, int algorithm_index, int run, std::vector<FoldRunResult>& done) {
+  FoldRunResult learnRun(const std::string& algorithm, int algorithm_index, int run,
+                         const std::vector<FoldRunResult>& done) {
     const auto start = Clock::now();
     const DrDmpVariant variant = parseDrDmpVariant(algorithm, tasks::ClothFoldTask::kDofs, config.eta);
     const tasks::ClothFoldTask& task = firstTask().task();
@@ -532,9 +538,7 @@ struct FoldLearner::Impl {
       }
       result.epochs.push_back(epochStats(algorithm, run, epoch, policy.latentDims(), batch));
       if (observer.epoch) observer.epoch(result.epochs.back());
-      std::vector<FoldRunResult> so_far = done;
-      so_far.push_back(result);
-      writeEpochs(so_far);
+      writeEpochs(done, result);
       if (epoch < config.updates) learner.update(samples, values, rewards);
     }
     result.final = learner.policy();
@@ -554,8 +558,7 @@ FoldLearner::FoldLearner(const FoldLearningConfig& config, const std::string& ou
   if (error || !std::filesystem::is_directory(out_dir)) {
     throw std::invalid_argument("fold learning: cannot create the directory '" + out_dir + "'");
   }
-  const tasks::ClothFoldTask probe(config.task);
-  m.config = withRenderer(config, probe);
+  m.config = withRenderer(config);
   m.evaluator = std::make_unique<ParallelEvaluator>(
       [&m] { return std::make_unique<FoldRolloutTask>(m.config.task, m.config.reward); }, config.jobs);
   m.config.jobs = m.evaluator->threads();
