@@ -1,8 +1,10 @@
 // fold_learner: the two simulated WAMs learn to fold the cloth (rollout::FoldLearner) while rviz watches. A thin
 // shell: it runs the library's learning, publishes each rollout (cloth, tool paths, camera images, robot), prints
 // the progress, and writes the results, the top-down images and a rosbag of the best rollout.
+#include "action_workers.hpp"
 #include "bimanual_skills/kinematics/chain_model.hpp"
 #include "bimanual_skills/rollout/fold_learning.hpp"
+#include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
 #include "summary_json.hpp"
@@ -22,6 +24,7 @@
 #include <cmath>
 #include <cstdio>
 #include <deque>
+#include <filesystem>
 #include <map>
 #include <string>
 #include <vector>
@@ -34,6 +37,7 @@ namespace {
 
 const char* const kUsage =
     "usage: rosrun bimanual_skills fold_learner [_config:=FILE] [_out:=DIR] [_jobs:=N] [_replay_best:=true|false]\n"
+    "                                          [_worker_namespace:=NS | _workers:='[NAME, ...]'] [_worker_timeout:=S]\n"
     "\n"
     "Two simulated WAMs learn to fold a cloth (thesis Sec. 7.2.3, Table 7.5): DR-DMP policies over both tools,\n"
     "executed by CLIK and computed-torque control on the Bullet simulation, scored by eq. 7.52 on rendered top-down\n"
@@ -47,6 +51,13 @@ const char* const kUsage =
     "  ~jobs         rollouts in parallel (default: the learning file's, 0 = one per core)\n"
     "  ~replay_best  after learning, replay the best rollout on the topics in a loop until shut down (default\n"
     "                false: exit when done)\n"
+    "  ~worker_namespace  run the rollouts on the rollout workers under this namespace instead of threads here\n"
+    "                (roslaunch bimanual_skills rollout_workers.launch starts them under /rollout_workers); the\n"
+    "                workers read ~config on their host, so give a path valid there. Same results as threads.\n"
+    "  ~workers      the same with a list of worker node names instead of a namespace\n"
+    "  ~worker_timeout  [s] a worker with a share that finishes no rollout for this long is left out and its\n"
+    "                rollouts go to the others (default 60; must exceed one rollout)\n"
+    "  ~share        rollouts per share sent to a worker (default 0: adaptive)\n"
     "\n"
     "Writes into DIR: rollouts.csv and rollout_parameters.csv (every rollout, as it finishes), epochs.csv,\n"
     "coordination.csv (final coordination matrices), summary.json (one row per algorithm and epoch), initial.png\n"
@@ -84,6 +95,7 @@ class FoldLearnerNode {
     private_node_.param("jobs", jobs, jobs);
     if (jobs < 0) throw std::invalid_argument("~jobs must be >= 0");
     config_.jobs = jobs;
+    std::unique_ptr<br::Evaluator> evaluator = makeDispatcher();
 
     cloth_publisher_ = private_node_.advertise<visualization_msgs::Marker>("cloth", 1, true);
     scene_publisher_ = private_node_.advertise<visualization_msgs::Marker>("scene", 1, true);
@@ -97,7 +109,7 @@ class FoldLearnerNode {
                               const bt::FoldReward& reward) { onRollout(record, rollout, reward); };
     observer.epoch = [this](const br::FoldEpochStats& s) { onEpoch(s); };
     observer.stop = [] { return !ros::ok(); };
-    learner_ = std::make_unique<br::FoldLearner>(config_, out_, observer);
+    learner_ = std::make_unique<br::FoldLearner>(config_, out_, observer, std::move(evaluator));
     const bt::ClothFoldConfig& task = learner_->config().task;
     const bs::sim::SimConfig sim = bs::sim::SimConfig::fromYamlFile(task.sim_config);
     for (const bs::sim::ArmConfig& arm : sim.arms) {
@@ -112,15 +124,19 @@ class FoldLearnerNode {
   }
 
   void run() {
-    ROS_INFO(
-        "fold_learner: %s -> %s: %zu algorithm(s) x %d run(s) x %d update(s) x %d rollouts, seed %u, %d "
-        "thread(s)",
-        config_path_.c_str(), out_.c_str(), config_.algorithms.size(), config_.runs, config_.updates, config_.rollouts,
-        config_.seed, learner_->config().jobs);
+    ROS_INFO("fold_learner: %s -> %s: %zu algorithm(s) x %d run(s) x %d update(s) x %d rollouts, seed %u, %s",
+             config_path_.c_str(), out_.c_str(), config_.algorithms.size(), config_.runs, config_.updates,
+             config_.rollouts, config_.seed,
+             dispatching_ ? ("rollout workers under " + workers_where_).c_str()
+                          : (std::to_string(learner_->config().jobs) + " thread(s)").c_str());
     start_ = std::chrono::steady_clock::now();
     const br::FoldLearningResult result = learner_->learn();
     ROS_INFO("fold_learner: %d rollouts simulated and %d read from %s in %s", result.simulated, result.resumed,
              out_.c_str(), formatSeconds(result.seconds).c_str());
+    if (dispatching_) {
+      ROS_INFO("fold_learner: %zu worker(s) lost and %zu rollout(s) re-dispatched over the learning", workers_lost_,
+               redispatched_);
+    }
     writeSummary(result);
     const br::FoldRunResult* best_run = &result.runs.front();
     for (const br::FoldRunResult& r : result.runs) {
@@ -146,6 +162,49 @@ class FoldLearnerNode {
   }
 
  private:
+  /// A dispatcher to the rollout workers when ~worker_namespace or ~workers is set, else null (threads here).
+  std::unique_ptr<br::Evaluator> makeDispatcher() {
+    bs::nodes::WorkerSelection selection;
+    const bool by_list = private_node_.getParam("workers", selection.names);
+    const bool by_space = private_node_.getParam("worker_namespace", selection.space);
+    if (!by_list && !by_space) return nullptr;
+    if (by_list && selection.names.empty()) throw std::invalid_argument("~workers is an empty list");
+    selection.task = "fold";
+    selection.config = std::filesystem::absolute(config_path_).string();
+    br::DispatchConfig dispatch;
+    private_node_.param("worker_timeout", dispatch.timeout, dispatch.timeout);
+    int share = 0;
+    private_node_.param("share", share, share);
+    if (share < 0) throw std::invalid_argument("~share must be >= 0");
+    dispatch.share = static_cast<std::size_t>(share);
+    dispatch.log = [](const std::string& line, bool fault) {
+      if (fault) {
+        ROS_WARN("fold_learner: %s", line.c_str());
+      } else {
+        ROS_INFO("fold_learner: %s", line.c_str());
+      }
+    };
+    dispatch.batch = [this](const br::DispatchStats& s) { onBatch(s); };
+    dispatching_ = true;
+    workers_where_ = by_list ? "~workers" : selection.space;
+    return std::make_unique<br::Dispatcher>(std::make_unique<bs::nodes::ActionWorkerDirectory>(selection),
+                                            br::FoldRolloutTask::kTerms, dispatch);
+  }
+
+  void onBatch(const br::DispatchStats& s) {
+    workers_lost_ += s.lost.size();
+    redispatched_ += s.redispatched;
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    const int simulated = done_ - resumed_;
+    const double eta = simulated > 0 ? elapsed / simulated * (total_ - done_) : 0.0;
+    std::printf(
+        "[batch] %zu rollouts in %.1f s on %zu worker(s), %zu alive, %zu lost, %zu re-dispatched: %.2f rollouts/s | "
+        "%d/%d rollouts, ETA %s\n",
+        s.rollouts, s.seconds, s.workers, s.alive, s.lost.size(), s.redispatched,
+        s.seconds > 0.0 ? static_cast<double>(s.rollouts) / s.seconds : 0.0, done_, total_, formatSeconds(eta).c_str());
+    std::fflush(stdout);
+  }
+
   void onRollout(const br::FoldRolloutRecord& record, const bt::FoldRollout& rollout, const bt::FoldReward& reward) {
     ++done_;
     if (record.resumed) ++resumed_;
@@ -346,6 +405,12 @@ class FoldLearnerNode {
           .add("r_acceleration", m[3])
           .add("r_acceleration_std", std::sqrt(s[3]));
     }
+    if (dispatching_) {
+      rows.emplace_back()
+          .add("experiment", "dispatch")
+          .add("workers_lost", static_cast<int>(workers_lost_))
+          .add("redispatched", static_cast<int>(redispatched_));
+    }
     bs::bench::ExperimentOptions options;
     options.experiment = "fold";
     options.out = out_;
@@ -409,6 +474,9 @@ class FoldLearnerNode {
   std::deque<Paths> paths_;
   std::chrono::steady_clock::time_point start_;
   int done_ = 0, resumed_ = 0, total_ = 0;
+  bool dispatching_ = false;
+  std::string workers_where_;
+  std::size_t workers_lost_ = 0, redispatched_ = 0;
 };
 
 }  // namespace

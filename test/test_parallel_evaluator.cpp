@@ -1,10 +1,16 @@
-// The rollout evaluator: the same results in request order on any number of threads, every request reported once,
-// a task's exception and a stop request end a batch cleanly; the fold task's policy encoding round-trips.
+// The rollout evaluators. Threads: the same results in request order on any number of threads, every request
+// reported once, a task's exception and a stop request end a batch cleanly. Dispatcher (with in-process worker
+// links that die, hang, answer garbage or refuse on cue): the same results whatever the number of workers and
+// faults, no rollout lost or reported twice, workers joining between batches, clear errors when no worker is left,
+// when a rollout kills every worker or when a worker refuses. The task registry; the fold task's policy encoding.
+#include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
+#include "bimanual_skills/rollout/task_registry.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <set>
@@ -19,6 +25,7 @@ namespace {
 class ToyTask : public br::RolloutTask {
  public:
   std::vector<std::string> termNames() const override { return {"square", "noise"}; }
+  Eigen::VectorXd initialParameters() const override { return Eigen::VectorXd::Zero(3); }
   br::RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override {
     if (parameters.size() > 0 && parameters[0] == -1.0) throw std::logic_error("toy fault");
     br::RolloutResult r;
@@ -68,7 +75,7 @@ TEST(ParallelEvaluator, SameResultsInRequestOrderOnAnyThreads) {
     EXPECT_EQ(evaluator.threads(), threads);
     std::multiset<std::size_t> reported;
     const std::vector<br::RolloutResult> results =
-        evaluator.evaluate(requests, [&](std::size_t i, const br::RolloutResult& r, br::RolloutTask&) {
+        evaluator.evaluate(requests, [&](std::size_t i, const br::RolloutResult& r, br::RolloutTask*) {
           reported.insert(i);
           EXPECT_EQ(r.reward, expected[i].reward);
         });
@@ -105,7 +112,7 @@ TEST(ParallelEvaluator, StopEndsTheBatchAfterTheRunningRollouts) {
   br::ParallelEvaluator evaluator(toy(), 2);
   int done = 0;
   EXPECT_THROW(evaluator.evaluate(
-                   batch(50), [&](std::size_t, const br::RolloutResult&, br::RolloutTask&) { ++done; },
+                   batch(50), [&](std::size_t, const br::RolloutResult&, br::RolloutTask*) { ++done; },
                    [&] { return done >= 5; }),
                std::runtime_error);
   EXPECT_GE(done, 5);
@@ -115,6 +122,261 @@ TEST(ParallelEvaluator, StopEndsTheBatchAfterTheRunningRollouts) {
 TEST(ParallelEvaluator, BadConstruction) {
   EXPECT_THROW(br::ParallelEvaluator(toy(), -1), std::invalid_argument);
   EXPECT_THROW(br::ParallelEvaluator([] { return std::unique_ptr<br::RolloutTask>(); }, 2), std::invalid_argument);
+}
+
+/// A worker in this process that runs one rollout of its share per poll, and fails on cue.
+struct FakeWorker {
+  enum class Fault { None, DieAfter, Hang, Garbage, NanReward, WrongTerms, Refuse };
+  Fault fault = Fault::None;
+  int after = 0;        ///< DieAfter: rollouts it finishes before it dies.
+  bool poison = false;  ///< Dies on a request whose first parameter is 666 (whichever worker gets it).
+  bool dead = false;
+  ToyTask task;
+  int shares = 0;
+};
+
+class FakeLink : public br::WorkerLink {
+ public:
+  FakeLink(std::string name, FakeWorker& worker) : name_(std::move(name)), worker_(worker) {}
+  const std::string& name() const override { return name_; }
+  bool start(const std::vector<br::RolloutRequest>& share) override {
+    if (worker_.dead) return false;
+    share_ = share;
+    results_.clear();
+    ++worker_.shares;
+    return true;
+  }
+  Status poll() override {
+    Status status;
+    using F = FakeWorker::Fault;
+    if (worker_.dead) {
+      status.state = State::Lost;
+      status.reason = "dead";
+      return status;
+    }
+    if (worker_.fault == F::Refuse) {
+      status.state = State::Refused;
+      status.reason = "unknown task 'toy'";
+      return status;
+    }
+    if (worker_.fault == F::Hang) {
+      status.state = State::Running;
+      return status;
+    }
+    if (results_.size() < share_.size()) {
+      const br::RolloutRequest& r = share_[results_.size()];
+      if ((worker_.fault == F::DieAfter && worker_.task.runs >= worker_.after) || r.parameters[0] == 666.0) {
+        worker_.dead = true;
+        return poll();
+      }
+      results_.push_back(worker_.task.run(r.parameters, r.seed));
+      status.state = State::Running;
+      status.done = results_.size();
+      return status;
+    }
+    status.state = State::Finished;
+    status.results = results_;
+    if (worker_.fault == F::Garbage) status.results.pop_back();
+    if (worker_.fault == F::NanReward) status.results.front().reward = NAN;
+    if (worker_.fault == F::WrongTerms) status.results.back().terms = Eigen::VectorXd::Zero(5);
+    share_.clear();
+    return status;
+  }
+  void cancel() override { share_.clear(); }
+
+ private:
+  std::string name_;
+  FakeWorker& worker_;
+  std::vector<br::RolloutRequest> share_;
+  std::vector<br::RolloutResult> results_;
+};
+
+class FakeDirectory : public br::WorkerDirectory {
+ public:
+  FakeDirectory(std::vector<FakeWorker>& workers, std::size_t listed) : listed_(listed), workers_(workers) {}
+  std::vector<std::string> alive() override {
+    std::vector<std::string> names;
+    for (std::size_t i = 0; i < std::min(listed_, workers_.size()); ++i) {
+      if (!workers_[i].dead) names.push_back("w" + std::to_string(i));
+    }
+    return names;
+  }
+  std::unique_ptr<br::WorkerLink> connect(const std::string& name) override {
+    return std::make_unique<FakeLink>(name, workers_.at(std::stoul(name.substr(1))));
+  }
+  std::size_t listed_;
+
+ private:
+  std::vector<FakeWorker>& workers_;
+};
+
+br::DispatchConfig quickDispatch() {
+  br::DispatchConfig c;
+  c.timeout = 0.05;
+  c.wait_for_workers = 0.3;
+  c.poll_period = 1e-4;
+  return c;
+}
+
+/// Dispatches `requests` to `workers` and checks that every request is reported once with the in-process result.
+br::DispatchStats dispatchAndCheck(std::vector<FakeWorker>& workers, const std::vector<br::RolloutRequest>& requests,
+                                   std::size_t share = 0) {
+  const std::vector<br::RolloutResult> expected = br::ParallelEvaluator(toy(), 1).evaluate(requests);
+  br::DispatchConfig config = quickDispatch();
+  config.share = share;
+  br::Dispatcher dispatcher(std::make_unique<FakeDirectory>(workers, workers.size()), 2, config);
+  std::multiset<std::size_t> reported;
+  const std::vector<br::RolloutResult> results =
+      dispatcher.evaluate(requests, [&](std::size_t i, const br::RolloutResult& r, br::RolloutTask* task) {
+        EXPECT_EQ(task, nullptr);
+        EXPECT_EQ(r.reward, expected[i].reward);
+        reported.insert(i);
+      });
+  EXPECT_EQ(results.size(), requests.size());
+  for (std::size_t i = 0; i < results.size(); ++i) {
+    EXPECT_EQ(results[i].reward, expected[i].reward) << "request " << i;
+    EXPECT_EQ(results[i].terms, expected[i].terms);
+    EXPECT_EQ(reported.count(i), 1u) << "request " << i << " reported exactly once";
+  }
+  return dispatcher.lastBatch();
+}
+
+TEST(Dispatcher, SharesTheBatchAmongTheWorkersWithTheInProcessResults) {
+  const std::vector<br::RolloutRequest> requests = batch(23);
+  for (const std::size_t count : {1u, 2u, 3u, 7u}) {
+    std::vector<FakeWorker> workers(count);
+    const br::DispatchStats stats = dispatchAndCheck(workers, requests);
+    EXPECT_EQ(stats.workers, count) << "every worker takes part";
+    EXPECT_EQ(stats.alive, count);
+    EXPECT_EQ(stats.redispatched, 0u);
+    EXPECT_TRUE(stats.lost.empty());
+    int runs = 0;
+    for (const FakeWorker& w : workers) runs += w.task.runs;
+    EXPECT_EQ(runs, 23) << "no rollout run twice";
+  }
+  std::vector<FakeWorker> workers(2);
+  EXPECT_EQ(dispatchAndCheck(workers, requests, 4).shares, 6u) << "23 rollouts in shares of 4";
+  EXPECT_EQ(dispatchAndCheck(workers, {}).rollouts, 0u);
+}
+
+TEST(Dispatcher, RedispatchesTheRolloutsOfDeadHungAndGarbageWorkers) {
+  const std::vector<br::RolloutRequest> requests = batch(30);
+  using F = FakeWorker::Fault;
+  for (const F fault : {F::DieAfter, F::Hang, F::Garbage, F::NanReward, F::WrongTerms}) {
+    std::vector<FakeWorker> workers(3);
+    workers[1].fault = fault;
+    workers[1].after = 2;
+    const br::DispatchStats stats = dispatchAndCheck(workers, requests);
+    ASSERT_EQ(stats.lost.size(), 1u) << static_cast<int>(fault);
+    EXPECT_EQ(stats.lost.front().rfind("w1: ", 0), 0u) << stats.lost.front();
+    EXPECT_GT(stats.redispatched, 0u);
+    EXPECT_EQ(stats.alive, 2u) << "the others keep going";
+  }
+  // Two of three workers fail, in the same batch, on a small fixed share.
+  std::vector<FakeWorker> workers(3);
+  workers[0].fault = F::DieAfter;
+  workers[0].after = 1;
+  workers[2].fault = F::Hang;
+  const br::DispatchStats stats = dispatchAndCheck(workers, requests, 2);
+  EXPECT_EQ(stats.lost.size(), 2u);
+  EXPECT_EQ(stats.alive, 1u);
+  const auto hung = std::find_if(stats.lost.begin(), stats.lost.end(), [](const std::string& s) {
+    return s.find("no rollout finished") != std::string::npos;
+  });
+  EXPECT_NE(hung, stats.lost.end());
+}
+
+TEST(Dispatcher, WorkersJoinBetweenBatches) {
+  std::vector<FakeWorker> workers(3);
+  auto directory = std::make_unique<FakeDirectory>(workers, 1);
+  FakeDirectory& listing = *directory;
+  br::Dispatcher dispatcher(std::move(directory), 2, quickDispatch());
+  dispatcher.evaluate(batch(8));
+  EXPECT_EQ(dispatcher.lastBatch().workers, 1u);
+  EXPECT_EQ(workers[2].shares, 0);
+  listing.listed_ = 3;
+  const std::vector<br::RolloutResult> results = dispatcher.evaluate(batch(12));
+  EXPECT_EQ(dispatcher.lastBatch().workers, 3u);
+  EXPECT_GT(workers[2].shares, 0);
+  EXPECT_EQ(results.size(), 12u);
+}
+
+TEST(Dispatcher, ClearErrorsWhenNoWorkerIsLeftARolloutKillsThemOrAWorkerRefuses) {
+  using F = FakeWorker::Fault;
+  {
+    std::vector<FakeWorker> workers(2);
+    for (FakeWorker& w : workers) w.fault = F::DieAfter;
+    br::Dispatcher dispatcher(std::make_unique<FakeDirectory>(workers, 2), 2, quickDispatch());
+    try {
+      dispatcher.evaluate(batch(6));
+      FAIL() << "expected an error";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("no rollout worker alive"), std::string::npos) << e.what();
+    }
+  }
+  {
+    std::vector<FakeWorker> workers(5);
+    std::vector<br::RolloutRequest> requests = batch(6);
+    requests[4].parameters[0] = 666.0;
+    br::Dispatcher dispatcher(std::make_unique<FakeDirectory>(workers, 5), 2, quickDispatch());
+    try {
+      dispatcher.evaluate(requests);
+      FAIL() << "expected an error";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("rollout 4 failed on 3 workers"), std::string::npos) << e.what();
+    }
+  }
+  {
+    std::vector<FakeWorker> workers(2);
+    workers[1].fault = F::Refuse;
+    br::Dispatcher dispatcher(std::make_unique<FakeDirectory>(workers, 2), 2, quickDispatch());
+    try {
+      dispatcher.evaluate(batch(6));
+      FAIL() << "expected an error";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("worker w1 refused the rollouts: unknown task 'toy'"), std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_THROW(br::Dispatcher(nullptr, 2, quickDispatch()), std::invalid_argument);
+  br::DispatchConfig bad = quickDispatch();
+  bad.timeout = 0.0;
+  std::vector<FakeWorker> workers(1);
+  EXPECT_THROW(br::Dispatcher(std::make_unique<FakeDirectory>(workers, 1), 2, bad), std::invalid_argument);
+}
+
+TEST(Dispatcher, StopEndsTheBatchAfterTheSharesInProgress) {
+  std::vector<FakeWorker> workers(2);
+  br::DispatchConfig config = quickDispatch();
+  config.share = 1;
+  br::Dispatcher dispatcher(std::make_unique<FakeDirectory>(workers, 2), 2, config);
+  int done = 0;
+  EXPECT_THROW(dispatcher.evaluate(
+                   batch(40), [&](std::size_t, const br::RolloutResult&, br::RolloutTask*) { ++done; },
+                   [&] { return done >= 5; }),
+               std::runtime_error);
+  EXPECT_GE(done, 5);
+  EXPECT_LT(done, 40);
+}
+
+TEST(TaskRegistry, BuildsTheTasksByNameAndRefusesUnknownOnes) {
+  ASSERT_GE(br::rolloutTasks().size(), 2u);
+  const std::unique_ptr<br::RolloutTask> quadratic = br::makeRolloutTask("quadratic", "");
+  const Eigen::VectorXd theta = quadratic->initialParameters();
+  ASSERT_EQ(theta.size(), 10);
+  const br::RolloutResult r = quadratic->run(theta, 3);
+  EXPECT_TRUE(r.ok);
+  EXPECT_DOUBLE_EQ(r.reward, -1.0);
+  EXPECT_FALSE(quadratic->run(Eigen::VectorXd::Zero(3), 3).ok);
+  try {
+    br::makeRolloutTask("juggle", "");
+    FAIL() << "expected an error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown rollout task 'juggle' (known: fold, quadratic)"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(br::makeRolloutTask("fold", ""), std::invalid_argument);
+  EXPECT_THROW(br::makeRolloutTask("fold", "/nonexistent.yaml"), std::invalid_argument);
 }
 
 TEST(FoldRolloutTask, PolicyEncodingRoundTrips) {

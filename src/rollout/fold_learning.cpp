@@ -84,16 +84,6 @@ RolloutKind kindFromString(const std::string& text, const std::string& where) {
   throw std::invalid_argument(where + ": unknown rollout kind '" + text + "'");
 }
 
-tasks::FoldOutcome outcomeFromString(const std::string& text, const std::string& where) {
-  using tasks::FoldOutcome;
-  for (const FoldOutcome outcome :
-       {FoldOutcome::Ok, FoldOutcome::InvalidPolicy, FoldOutcome::GraspFailed, FoldOutcome::IkFailed,
-        FoldOutcome::ControllerFailed, FoldOutcome::SimulationDiverged}) {
-    if (text == tasks::toString(outcome)) return outcome;
-  }
-  throw std::invalid_argument(where + ": unknown outcome '" + text + "'");
-}
-
 const char* const kRolloutColumns =
     "algorithm,run,epoch,kind,index,seed,outcome,reward,r_acceleration,r_color,r_depth,fill_ratio,mean_gradient,"
     "area_ratio,aspect,latent_dims,wall_seconds,reason";
@@ -119,15 +109,14 @@ int toInt(const std::string& text, const std::string& where) {
   return static_cast<int>(value);
 }
 
-/// The configuration with the reward's camera and table those of the task's simulation file (noise kept).
-FoldLearningConfig withRenderer(FoldLearningConfig config) {
+}  // namespace
+
+FoldLearningConfig withSimulationRenderer(FoldLearningConfig config) {
   const vision::RenderNoise noise = config.reward.renderer.noise;
   config.reward.renderer = tasks::rendererFor(sim::SimConfig::fromYamlFile(config.task.sim_config));
   config.reward.renderer.noise = noise;
   return config;
 }
-
-}  // namespace
 
 const char* toString(RolloutKind kind) noexcept {
   switch (kind) {
@@ -267,7 +256,9 @@ struct FoldLearner::Impl {
   FoldLearningConfig config;
   std::string dir;
   FoldLearningObserver observer;
-  std::unique_ptr<ParallelEvaluator> evaluator;     ///< One FoldRolloutTask per thread.
+  std::unique_ptr<Evaluator> evaluator;
+  ParallelEvaluator* threads = nullptr;             ///< The evaluator when the rollouts run on threads here.
+  std::unique_ptr<FoldRolloutTask> helper;          ///< For the demonstration and the images when they run elsewhere.
   std::map<std::string, FoldRolloutRecord> stored;  ///< Rollouts found in the directory.
   std::ofstream rollouts_csv, parameters_csv;
   int simulated = 0, resumed = 0;
@@ -303,7 +294,7 @@ struct FoldLearner::Impl {
       rec.kind = kindFromString(f[3], where);
       rec.index = toInt(f[4], where);
       rec.seed = static_cast<std::uint32_t>(toDouble(f[5], where));
-      rec.terms.outcome = outcomeFromString(f[6], where);
+      rec.terms.outcome = tasks::foldOutcomeFromString(f[6], where);
       rec.terms.reward = toDouble(f[7], where);
       rec.terms.r_acceleration = toDouble(f[8], where);
       rec.terms.r_color = toDouble(f[9], where);
@@ -383,20 +374,25 @@ struct FoldLearner::Impl {
     // done() runs under the evaluator's lock: the files, the counters and the observer see one rollout at a time.
     evaluator->evaluate(
         requests,
-        [&](std::size_t n, const RolloutResult& result, RolloutTask& task) {
-          auto& fold = static_cast<FoldRolloutTask&>(task);
+        [&](std::size_t n, const RolloutResult& result, RolloutTask* task) {
+          auto* fold = static_cast<FoldRolloutTask*>(task);
           FoldRolloutRecord& rec = batch[pending[n]];
-          rec.terms = fold.lastTerms();
+          rec.terms = fold ? fold->lastTerms() : FoldRolloutTask::termsOf(result);
           rec.reason = result.reason;
           rec.wall_seconds = result.wall_seconds;
           write(rec);
           ++simulated;
-          if (observer.rollout) observer.rollout(rec, fold.lastRollout(), fold.reward());
+          if (!observer.rollout) return;
+          if (fold) {
+            observer.rollout(rec, fold->lastRollout(), fold->reward());
+          } else {
+            observer.rollout(rec, tasks::FoldRollout{}, firstTask().reward());
+          }
         },
         observer.stop);
   }
 
-  FoldRolloutTask& firstTask() { return static_cast<FoldRolloutTask&>(evaluator->task(0)); }
+  FoldRolloutTask& firstTask() { return helper ? *helper : static_cast<FoldRolloutTask&>(threads->task(0)); }
 
   FoldEpochStats epochStats(const std::string& algorithm, int run, int epoch, int latent_dims,
                             const std::vector<FoldRolloutRecord>& batch) const {
@@ -547,7 +543,8 @@ struct FoldLearner::Impl {
   }
 };
 
-FoldLearner::FoldLearner(const FoldLearningConfig& config, const std::string& out_dir, FoldLearningObserver observer)
+FoldLearner::FoldLearner(const FoldLearningConfig& config, const std::string& out_dir, FoldLearningObserver observer,
+                         std::unique_ptr<Evaluator> evaluator)
     : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
   config.validate();
@@ -558,10 +555,17 @@ FoldLearner::FoldLearner(const FoldLearningConfig& config, const std::string& ou
   if (error || !std::filesystem::is_directory(out_dir)) {
     throw std::invalid_argument("fold learning: cannot create the directory '" + out_dir + "'");
   }
-  m.config = withRenderer(config);
-  m.evaluator = std::make_unique<ParallelEvaluator>(
-      [&m] { return std::make_unique<FoldRolloutTask>(m.config.task, m.config.reward); }, config.jobs);
-  m.config.jobs = m.evaluator->threads();
+  m.config = withSimulationRenderer(config);
+  if (evaluator) {
+    m.evaluator = std::move(evaluator);
+    m.helper = std::make_unique<FoldRolloutTask>(m.config.task, m.config.reward);
+  } else {
+    auto threads = std::make_unique<ParallelEvaluator>(
+        [&m] { return std::make_unique<FoldRolloutTask>(m.config.task, m.config.reward); }, config.jobs);
+    m.threads = threads.get();
+    m.config.jobs = threads->threads();
+    m.evaluator = std::move(threads);
+  }
   m.readStored();
   m.openFiles();
   m.firstTask().task().saveDemonstration(out_dir + "/demonstration_");

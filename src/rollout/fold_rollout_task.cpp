@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <random>
+#include <stdexcept>
 
 namespace bimanual_skills::rollout {
 
@@ -45,6 +46,29 @@ std::vector<std::string> FoldRolloutTask::termNames() const {
   return {"r_acceleration", "r_color", "r_depth", "fill_ratio", "mean_gradient", "area_ratio", "aspect"};
 }
 
+Eigen::VectorXd FoldRolloutTask::initialParameters() const {
+  return encode({Eigen::MatrixXd::Identity(tasks::ClothFoldTask::kDofs, tasks::ClothFoldTask::kDofs)},
+                task_.demonstrationParameters());
+}
+
+tasks::FoldRewardTerms FoldRolloutTask::termsOf(const RolloutResult& result) {
+  if (static_cast<std::size_t>(result.terms.size()) != kTerms) {
+    throw std::invalid_argument("fold rollout: a result with " + std::to_string(result.terms.size()) +
+                                " terms instead of " + std::to_string(kTerms));
+  }
+  tasks::FoldRewardTerms t;
+  t.outcome = tasks::foldOutcomeFromString(result.outcome, "fold rollout result");
+  t.reward = result.reward;
+  t.r_acceleration = result.terms[0];
+  t.r_color = result.terms[1];
+  t.r_depth = result.terms[2];
+  t.fill_ratio = result.terms[3];
+  t.mean_gradient = result.terms[4];
+  t.area_ratio = result.terms[5];
+  t.aspect = result.terms[6];
+  return t;
+}
+
 tasks::FoldRewardTerms FoldRolloutTask::score(const tasks::FoldRollout& rollout, std::uint32_t seed) {
   std::seed_seq sequence{seed, 0x5eedu};
   std::mt19937 rng(sequence);
@@ -66,7 +90,7 @@ RolloutResult FoldRolloutTask::run(const Eigen::VectorXd& parameters, std::uint3
   const tasks::FoldRewardTerms& t = last_terms_;
   RolloutResult result;
   result.reward = t.reward;
-  result.terms.resize(7);
+  result.terms.resize(kTerms);
   result.terms << t.r_acceleration, t.r_color, t.r_depth, t.fill_ratio, t.mean_gradient, t.area_ratio, t.aspect;
   result.ok = last_.outcome == tasks::FoldOutcome::Ok;
   result.outcome = tasks::toString(last_.outcome);

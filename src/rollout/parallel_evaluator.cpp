@@ -46,7 +46,7 @@ std::vector<RolloutResult> ParallelEvaluator::evaluate(const std::vector<Rollout
         result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         const std::lock_guard<std::mutex> lock(mutex);
         results[i] = std::move(result);
-        if (done) done(i, results[i], task);
+        if (done) done(i, results[i], &task);
       } catch (...) {
         const std::lock_guard<std::mutex> lock(mutex);
         if (!error) error = std::current_exception();

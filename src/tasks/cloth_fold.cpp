@@ -51,6 +51,15 @@ const char* toString(FoldOutcome outcome) noexcept {
   return "Unknown";
 }
 
+FoldOutcome foldOutcomeFromString(const std::string& text, const std::string& where) {
+  for (const FoldOutcome outcome :
+       {FoldOutcome::Ok, FoldOutcome::InvalidPolicy, FoldOutcome::GraspFailed, FoldOutcome::IkFailed,
+        FoldOutcome::ControllerFailed, FoldOutcome::SimulationDiverged}) {
+    if (text == toString(outcome)) return outcome;
+  }
+  throw std::invalid_argument(where + ": unknown outcome '" + text + "'");
+}
+
 struct ClothFoldTask::Impl {
   ClothFoldConfig config;
   sim::SimConfig sim_config;

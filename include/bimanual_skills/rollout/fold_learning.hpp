@@ -20,6 +20,7 @@
 #pragma once
 
 #include "bimanual_skills/learning/coordinated_reps.hpp"
+#include "bimanual_skills/rollout/parallel_evaluator.hpp"
 #include "bimanual_skills/tasks/cloth_fold.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
 
@@ -68,6 +69,10 @@ struct FoldLearningConfig {
   /// \throws std::invalid_argument for out-of-range values or unknown algorithms.
   void validate() const;
 };
+
+/// `config` with the reward's renderer (camera, table) set from the task's simulation file, its noise kept.
+/// \throws std::invalid_argument for an unreadable simulation file.
+FoldLearningConfig withSimulationRenderer(FoldLearningConfig config);
 
 /// What a rollout was.
 enum class RolloutKind {
@@ -134,9 +139,11 @@ struct FoldLearningObserver {
 class FoldLearner {
  public:
   /// Builds the workers (one simulation, controllers and renderer per thread) and opens `out_dir` (created if
-  /// missing), reading the rollouts already there. \throws std::invalid_argument for a bad configuration or an
-  /// unwritable directory.
-  FoldLearner(const FoldLearningConfig& config, const std::string& out_dir, FoldLearningObserver observer = {});
+  /// missing), reading the rollouts already there. With an `evaluator` (e.g. a Dispatcher to rollout workers
+  /// running the task "fold" of this configuration) the rollouts run there instead, with the same results, and
+  /// config.jobs is not used. \throws std::invalid_argument for a bad configuration or an unwritable directory.
+  FoldLearner(const FoldLearningConfig& config, const std::string& out_dir, FoldLearningObserver observer = {},
+              std::unique_ptr<Evaluator> evaluator = nullptr);
   ~FoldLearner();
   FoldLearner(const FoldLearner&) = delete;
   FoldLearner& operator=(const FoldLearner&) = delete;

@@ -26,6 +26,12 @@ class FoldRolloutTask : public RolloutTask {
 
   /// r_acceleration, r_color, r_depth, fill_ratio, mean_gradient, area_ratio, aspect (tasks::FoldRewardTerms).
   std::vector<std::string> termNames() const override;
+  static constexpr std::size_t kTerms = 7;
+  /// The demonstration: one coordination matrix Ω = I, the demonstration's weights.
+  Eigen::VectorXd initialParameters() const override;
+  /// The terms of a result of run() (e.g. one that ran on a rollout worker); the vision status is not part of it.
+  /// \throws std::invalid_argument for a result with other terms or an unknown outcome.
+  static tasks::FoldRewardTerms termsOf(const RolloutResult& result);
   /// One rollout of the encoded policy with the simulation's and the camera's noise seeded by `seed`.
   RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override;
 

@@ -31,6 +31,8 @@ class RolloutTask {
  public:
   virtual ~RolloutTask() = default;
   virtual std::vector<std::string> termNames() const = 0;
+  /// The task's starting policy (e.g. its demonstration), a valid parameter vector.
+  virtual Eigen::VectorXd initialParameters() const = 0;
   /// A failed rollout (wrong size, non-finite values, a simulation that diverged, ...) is a result with ok = false
   /// and a reason, not an exception; exceptions are for faults of the program.
   virtual RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) = 0;
@@ -41,13 +43,27 @@ struct RolloutRequest {
   std::uint32_t seed = 0;
 };
 
+/// Evaluates batches of rollouts: on threads of this process (ParallelEvaluator) or on rollout workers elsewhere
+/// (Dispatcher). Whatever evaluates it, a request gives the same result.
+class Evaluator {
+ public:
+  /// Called as each rollout finishes (completion order), one call at a time: the request's index, its result, and
+  /// the task that ran it when it ran in this process (still holding that rollout's state, e.g. its images), null
+  /// when it ran elsewhere.
+  using Done = std::function<void(std::size_t index, const RolloutResult& result, RolloutTask* task)>;
+
+  virtual ~Evaluator() = default;
+  /// Runs every request and returns the results in request order. `done` is called once per request; `stop` is
+  /// polled between rollouts: when it returns true no new rollout starts, the running ones finish (and are
+  /// reported) and evaluate() throws std::runtime_error("stopped").
+  virtual std::vector<RolloutResult> evaluate(const std::vector<RolloutRequest>& batch, const Done& done = {},
+                                              const std::function<bool()>& stop = {}) = 0;
+};
+
 /// Runs batches of rollouts on a pool of threads, each with its own task.
-class ParallelEvaluator {
+class ParallelEvaluator : public Evaluator {
  public:
   using Factory = std::function<std::unique_ptr<RolloutTask>()>;
-  /// Called under the evaluator's lock as each rollout finishes (completion order): the request's index, its
-  /// result and the task that ran it (still holding that rollout's state, e.g. its images).
-  using Done = std::function<void(std::size_t index, const RolloutResult& result, RolloutTask& task)>;
 
   /// Builds `threads` tasks with `factory` (0: one per hardware thread). \throws what the factory throws, or
   /// std::invalid_argument for threads < 0 or a factory that returns no task.
@@ -60,12 +76,10 @@ class ParallelEvaluator {
   /// The task of thread `i` (e.g. for a rollout outside a batch on the caller's thread).
   RolloutTask& task(int i) { return *tasks_.at(static_cast<std::size_t>(i)); }
 
-  /// Runs every request and returns the results in request order. `done` is called once per request; `stop` is
-  /// polled before each rollout starts: when it returns true no new rollout starts, the running ones finish (and are
-  /// reported) and evaluate() throws std::runtime_error("stopped"). The first exception of a task is rethrown after
-  /// every thread has stopped.
+  /// As Evaluator::evaluate, `done` called under the evaluator's lock. The first exception of a task is rethrown
+  /// after every thread has stopped.
   std::vector<RolloutResult> evaluate(const std::vector<RolloutRequest>& batch, const Done& done = {},
-                                      const std::function<bool()>& stop = {});
+                                      const std::function<bool()>& stop = {}) override;
 
  private:
   std::vector<std::unique_ptr<RolloutTask>> tasks_;

@@ -51,6 +51,8 @@ enum class FoldOutcome {
   SimulationDiverged,  ///< The arms or the cloth left their bounds (NaN, speeds, stretch).
 };
 const char* toString(FoldOutcome outcome) noexcept;
+/// The inverse of toString(). \throws std::invalid_argument naming `where` for an unknown name.
+FoldOutcome foldOutcomeFromString(const std::string& text, const std::string& where);
 
 struct FoldRollout {
   FoldOutcome outcome = FoldOutcome::Ok;

@@ -1,0 +1,323 @@
+// rollout_benchmark: what rollouts cost on threads of one process and on rollout worker nodes (actionlib), on this
+// machine. It starts its own ROS master when none answers at ROS_MASTER_URI, and its own rollout_worker processes
+// (the binary next to it) in a namespace of its own, so it needs nothing running.
+//   throughput: a batch of fold rollouts on 1 and 2 threads and on 1, 2, 4 workers (default; --workers), rollouts/s
+//               and whether every result equals the one-thread result bit for bit;
+//   overhead:   the dispatch's own cost per rollout: batches of the instant "quadratic" task on one worker, one
+//               rollout per share and adaptive shares, as a fraction of a 1 s rollout; and the same for the fold
+//               (one worker against one thread).
+// Writes DIR/summary.json, DIR/rollout_benchmark.csv, and (scripts/plot_rollout_benchmark.py) DIR/throughput.png
+// and DIR/tables.md.
+#include "action_workers.hpp"
+#include "bimanual_skills/rollout/dispatcher.hpp"
+#include "bimanual_skills/rollout/task_registry.hpp"
+#include "experiment_cli.hpp"
+#include "summary_json.hpp"
+
+#include <ros/ros.h>
+
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace bs = bimanual_skills;
+namespace br = bimanual_skills::rollout;
+
+namespace {
+
+const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
+using Clock = std::chrono::steady_clock;
+
+double since(Clock::time_point t) {
+  return std::chrono::duration<double>(Clock::now() - t).count();
+}
+
+/// True when something accepts TCP connections on localhost:port.
+bool listening(int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) return false;
+  sockaddr_in address{};
+  address.sin_family = AF_INET;
+  address.sin_port = htons(static_cast<std::uint16_t>(port));
+  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  const bool ok = ::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0;
+  ::close(fd);
+  return ok;
+}
+
+/// A child process (a ROS master, a rollout worker) with its output appended to `log`; stopped by the destructor.
+class Child {
+ public:
+  Child(const std::vector<std::string>& argv, const std::string& log) {
+    pid_ = ::fork();
+    if (pid_ < 0) throw std::runtime_error("cannot fork");
+    if (pid_ == 0) {
+      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
+      if (fd >= 0) {
+        ::dup2(fd, 1);
+        ::dup2(fd, 2);
+      }
+      std::vector<char*> args;
+      for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+      args.push_back(nullptr);
+      ::execvp(args[0], args.data());
+      std::_Exit(127);
+    }
+  }
+  ~Child() {
+    if (pid_ <= 0) return;
+    ::kill(pid_, SIGINT);
+    for (int i = 0; i < 50; ++i) {
+      if (::waitpid(pid_, nullptr, WNOHANG) == pid_) return;
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    ::kill(pid_, SIGKILL);
+    ::waitpid(pid_, nullptr, 0);
+  }
+  Child(const Child&) = delete;
+  Child& operator=(const Child&) = delete;
+
+ private:
+  pid_t pid_ = -1;
+};
+
+/// A ROS master for the benchmark: the one at ROS_MASTER_URI if it answers, else a new one on a free port.
+std::unique_ptr<Child> ensureMaster(const std::string& log) {
+  const char* uri = std::getenv("ROS_MASTER_URI");
+  int port = 11311;
+  if (uri != nullptr) {
+    const std::string text = uri;
+    const std::size_t colon = text.rfind(':');
+    if (colon != std::string::npos) port = std::atoi(text.c_str() + colon + 1);
+  }
+  if (listening(port)) return nullptr;
+  port = 11711 + static_cast<int>(::getpid() % 1000);
+  while (listening(port)) ++port;
+  ::setenv("ROS_MASTER_URI", ("http://localhost:" + std::to_string(port)).c_str(), 1);
+  auto master =
+      std::make_unique<Child>(std::vector<std::string>{"rosmaster", "--core", "-p", std::to_string(port)}, log);
+  for (int i = 0; i < 100 && !listening(port); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  if (!listening(port)) throw std::runtime_error("no ROS master answers and rosmaster did not start (see " + log + ")");
+  std::printf("rollout_benchmark: started a ROS master on port %d\n", port);
+  return master;
+}
+
+struct Batch {
+  std::string task, config;
+  std::vector<br::RolloutRequest> requests;
+};
+
+Batch makeBatch(const std::string& task, const std::string& config, int rollouts, std::uint32_t seed) {
+  Batch b{task, config, {}};
+  const Eigen::VectorXd parameters = br::makeRolloutTask(task, config)->initialParameters();
+  for (int k = 0; k < rollouts; ++k) b.requests.push_back({parameters, seed + static_cast<std::uint32_t>(k)});
+  return b;
+}
+
+struct Timing {
+  double seconds = 0.0;
+  std::vector<br::RolloutResult> results;
+};
+
+Timing onThreads(const Batch& b, int threads) {
+  br::ParallelEvaluator evaluator([&] { return br::makeRolloutTask(b.task, b.config); }, threads);
+  const auto start = Clock::now();
+  Timing t;
+  t.results = evaluator.evaluate(b.requests);
+  t.seconds = since(start);
+  return t;
+}
+
+/// `workers` rollout_worker processes under a namespace of their own, and a dispatcher to them.
+class WorkerSet {
+ public:
+  WorkerSet(int workers, const std::string& task, const std::string& config, std::size_t terms, std::size_t share,
+            const std::string& log) {
+    const std::string binary = (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "rollout_worker");
+    const std::string space = "/rollout_benchmark_" + std::to_string(::getpid()) + "_" + std::to_string(++sets_);
+    for (int i = 0; i < workers; ++i) {
+      children_.push_back(std::make_unique<Child>(
+          std::vector<std::string>{binary, "__name:=worker_" + std::to_string(i), "__ns:=" + space}, log));
+    }
+    bs::nodes::WorkerSelection selection;
+    selection.space = space;
+    selection.task = task;
+    selection.config = config;
+    br::DispatchConfig dispatch;
+    dispatch.share = share;
+    dispatch.timeout = 120.0;
+    dispatcher_ = std::make_unique<br::Dispatcher>(std::make_unique<bs::nodes::ActionWorkerDirectory>(selection), terms,
+                                                   dispatch);
+    // Until every worker is up and has built its task.
+    const auto start = Clock::now();
+    while (since(start) < 60.0) {
+      dispatcher_->evaluate({});
+      if (static_cast<int>(dispatcher_->workers()) == workers) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+    if (static_cast<int>(dispatcher_->workers()) != workers) {
+      throw std::runtime_error("only " + std::to_string(dispatcher_->workers()) + " of " + std::to_string(workers) +
+                               " workers came up (see " + log + ")");
+    }
+  }
+
+  /// Times the batch after a first batch of one rollout per worker (each builds its task on its first goal).
+  Timing run(const Batch& b, int workers) {
+    const std::vector<br::RolloutRequest> warm(static_cast<std::size_t>(workers), b.requests.front());
+    dispatcher_->evaluate(warm);
+    const auto start = Clock::now();
+    Timing t;
+    t.results = dispatcher_->evaluate(b.requests);
+    t.seconds = since(start);
+    return t;
+  }
+
+ private:
+  static inline int sets_ = 0;
+  std::vector<std::unique_ptr<Child>> children_;
+  std::unique_ptr<br::Dispatcher> dispatcher_;
+};
+
+bool identical(const std::vector<br::RolloutResult>& a, const std::vector<br::RolloutResult>& b) {
+  if (a.size() != b.size()) return false;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    if (a[i].reward != b[i].reward || a[i].terms != b[i].terms || a[i].outcome != b[i].outcome) return false;
+  }
+  return true;
+}
+
+std::vector<int> parseCounts(const std::string& text) {
+  std::vector<int> out;
+  std::stringstream ss(text);
+  for (std::string item; std::getline(ss, item, ',');) {
+    const int n = std::atoi(item.c_str());
+    if (n < 1 || n > 64) throw std::invalid_argument("--workers: '" + item + "' is not a count in [1, 64]");
+    out.push_back(n);
+  }
+  if (out.empty()) throw std::invalid_argument("--workers: no count");
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string config = kSourceDir + "/config/fold_demo.yaml", workers_text = "1,2,4";
+  long rollouts = 0;
+  bs::bench::ExperimentProgram program;
+  program.name = "rollout_benchmark";
+  program.description =
+      "Rollouts on threads of one process against rollout_worker nodes (actionlib): throughput on 1 and 2 threads\n"
+      "and on 1, 2, 4 workers, and the dispatch's own cost per rollout. Starts its own ROS master when none answers\n"
+      "at ROS_MASTER_URI, and its own workers.";
+  program.experiments = {"throughput", "overhead", "all"};
+  program.extra = [&](bs::cli::CommandLine& line) {
+    line.option("--config", "FILE", "fold learning file of the fold rollouts (default: config/fold_demo.yaml)",
+                &config);
+    line.option("--workers", "LIST", "worker counts of the throughput experiment (default 1,2,4)", &workers_text);
+    line.option("--rollouts", "N", "fold rollouts per batch (default 16; 4 with --quick)", &rollouts, 1, 100000);
+  };
+  const bs::bench::ExperimentOptions options = bs::bench::parseExperimentOptions(argc, argv, program);
+  try {
+    const std::vector<int> worker_counts = parseCounts(workers_text);
+    const int n = rollouts > 0 ? static_cast<int>(rollouts) : (options.quick ? 4 : 16);
+    std::filesystem::create_directories(options.out);
+    const std::string log = options.out + "/ros.log";
+    const std::unique_ptr<Child> master = ensureMaster(log);
+    int ros_argc = 1;
+    ros::init(ros_argc, argv, "rollout_benchmark",
+              ros::init_options::AnonymousName | ros::init_options::NoSigintHandler);
+    std::printf("rollout_benchmark: seed %u, %d fold rollouts per batch (%s), worker logs in %s\n", options.seed, n,
+                config.c_str(), log.c_str());
+
+    std::vector<bs::bench::JsonRow> rows;
+    std::ofstream csv(options.out + "/rollout_benchmark.csv");
+    csv << "experiment,task,mode,count,share,rollouts,seconds,rollouts_per_second,ms_per_rollout,identical\n";
+    const auto record = [&](const std::string& experiment, const std::string& task, const std::string& mode, int count,
+                            const std::string& share, int size, double seconds, bool same) {
+      const double rate = size / seconds, ms = 1000.0 * seconds / size;
+      std::printf("  %-10s %-9s %-7s x%d share %-4s %5d rollouts in %8.3f s: %9.2f rollouts/s, %9.4f ms each%s\n",
+                  experiment.c_str(), task.c_str(), mode.c_str(), count, share.c_str(), size, seconds, rate, ms,
+                  same ? "" : "  RESULTS DIFFER");
+      std::fflush(stdout);
+      csv << experiment << ',' << task << ',' << mode << ',' << count << ',' << share << ',' << size << ',' << seconds
+          << ',' << rate << ',' << ms << ',' << (same ? "true" : "false") << '\n'
+          << std::flush;
+      rows.emplace_back()
+          .add("experiment", experiment)
+          .add("task", task)
+          .add("mode", mode)
+          .add("count", count)
+          .add("share", share)
+          .add("rollouts", size)
+          .add("seconds", seconds)
+          .add("rollouts_per_second", rate)
+          .add("ms_per_rollout", ms)
+          .add("identical", same);
+    };
+
+    const Batch fold = makeBatch("fold", config, n, options.seed);
+    const std::size_t fold_terms = br::makeRolloutTask("fold", config)->termNames().size();
+    const Timing one_thread = onThreads(fold, 1);
+    record("throughput", "fold", "threads", 1, "-", n, one_thread.seconds, true);
+    bool all_identical = true;
+    if (options.experiment != "overhead") {
+      const Timing two = onThreads(fold, 2);
+      record("throughput", "fold", "threads", 2, "-", n, two.seconds, identical(two.results, one_thread.results));
+      all_identical = all_identical && identical(two.results, one_thread.results);
+      for (const int w : worker_counts) {
+        WorkerSet set(w, "fold", config, fold_terms, 0, log);
+        const Timing t = set.run(fold, w);
+        const bool same = identical(t.results, one_thread.results);
+        all_identical = all_identical && same;
+        record("throughput", "fold", "workers", w, "auto", n, t.seconds, same);
+      }
+    }
+    if (options.experiment != "throughput") {
+      const int quadratic_rollouts = options.quick ? 100 : 1000;
+      const Batch quadratic = makeBatch("quadratic", "", quadratic_rollouts, options.seed);
+      const Timing local = onThreads(quadratic, 1);
+      for (const std::size_t share : {std::size_t{1}, std::size_t{0}}) {
+        WorkerSet set(1, "quadratic", "", 1, share, log);
+        const Timing t = set.run(quadratic, 1);
+        const bool same = identical(t.results, local.results);
+        all_identical = all_identical && same;
+        const std::string label = share == 0 ? "auto" : std::to_string(share);
+        record("overhead", "quadratic", "workers", 1, label, quadratic_rollouts, t.seconds, same);
+        rows.back().add("percent_of_1s_rollout", 100.0 * t.seconds / quadratic_rollouts);
+      }
+      WorkerSet set(1, "fold", config, fold_terms, 1, log);
+      const Timing t = set.run(fold, 1);
+      const bool same = identical(t.results, one_thread.results);
+      all_identical = all_identical && same;
+      record("overhead", "fold", "workers", 1, "1", n, t.seconds, same);
+      rows.back()
+          .add("extra_ms_per_rollout", 1000.0 * (t.seconds - one_thread.seconds) / n)
+          .add("percent_of_rollout", 100.0 * (t.seconds - one_thread.seconds) / one_thread.seconds);
+    }
+    bs::bench::writeSummaryJson(options, "rollout_benchmark", rows);
+    bs::bench::runPlotScript("rollout_benchmark", kSourceDir + "/scripts/plot_rollout_benchmark.py", options.out);
+    if (!all_identical) {
+      std::fprintf(stderr, "rollout_benchmark: results differ between threads and workers\n");
+      return 1;
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "rollout_benchmark: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,120 @@
+/// \file
+/// Batches of rollouts on remote rollout workers, surviving their faults. The dispatcher hands each live worker a
+/// share of the batch, hands out the next share as a worker finishes (faster workers take more), and gives the
+/// rollouts of a worker that dies, stops making progress for longer than a timeout, or answers something that is
+/// not a result of its share, to the survivors. Every request is reported exactly once; since a rollout's result
+/// depends on its parameters and seed only, the results do not depend on which worker ran what, on the number of
+/// workers or on the faults. Workers are looked up again at every batch, so workers can join between batches.
+///
+/// The transport is behind WorkerLink and WorkerDirectory (ROS actionlib in nodes/action_workers.hpp; in-process
+/// links in the tests). Target bimanual_skills_rollout. Offline: allocates; errors are exceptions.
+#pragma once
+
+#include "bimanual_skills/rollout/parallel_evaluator.hpp"
+
+#include <cstddef>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::rollout {
+
+/// One worker as the dispatcher sees it: it evaluates one share at a time.
+class WorkerLink {
+ public:
+  enum class State {
+    Idle,      ///< No share (before start() or after its results were taken).
+    Running,   ///< Working on its share.
+    Finished,  ///< The share's results are in `results` (their count and contents are checked by the dispatcher).
+    Refused,   ///< The worker refused the share (unknown task, bad configuration): an error of the request.
+    Lost,      ///< The worker is gone or failed in a way that says nothing about the request.
+  };
+  struct Status {
+    State state = State::Idle;
+    std::size_t done = 0;  ///< Rollouts of the share finished so far (progress).
+    std::vector<RolloutResult> results;
+    std::string reason;  ///< Why Refused or Lost.
+  };
+
+  virtual ~WorkerLink() = default;
+  /// A name that identifies the worker among those of its directory.
+  virtual const std::string& name() const = 0;
+  /// Sends a share; false when it could not be sent (the worker counts as lost).
+  virtual bool start(const std::vector<RolloutRequest>& share) = 0;
+  /// Without blocking: the share's state.
+  virtual Status poll() = 0;
+  /// Abandons the share (best effort; a late answer is ignored).
+  virtual void cancel() = 0;
+};
+
+/// Finds the workers that are alive now.
+class WorkerDirectory {
+ public:
+  virtual ~WorkerDirectory() = default;
+  /// The names of the workers alive now.
+  virtual std::vector<std::string> alive() = 0;
+  /// A link to the worker `name`; null when it cannot be reached.
+  virtual std::unique_ptr<WorkerLink> connect(const std::string& name) = 0;
+};
+
+/// What a batch took.
+struct DispatchStats {
+  std::size_t rollouts = 0;
+  std::size_t shares = 0;         ///< Shares sent (including re-dispatched ones).
+  std::size_t redispatched = 0;   ///< Rollouts sent again because their worker failed.
+  std::size_t workers = 0;        ///< Workers that took part.
+  std::size_t alive = 0;          ///< Workers still alive at the end.
+  std::vector<std::string> lost;  ///< "name: reason" of each worker lost during the batch.
+  double seconds = 0.0;
+};
+
+struct DispatchConfig {
+  /// A worker that finishes no rollout for this long [s] while it holds a share counts as hung: its share goes to
+  /// the others and it is left out until the next batch. Must exceed the longest rollout.
+  double timeout = 60.0;
+  /// Rollouts per share: 0 hands each idle worker ⌈remaining / (2 · workers)⌉ (large shares first, small ones at
+  /// the end); k > 0 hands out k at a time.
+  std::size_t share = 0;
+  /// How long [s] a batch waits for a first worker (or for one after all were lost) before it throws.
+  double wait_for_workers = 30.0;
+  /// A rollout given to this many workers that all failed it is a fault of the rollout: evaluate() throws.
+  int max_attempts = 3;
+  double poll_period = 0.002;  ///< [s] between polls of the workers.
+  /// Events worth a line in a log: a worker joined (fault = false), a worker was lost or hung and its rollouts go
+  /// to the others (fault = true).
+  std::function<void(const std::string& line, bool fault)> log;
+  /// Called at the end of each batch with what it took (see DispatchStats).
+  std::function<void(const DispatchStats&)> batch;
+
+  /// \throws std::invalid_argument for a timeout or wait ≤ 0, max_attempts < 1 or a poll period ≤ 0.
+  void validate() const;
+};
+
+class Dispatcher : public Evaluator {
+ public:
+  /// `terms` is the number of reward terms of the task (a result with another number is garbage).
+  /// \throws std::invalid_argument for a null directory or a bad configuration.
+  Dispatcher(std::unique_ptr<WorkerDirectory> directory, std::size_t terms, DispatchConfig config);
+  ~Dispatcher() override;
+
+  /// Evaluator::evaluate on the workers; `done` gets no task. \throws std::runtime_error when no worker is alive
+  /// for config.wait_for_workers, when a rollout failed on config.max_attempts workers, or "stopped";
+  /// std::invalid_argument when a worker refused the request (with its reason).
+  std::vector<RolloutResult> evaluate(const std::vector<RolloutRequest>& batch, const Done& done = {},
+                                      const std::function<bool()>& stop = {}) override;
+
+  const DispatchStats& lastBatch() const noexcept { return last_; }
+  /// Workers alive after the last batch.
+  std::size_t workers() const noexcept { return last_.alive; }
+
+ private:
+  struct Worker;
+  std::unique_ptr<WorkerDirectory> directory_;
+  std::size_t terms_;
+  DispatchConfig config_;
+  DispatchStats last_;
+  std::vector<std::unique_ptr<Worker>> workers_;
+};
+
+}  // namespace bimanual_skills::rollout

@@ -1,0 +1,31 @@
+/// \file
+/// The rollout tasks by name, as a rollout worker (nodes/rollout_worker.cpp) builds them from a goal's task name
+/// and configuration file. Target bimanual_skills_rollout. Offline: allocates; errors are exceptions.
+#pragma once
+
+#include "bimanual_skills/rollout/parallel_evaluator.hpp"
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::rollout {
+
+struct RolloutTaskInfo {
+  std::string name;
+  std::string config;       ///< What its configuration file is.
+  std::string description;  ///< One line.
+};
+
+/// Every task makeRolloutTask() builds:
+/// - "fold": FoldRolloutTask, the cloth fold of a fold learning file (config/fold_demo.yaml).
+/// - "quadratic": reward −‖θ‖²/n + σ ε with ε ~ N(0, 1) drawn from the rollout's seed; no simulation, so a batch
+///   of it measures what the dispatch itself costs. Its optional YAML file sets `dimension` (n, default 10) and
+///   `noise` (σ, default 0).
+const std::vector<RolloutTaskInfo>& rolloutTasks();
+
+/// A new task `name` configured by the file `config` (read on this host; "" for the defaults where the task has
+/// them). \throws std::invalid_argument for an unknown name or a bad configuration, naming them.
+std::unique_ptr<RolloutTask> makeRolloutTask(const std::string& name, const std::string& config);
+
+}  // namespace bimanual_skills::rollout

@@ -1,0 +1,60 @@
+#!/usr/bin/python3
+"""Plots of rollout_benchmark: DIR/throughput.png (fold rollouts per second on threads and on rollout workers) and
+DIR/tables.md, from DIR/summary.json. Usage: plot_rollout_benchmark.py DIR"""
+import json
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+
+def main():
+    if len(sys.argv) != 2 or sys.argv[1] in ("-h", "--help"):
+        print(__doc__)
+        return 0 if len(sys.argv) == 2 else 2
+    out = sys.argv[1]
+    with open(os.path.join(out, "summary.json")) as f:
+        summary = json.load(f)
+    rows = summary["results"]
+    throughput = [r for r in rows if r["experiment"] == "throughput"]
+    overhead = [r for r in rows if r["experiment"] == "overhead"]
+    lines = ["# rollout_benchmark (seed %d%s)" % (summary["seed"], ", quick" if summary["quick"] else ""), ""]
+    if throughput:
+        base = next(r for r in throughput if r["mode"] == "threads" and r["count"] == 1)["rollouts_per_second"]
+        lines += ["| evaluator | rollouts | s | rollouts/s | vs 1 thread | same results |",
+                  "|---|---:|---:|---:|---:|---|"]
+        for r in throughput:
+            lines.append("| %d %s | %d | %.2f | %.3f | %.2f× | %s |" % (
+                r["count"], r["mode"] if r["count"] > 1 else r["mode"][:-1], r["rollouts"], r["seconds"],
+                r["rollouts_per_second"], r["rollouts_per_second"] / base, "yes" if r["identical"] else "NO"))
+        lines.append("")
+        fig, ax = plt.subplots(figsize=(6.4, 3.6))
+        labels = ["%d %s" % (r["count"], r["mode"]) for r in throughput]
+        colours = ["tab:blue" if r["mode"] == "threads" else "tab:orange" for r in throughput]
+        ax.bar(labels, [r["rollouts_per_second"] for r in throughput], color=colours)
+        ax.set_ylabel("fold rollouts / s")
+        ax.set_title("Rollout throughput on this machine (%d rollouts per batch)" % throughput[0]["rollouts"])
+        ax.grid(axis="y", alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(os.path.join(out, "throughput.png"), dpi=120)
+    if overhead:
+        lines += ["| task | share | rollouts | ms per rollout | dispatch cost |", "|---|---|---:|---:|---:|"]
+        for r in overhead:
+            if r["task"] == "quadratic":
+                cost = "%.3f %% of a 1 s rollout" % r["percent_of_1s_rollout"]
+            else:
+                cost = "%+.2f ms (%+.2f %%) per rollout vs 1 thread" % (r["extra_ms_per_rollout"],
+                                                                        r["percent_of_rollout"])
+            lines.append("| %s | %s | %d | %.3f | %s |" % (r["task"], r["share"], r["rollouts"], r["ms_per_rollout"],
+                                                           cost))
+        lines.append("")
+    with open(os.path.join(out, "tables.md"), "w") as f:
+        f.write("\n".join(lines))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,123 @@
+// rostest (test/rollout_workers.test): the fault run. fold_learner learns on three rollout workers; once the first
+// rollout of the first batch is on disk this test kills worker_0 (SIGKILL) and stops worker_1 (SIGSTOP) for
+// ~stop_seconds (longer than the learner's worker timeout), then continues it. When the learner is done, its
+// results must be those of the same learning run on threads here (rollout::FoldLearner): every rollout exactly once,
+// with bit-identical rewards and reward terms, and the same learning curve (epochs.csv); its summary.json must
+// report both workers lost and their rollouts re-dispatched.
+#include "bimanual_skills/rollout/fold_learning.hpp"
+
+#include <ros/ros.h>
+
+#include <gtest/gtest.h>
+
+#include <signal.h>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace br = bimanual_skills::rollout;
+
+namespace {
+
+std::vector<std::string> lines(const std::string& path) {
+  std::ifstream in(path);
+  std::vector<std::string> out;
+  for (std::string line; std::getline(in, line);) {
+    if (!line.empty()) out.push_back(line);
+  }
+  return out;
+}
+
+/// rollouts.csv rows by key (algorithm, run, epoch, kind, index) with the fields up to the reward terms (the wall
+/// time and the order of completion differ between runs).
+std::map<std::string, std::string> rolloutsByKey(const std::string& path, std::size_t& rows) {
+  std::map<std::string, std::string> out;
+  const std::vector<std::string> all = lines(path);
+  rows = all.empty() ? 0 : all.size() - 1;
+  for (std::size_t n = 1; n < all.size(); ++n) {
+    std::vector<std::string> f;
+    std::stringstream ss(all[n]);
+    for (std::string field; std::getline(ss, field, ',');) f.push_back(field);
+    if (f.size() < 16) continue;
+    const std::string key = f[0] + "," + f[1] + "," + f[2] + "," + f[3] + "," + f[4];
+    std::string value;
+    for (std::size_t i = 5; i < 16; ++i) value += f[i] + ",";
+    out[key] = value;
+  }
+  return out;
+}
+
+int pidOf(const std::string& worker) {
+  int pid = 0;
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
+  while (ros::ok() && ros::WallTime::now() < deadline && !ros::param::get(worker + "/pid", pid)) {
+    ros::WallDuration(0.1).sleep();
+  }
+  return pid;
+}
+
+}  // namespace
+
+TEST(RolloutWorkers, AFaultRunLearnsExactlyAsTheFaultFreeOne) {
+  std::string out, config;
+  double stop_seconds = 9.0, timeout = 0.0;
+  const ros::WallTime give_up = ros::WallTime::now() + ros::WallDuration(60.0);
+  while (ros::ok() && ros::WallTime::now() < give_up && !ros::param::get("/fold_learner/out", out)) {
+    ros::WallDuration(0.1).sleep();
+  }
+  ASSERT_FALSE(out.empty());
+  ASSERT_TRUE(ros::param::get("~config", config));
+  ros::param::get("~stop_seconds", stop_seconds);
+  ASSERT_TRUE(ros::param::get("/fold_learner/worker_timeout", timeout));
+  ASSERT_GT(stop_seconds, timeout + 1.0) << "the stop must outlast the learner's worker timeout";
+  const int killed = pidOf("/rollout_workers/worker_0"), stopped = pidOf("/rollout_workers/worker_1");
+  ASSERT_GT(killed, 0);
+  ASSERT_GT(stopped, 0);
+
+  // Mid-batch: the first rollout is on disk, the others are running on the three workers.
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(120.0);
+  while (ros::ok() && ros::WallTime::now() < deadline && lines(out + "/rollouts.csv").size() < 2) {
+    ros::WallDuration(0.02).sleep();
+  }
+  ASSERT_GE(lines(out + "/rollouts.csv").size(), 2u) << "the learner never finished a rollout";
+  ASSERT_EQ(::kill(killed, SIGKILL), 0);
+  ASSERT_EQ(::kill(stopped, SIGSTOP), 0);
+  ros::WallDuration(stop_seconds).sleep();
+  ASSERT_EQ(::kill(stopped, SIGCONT), 0);
+
+  // The bag is the learner's last file.
+  while (ros::ok() && ros::WallTime::now() < deadline && !std::filesystem::exists(out + "/best_rollout.bag")) {
+    ros::WallDuration(0.1).sleep();
+  }
+  ASSERT_TRUE(std::filesystem::exists(out + "/summary.json")) << "the learner did not finish";
+  std::ifstream summary_file(out + "/summary.json");
+  const std::string summary((std::istreambuf_iterator<char>(summary_file)), std::istreambuf_iterator<char>());
+  const auto number = [&](const std::string& key) {
+    const std::size_t at = summary.find("\"" + key + "\"");
+    return at == std::string::npos ? -1 : std::stoi(summary.substr(summary.find(':', at) + 1));
+  };
+  EXPECT_GE(number("workers_lost"), 2) << summary;
+  EXPECT_GE(number("redispatched"), 1) << summary;
+
+  // The same learning on threads here.
+  const std::string reference = out + "_threads";
+  br::FoldLearner(br::FoldLearningConfig::fromYamlFile(config), reference).learn();
+  std::size_t rows = 0, reference_rows = 0;
+  const std::map<std::string, std::string> got = rolloutsByKey(out + "/rollouts.csv", rows);
+  const std::map<std::string, std::string> want = rolloutsByKey(reference + "/rollouts.csv", reference_rows);
+  EXPECT_EQ(rows, reference_rows) << "no rollout lost or written twice";
+  EXPECT_EQ(got.size(), rows) << "no rollout written twice";
+  EXPECT_EQ(got, want);
+  EXPECT_EQ(lines(out + "/epochs.csv"), lines(reference + "/epochs.csv"));
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_rollout_workers");
+  ros::NodeHandle node;
+  return RUN_ALL_TESTS();
+}
