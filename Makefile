@@ -6,6 +6,11 @@
 SHELL := /bin/bash
 # catkin needs Debian's python3 (with catkin_pkg), not a pyenv interpreter earlier on PATH.
 export PATH := /usr/bin:/bin:$(PATH)
+# The ROS graphs of the demo and the tests stay on this machine: a ROS 1 master has no authentication, so it
+# listens on the loopback interface only unless ROS_IP or ROS_HOSTNAME says otherwise.
+ifeq ($(strip $(ROS_IP)$(ROS_HOSTNAME)),)
+export ROS_HOSTNAME := localhost
+endif
 COLCON_BUILD_FLAGS := --base-paths . --cmake-args -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release
 
 .PHONY: deps build demo test bench format

@@ -32,7 +32,7 @@ def main():
                 r["rollouts_per_second"], r["rollouts_per_second"] / base, "yes" if r["identical"] else "NO"))
         lines.append("")
         fig, ax = plt.subplots(figsize=(6.4, 3.6))
-        labels = ["%d %s" % (r["count"], r["mode"]) for r in throughput]
+        labels = ["%d %s" % (r["count"], r["mode"] if r["count"] > 1 else r["mode"][:-1]) for r in throughput]
         colours = ["tab:blue" if r["mode"] == "threads" else "tab:orange" for r in throughput]
         ax.bar(labels, [r["rollouts_per_second"] for r in throughput], color=colours)
         ax.set_ylabel("fold rollouts / s")
@@ -41,15 +41,16 @@ def main():
         fig.tight_layout()
         fig.savefig(os.path.join(out, "throughput.png"), dpi=120)
     if overhead:
-        lines += ["| task | share | rollouts | ms per rollout | dispatch cost |", "|---|---|---:|---:|---:|"]
+        lines += ["| task | share | rollouts | ms per rollout | dispatch ms per rollout | dispatch cost |",
+                  "|---|---|---:|---:|---:|---:|"]
         for r in overhead:
             if r["task"] == "quadratic":
                 cost = "%.3f %% of a 1 s rollout" % r["percent_of_1s_rollout"]
             else:
-                cost = "%+.2f ms (%+.2f %%) per rollout vs 1 thread" % (r["extra_ms_per_rollout"],
-                                                                        r["percent_of_rollout"])
-            lines.append("| %s | %s | %d | %.3f | %s |" % (r["task"], r["share"], r["rollouts"], r["ms_per_rollout"],
-                                                           cost))
+                cost = "%.2f %% of the rollout (%+.1f ms vs 1 thread)" % (r["percent_of_rollout"],
+                                                                           r["extra_ms_per_rollout_vs_thread"])
+            lines.append("| %s | %s | %d | %.3f | %.3f | %s |" % (
+                r["task"], r["share"], r["rollouts"], r["ms_per_rollout"], r["dispatch_ms_per_rollout"], cost))
         lines.append("")
     with open(os.path.join(out, "tables.md"), "w") as f:
         f.write("\n".join(lines))
