@@ -123,9 +123,10 @@ class ActionWorkerLink : public rollout::WorkerLink {
 
   std::string name_;
   WorkerSelection selection_;
-  actionlib::SimpleActionClient<EvaluateRolloutsAction> client_;
-  std::atomic<std::size_t> done_{0};
+  std::atomic<std::size_t> done_{0};  ///< Written by the feedback callback on the directory's spinner thread.
   bool active_ = false;
+  /// Last, so that it is destroyed first: its destructor waits for its callbacks, which use the members above.
+  actionlib::SimpleActionClient<EvaluateRolloutsAction> client_;
 };
 
 }  // namespace

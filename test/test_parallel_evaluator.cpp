@@ -7,6 +7,7 @@
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
+#include "bimanual_skills/tasks/policy_search_tasks.hpp"
 
 #include <gtest/gtest.h>
 
@@ -17,6 +18,7 @@
 #include <stdexcept>
 
 namespace br = bimanual_skills::rollout;
+namespace bt = bimanual_skills::tasks;
 
 namespace {
 
@@ -372,11 +374,47 @@ TEST(TaskRegistry, BuildsTheTasksByNameAndRefusesUnknownOnes) {
     br::makeRolloutTask("juggle", "");
     FAIL() << "expected an error";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("unknown rollout task 'juggle' (known: fold, quadratic)"), std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("unknown rollout task 'juggle' (known: fold, quadratic, bottles, circle, "
+                                         "viapoint)"),
+              std::string::npos)
         << e.what();
   }
   EXPECT_THROW(br::makeRolloutTask("fold", ""), std::invalid_argument);
+  EXPECT_THROW(br::makeRolloutTask("circle", ""), std::invalid_argument);
   EXPECT_THROW(br::makeRolloutTask("fold", "/nonexistent.yaml"), std::invalid_argument);
+}
+
+TEST(TaskRegistry, ThePolicySearchTasksGiveTheBenchmarksRewards) {
+  // bottles: the reward (6.18) of the DMP's path, as ps_benchmark computes it.
+  const std::unique_ptr<br::RolloutTask> bottles = br::makeRolloutTask("bottles", "");
+  const bt::DmpRollout policy = bt::BottleTask::initialPolicy();
+  Eigen::VectorXd theta = bottles->initialParameters();
+  ASSERT_EQ(theta.size(), policy.parameters().size());
+  theta[3] += 40.0;
+  Eigen::MatrixXd y, ydd;
+  policy.rollout(theta, y, ydd);
+  bool satisfactory = true;
+  const double expected = bt::BottleTask().reward(y, &satisfactory);
+  const br::RolloutResult r = bottles->run(theta, 1);
+  EXPECT_EQ(r.reward, expected);
+  EXPECT_EQ(r.terms[0], satisfactory ? 1.0 : 0.0);
+  EXPECT_EQ(bottles->run(theta, 2).reward, r.reward) << "deterministic";
+  EXPECT_FALSE(bottles->run(Eigen::VectorXd::Constant(theta.size(), NAN), 1).ok);
+
+  bt::ViaPointTask via;
+  const std::unique_ptr<br::RolloutTask> viapoint = br::makeRolloutTask("viapoint", "");
+  const Eigen::VectorXd w = viapoint->initialParameters() * 1.1;
+  EXPECT_EQ(viapoint->run(w, 0).reward, -via.stepCosts(w).sum());
+  EXPECT_EQ(viapoint->run(w, 0).terms[0], via.viaPointError(w));
+
+  const std::string config = std::string(BIMANUAL_SKILLS_SOURCE_DIR) + "/config/circle_task.yaml";
+  const std::unique_ptr<br::RolloutTask> circle = br::makeRolloutTask("circle", config);
+  bt::CircleTask reference(bimanual_skills::kinematics::ChainModel::fromUrdfFile(
+                               std::string(BIMANUAL_SKILLS_SOURCE_DIR) + "/urdf/wam.urdf", "wam_base", "wam_tool"),
+                           1);
+  const Eigen::VectorXd c = circle->initialParameters();
+  EXPECT_EQ(c, reference.policy().parameters());
+  EXPECT_EQ(circle->run(c, 0).reward, reference.reward(c));
 }
 
 TEST(FoldRolloutTask, PolicyEncodingRoundTrips) {

@@ -2,9 +2,12 @@
 
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "bimanual_skills/tasks/policy_search_tasks.hpp"
 #include "io/yaml_io.hpp"
 
 #include <cmath>
+#include <functional>
+#include <memory>
 #include <random>
 #include <stdexcept>
 
@@ -45,6 +48,90 @@ class QuadraticTask : public RolloutTask {
   double noise_;
 };
 
+/// A policy-search task of Ch. 6 (deterministic: the seed is not used): θ in, reward and terms out.
+class PolicySearchTask : public RolloutTask {
+ public:
+  using Evaluate = std::function<double(const Eigen::VectorXd& theta, Eigen::VectorXd& terms)>;
+  PolicySearchTask(std::vector<std::string> terms, Eigen::VectorXd initial, Evaluate evaluate)
+      : terms_(std::move(terms)), initial_(std::move(initial)), evaluate_(std::move(evaluate)) {}
+
+  std::vector<std::string> termNames() const override { return terms_; }
+  Eigen::VectorXd initialParameters() const override { return initial_; }
+
+  RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t) override {
+    RolloutResult result;
+    result.terms = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(terms_.size()));
+    if (parameters.size() != initial_.size() || !parameters.allFinite()) {
+      result.ok = false;
+      result.outcome = "InvalidPolicy";
+      result.reason = "expected " + std::to_string(initial_.size()) + " finite parameters, got " +
+                      std::to_string(parameters.size());
+      result.reward = -kFailureReward;
+      return result;
+    }
+    result.reward = evaluate_(parameters, result.terms);
+    result.outcome = "Ok";
+    return result;
+  }
+
+ private:
+  static constexpr double kFailureReward = 1e3;
+  std::vector<std::string> terms_;
+  Eigen::VectorXd initial_;
+  Evaluate evaluate_;
+};
+
+std::unique_ptr<RolloutTask> makeBottles(const std::string& config) {
+  tasks::BottleTask world;
+  if (!config.empty()) {
+    const std::string where = "bottles task '" + config + "'";
+    const YAML::Node root = io::loadYamlFile(config, where);
+    io::checkKeys(root, where, {"crossing_term"});
+    if (root["crossing_term"]) world.crossing_term = io::readBool(root, "crossing_term", where);
+  }
+  const auto policy = std::make_shared<tasks::DmpRollout>(tasks::BottleTask::initialPolicy());
+  const auto y = std::make_shared<Eigen::MatrixXd>(), ydd = std::make_shared<Eigen::MatrixXd>();
+  return std::make_unique<PolicySearchTask>(
+      std::vector<std::string>{"satisfactory"}, policy->parameters(),
+      [world, policy, y, ydd](const Eigen::VectorXd& theta, Eigen::VectorXd& terms) {
+        policy->rollout(theta, *y, *ydd);
+        bool satisfactory = false;
+        const double reward = world.reward(*y, &satisfactory);
+        terms[0] = satisfactory ? 1.0 : 0.0;
+        return reward;
+      });
+}
+
+std::unique_ptr<RolloutTask> makeCircle(const std::string& config) {
+  if (config.empty()) throw std::invalid_argument("task 'circle' needs a configuration (config/circle_task.yaml)");
+  const std::string where = "circle task '" + config + "'";
+  const YAML::Node root = io::loadYamlFile(config, where);
+  io::checkKeys(root, where, {"urdf", "base", "tip", "seed"});
+  const std::string urdf = io::resolvePath(config, io::readString(root, "urdf", where));
+  const int seed = io::readInt(root, "seed", where);
+  if (seed < 0) io::fail(where + ": 'seed' must be >= 0");
+  const auto task = io::withContext(where, [&] {
+    return std::make_shared<tasks::CircleTask>(
+        kinematics::ChainModel::fromUrdfFile(urdf, io::readString(root, "base", where),
+                                             io::readString(root, "tip", where)),
+        static_cast<std::uint32_t>(seed));
+  });
+  return std::make_unique<PolicySearchTask>(std::vector<std::string>{"circle_radius"}, task->policy().parameters(),
+                                            [task](const Eigen::VectorXd& theta, Eigen::VectorXd& terms) {
+                                              terms[0] = task->radius();
+                                              return task->reward(theta);
+                                            });
+}
+
+std::unique_ptr<RolloutTask> makeViaPoint() {
+  const auto task = std::make_shared<tasks::ViaPointTask>();
+  return std::make_unique<PolicySearchTask>(std::vector<std::string>{"via_point_error"}, task->policy().parameters(),
+                                            [task](const Eigen::VectorXd& theta, Eigen::VectorXd& terms) {
+                                              terms[0] = task->viaPointError(theta);
+                                              return -task->stepCosts(theta).sum();
+                                            });
+}
+
 std::unique_ptr<RolloutTask> makeQuadratic(const std::string& config) {
   int dimension = 10;
   double noise = 0.0;
@@ -73,13 +160,22 @@ const std::vector<RolloutTaskInfo>& rolloutTasks() {
       {"fold", "a fold learning file (config/fold_demo.yaml)",
        "the two simulated WAMs fold the cloth, scored by eq. 7.52 (a policy: FoldRolloutTask::encode)"},
       {"quadratic", "optional YAML with dimension (10) and noise (0)",
-       "-|theta|^2/n plus seeded noise, no simulation: measures the dispatch's own cost"}};
+       "-|theta|^2/n plus seeded noise, no simulation: measures the dispatch's own cost"},
+      {"bottles", "optional YAML with crossing_term (true: reward 6.18; false: 6.17)",
+       "the planar path between two bottles of thesis Figs. 6.8-6.12 (a DMP of 20 weights)"},
+      {"circle", "YAML with urdf, base, tip and the demonstration's seed (config/circle_task.yaml)",
+       "the WAM tool traces a circle, thesis Fig. 6.14 (a 7-DoF DMP)"},
+      {"viapoint", "none",
+       "Stulp's 1-D DMP through a via-point (ps_benchmark pi2viapoint; reward: minus the summed step costs)"}};
   return tasks;
 }
 
 std::unique_ptr<RolloutTask> makeRolloutTask(const std::string& name, const std::string& config) {
   if (name == "fold") return makeFold(config);
   if (name == "quadratic") return makeQuadratic(config);
+  if (name == "bottles") return makeBottles(config);
+  if (name == "circle") return makeCircle(config);
+  if (name == "viapoint") return makeViaPoint();
   std::string known;
   for (const RolloutTaskInfo& t : rolloutTasks()) known += (known.empty() ? "" : ", ") + t.name;
   throw std::invalid_argument("unknown rollout task '" + name + "' (known: " + known + ")");

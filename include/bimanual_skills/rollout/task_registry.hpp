@@ -22,6 +22,8 @@ struct RolloutTaskInfo {
 /// - "quadratic": reward −‖θ‖²/n + σ ε with ε ~ N(0, 1) drawn from the rollout's seed; no simulation, so a batch
 ///   of it measures what the dispatch itself costs. Its optional YAML file sets `dimension` (n, default 10) and
 ///   `noise` (σ, default 0).
+/// - "bottles", "circle", "viapoint": the policy-search tasks of Ch. 6 (tasks/policy_search_tasks.hpp), θ the DMP's
+///   weights; deterministic, so the seed is not used.
 const std::vector<RolloutTaskInfo>& rolloutTasks();
 
 /// A new task `name` configured by the file `config` (read on this host; "" for the defaults where the task has
