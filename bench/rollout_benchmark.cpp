@@ -4,8 +4,9 @@
 //   throughput: a batch of fold rollouts on 1 and 2 threads and on 1, 2, 4 workers (default; --workers), rollouts/s
 //               and whether every result equals the one-thread result bit for bit;
 //   overhead:   the dispatch's own cost per rollout: batches of the instant "quadratic" task on one worker, one
-//               rollout per share and adaptive shares, as a fraction of a 1 s rollout; and on the fold with one
-//               rollout per share, the batch's time minus the rollouts' own (as the worker timed them).
+//               rollout per share and adaptive shares, as a fraction of a 1 s rollout; Table 7.3's planar DR-DMP
+//               task (cheap rollouts) on two workers; and on the fold with one rollout per share, the batch's time
+//               minus the rollouts' own (as the worker timed them).
 // Writes DIR/summary.json, DIR/rollout_benchmark.csv, and (scripts/plot_rollout_benchmark.py) DIR/throughput.png
 // and DIR/tables.md.
 #include "action_workers.hpp"
@@ -241,8 +242,14 @@ int main(int argc, char** argv) {
     line.option("--rollouts", "N", "fold rollouts per batch (default 16; 4 with --quick)", &rollouts, 1, 100000);
   };
   const bs::bench::ExperimentOptions options = bs::bench::parseExperimentOptions(argc, argv, program);
+  std::vector<int> worker_counts;
   try {
-    const std::vector<int> worker_counts = parseCounts(workers_text);
+    worker_counts = parseCounts(workers_text);
+  } catch (const std::invalid_argument& e) {
+    std::fprintf(stderr, "rollout_benchmark: %s (see --help)\n", e.what());
+    return 2;
+  }
+  try {
     const int n = rollouts > 0 ? static_cast<int>(rollouts) : (options.quick ? 4 : 16);
     std::filesystem::create_directories(options.out);
     const std::string log = options.out + "/ros.log";
@@ -311,6 +318,20 @@ int main(int argc, char** argv) {
         rows.back()
             .add("dispatch_ms_per_rollout", t.dispatchMs())
             .add("percent_of_1s_rollout", 100.0 * t.seconds / quadratic_rollouts);
+      }
+      // A DR-DMP task of Ch. 7 (Table 7.3's planar arm, exploration from each rollout's seed) over a worker.
+      const Batch planar = makeBatch("planar_viapoint", "", options.quick ? 50 : 500, options.seed);
+      const Timing planar_local = onThreads(planar, 1);
+      {
+        WorkerSet workers(2, "planar_viapoint", "", 2, 0, log);
+        const Timing t = workers.run(planar, 2);
+        const bool same = identical(t.results, planar_local.results);
+        all_identical = all_identical && same;
+        record("overhead", "planar_viapoint", "workers", 2, "auto", static_cast<int>(planar.requests.size()), t.seconds,
+               same);
+        rows.back()
+            .add("dispatch_ms_per_rollout", t.dispatchMs())
+            .add("percent_of_1s_rollout", 100.0 * t.seconds / static_cast<double>(planar.requests.size()));
       }
       WorkerSet set(1, "fold", config, fold_terms, 1, log);
       const Timing t = set.run(fold, 1);

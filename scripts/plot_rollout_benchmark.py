@@ -44,7 +44,7 @@ def main():
         lines += ["| task | share | rollouts | ms per rollout | dispatch ms per rollout | dispatch cost |",
                   "|---|---|---:|---:|---:|---:|"]
         for r in overhead:
-            if r["task"] == "quadratic":
+            if "percent_of_1s_rollout" in r:
                 cost = "%.3f %% of a 1 s rollout" % r["percent_of_1s_rollout"]
             else:
                 cost = "%.2f %% of the rollout (%+.1f ms vs 1 thread)" % (r["percent_of_rollout"],

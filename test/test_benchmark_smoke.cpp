@@ -1,6 +1,8 @@
-// Smoke test of the experiment programs (ik_benchmark, ps_benchmark, dr_benchmark) in --quick mode: they run, write
-// summary.json with every field, CSV, PNG and tables.md, reject bad arguments with exit code 2 (--help: usage, 0), and
-// dr_benchmark writes the same results with any number of jobs. No assertion on time.
+// Smoke test of the experiment programs (ik_benchmark, ps_benchmark, dr_benchmark, rollout_benchmark) in --quick
+// mode: they run, write summary.json with every field, CSV, PNG and tables.md, reject bad arguments with exit code 2
+// (--help: usage, 0), dr_benchmark writes the same results with any number of jobs, and rollout_benchmark (its own
+// ROS master and rollout_worker processes) gets from the workers the results of the threads, bit for bit (else it
+// exits 1). No assertion on time.
 #include "testing/program_output.hpp"
 
 #include <gtest/gtest.h>
@@ -132,4 +134,25 @@ TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --jobs -2 --seed 1 --out /tmp/x"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --fast"), 2);
+}
+
+TEST(RolloutBenchmarkSmoke, WorkersGiveTheResultsOfThreads) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_rollout_benchmark_smoke";
+  fs::remove_all(out);
+  ASSERT_EQ(runQuietly(std::string(ROLLOUT_BENCHMARK) + " --experiment overhead --rollouts 2 --seed 3 --quick --out " +
+                       out.string()),
+            0);
+  const std::string summary = readTextFile(out / "summary.json");
+  for (const char* field : {"\"task\": \"quadratic\"", "\"task\": \"planar_viapoint\"", "\"task\": \"fold\"",
+                            "\"dispatch_ms_per_rollout\"", "\"identical\": true", "\"seed\": 3"}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field;
+  }
+  EXPECT_EQ(summary.find("\"identical\": false"), std::string::npos);
+  for (const char* file : {"rollout_benchmark.csv", "tables.md"}) {
+    EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
+  }
+  EXPECT_EQ(
+      runQuietly(std::string(ROLLOUT_BENCHMARK) + " --experiment overhead --workers 0 --seed 1 --out " + out.string()),
+      2);
+  fs::remove_all(out);
 }

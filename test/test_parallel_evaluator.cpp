@@ -7,12 +7,14 @@
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
+#include "bimanual_skills/tasks/dr_tasks.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <random>
 #include <set>
 #include <stdexcept>
@@ -375,7 +377,7 @@ TEST(TaskRegistry, BuildsTheTasksByNameAndRefusesUnknownOnes) {
     FAIL() << "expected an error";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("unknown rollout task 'juggle' (known: fold, quadratic, bottles, circle, "
-                                         "viapoint)"),
+                                         "planar_viapoint, viapoint)"),
               std::string::npos)
         << e.what();
   }
@@ -415,6 +417,36 @@ TEST(TaskRegistry, ThePolicySearchTasksGiveTheBenchmarksRewards) {
   const Eigen::VectorXd c = circle->initialParameters();
   EXPECT_EQ(c, reference.policy().parameters());
   EXPECT_EQ(circle->run(c, 0).reward, reference.reward(c));
+}
+
+TEST(TaskRegistry, PlanarViaPointRunsTheFittedDrDmpWithSeededExploration) {
+  const std::string quiet = testing::TempDir() + "/planar_viapoint_quiet.yaml";
+  {
+    std::ofstream file(quiet);
+    file << "{dofs: 6, seed: 2, kernels: 5, exploration: 0.0}\n";
+  }
+  const std::unique_ptr<br::RolloutTask> task = br::makeRolloutTask("planar_viapoint", quiet);
+  // Without exploration: the reward (7.50) of the DR-DMP fitted to the demonstrations, integrated independently.
+  const bt::PlanarViaPointTask via(6, 2);
+  bimanual_skills::primitives::DrDmpParameters parameters;
+  parameters.dmp.kernels = 5;
+  const bimanual_skills::primitives::DrDmp dmp =
+      bimanual_skills::primitives::DrDmp::fit(parameters, via.demonstrations(), via.dt(), 6).dmp;
+  std::mt19937 unused;
+  bt::DrDmpRollout rollout;
+  bt::rolloutDrDmp(dmp, via.dt(), via.steps(), 0.0, unused, rollout);
+  const br::RolloutResult r = task->run(task->initialParameters(), 9);
+  ASSERT_TRUE(r.ok) << r.reason;
+  EXPECT_NEAR(r.reward, via.reward(rollout.positions, rollout.accelerations), 1e-12);
+  ASSERT_EQ(r.terms.size(), 2);
+  EXPECT_NEAR(r.terms[0],
+              (bt::planarTip(rollout.positions.row(via.viaSteps()[0]).transpose()) - via.viaPoints()[0]).norm(), 1e-12);
+  // With exploration: the same seed gives the same rollout, another seed another one.
+  const std::unique_ptr<br::RolloutTask> noisy = br::makeRolloutTask("planar_viapoint", "");
+  const Eigen::VectorXd theta = noisy->initialParameters();
+  EXPECT_EQ(noisy->run(theta, 4).reward, noisy->run(theta, 4).reward);
+  EXPECT_NE(noisy->run(theta, 4).reward, noisy->run(theta, 5).reward);
+  EXPECT_FALSE(noisy->run(theta.head(theta.size() - 1), 4).ok);
 }
 
 TEST(FoldRolloutTask, PolicyEncodingRoundTrips) {

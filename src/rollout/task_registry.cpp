@@ -2,6 +2,7 @@
 
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "bimanual_skills/tasks/dr_tasks.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
 #include "io/yaml_io.hpp"
 
@@ -132,6 +133,81 @@ std::unique_ptr<RolloutTask> makeViaPoint() {
                                             });
 }
 
+/// Table 7.3's planar via-point task with a DR-DMP: the policy is a coordinated policy vector
+/// (FoldRolloutTask::encode) over the DR-DMP fitted to the task's demonstrations; the exploration outside the latent
+/// space is drawn from the rollout's seed.
+class PlanarViaPointRollout : public RolloutTask {
+ public:
+  PlanarViaPointRollout(int dofs, std::uint32_t seed, int kernels, int matrices, double exploration)
+      : task_(dofs, seed), exploration_(exploration) {
+    primitives::DrDmpParameters parameters;
+    parameters.dmp.kernels = kernels;
+    parameters.matrices = matrices;
+    dmp_ = std::make_unique<primitives::DrDmp>(
+        primitives::DrDmp::fit(parameters, task_.demonstrations(), task_.dt(), dofs).dmp);
+  }
+
+  std::vector<std::string> termNames() const override { return {"via_point_1_error", "via_point_2_error"}; }
+  Eigen::VectorXd initialParameters() const override {
+    return FoldRolloutTask::encode(dmp_->coordination(), dmp_->weights());
+  }
+
+  RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override {
+    RolloutResult result;
+    result.terms = Eigen::VectorXd::Zero(2);
+    std::vector<Eigen::MatrixXd> coordination;
+    Eigen::VectorXd weights;
+    if (!FoldRolloutTask::decode(parameters, task_.dofs(), dmp_->kernels(), coordination, weights) ||
+        static_cast<int>(coordination.size()) != dmp_->matrices() || !parameters.allFinite()) {
+      result.ok = false;
+      result.outcome = "InvalidPolicy";
+      result.reason = "the parameters do not encode a finite coordinated policy of " + std::to_string(task_.dofs()) +
+                      " DoF, " + std::to_string(dmp_->kernels()) + " kernels and " + std::to_string(dmp_->matrices()) +
+                      " matrices";
+      result.reward = -kFailureReward;
+      return result;
+    }
+    std::seed_seq sequence{seed, 0x71a3u};
+    std::mt19937 rng(sequence);
+    tasks::rolloutDrDmp(dmp_->withCoordination(coordination, weights), task_.dt(), task_.steps(), exploration_, rng,
+                        rollout_);
+    for (int v = 0; v < 2; ++v) {
+      const Eigen::VectorXd q = rollout_.positions.row(task_.viaSteps()[static_cast<std::size_t>(v)]).transpose();
+      result.terms[v] = (tasks::planarTip(q) - task_.viaPoints()[static_cast<std::size_t>(v)]).norm();
+    }
+    result.reward = task_.reward(rollout_.positions, rollout_.accelerations);
+    result.outcome = "Ok";
+    return result;
+  }
+
+ private:
+  static constexpr double kFailureReward = 1e3;
+  tasks::PlanarViaPointTask task_;
+  double exploration_;
+  std::unique_ptr<primitives::DrDmp> dmp_;
+  tasks::DrDmpRollout rollout_;
+};
+
+std::unique_ptr<RolloutTask> makePlanarViaPoint(const std::string& config) {
+  int dofs = 10, seed = 1, kernels = 5, matrices = 1;
+  double exploration = std::sqrt(0.1);
+  if (!config.empty()) {
+    const std::string where = "planar_viapoint task '" + config + "'";
+    const YAML::Node root = io::loadYamlFile(config, where);
+    io::checkKeys(root, where, {"dofs", "seed", "kernels", "matrices", "exploration"});
+    if (root["dofs"]) dofs = io::readInt(root, "dofs", where);
+    if (root["seed"]) seed = io::readInt(root, "seed", where);
+    if (root["kernels"]) kernels = io::readInt(root, "kernels", where);
+    if (root["matrices"]) matrices = io::readInt(root, "matrices", where);
+    exploration = io::readDouble(root, "exploration", where, exploration);
+    if (seed < 0 || kernels < 1 || matrices < 1 || exploration < 0.0) {
+      io::fail(where + ": 'seed' and 'exploration' must be >= 0, 'kernels' and 'matrices' >= 1");
+    }
+  }
+  return std::make_unique<PlanarViaPointRollout>(dofs, static_cast<std::uint32_t>(seed), kernels, matrices,
+                                                 exploration);
+}
+
 std::unique_ptr<RolloutTask> makeQuadratic(const std::string& config) {
   int dimension = 10;
   double noise = 0.0;
@@ -165,6 +241,8 @@ const std::vector<RolloutTaskInfo>& rolloutTasks() {
        "the planar path between two bottles of thesis Figs. 6.8-6.12 (a DMP of 20 weights)"},
       {"circle", "YAML with urdf, base, tip and the demonstration's seed (config/circle_task.yaml)",
        "the WAM tool traces a circle, thesis Fig. 6.14 (a 7-DoF DMP)"},
+      {"planar_viapoint", "optional YAML with dofs (10), seed (1), kernels (5), matrices (1), exploration (0.316)",
+       "thesis Table 7.3: a planar arm through two via-points, a DR-DMP policy (FoldRolloutTask::encode)"},
       {"viapoint", "none",
        "Stulp's 1-D DMP through a via-point (ps_benchmark pi2viapoint; reward: minus the summed step costs)"}};
   return tasks;
@@ -176,6 +254,7 @@ std::unique_ptr<RolloutTask> makeRolloutTask(const std::string& name, const std:
   if (name == "bottles") return makeBottles(config);
   if (name == "circle") return makeCircle(config);
   if (name == "viapoint") return makeViaPoint();
+  if (name == "planar_viapoint") return makePlanarViaPoint(config);
   std::string known;
   for (const RolloutTaskInfo& t : rolloutTasks()) known += (known.empty() ? "" : ", ") + t.name;
   throw std::invalid_argument("unknown rollout task '" + name + "' (known: " + known + ")");
