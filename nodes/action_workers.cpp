@@ -131,6 +131,30 @@ class ActionWorkerLink : public rollout::WorkerLink {
 
 }  // namespace
 
+bool readWorkerSelection(const ros::NodeHandle& private_node, WorkerSelection& selection) {
+  bool by_list = false;
+  if (private_node.hasParam("workers")) {
+    by_list = true;
+    std::string text;
+    if (private_node.getParam("workers", text)) {
+      std::string name;
+      for (const char c : text + ",") {
+        if (c == ',' || c == ' ' || c == '[' || c == ']') {
+          if (!name.empty()) selection.names.push_back(name);
+          name.clear();
+        } else {
+          name += c;
+        }
+      }
+    } else if (!private_node.getParam("workers", selection.names)) {
+      throw std::invalid_argument("~workers must be a list of worker names or a string of them");
+    }
+    if (selection.names.empty()) throw std::invalid_argument("~workers names no worker");
+  }
+  const bool by_space = private_node.getParam("worker_namespace", selection.space);
+  return by_list || by_space;
+}
+
 std::string workerActionName(const std::string& name) {
   if (endsWith(name, std::string("/") + kAction)) return name;
   return (endsWith(name, "/") ? name : name + "/") + kAction;
@@ -179,6 +203,13 @@ std::vector<std::string> ActionWorkerDirectory::alive() {
     if ((now - time).toSec() < kStatusAge) names.push_back(action);
   }
   return names;
+}
+
+std::string ActionWorkerDirectory::where() const {
+  std::string names;
+  for (const std::string& n : selection_.names) names += (names.empty() ? "" : ", ") + workerActionName(n);
+  return (selection_.names.empty() ? "under " + selection_.space : "among " + names) +
+         " (start them with: roslaunch bimanual_skills rollout_workers.launch workers:=N)";
 }
 
 std::unique_ptr<rollout::WorkerLink> ActionWorkerDirectory::connect(const std::string& name) {

@@ -30,6 +30,11 @@ struct WorkerSelection {
   std::string config;  ///< Its configuration file, as the workers' hosts see it.
 };
 
+/// Reads `~workers` (a list of names, or one string of names separated by commas or spaces, as `_workers:=a,b` on
+/// a command line gives it) and `~worker_namespace` of `private_node` into `selection`; false when neither is set
+/// (the rollouts then run here). \throws std::invalid_argument for an empty list or a value of another type.
+bool readWorkerSelection(const ros::NodeHandle& private_node, WorkerSelection& selection);
+
 /// An action name for a worker given as a node name ("/rollout_workers/worker_0") or already as its action name.
 std::string workerActionName(const std::string& name);
 
@@ -40,6 +45,7 @@ class ActionWorkerDirectory : public rollout::WorkerDirectory {
 
   std::vector<std::string> alive() override;
   std::unique_ptr<rollout::WorkerLink> connect(const std::string& name) override;
+  std::string where() const override;
 
  private:
   void watch(const std::string& action);

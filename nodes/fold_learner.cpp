@@ -37,7 +37,7 @@ namespace {
 
 const char* const kUsage =
     "usage: rosrun bimanual_skills fold_learner [_config:=FILE] [_out:=DIR] [_jobs:=N] [_replay_best:=true|false]\n"
-    "                                          [_worker_namespace:=NS | _workers:='[NAME, ...]'] [_worker_timeout:=S]\n"
+    "                                          [_worker_namespace:=NS | _workers:=NAME,NAME,...] [_worker_timeout:=S]\n"
     "\n"
     "Two simulated WAMs learn to fold a cloth (thesis Sec. 7.2.3, Table 7.5): DR-DMP policies over both tools,\n"
     "executed by CLIK and computed-torque control on the Bullet simulation, scored by eq. 7.52 on rendered top-down\n"
@@ -54,7 +54,7 @@ const char* const kUsage =
     "  ~worker_namespace  run the rollouts on the rollout workers under this namespace instead of threads here\n"
     "                (roslaunch bimanual_skills rollout_workers.launch starts them under /rollout_workers); the\n"
     "                workers read ~config on their host, so give a path valid there. Same results as threads.\n"
-    "  ~workers      the same with a list of worker node names instead of a namespace\n"
+    "  ~workers      the same with worker node names instead of a namespace: a list, or _workers:=a,b\n"
     "  ~worker_timeout  [s] a worker with a share that finishes no rollout for this long is left out and its\n"
     "                rollouts go to the others (default 60; must exceed one rollout)\n"
     "  ~share        rollouts per share sent to a worker (default 0: adaptive)\n"
@@ -165,10 +165,7 @@ class FoldLearnerNode {
   /// A dispatcher to the rollout workers when ~worker_namespace or ~workers is set, else null (threads here).
   std::unique_ptr<br::Evaluator> makeDispatcher() {
     bs::nodes::WorkerSelection selection;
-    const bool by_list = private_node_.getParam("workers", selection.names);
-    const bool by_space = private_node_.getParam("worker_namespace", selection.space);
-    if (!by_list && !by_space) return nullptr;
-    if (by_list && selection.names.empty()) throw std::invalid_argument("~workers is an empty list");
+    if (!bs::nodes::readWorkerSelection(private_node_, selection)) return nullptr;
     selection.task = "fold";
     selection.config = std::filesystem::absolute(config_path_).string();
     br::DispatchConfig dispatch;
@@ -186,7 +183,7 @@ class FoldLearnerNode {
     };
     dispatch.batch = [this](const br::DispatchStats& s) { onBatch(s); };
     dispatching_ = true;
-    workers_where_ = by_list ? "~workers" : selection.space;
+    workers_where_ = selection.names.empty() ? selection.space : "~workers";
     return std::make_unique<br::Dispatcher>(std::make_unique<bs::nodes::ActionWorkerDirectory>(selection),
                                             br::FoldRolloutTask::kTerms, dispatch);
   }
@@ -484,17 +481,17 @@ class FoldLearnerNode {
 int main(int argc, char** argv) {
   bs::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "fold_learner");
+  // Keeps the node up until main returns: the learner's handles are gone by the time an exception is caught, and
+  // the last handle to go shuts the node down, which must still tell a fault from a Ctrl-C.
+  const ros::NodeHandle keep_alive;
   try {
     FoldLearnerNode node;
     node.run();
-  } catch (const std::runtime_error& e) {
-    if (!ros::ok()) {
+  } catch (const std::exception& e) {
+    if (!ros::ok() && std::string(e.what()) == "stopped") {
       ROS_WARN("fold_learner: stopped; the finished rollouts are on disk, run again to resume");
       return 0;
     }
-    ROS_FATAL("fold_learner: %s", e.what());
-    return 1;
-  } catch (const std::exception& e) {
     ROS_FATAL("fold_learner: %s", e.what());
     return 1;
   }

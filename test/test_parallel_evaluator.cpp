@@ -208,6 +208,7 @@ class FakeDirectory : public br::WorkerDirectory {
   std::unique_ptr<br::WorkerLink> connect(const std::string& name) override {
     return std::make_unique<FakeLink>(name, workers_.at(std::stoul(name.substr(1))));
   }
+  std::string where() const override { return "among the fakes"; }
   std::size_t listed_;
 
  private:
@@ -316,6 +317,7 @@ TEST(Dispatcher, ClearErrorsWhenNoWorkerIsLeftARolloutKillsThemOrAWorkerRefuses)
       FAIL() << "expected an error";
     } catch (const std::runtime_error& e) {
       EXPECT_NE(std::string(e.what()).find("no rollout worker alive"), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("among the fakes"), std::string::npos) << e.what();
     }
   }
   {

@@ -141,7 +141,7 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
         if (since(waiting) > config_.wait_for_workers) {
           throw std::runtime_error("dispatch: no rollout worker alive for " +
                                    std::to_string(static_cast<int>(config_.wait_for_workers)) + " s (" +
-                                   std::to_string(batch.size() - reported) + " rollouts left)");
+                                   std::to_string(batch.size() - reported) + " rollouts left) " + directory_->where());
         }
         std::this_thread::sleep_for(std::chrono::duration<double>(std::min(0.2, config_.wait_for_workers)));
         discover();

@@ -56,6 +56,8 @@ class WorkerDirectory {
   virtual std::vector<std::string> alive() = 0;
   /// A link to the worker `name`; null when it cannot be reached.
   virtual std::unique_ptr<WorkerLink> connect(const std::string& name) = 0;
+  /// Where it looks for workers and how to start them, for messages.
+  virtual std::string where() const = 0;
 };
 
 /// What a batch took.
