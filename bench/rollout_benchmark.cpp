@@ -1,8 +1,9 @@
 // rollout_benchmark: what rollouts cost on threads of one process and on rollout worker nodes (actionlib), on this
 // machine. It starts its own ROS master when none answers at ROS_MASTER_URI, and its own rollout_worker processes
 // (the binary next to it) in a namespace of its own, so it needs nothing running.
-//   throughput: a batch of fold rollouts on 1 and 2 threads and on 1, 2, 4 workers (default; --workers), rollouts/s
-//               and whether every result equals the one-thread result bit for bit;
+//   throughput: a batch of fold rollouts on 1 and 2 threads and on 1, 2, 4 workers (default; --workers), and on the
+//               workers already running under --worker-namespace NS if given (other hosts, say), rollouts/s and
+//               whether every result equals the one-thread result bit for bit;
 //   overhead:   the dispatch's own cost per rollout: batches of the instant "quadratic" task on one worker, one
 //               rollout per share and adaptive shares, as a fraction of a 1 s rollout; Table 7.3's planar DR-DMP
 //               task (cheap rollouts) on two workers; and on the fold with one rollout per share, the batch's time
@@ -153,16 +154,20 @@ Timing onThreads(const Batch& b, int threads) {
   return t;
 }
 
-/// `workers` rollout_worker processes under a namespace of their own, and a dispatcher to them.
+/// A dispatcher to `workers` rollout_worker processes started under a namespace of their own or, with `workers` 0,
+/// to the workers already running under `external` (all of those alive once their number stops growing).
 class WorkerSet {
  public:
-  WorkerSet(int workers, const std::string& task, const std::string& config, std::size_t terms, std::size_t share,
-            const std::string& log) {
-    const std::string binary = (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "rollout_worker");
-    const std::string space = "/rollout_benchmark_" + std::to_string(::getpid()) + "_" + std::to_string(++sets_);
-    for (int i = 0; i < workers; ++i) {
-      children_.push_back(std::make_unique<Child>(
-          std::vector<std::string>{binary, "__name:=worker_" + std::to_string(i), "__ns:=" + space}, log));
+  WorkerSet(int workers, const std::string& external, const std::string& task, const std::string& config,
+            std::size_t terms, std::size_t share, const std::string& log) {
+    std::string space = external;
+    if (workers > 0) {
+      const std::string binary = (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "rollout_worker");
+      space = "/rollout_benchmark_" + std::to_string(::getpid()) + "_" + std::to_string(++sets_);
+      for (int i = 0; i < workers; ++i) {
+        children_.push_back(std::make_unique<Child>(
+            std::vector<std::string>{binary, "__name:=worker_" + std::to_string(i), "__ns:=" + space}, log));
+      }
     }
     bs::nodes::WorkerSelection selection;
     selection.space = space;
@@ -173,18 +178,26 @@ class WorkerSet {
     dispatch.timeout = 120.0;
     dispatcher_ = std::make_unique<br::Dispatcher>(std::make_unique<bs::nodes::ActionWorkerDirectory>(selection), terms,
                                                    dispatch);
-    // Until every worker is up and has built its task.
+    // Until every worker is up (started ones), or until no new one came for 3 s (running ones).
     const auto start = Clock::now();
+    auto last_change = start;
+    std::size_t seen = 0;
     while (since(start) < 60.0) {
       dispatcher_->evaluate({});
-      if (static_cast<int>(dispatcher_->workers()) == workers) break;
+      if (dispatcher_->workers() != seen) {
+        seen = dispatcher_->workers();
+        last_change = Clock::now();
+      }
+      if (workers > 0 ? static_cast<int>(seen) == workers : seen > 0 && since(last_change) > 3.0) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(200));
     }
-    if (static_cast<int>(dispatcher_->workers()) != workers) {
-      throw std::runtime_error("only " + std::to_string(dispatcher_->workers()) + " of " + std::to_string(workers) +
-                               " workers came up (see " + log + ")");
+    count_ = static_cast<int>(dispatcher_->workers());
+    if (workers > 0 ? count_ != workers : count_ == 0) {
+      throw std::runtime_error(std::to_string(count_) + " workers came up under " + space + " (see " + log + ")");
     }
   }
+
+  int count() const noexcept { return count_; }
 
   /// Times the batch after a first batch of one rollout per worker (each builds its task on its first goal).
   Timing run(const Batch& b, int workers) {
@@ -199,6 +212,7 @@ class WorkerSet {
 
  private:
   static inline int sets_ = 0;
+  int count_ = 0;
   std::vector<std::unique_ptr<Child>> children_;
   std::unique_ptr<br::Dispatcher> dispatcher_;
 };
@@ -226,7 +240,7 @@ std::vector<int> parseCounts(const std::string& text) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string config = kSourceDir + "/config/fold_demo.yaml", workers_text = "1,2,4";
+  std::string config = kSourceDir + "/config/fold_demo.yaml", workers_text = "1,2,4", external;
   long rollouts = 0;
   bs::bench::ExperimentProgram program;
   program.name = "rollout_benchmark";
@@ -240,6 +254,10 @@ int main(int argc, char** argv) {
                 &config);
     line.option("--workers", "LIST", "worker counts of the throughput experiment (default 1,2,4)", &workers_text);
     line.option("--rollouts", "N", "fold rollouts per batch (default 16; 4 with --quick)", &rollouts, 1, 100000);
+    line.option("--worker-namespace", "NS",
+                "throughput also on the rollout workers already running under NS (e.g. on other hosts; they read "
+                "--config on their host)",
+                &external);
   };
   const bs::bench::ExperimentOptions options = bs::bench::parseExperimentOptions(argc, argv, program);
   std::vector<int> worker_counts;
@@ -296,12 +314,20 @@ int main(int argc, char** argv) {
       record("throughput", "fold", "threads", 2, "-", n, two.seconds, identical(two.results, one_thread.results));
       all_identical = all_identical && identical(two.results, one_thread.results);
       for (const int w : worker_counts) {
-        WorkerSet set(w, "fold", config, fold_terms, 0, log);
+        WorkerSet set(w, "", "fold", config, fold_terms, 0, log);
         const Timing t = set.run(fold, w);
         const bool same = identical(t.results, one_thread.results);
         all_identical = all_identical && same;
         record("throughput", "fold", "workers", w, "auto", n, t.seconds, same);
         if (w == 1) rows.back().add("dispatch_ms_per_rollout", t.dispatchMs());
+      }
+      if (!external.empty()) {
+        WorkerSet set(0, external, "fold", config, fold_terms, 0, log);
+        const Timing t = set.run(fold, set.count());
+        const bool same = identical(t.results, one_thread.results);
+        all_identical = all_identical && same;
+        record("throughput", "fold", "workers", set.count(), "auto", n, t.seconds, same);
+        rows.back().add("namespace", external);
       }
     }
     if (options.experiment != "throughput") {
@@ -309,7 +335,7 @@ int main(int argc, char** argv) {
       const Batch quadratic = makeBatch("quadratic", "", quadratic_rollouts, options.seed);
       const Timing local = onThreads(quadratic, 1);
       for (const std::size_t share : {std::size_t{1}, std::size_t{0}}) {
-        WorkerSet set(1, "quadratic", "", 1, share, log);
+        WorkerSet set(1, "", "quadratic", "", 1, share, log);
         const Timing t = set.run(quadratic, 1);
         const bool same = identical(t.results, local.results);
         all_identical = all_identical && same;
@@ -323,7 +349,7 @@ int main(int argc, char** argv) {
       const Batch planar = makeBatch("planar_viapoint", "", options.quick ? 50 : 500, options.seed);
       const Timing planar_local = onThreads(planar, 1);
       {
-        WorkerSet workers(2, "planar_viapoint", "", 2, 0, log);
+        WorkerSet workers(2, "", "planar_viapoint", "", 2, 0, log);
         const Timing t = workers.run(planar, 2);
         const bool same = identical(t.results, planar_local.results);
         all_identical = all_identical && same;
@@ -333,7 +359,7 @@ int main(int argc, char** argv) {
             .add("dispatch_ms_per_rollout", t.dispatchMs())
             .add("percent_of_1s_rollout", 100.0 * t.seconds / static_cast<double>(planar.requests.size()));
       }
-      WorkerSet set(1, "fold", config, fold_terms, 1, log);
+      WorkerSet set(1, "", "fold", config, fold_terms, 1, log);
       const Timing t = set.run(fold, 1);
       const bool same = identical(t.results, one_thread.results);
       all_identical = all_identical && same;

@@ -27,13 +27,21 @@ def main():
         lines += ["| evaluator | rollouts | s | rollouts/s | vs 1 thread | same results |",
                   "|---|---:|---:|---:|---:|---|"]
         for r in throughput:
+            mode = r["mode"] if r["count"] > 1 else r["mode"][:-1]
+            if "namespace" in r:
+                mode += " under " + r["namespace"]
             lines.append("| %d %s | %d | %.2f | %.3f | %.2f× | %s |" % (
-                r["count"], r["mode"] if r["count"] > 1 else r["mode"][:-1], r["rollouts"], r["seconds"],
+                r["count"], mode, r["rollouts"], r["seconds"],
                 r["rollouts_per_second"], r["rollouts_per_second"] / base, "yes" if r["identical"] else "NO"))
         lines.append("")
         fig, ax = plt.subplots(figsize=(6.4, 3.6))
-        labels = ["%d %s" % (r["count"], r["mode"] if r["count"] > 1 else r["mode"][:-1]) for r in throughput]
-        colours = ["tab:blue" if r["mode"] == "threads" else "tab:orange" for r in throughput]
+        def label(r):
+            text = "%d %s" % (r["count"], r["mode"] if r["count"] > 1 else r["mode"][:-1])
+            return text + "\n" + r["namespace"] if "namespace" in r else text
+
+        labels = [label(r) for r in throughput]
+        colours = ["tab:blue" if r["mode"] == "threads" else "tab:green" if "namespace" in r else "tab:orange"
+                   for r in throughput]
         ax.bar(labels, [r["rollouts_per_second"] for r in throughput], color=colours)
         ax.set_ylabel("fold rollouts / s")
         ax.set_title("Rollout throughput on this machine (%d rollouts per batch)" % throughput[0]["rollouts"])
