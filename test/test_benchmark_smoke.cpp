@@ -1,4 +1,5 @@
-// Smoke test of the experiment programs (ik_benchmark, ps_benchmark, dr_benchmark, rollout_benchmark) in --quick
+// Smoke test of the experiment programs (ik_benchmark, ps_benchmark, dr_benchmark, rollout_benchmark,
+// workspace_benchmark) in --quick
 // mode: they run, write summary.json with every field, CSV, PNG and tables.md, reject bad arguments with exit code 2
 // (--help: usage, 0), dr_benchmark writes the same results with any number of jobs, and rollout_benchmark (its own
 // ROS master and rollout_worker processes) gets from the workers the results of the threads, bit for bit (else it
@@ -154,5 +155,26 @@ TEST(RolloutBenchmarkSmoke, WorkersGiveTheResultsOfThreads) {
   EXPECT_EQ(
       runQuietly(std::string(ROLLOUT_BENCHMARK) + " --experiment overhead --workers 0 --seed 1 --out " + out.string()),
       2);
+  fs::remove_all(out);
+}
+
+TEST(WorkspaceBenchmarkSmoke, QuickMapWritesEveryOutput) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_workspace_benchmark_smoke";
+  fs::remove_all(out);
+  ASSERT_EQ(runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment map --seed 3 --quick --jobs 2 --out " +
+                       out.string()),
+            0);
+  const std::string summary = readTextFile(out / "summary.json");
+  for (const char* field : {"\"experiment\": \"map\"", "\"resolution_m\": 0.2", "\"orientations\": 10", "\"seconds\"",
+                            "\"reachable_voxels\"", "\"spherical_wrist\": true", "\"seed\": 3"}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field;
+  }
+  for (const char* file : {"map.csv", "map_slices.png", "tables.md"}) {
+    EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
+  }
+  EXPECT_EQ(runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment fig39 --seed 1 --out " + out.string()), 2);
+  EXPECT_EQ(runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment map --resolution 0.001 --seed 1 --out " +
+                       out.string()),
+            2);
   fs::remove_all(out);
 }

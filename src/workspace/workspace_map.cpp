@@ -1,0 +1,284 @@
+#include "bimanual_skills/workspace/workspace_map.hpp"
+
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/kinematics/global_ik.hpp"
+
+#include <Eigen/Geometry>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <exception>
+#include <limits>
+#include <mutex>
+#include <random>
+#include <stdexcept>
+#include <thread>
+
+namespace bimanual_skills::workspace {
+
+namespace {
+
+using kinematics::ChainData;
+using kinematics::ChainModel;
+
+constexpr double kCoincident = 1e-6;    ///< [m] Axes closer than this meet.
+constexpr double kNoTimeBudget = 60.0;  ///< [s] The IK's time budget: never the limit (the attempts are).
+
+Eigen::Vector3d axisOrigin(const ChainData& d, int i) {
+  return d.axis_frames[static_cast<std::size_t>(i)].translation();
+}
+Eigen::Vector3d axisDirection(const ChainData& d, int i) {
+  return d.axis_frames[static_cast<std::size_t>(i)].linear().col(2);
+}
+
+/// The point nearest to the lines of joints i and j (the middle of their common perpendicular); false if parallel.
+bool meet(const ChainData& d, int i, int j, Eigen::Vector3d& point) {
+  const Eigen::Vector3d a = axisOrigin(d, i), u = axisDirection(d, i), b = axisOrigin(d, j), v = axisDirection(d, j);
+  const double uv = u.dot(v), denominator = 1.0 - uv * uv;
+  if (denominator < 1e-12) return false;
+  const Eigen::Vector3d w = a - b;
+  const double s = (uv * v.dot(w) - u.dot(w)) / denominator, t = (v.dot(w) - uv * u.dot(w)) / denominator;
+  point = 0.5 * ((a + s * u) + (b + t * v));
+  return true;
+}
+
+double distanceToAxis(const ChainData& d, int i, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d r = p - axisOrigin(d, i);
+  return (r - r.dot(axisDirection(d, i)) * axisDirection(d, i)).norm();
+}
+
+/// The point where joints i, i + 1 and i + 2 meet, if they do.
+bool sphericalJoint(const ChainData& d, int i, Eigen::Vector3d& point) {
+  return meet(d, i, i + 1, point) && distanceToAxis(d, i, point) < kCoincident &&
+         distanceToAxis(d, i + 1, point) < kCoincident && distanceToAxis(d, i + 2, point) < kCoincident;
+}
+
+Eigen::VectorXd midLimits(const ChainModel& model) {
+  Eigen::VectorXd q(model.nq());
+  for (int i = 0; i < model.nq(); ++i) {
+    const double lo = model.lowerLimits()[i], hi = model.upperLimits()[i];
+    q[i] = std::isfinite(lo) && std::isfinite(hi) ? 0.5 * (lo + hi) : 0.0;
+  }
+  return q;
+}
+
+Eigen::VectorXd randomConfiguration(const ChainModel& model, std::mt19937& rng) {
+  Eigen::VectorXd q(model.nq());
+  for (int i = 0; i < model.nq(); ++i) {
+    const double lo = std::isfinite(model.lowerLimits()[i]) ? model.lowerLimits()[i] : -M_PI;
+    const double hi = std::isfinite(model.upperLimits()[i]) ? model.upperLimits()[i] : M_PI;
+    q[i] = std::uniform_real_distribution<double>(lo, hi)(rng);
+  }
+  return q;
+}
+
+void forward(const ChainModel& model, ChainData& data, const Eigen::VectorXd& q) {
+  if (kinematics::forwardKinematics(model, data, q) != kinematics::KinematicsStatus::Success) {
+    throw std::invalid_argument("workspace map: forward kinematics failed");
+  }
+}
+
+/// The reach test of an arm with a spherical shoulder (joints 0–2), one elbow joint and a spherical wrist (the last
+/// three joints): the shoulder centre (fixed in the base), the wrist centre in the tool frame, and the range of their
+/// distance over the elbow's limits.
+struct WristReach {
+  bool valid = false;
+  Eigen::Vector3d shoulder = Eigen::Vector3d::Zero();
+  Eigen::Vector3d wrist_in_tool = Eigen::Vector3d::Zero();
+  double min = 0.0, max = 0.0;
+
+  static WristReach of(const ChainModel& model, int forearm) {
+    WristReach r;
+    const int n = model.nq();
+    if (n != 7 || forearm != 4) return r;
+    ChainData data(model);
+    std::mt19937 rng(7);
+    Eigen::Vector3d shoulder, wrist;
+    forward(model, data, midLimits(model));
+    if (!sphericalJoint(data, 0, shoulder) || !sphericalJoint(data, forearm, wrist)) return r;
+    const Eigen::Vector3d in_tool = data.tipPose().inverse() * wrist;
+    for (int k = 0; k < 20; ++k) {  // both centres must stay put where the definition says
+      forward(model, data, randomConfiguration(model, rng));
+      Eigen::Vector3d s, w;
+      if (!sphericalJoint(data, 0, s) || !sphericalJoint(data, forearm, w)) return r;
+      if ((s - shoulder).norm() > kCoincident || (data.tipPose().inverse() * w - in_tool).norm() > kCoincident)
+        return r;
+    }
+    const double elbow_lower = model.lowerLimits()[3], elbow_upper = model.upperLimits()[3];
+    if (!std::isfinite(elbow_lower) || !std::isfinite(elbow_upper)) return r;
+    Eigen::VectorXd q = midLimits(model);
+    r.min = std::numeric_limits<double>::infinity();
+    r.max = 0.0;
+    double step = 0.0, previous = -1.0;
+    constexpr int kSamples = 4001;
+    for (int k = 0; k < kSamples; ++k) {
+      q[3] = elbow_lower + (elbow_upper - elbow_lower) * k / (kSamples - 1);
+      forward(model, data, q);
+      Eigen::Vector3d w;
+      if (!sphericalJoint(data, forearm, w)) return r;
+      const double distance = (w - shoulder).norm();
+      r.min = std::min(r.min, distance);
+      r.max = std::max(r.max, distance);
+      if (previous >= 0.0) step = std::max(step, std::abs(distance - previous));
+      previous = distance;
+    }
+    // The extremes between two samples differ from the sampled ones by less than a sample step.
+    r.min = std::max(0.0, r.min - step - 1e-9);
+    r.max += step + 1e-9;
+    r.shoulder = shoulder;
+    r.wrist_in_tool = in_tool;
+    r.valid = true;
+    return r;
+  }
+};
+
+/// A rotation uniform over SO(3) (Shoemake's subgroup algorithm).
+Eigen::Matrix3d uniformRotation(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const double u1 = u(rng), u2 = u(rng), u3 = u(rng);
+  const double a = std::sqrt(1.0 - u1), b = std::sqrt(u1);
+  const Eigen::Quaterniond q(b * std::cos(2 * M_PI * u3), a * std::sin(2 * M_PI * u2), a * std::cos(2 * M_PI * u2),
+                             b * std::sin(2 * M_PI * u3));
+  return q.toRotationMatrix();
+}
+
+}  // namespace
+
+void WorkspaceMapSettings::validate() const {
+  if (!(resolution > 0.0) || !std::isfinite(resolution)) throw std::invalid_argument("workspace map: resolution > 0");
+  if (orientations < 1) throw std::invalid_argument("workspace map: orientations >= 1");
+  if (threads < 0) throw std::invalid_argument("workspace map: threads >= 0 (0: one per core)");
+  if (ik_attempts < 1) throw std::invalid_argument("workspace map: ik_attempts >= 1");
+  if (forearm_joint < -1) throw std::invalid_argument("workspace map: forearm_joint >= 0 (or -1: the default)");
+}
+
+bool WorkspaceMap::mayReach(const Eigen::Isometry3d& tool) const noexcept {
+  if (!spherical_) return true;
+  const double d = (tool * wrist_in_tool_ - shoulder_).norm();
+  return d >= wrist_min_ && d <= wrist_max_;
+}
+
+std::size_t WorkspaceMap::reachable() const noexcept {
+  return static_cast<std::size_t>(
+      std::count_if(voxels_.begin(), voxels_.end(), [](const WorkspaceVoxel& v) { return v.solved > 0; }));
+}
+
+WorkspaceMap WorkspaceMap::build(const ChainModel& model, const WorkspaceMapSettings& settings,
+                                 const std::function<void(std::size_t, std::size_t)>& progress) {
+  settings.validate();
+  const int n = model.nq();
+  if (n < 3) throw std::invalid_argument("workspace map: the chain needs at least 3 joints");
+  const int forearm = settings.forearm_joint >= 0 ? settings.forearm_joint : (n == 7 ? 4 : n - 3);
+  if (forearm < 1 || forearm + 1 >= n) throw std::invalid_argument("workspace map: forearm_joint out of the chain");
+  WorkspaceMap map;
+  map.settings_ = settings;
+  const WristReach reach = WristReach::of(model, forearm);
+  map.spherical_ = reach.valid;
+  map.shoulder_ = reach.shoulder;
+  map.wrist_in_tool_ = reach.wrist_in_tool;
+  map.wrist_min_ = reach.min;
+  map.wrist_max_ = reach.max;
+
+  // The grid: a cube around the shoulder centre (or the base) that holds the reach bound.
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  if (reach.valid) {
+    centre = reach.shoulder;
+    map.reach_ = reach.max + reach.wrist_in_tool.norm();
+  } else {
+    ChainData data(model);
+    std::mt19937 rng(settings.seed);
+    for (int k = 0; k < 20000; ++k) {
+      forward(model, data, randomConfiguration(model, rng));
+      map.reach_ = std::max(map.reach_, data.tipPose().translation().norm());
+    }
+    map.reach_ *= 1.05;
+  }
+  const double h = settings.resolution;
+  const int cells = static_cast<int>(std::ceil(2.0 * map.reach_ / h));
+  const Eigen::Vector3d corner = centre - Eigen::Vector3d::Constant(0.5 * cells * h);
+  const double keep = map.reach_ + 0.5 * std::sqrt(3.0) * h;
+  for (int z = 0; z < cells; ++z) {
+    for (int y = 0; y < cells; ++y) {
+      for (int x = 0; x < cells; ++x) {
+        WorkspaceVoxel v;
+        v.centre = corner + h * Eigen::Vector3d(x + 0.5, y + 0.5, z + 0.5);
+        if ((v.centre - centre).norm() <= keep) map.voxels_.push_back(v);
+      }
+    }
+  }
+
+  const double wrist_limit =
+      std::max(std::abs(model.lowerLimits()[forearm + 1]), std::abs(model.upperLimits()[forearm + 1]));
+  const int threads =
+      settings.threads > 0 ? settings.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  std::atomic<std::size_t> next{0}, done{0};
+  std::mutex mutex;
+  std::exception_ptr error;
+  const auto work = [&] {
+    try {
+      kinematics::GlobalIkParameters ik;
+      ik.max_attempts = settings.ik_attempts;
+      ik.timeout = kNoTimeBudget;
+      ik.seed = settings.seed;
+      kinematics::GlobalIkSolver solver(model, ik);
+      ChainData data(model);
+      Eigen::VectorXd q(n), start = midLimits(model);
+      std::vector<Eigen::Vector3d> axes;
+      for (std::size_t i = next++; i < map.voxels_.size(); i = next++) {
+        WorkspaceVoxel& v = map.voxels_[i];
+        std::seed_seq sequence{settings.seed, static_cast<std::uint32_t>(i), 0x3a9u};
+        std::mt19937 rng(sequence);
+        Eigen::VectorXd seed = start;
+        axes.clear();
+        for (int m = 0; m < settings.orientations; ++m) {
+          Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+          target.linear() = uniformRotation(rng);
+          target.translation() = v.centre;
+          if (settings.wrist_test && !map.mayReach(target)) {
+            ++v.pruned;
+            continue;
+          }
+          const kinematics::GlobalIkResult r = solver.solve(target, seed, q);
+          if (r.status != kinematics::IkStatus::Converged) continue;
+          seed = q;
+          ++v.solved;
+          if (kinematics::computeJacobian(model, data, q) != kinematics::KinematicsStatus::Success) continue;
+          v.manipulability += kinematics::manipulability(data);
+          v.condition += kinematics::conditionNumber(data);
+          Eigen::Vector3d axis = axisDirection(data, forearm);
+          const Eigen::Vector3d along = axisOrigin(data, forearm + 1) - axisOrigin(data, forearm - 1);
+          if (axis.dot(along) < 0.0) axis = -axis;
+          axes.push_back(axis);
+        }
+        v.solution_ratio = static_cast<double>(v.solved) / settings.orientations;
+        if (v.solved > 0) {
+          v.manipulability /= v.solved;
+          v.condition /= v.solved;
+          v.forearm = minimalBoundingCone(axes, settings.seed);
+          v.tool = v.forearm;
+          v.tool.angle = std::min(M_PI, v.forearm.angle + wrist_limit);
+        }
+        ++done;
+      }
+    } catch (...) {
+      const std::lock_guard<std::mutex> lock(mutex);
+      if (!error) error = std::current_exception();
+      next = map.voxels_.size();
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) pool.emplace_back(work);
+  while (progress && done < map.voxels_.size() && next < map.voxels_.size() + static_cast<std::size_t>(threads)) {
+    progress(done, map.voxels_.size());
+    std::this_thread::sleep_for(std::chrono::milliseconds(500));
+    if (error) break;
+  }
+  for (std::thread& t : pool) t.join();
+  if (error) std::rethrow_exception(error);
+  if (progress) progress(done, map.voxels_.size());
+  return map;
+}
+
+}  // namespace bimanual_skills::workspace
