@@ -34,14 +34,6 @@ Arm arm(const std::string& name) {
   return {name, bk::ChainModel::fromUrdfString(description, name + "_wam_base", name + "_wam_tool")};
 }
 
-Eigen::VectorXd randomWithinLimits(const bk::ChainModel& model, std::mt19937& rng) {
-  Eigen::VectorXd q(model.nq());
-  for (int i = 0; i < model.nq(); ++i) {
-    q[i] = std::uniform_real_distribution<double>(model.lowerLimits()[i], model.upperLimits()[i])(rng);
-  }
-  return q;
-}
-
 geometry_msgs::PoseStamped poseMsg(const Eigen::Isometry3d& T, const std::string& frame) {
   geometry_msgs::PoseStamped msg;
   msg.header.frame_id = frame;

@@ -47,15 +47,7 @@ inline kinematics::ChainModel twoWamsInSeries() {
 }
 
 /// Uniform configuration within the limits (±π for unlimited joints).
-inline Eigen::VectorXd randomWithinLimits(const kinematics::ChainModel& model, std::mt19937& rng) {
-  Eigen::VectorXd q(model.nq());
-  for (int i = 0; i < model.nq(); ++i) {
-    const double lo = std::isfinite(model.lowerLimits()[i]) ? model.lowerLimits()[i] : -M_PI;
-    const double hi = std::isfinite(model.upperLimits()[i]) ? model.upperLimits()[i] : M_PI;
-    q[i] = std::uniform_real_distribution<double>(lo, hi)(rng);
-  }
-  return q;
-}
+using kinematics::randomWithinLimits;
 
 /// Pose of the chain's tip at q.
 inline Eigen::Isometry3d tipPose(const kinematics::ChainModel& model, const Eigen::VectorXd& q) {

@@ -161,4 +161,14 @@ bool ChainModel::withinLimits(const Eigen::Ref<const Eigen::VectorXd>& q, double
   return ((q.array() >= lower_.array() - tolerance) && (q.array() <= upper_.array() + tolerance)).all();
 }
 
+Eigen::VectorXd randomWithinLimits(const ChainModel& model, std::mt19937& rng) {
+  Eigen::VectorXd q(model.nq());
+  for (int i = 0; i < model.nq(); ++i) {
+    const double lo = std::isfinite(model.lowerLimits()[i]) ? model.lowerLimits()[i] : -M_PI;
+    const double hi = std::isfinite(model.upperLimits()[i]) ? model.upperLimits()[i] : M_PI;
+    q[i] = std::uniform_real_distribution<double>(lo, hi)(rng);
+  }
+  return q;
+}
+
 }  // namespace bimanual_skills::kinematics

@@ -64,16 +64,6 @@ Eigen::VectorXd midLimits(const ChainModel& model) {
   return q;
 }
 
-Eigen::VectorXd randomConfiguration(const ChainModel& model, std::mt19937& rng) {
-  Eigen::VectorXd q(model.nq());
-  for (int i = 0; i < model.nq(); ++i) {
-    const double lo = std::isfinite(model.lowerLimits()[i]) ? model.lowerLimits()[i] : -M_PI;
-    const double hi = std::isfinite(model.upperLimits()[i]) ? model.upperLimits()[i] : M_PI;
-    q[i] = std::uniform_real_distribution<double>(lo, hi)(rng);
-  }
-  return q;
-}
-
 void forward(const ChainModel& model, ChainData& data, const Eigen::VectorXd& q) {
   if (kinematics::forwardKinematics(model, data, q) != kinematics::KinematicsStatus::Success) {
     throw std::invalid_argument("workspace map: forward kinematics failed");
@@ -100,7 +90,7 @@ struct WristReach {
     if (!sphericalJoint(data, 0, shoulder) || !sphericalJoint(data, forearm, wrist)) return r;
     const Eigen::Vector3d in_tool = data.tipPose().inverse() * wrist;
     for (int k = 0; k < 20; ++k) {  // both centres must stay put where the definition says
-      forward(model, data, randomConfiguration(model, rng));
+      forward(model, data, kinematics::randomWithinLimits(model, rng));
       Eigen::Vector3d s, w;
       if (!sphericalJoint(data, 0, s) || !sphericalJoint(data, forearm, w)) return r;
       if ((s - shoulder).norm() > kCoincident || (data.tipPose().inverse() * w - in_tool).norm() > kCoincident)
@@ -190,7 +180,7 @@ WorkspaceMap WorkspaceMap::build(const ChainModel& model, const WorkspaceMapSett
     ChainData data(model);
     std::mt19937 rng(settings.seed);
     for (int k = 0; k < 20000; ++k) {
-      forward(model, data, randomConfiguration(model, rng));
+      forward(model, data, kinematics::randomWithinLimits(model, rng));
       map.reach_ = std::max(map.reach_, data.tipPose().translation().norm());
     }
     map.reach_ *= 1.05;

@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <limits>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -129,5 +130,8 @@ class ChainModel {
   Eigen::Vector3d gravity_ = Eigen::Vector3d(0.0, 0.0, -9.81);
   double reach_bound_ = 0.0;
 };
+
+/// A configuration uniform within the joint limits (±π for unlimited joints), drawn from `rng` joint by joint.
+Eigen::VectorXd randomWithinLimits(const ChainModel& model, std::mt19937& rng);
 
 }  // namespace bimanual_skills::kinematics
