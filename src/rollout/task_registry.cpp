@@ -16,67 +16,40 @@ namespace bimanual_skills::rollout {
 
 namespace {
 
-class QuadraticTask : public RolloutTask {
- public:
-  QuadraticTask(int dimension, double noise) : dimension_(dimension), noise_(noise) {}
+/// The result of a rollout whose parameters the task cannot run: failed, with a reward below any real one.
+RolloutResult invalidPolicy(std::size_t terms, std::string reason) {
+  RolloutResult result;
+  result.terms = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(terms));
+  result.ok = false;
+  result.outcome = "InvalidPolicy";
+  result.reason = std::move(reason);
+  result.reward = -1e3;
+  return result;
+}
 
-  std::vector<std::string> termNames() const override { return {"squared_norm"}; }
-  Eigen::VectorXd initialParameters() const override { return Eigen::VectorXd::Ones(dimension_); }
-
-  RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override {
-    RolloutResult result;
-    result.terms = Eigen::VectorXd::Zero(1);
-    if (parameters.size() != dimension_ || !parameters.allFinite()) {
-      result.ok = false;
-      result.outcome = "InvalidPolicy";
-      result.reason =
-          "expected " + std::to_string(dimension_) + " finite parameters, got " + std::to_string(parameters.size());
-      result.reward = -kFailureReward;
-      return result;
-    }
-    std::seed_seq sequence{seed, 0x9a4du};
-    std::mt19937 rng(sequence);
-    std::normal_distribution<double> normal;
-    result.terms[0] = parameters.squaredNorm();
-    result.reward = -result.terms[0] / dimension_ + noise_ * normal(rng);
-    result.outcome = "Ok";
-    return result;
-  }
-
- private:
-  static constexpr double kFailureReward = 1e3;
-  int dimension_;
-  double noise_;
-};
-
-/// A policy-search task of Ch. 6 (deterministic: the seed is not used): θ in, reward and terms out.
+/// A task without simulation state: θ of a fixed size (and the rollout's seed) in, reward and terms out.
 class PolicySearchTask : public RolloutTask {
  public:
-  using Evaluate = std::function<double(const Eigen::VectorXd& theta, Eigen::VectorXd& terms)>;
+  using Evaluate = std::function<double(const Eigen::VectorXd& theta, std::uint32_t seed, Eigen::VectorXd& terms)>;
   PolicySearchTask(std::vector<std::string> terms, Eigen::VectorXd initial, Evaluate evaluate)
       : terms_(std::move(terms)), initial_(std::move(initial)), evaluate_(std::move(evaluate)) {}
 
   std::vector<std::string> termNames() const override { return terms_; }
   Eigen::VectorXd initialParameters() const override { return initial_; }
 
-  RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t) override {
+  RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override {
+    if (parameters.size() != initial_.size() || !parameters.allFinite()) {
+      return invalidPolicy(terms_.size(), "expected " + std::to_string(initial_.size()) + " finite parameters, got " +
+                                              std::to_string(parameters.size()));
+    }
     RolloutResult result;
     result.terms = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(terms_.size()));
-    if (parameters.size() != initial_.size() || !parameters.allFinite()) {
-      result.ok = false;
-      result.outcome = "InvalidPolicy";
-      result.reason = "expected " + std::to_string(initial_.size()) + " finite parameters, got " +
-                      std::to_string(parameters.size());
-      result.reward = -kFailureReward;
-      return result;
-    }
-    result.reward = evaluate_(parameters, result.terms);
+    result.reward = evaluate_(parameters, seed, result.terms);
     result.outcome = "Ok";
     return result;
   }
 
  private:
-  static constexpr double kFailureReward = 1e3;
   std::vector<std::string> terms_;
   Eigen::VectorXd initial_;
   Evaluate evaluate_;
@@ -94,7 +67,7 @@ std::unique_ptr<RolloutTask> makeBottles(const std::string& config) {
   const auto y = std::make_shared<Eigen::MatrixXd>(), ydd = std::make_shared<Eigen::MatrixXd>();
   return std::make_unique<PolicySearchTask>(
       std::vector<std::string>{"satisfactory"}, policy->parameters(),
-      [world, policy, y, ydd](const Eigen::VectorXd& theta, Eigen::VectorXd& terms) {
+      [world, policy, y, ydd](const Eigen::VectorXd& theta, std::uint32_t, Eigen::VectorXd& terms) {
         policy->rollout(theta, *y, *ydd);
         bool satisfactory = false;
         const double reward = world.reward(*y, &satisfactory);
@@ -117,20 +90,22 @@ std::unique_ptr<RolloutTask> makeCircle(const std::string& config) {
                                              io::readString(root, "tip", where)),
         static_cast<std::uint32_t>(seed));
   });
-  return std::make_unique<PolicySearchTask>(std::vector<std::string>{"circle_radius"}, task->policy().parameters(),
-                                            [task](const Eigen::VectorXd& theta, Eigen::VectorXd& terms) {
-                                              terms[0] = task->radius();
-                                              return task->reward(theta);
-                                            });
+  return std::make_unique<PolicySearchTask>(
+      std::vector<std::string>{"circle_radius"}, task->policy().parameters(),
+      [task](const Eigen::VectorXd& theta, std::uint32_t, Eigen::VectorXd& terms) {
+        terms[0] = task->radius();
+        return task->reward(theta);
+      });
 }
 
 std::unique_ptr<RolloutTask> makeViaPoint() {
   const auto task = std::make_shared<tasks::ViaPointTask>();
-  return std::make_unique<PolicySearchTask>(std::vector<std::string>{"via_point_error"}, task->policy().parameters(),
-                                            [task](const Eigen::VectorXd& theta, Eigen::VectorXd& terms) {
-                                              terms[0] = task->viaPointError(theta);
-                                              return -task->stepCosts(theta).sum();
-                                            });
+  return std::make_unique<PolicySearchTask>(
+      std::vector<std::string>{"via_point_error"}, task->policy().parameters(),
+      [task](const Eigen::VectorXd& theta, std::uint32_t, Eigen::VectorXd& terms) {
+        terms[0] = task->viaPointError(theta);
+        return -task->stepCosts(theta).sum();
+      });
 }
 
 /// Table 7.3's planar via-point task with a DR-DMP: the policy is a coordinated policy vector
@@ -153,20 +128,16 @@ class PlanarViaPointRollout : public RolloutTask {
   }
 
   RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override {
-    RolloutResult result;
-    result.terms = Eigen::VectorXd::Zero(2);
     std::vector<Eigen::MatrixXd> coordination;
     Eigen::VectorXd weights;
     if (!FoldRolloutTask::decode(parameters, task_.dofs(), dmp_->kernels(), coordination, weights) ||
         static_cast<int>(coordination.size()) != dmp_->matrices() || !parameters.allFinite()) {
-      result.ok = false;
-      result.outcome = "InvalidPolicy";
-      result.reason = "the parameters do not encode a finite coordinated policy of " + std::to_string(task_.dofs()) +
-                      " DoF, " + std::to_string(dmp_->kernels()) + " kernels and " + std::to_string(dmp_->matrices()) +
-                      " matrices";
-      result.reward = -kFailureReward;
-      return result;
+      return invalidPolicy(2, "the parameters do not encode a finite coordinated policy of " +
+                                  std::to_string(task_.dofs()) + " DoF, " + std::to_string(dmp_->kernels()) +
+                                  " kernels and " + std::to_string(dmp_->matrices()) + " matrices");
     }
+    RolloutResult result;
+    result.terms = Eigen::VectorXd::Zero(2);
     std::seed_seq sequence{seed, 0x71a3u};
     std::mt19937 rng(sequence);
     tasks::rolloutDrDmp(dmp_->withCoordination(coordination, weights), task_.dt(), task_.steps(), exploration_, rng,
@@ -181,7 +152,6 @@ class PlanarViaPointRollout : public RolloutTask {
   }
 
  private:
-  static constexpr double kFailureReward = 1e3;
   tasks::PlanarViaPointTask task_;
   double exploration_;
   std::unique_ptr<primitives::DrDmp> dmp_;
@@ -220,7 +190,14 @@ std::unique_ptr<RolloutTask> makeQuadratic(const std::string& config) {
     if (dimension < 1) io::fail(where + ": 'dimension' must be >= 1");
     if (noise < 0.0) io::fail(where + ": 'noise' must be >= 0");
   }
-  return std::make_unique<QuadraticTask>(dimension, noise);
+  return std::make_unique<PolicySearchTask>(
+      std::vector<std::string>{"squared_norm"}, Eigen::VectorXd::Ones(dimension),
+      [dimension, noise](const Eigen::VectorXd& theta, std::uint32_t seed, Eigen::VectorXd& terms) {
+        std::seed_seq sequence{seed, 0x9a4du};
+        std::mt19937 rng(sequence);
+        terms[0] = theta.squaredNorm();
+        return -terms[0] / dimension + noise * std::normal_distribution<double>()(rng);
+      });
 }
 
 std::unique_ptr<RolloutTask> makeFold(const std::string& config) {
