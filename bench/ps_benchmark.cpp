@@ -2,12 +2,20 @@
 // as one seeded program.
 //
 //   ps_benchmark --experiment multimodal2d|bottles|circle|pi2viapoint|all --runs R --seed S --out DIR [--quick]
+//                [--worker-namespace NS | --workers A,B,...] [--worker-timeout S]
 //
 // Writes DIR/<experiment>.csv (one row per run and update, appended as each run ends), DIR/summary.json, then runs
 // scripts/plot_ps_benchmark.py for the learning-curve PNGs (mean ± 2 std over runs) and DIR/tables.md.
+//
+// With --worker-namespace or --workers, each update's rollouts run on rollout_worker nodes (nodes/rollout_worker.cpp,
+// over the ROS master at ROS_MASTER_URI) as the registry's task of the experiment (rollout/task_registry.hpp), which
+// computes the same rewards bit for bit: the CSVs are those of the run in this process.
+#include "action_workers.hpp"
 #include "bimanual_skills/learning/dual_reps.hpp"
 #include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/learning/pi2.hpp"
+#include "bimanual_skills/rollout/dispatcher.hpp"
+#include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
 #include "experiment_cli.hpp"
 #include "parallel_runs.hpp"
@@ -22,6 +30,7 @@
 #include <fstream>
 #include <functional>
 #include <iostream>
+#include <memory>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -31,6 +40,7 @@
 
 namespace bk = bimanual_skills::kinematics;
 namespace bl = bimanual_skills::learning;
+namespace br = bimanual_skills::rollout;
 namespace bt = bimanual_skills::tasks;
 
 namespace {
@@ -41,6 +51,74 @@ using Options = bimanual_skills::bench::ExperimentOptions;
 
 /// An episodic task: the reward of a parameter vector (higher is better).
 using Reward = std::function<double(const Eigen::VectorXd&)>;
+
+/// The rollout workers of --worker-namespace / --workers; none selected: the rollouts run here.
+struct WorkerOptions {
+  std::string space;
+  std::string names;
+  double timeout = 60.0;
+  bool selected() const { return !space.empty() || !names.empty(); }
+};
+
+/// An experiment's rollouts on rollout workers: the registry task `task` (configured by the file `config`) gives
+/// each sample's reward and, for PI2, its step costs (the task's terms but the last).
+class WorkerRollouts {
+ public:
+  WorkerRollouts(const WorkerOptions& options, const std::string& task, const std::string& config)
+      : terms_(br::makeRolloutTask(task, config)->termNames().size()) {
+    bimanual_skills::nodes::WorkerSelection selection;
+    selection.task = task;
+    selection.config = config;
+    if (options.names.empty()) {
+      selection.space = options.space;
+    } else {
+      selection.names = bimanual_skills::nodes::splitWorkerNames(options.names);
+    }
+    br::DispatchConfig config_;
+    config_.timeout = options.timeout;
+    config_.log = [](const std::string& line, bool) {
+      std::printf("  [workers] %s\n", line.c_str());
+      std::fflush(stdout);
+    };
+    config_.batch = [this](const br::DispatchStats& s) {
+      ++batches_;
+      rollouts_ += s.rollouts;
+      redispatched_ += s.redispatched;
+      seconds_ += s.seconds;
+      workers_ = std::max(workers_, s.workers);
+    };
+    dispatcher_ = std::make_unique<br::Dispatcher>(
+        std::make_unique<bimanual_skills::nodes::ActionWorkerDirectory>(selection), terms_, config_);
+  }
+
+  /// The rewards of the rows of `samples`, and their step costs when `costs` is given.
+  void evaluate(const Eigen::MatrixXd& samples, Eigen::VectorXd& rewards, Eigen::MatrixXd* costs) {
+    std::vector<br::RolloutRequest> batch(static_cast<std::size_t>(samples.rows()));
+    for (Eigen::Index k = 0; k < samples.rows(); ++k) {
+      batch[static_cast<std::size_t>(k)] = {samples.row(k).transpose(), static_cast<std::uint32_t>(k)};
+    }
+    const std::vector<br::RolloutResult> results = dispatcher_->evaluate(batch);
+    if (costs != nullptr) costs->resize(samples.rows(), static_cast<Eigen::Index>(terms_) - 1);
+    for (Eigen::Index k = 0; k < samples.rows(); ++k) {
+      const br::RolloutResult& r = results[static_cast<std::size_t>(k)];
+      if (!r.ok) throw std::runtime_error("a rollout failed on the workers: " + r.reason);
+      rewards[k] = r.reward;
+      if (costs != nullptr) costs->row(k) = r.terms.head(costs->cols()).transpose();
+    }
+  }
+
+  void report(const std::string& experiment) const {
+    std::printf("  %s on workers: %zu rollouts in %zu batches on up to %zu workers, %zu re-dispatched, %.2f s\n",
+                experiment.c_str(), rollouts_, batches_, workers_, redispatched_, seconds_);
+    std::fflush(stdout);
+  }
+
+ private:
+  std::size_t terms_;
+  std::unique_ptr<br::Dispatcher> dispatcher_;
+  std::size_t batches_ = 0, rollouts_ = 0, redispatched_ = 0, workers_ = 0;
+  double seconds_ = 0.0;
+};
 
 /// A learner: REPS, DREPS variants or PI2 variants, updating N(mean, covariance) from rollouts.
 struct Algorithm {
@@ -82,9 +160,9 @@ struct Curve {
   double seconds = 0.0;
 };
 
-/// Rollouts of every update of one run; per-step costs only when `step_costs` is given (PI2).
+/// Rollouts of every update of one run, here or on `workers`; per-step costs only when `step_costs` is given (PI2).
 Curve learn(const Protocol& protocol, const Algorithm& algorithm, const Reward& reward, std::mt19937& rng,
-            const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& step_costs = {}) {
+            WorkerRollouts* workers, const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& step_costs) {
   Curve curve;
   Eigen::VectorXd mean = protocol.mean;
   Eigen::MatrixXd covariance = protocol.covariance;
@@ -98,8 +176,8 @@ Curve learn(const Protocol& protocol, const Algorithm& algorithm, const Reward& 
     Eigen::MatrixXd samples(protocol.rollouts, mean.size());
     Eigen::VectorXd rewards(protocol.rollouts);
     Eigen::MatrixXd costs;
-    for (int k = 0; k < protocol.rollouts; ++k) {
-      samples.row(k) = sampler.draw(mean, L, rng).transpose();
+    for (int k = 0; k < protocol.rollouts; ++k) samples.row(k) = sampler.draw(mean, L, rng).transpose();
+    for (int k = 0; workers == nullptr && k < protocol.rollouts; ++k) {
       if (step_costs) {
         const Eigen::VectorXd c = step_costs(samples.row(k).transpose());
         if (costs.size() == 0) costs.resize(protocol.rollouts, c.size());
@@ -109,6 +187,7 @@ Curve learn(const Protocol& protocol, const Algorithm& algorithm, const Reward& 
         rewards[k] = reward(samples.row(k).transpose());
       }
     }
+    if (workers != nullptr) workers->evaluate(samples, rewards, step_costs ? &costs : nullptr);
     algorithm.update(mean, covariance, samples, rewards, costs);
     curve.policy_reward.push_back(reward(mean));
     curve.rollout_reward.push_back(rewards.mean());
@@ -216,12 +295,12 @@ void progress(const std::string& experiment, const std::string& algorithm, int r
 /// prints progress; `each` sees every finished curve.
 std::vector<Curve> runAll(const Options& options, const std::string& experiment, const Protocol& protocol,
                           const Algorithm& algorithm, const Reward& reward, Writer& writer,
-                          const std::function<void(const Curve&)>& each,
+                          const std::function<void(const Curve&)>& each, WorkerRollouts* workers,
                           const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& step_costs = {}) {
   std::vector<Curve> curves;
   for (int run = 0; run < protocol.runs; ++run) {
     std::mt19937 rng = bimanual_skills::bench::runGenerator(options, experiment, run);
-    curves.push_back(learn(protocol, algorithm, reward, rng, step_costs));
+    curves.push_back(learn(protocol, algorithm, reward, rng, workers, step_costs));
     writer.add(algorithm.name, run, curves.back());
     progress(experiment, algorithm.name, run, protocol.runs, curves.back());
     each(curves.back());
@@ -229,9 +308,28 @@ std::vector<Curve> runAll(const Options& options, const std::string& experiment,
   return curves;
 }
 
+/// The rollouts of an experiment on the selected workers (the registry's `task`, configured by `config`), or null
+/// when none is selected (the rollouts run here).
+std::unique_ptr<WorkerRollouts> onWorkers(const WorkerOptions& workers, const std::string& task,
+                                          const std::string& config = "") {
+  return workers.selected() ? std::make_unique<WorkerRollouts>(workers, task, config) : nullptr;
+}
+
+/// Writes a task configuration for the workers to DIR/worker_tasks/NAME.yaml (an absolute path, which workers on
+/// other hosts see when DIR is on a file system they share) and returns its path.
+std::string workerTaskConfig(const Options& options, const std::string& name, const std::string& yaml) {
+  const std::filesystem::path dir = std::filesystem::absolute(options.out) / "worker_tasks";
+  std::filesystem::create_directories(dir);
+  const std::string path = (dir / (name + ".yaml")).string();
+  std::ofstream file(path);
+  file << yaml;
+  if (!file.flush()) throw std::runtime_error("cannot write " + path);
+  return path;
+}
+
 // ---- multimodal2d: the 3-optimum reward (6.16) ----
 
-void multimodal2d(const Options& options, std::vector<Summary>& out) {
+void multimodal2d(const Options& options, const WorkerOptions& worker_options, std::vector<Summary>& out) {
   // Three optima around the initial mean (their centroid is the origin, the worst point).
   const bt::MultimodalReward reward;
   const std::vector<Eigen::Vector2d>& psi = reward.optima;
@@ -239,6 +337,7 @@ void multimodal2d(const Options& options, std::vector<Summary>& out) {
   for (const auto& p : psi) best = std::max(best, reward(p));
   const double threshold = best - 0.5;
   const Protocol protocol = makeProtocol(options, 50, 3, 40, 8, 100, Eigen::VectorXd::Zero(2), 1.0);
+  const std::unique_ptr<WorkerRollouts> workers = onWorkers(worker_options, "multimodal");
   Writer writer(options, "multimodal2d");
   for (const Algorithm& algorithm : repsFamily(0.5, 400, true)) {
     int plateau_runs = 0, reached = 0;
@@ -261,7 +360,8 @@ void multimodal2d(const Options& options, std::vector<Summary>& out) {
       }
       if (longest >= 3) ++plateau_runs;
     };
-    const std::vector<Curve> curves = runAll(options, "multimodal2d", protocol, algorithm, reward, writer, each);
+    const std::vector<Curve> curves =
+        runAll(options, "multimodal2d", protocol, algorithm, reward, writer, each, workers.get());
     Summary s = summarise("multimodal2d", algorithm.name, protocol, curves);
     s.extra = {{"plateau_runs", plateau_runs},
                {"runs_reaching_threshold", reached},
@@ -269,11 +369,12 @@ void multimodal2d(const Options& options, std::vector<Summary>& out) {
                {"mean_updates_to_threshold", reached > 0 ? updates_to_threshold / reached : -1.0}};
     out.push_back(s);
   }
+  if (workers) workers->report("multimodal2d");
 }
 
 // ---- bottles: the planar bottle-avoidance task (Figs. 6.8–6.12, rewards 6.17 and 6.18) ----
 
-void bottles(const Options& options, std::vector<Summary>& out) {
+void bottles(const Options& options, const WorkerOptions& worker_options, std::vector<Summary>& out) {
   const bt::DmpRollout task = bt::BottleTask::initialPolicy();
   const Protocol protocol = makeProtocol(options, 50, 3, 100, 10, 50, task.parameters(), 60.0);
   Eigen::MatrixXd y, ydd;
@@ -282,6 +383,12 @@ void bottles(const Options& options, std::vector<Summary>& out) {
     bt::BottleTask world;
     world.crossing_term = crossing_term;
     const std::string experiment = crossing_term ? "bottles" : "bottles617";
+    const std::unique_ptr<WorkerRollouts> workers =
+        onWorkers(worker_options, "bottles",
+                  worker_options.selected() && !crossing_term
+                      ? workerTaskConfig(options, "bottles617",
+                                         "# ps_benchmark bottles617: reward (6.17)\ncrossing_term: false\n")
+                      : "");
     const Reward reward = [&](const Eigen::VectorXd& theta) {
       task.rollout(theta, y, ydd);
       return world.reward(y);
@@ -309,7 +416,8 @@ void bottles(const Options& options, std::vector<Summary>& out) {
           unsatisfactory_sum += final_reward;
         }
       };
-      const std::vector<Curve> curves = runAll(options, experiment, protocol, algorithm, reward, writer, each);
+      const std::vector<Curve> curves =
+          runAll(options, experiment, protocol, algorithm, reward, writer, each, workers.get());
       Summary s = summarise(experiment, algorithm.name, protocol, curves);
       if (crossing_term) {
         const int unsatisfactory = protocol.runs - satisfactory_runs;
@@ -321,29 +429,40 @@ void bottles(const Options& options, std::vector<Summary>& out) {
       }
       out.push_back(s);
     }
+    if (workers) workers->report(experiment);
   }
 }
 
 // ---- circle: a unimodal 7-DoF task with the WAM's kinematics (Fig. 6.14) ----
 
-void circle(const Options& options, std::vector<Summary>& out) {
+void circle(const Options& options, const WorkerOptions& worker_options, std::vector<Summary>& out) {
   bt::CircleTask task(bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool"),
                       options.seed);
   const Reward reward = [&](const Eigen::VectorXd& theta) { return task.reward(theta); };
   const Protocol protocol = makeProtocol(options, 20, 2, 50, 5, 50, task.policy().parameters(), 2.0);
+  // The workers' task: this circle (its demonstration drawn with --seed), as config/circle_task.yaml describes it.
+  const std::unique_ptr<WorkerRollouts> workers = onWorkers(
+      worker_options, "circle",
+      worker_options.selected()
+          ? workerTaskConfig(
+                options, "circle",
+                "# ps_benchmark circle, seed " + std::to_string(options.seed) + "\nurdf: " + kSourceDir +
+                    "/urdf/wam.urdf\nbase: wam_base\ntip: wam_tool\nseed: " + std::to_string(options.seed) + "\n")
+          : "");
   Writer writer(options, "circle");
   for (const Algorithm& algorithm : repsFamily(0.5, 100, false)) {
-    const std::vector<Curve> curves =
-        runAll(options, "circle", protocol, algorithm, reward, writer, [](const Curve&) {});
+    const std::vector<Curve> curves = runAll(
+        options, "circle", protocol, algorithm, reward, writer, [](const Curve&) {}, workers.get());
     Summary s = summarise("circle", algorithm.name, protocol, curves);
     s.extra = {{"initial_reward", curves.front().policy_reward.front()}, {"circle_radius_m", task.radius()}};
     out.push_back(s);
   }
+  if (workers) workers->report("circle");
 }
 
 // ---- pi2viapoint: a 1-D DMP through a via-point, PI2 vs PI2-CMA vs REPS ----
 
-void pi2viapoint(const Options& options, std::vector<Summary>& out) {
+void pi2viapoint(const Options& options, const WorkerOptions& worker_options, std::vector<Summary>& out) {
   bt::ViaPointTask task;
   const Eigen::MatrixXd& basis = task.basis();
   const auto step_costs = [&](const Eigen::VectorXd& theta) { return task.stepCosts(theta); };
@@ -363,17 +482,19 @@ void pi2viapoint(const Options& options, std::vector<Summary>& out) {
          }});
   }
   algorithms.push_back(repsFamily(0.5, 40, false).front());
+  const std::unique_ptr<WorkerRollouts> workers = onWorkers(worker_options, "viapoint");
   Writer writer(options, "pi2viapoint");
   for (const Algorithm& algorithm : algorithms) {
     double via_error = 0.0;
     const auto each = [&](const Curve& c) { via_error += task.viaPointError(c.means.back()); };
     const std::vector<Curve> curves =
-        runAll(options, "pi2viapoint", protocol, algorithm, reward, writer, each, step_costs);
+        runAll(options, "pi2viapoint", protocol, algorithm, reward, writer, each, workers.get(), step_costs);
     Summary s = summarise("pi2viapoint", algorithm.name, protocol, curves);
     s.extra = {{"initial_reward", curves.front().policy_reward.front()},
                {"mean_final_via_point_error", via_error / protocol.runs}};
     out.push_back(s);
   }
+  if (workers) workers->report("pi2viapoint");
 }
 
 void writeSummary(const Options& options, const std::vector<Summary>& rows) {
@@ -404,17 +525,45 @@ int main(int argc, char** argv) {
       "DIR/<experiment>.csv as runs end, DIR/summary.json, learning-curve PNGs and DIR/tables.md.";
   program.experiments = {"multimodal2d", "bottles", "circle", "pi2viapoint", "all"};
   program.with_runs = true;
+  WorkerOptions workers;
+  program.extra = [&workers](bimanual_skills::cli::CommandLine& line) {
+    line.option("--worker-namespace", "NS",
+                "run the rollouts on the rollout_worker nodes under NS (roslaunch bimanual_skills "
+                "rollout_workers.launch), through the ROS master at ROS_MASTER_URI",
+                &workers.space);
+    line.option("--workers", "A,B,...", "run the rollouts on these rollout_worker nodes (instead of a namespace)",
+                &workers.names);
+    line.option("--worker-timeout", "S", "seconds without progress after which a worker counts as hung (default 60)",
+                &workers.timeout);
+  };
   const Options options = bimanual_skills::bench::parseExperimentOptions(argc, argv, program);
+  if (!(workers.timeout > 0.0) || !std::isfinite(workers.timeout) ||
+      (!workers.names.empty() && bimanual_skills::nodes::splitWorkerNames(workers.names).empty())) {
+    std::fprintf(stderr,
+                 "ps_benchmark: --worker-timeout must be a positive number of seconds and --workers must "
+                 "name workers (see --help)\n");
+    return 2;
+  }
   try {
     std::filesystem::create_directories(options.out);
     std::printf("ps_benchmark: experiment %s, seed %u%s, output %s\n", options.experiment.c_str(), options.seed,
                 options.quick ? " (quick)" : "", options.out.c_str());
+    if (workers.selected()) {
+      int ros_argc = 1;
+      ros::init(ros_argc, argv, "ps_benchmark", ros::init_options::AnonymousName | ros::init_options::NoSigintHandler);
+      if (!ros::master::check()) {
+        throw std::runtime_error("no ROS master answers at " + ros::master::getURI() +
+                                 ": start one with the workers (roslaunch bimanual_skills rollout_workers.launch)");
+      }
+      std::printf("ps_benchmark: rollouts on the workers %s\n",
+                  (workers.names.empty() ? "under " + workers.space : workers.names).c_str());
+    }
     std::vector<Summary> rows;
     const auto wants = [&](const char* name) { return options.experiment == "all" || options.experiment == name; };
-    if (wants("multimodal2d")) multimodal2d(options, rows);
-    if (wants("bottles")) bottles(options, rows);
-    if (wants("circle")) circle(options, rows);
-    if (wants("pi2viapoint")) pi2viapoint(options, rows);
+    if (wants("multimodal2d")) multimodal2d(options, workers, rows);
+    if (wants("bottles")) bottles(options, workers, rows);
+    if (wants("circle")) circle(options, workers, rows);
+    if (wants("pi2viapoint")) pi2viapoint(options, workers, rows);
     writeSummary(options, rows);
     if (!bimanual_skills::bench::runPlotScript("ps_benchmark", kSourceDir + "/scripts/plot_ps_benchmark.py",
                                                options.out)) {

@@ -131,21 +131,27 @@ class ActionWorkerLink : public rollout::WorkerLink {
 
 }  // namespace
 
+std::vector<std::string> splitWorkerNames(const std::string& text) {
+  std::vector<std::string> names;
+  std::string name;
+  for (const char c : text + ",") {
+    if (c == ',' || c == ' ' || c == '[' || c == ']') {
+      if (!name.empty()) names.push_back(name);
+      name.clear();
+    } else {
+      name += c;
+    }
+  }
+  return names;
+}
+
 bool readWorkerSelection(const ros::NodeHandle& private_node, WorkerSelection& selection) {
   bool by_list = false;
   if (private_node.hasParam("workers")) {
     by_list = true;
     std::string text;
     if (private_node.getParam("workers", text)) {
-      std::string name;
-      for (const char c : text + ",") {
-        if (c == ',' || c == ' ' || c == '[' || c == ']') {
-          if (!name.empty()) selection.names.push_back(name);
-          name.clear();
-        } else {
-          name += c;
-        }
-      }
+      selection.names = splitWorkerNames(text);
     } else if (!private_node.getParam("workers", selection.names)) {
       throw std::invalid_argument("~workers must be a list of worker names or a string of them");
     }

@@ -30,6 +30,9 @@ struct WorkerSelection {
   std::string config;  ///< Its configuration file, as the workers' hosts see it.
 };
 
+/// The worker names of a string that separates them by commas or spaces ("a,b", "[a, b]").
+std::vector<std::string> splitWorkerNames(const std::string& text);
+
 /// Reads `~workers` (a list of names, or one string of names separated by commas or spaces, as `_workers:=a,b` on
 /// a command line gives it) and `~worker_namespace` of `private_node` into `selection`; false when neither is set
 /// (the rollouts then run here). \throws std::invalid_argument for an empty list or a value of another type.

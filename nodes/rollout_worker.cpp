@@ -19,15 +19,19 @@ namespace br = bimanual_skills::rollout;
 
 namespace {
 
+/// The shortest time between two feedback messages of a share (and from its start to the first).
+constexpr std::chrono::milliseconds kFeedbackPeriod{100};
+
 std::string usage() {
   std::string text =
       "usage: rosrun bimanual_skills rollout_worker [__name:=NAME] [__ns:=NAMESPACE] [_task:=TASK]\n"
       "\n"
       "A rollout worker: serves the action ~evaluate_rollouts (bimanual_skills/EvaluateRollouts). Each goal names a\n"
       "task and its configuration file (read on this host), and carries parameter vectors and seeds; the worker runs\n"
-      "them one after another on its one simulator, sends feedback after each, and returns the rewards and reward\n"
-      "terms. The same parameters and seed give the same result on any worker. A cancelled goal stops after the\n"
-      "rollout in progress. Learners dispatch to every worker under a namespace (default /rollout_workers):\n"
+      "them one after another on its one simulator, sends feedback (rollouts done, at most every 0.1 s), and\n"
+      "returns the rewards and reward terms. The same parameters and seed give the same result on any worker. A\n"
+      "cancelled goal stops after the rollout in progress. Learners dispatch to every worker under a namespace "
+      "(default /rollout_workers):\n"
       "  roslaunch bimanual_skills rollout_workers.launch workers:=2\n"
       "\n"
       "Parameters (private):\n"
@@ -91,6 +95,7 @@ class RolloutWorker {
     bs::EvaluateRolloutsFeedback feedback;
     feedback.total = static_cast<std::uint32_t>(n);
     const auto start = std::chrono::steady_clock::now();
+    auto last_feedback = start;
     try {
       for (std::size_t k = 0; k < n; ++k) {
         if (server_.isPreemptRequested() || !ros::ok()) {
@@ -109,8 +114,14 @@ class RolloutWorker {
         result.outcomes.push_back(r.outcome);
         result.reasons.push_back(r.reason);
         result.wall_seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count());
-        feedback.done = static_cast<std::uint32_t>(k + 1);
-        server_.publishFeedback(feedback);
+        // Progress at most every kFeedbackPeriod, and none after the last rollout (the result follows at once):
+        // a feedback that reaches the learner after its goal's result, when the learner's action client already
+        // holds the next goal, is logged there as an error of actionlib's client.
+        if (k + 1 < n && std::chrono::steady_clock::now() - last_feedback >= kFeedbackPeriod) {
+          feedback.done = static_cast<std::uint32_t>(k + 1);
+          server_.publishFeedback(feedback);
+          last_feedback = std::chrono::steady_clock::now();
+        }
       }
     } catch (const std::exception& e) {
       ROS_ERROR("rollout_worker %s: fault in a rollout: %s", ros::this_node::getName().c_str(), e.what());

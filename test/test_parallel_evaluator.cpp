@@ -379,7 +379,7 @@ TEST(TaskRegistry, BuildsTheTasksByNameAndRefusesUnknownOnes) {
     FAIL() << "expected an error";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("unknown rollout task 'juggle' (known: fold, quadratic, bottles, circle, "
-                                         "planar_viapoint, viapoint)"),
+                                         "planar_viapoint, viapoint, multimodal)"),
               std::string::npos)
         << e.what();
   }
@@ -408,8 +408,22 @@ TEST(TaskRegistry, ThePolicySearchTasksGiveTheBenchmarksRewards) {
   bt::ViaPointTask via;
   const std::unique_ptr<br::RolloutTask> viapoint = br::makeRolloutTask("viapoint", "");
   const Eigen::VectorXd w = viapoint->initialParameters() * 1.1;
-  EXPECT_EQ(viapoint->run(w, 0).reward, -via.stepCosts(w).sum());
-  EXPECT_EQ(viapoint->run(w, 0).terms[0], via.viaPointError(w));
+  const Eigen::VectorXd costs = via.stepCosts(w);
+  const br::RolloutResult v = viapoint->run(w, 0);
+  EXPECT_EQ(v.reward, -costs.sum());
+  ASSERT_EQ(v.terms.size(), costs.size() + 1);
+  ASSERT_EQ(viapoint->termNames().size(), static_cast<std::size_t>(v.terms.size()));
+  EXPECT_EQ(v.terms.head(costs.size()), costs) << "the step costs PI2 learns from";
+  EXPECT_EQ(v.terms[costs.size()], via.viaPointError(w));
+  EXPECT_EQ(viapoint->termNames().back(), "via_point_error");
+
+  // multimodal: reward (6.16), and the distance to the nearest of its three optima.
+  const std::unique_ptr<br::RolloutTask> multimodal = br::makeRolloutTask("multimodal", "");
+  const Eigen::Vector2d point(1.5, 0.5);
+  const br::RolloutResult m = multimodal->run(point, 4);
+  EXPECT_EQ(m.reward, bt::MultimodalReward()(point));
+  EXPECT_DOUBLE_EQ(m.terms[0], (Eigen::Vector2d(2.0, 1.0) - point).norm());
+  EXPECT_FALSE(multimodal->run(Eigen::VectorXd::Zero(3), 4).ok) << "a 3-D point";
 
   const std::string config = std::string(BIMANUAL_SKILLS_SOURCE_DIR) + "/config/circle_task.yaml";
   const std::unique_ptr<br::RolloutTask> circle = br::makeRolloutTask("circle", config);

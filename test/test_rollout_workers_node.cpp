@@ -5,6 +5,7 @@
 // with bit-identical rewards and reward terms, and the same learning curve (epochs.csv); its summary.json must
 // report both workers lost and their rollouts re-dispatched.
 #include "bimanual_skills/rollout/fold_learning.hpp"
+#include "rollout_test_support.hpp"
 
 #include <ros/ros.h>
 
@@ -20,17 +21,10 @@
 #include <vector>
 
 namespace br = bimanual_skills::rollout;
+using bimanual_skills::test::lines;
+using bimanual_skills::test::pidOf;
 
 namespace {
-
-std::vector<std::string> lines(const std::string& path) {
-  std::ifstream in(path);
-  std::vector<std::string> out;
-  for (std::string line; std::getline(in, line);) {
-    if (!line.empty()) out.push_back(line);
-  }
-  return out;
-}
 
 /// rollouts.csv rows by key (algorithm, run, epoch, kind, index) with the fields up to the reward terms (the wall
 /// time and the order of completion differ between runs).
@@ -49,15 +43,6 @@ std::map<std::string, std::string> rolloutsByKey(const std::string& path, std::s
     out[key] = value;
   }
   return out;
-}
-
-int pidOf(const std::string& worker) {
-  int pid = 0;
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
-  while (ros::ok() && ros::WallTime::now() < deadline && !ros::param::get(worker + "/pid", pid)) {
-    ros::WallDuration(0.1).sleep();
-  }
-  return pid;
 }
 
 }  // namespace

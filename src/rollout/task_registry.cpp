@@ -6,6 +6,7 @@
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
 #include "io/yaml_io.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <functional>
 #include <memory>
@@ -100,11 +101,27 @@ std::unique_ptr<RolloutTask> makeCircle(const std::string& config) {
 
 std::unique_ptr<RolloutTask> makeViaPoint() {
   const auto task = std::make_shared<tasks::ViaPointTask>();
+  // The step costs are the reward's terms (PI2 learns from them), then the via-point's error.
+  std::vector<std::string> terms;
+  for (int i = 0; i < task->policy().steps; ++i) terms.push_back("step_cost_" + std::to_string(i));
+  terms.emplace_back("via_point_error");
   return std::make_unique<PolicySearchTask>(
-      std::vector<std::string>{"via_point_error"}, task->policy().parameters(),
-      [task](const Eigen::VectorXd& theta, std::uint32_t, Eigen::VectorXd& terms) {
-        terms[0] = task->viaPointError(theta);
-        return -task->stepCosts(theta).sum();
+      terms, task->policy().parameters(), [task](const Eigen::VectorXd& theta, std::uint32_t, Eigen::VectorXd& terms) {
+        const Eigen::VectorXd costs = task->stepCosts(theta);
+        terms.head(costs.size()) = costs;
+        terms[costs.size()] = task->viaPointError(theta);
+        return -costs.sum();
+      });
+}
+
+std::unique_ptr<RolloutTask> makeMultimodal() {
+  const tasks::MultimodalReward reward;
+  return std::make_unique<PolicySearchTask>(
+      std::vector<std::string>{"nearest_optimum_distance"}, Eigen::VectorXd::Zero(2),
+      [reward](const Eigen::VectorXd& theta, std::uint32_t, Eigen::VectorXd& terms) {
+        terms[0] = (reward.optima.front() - theta).norm();
+        for (const Eigen::Vector2d& p : reward.optima) terms[0] = std::min(terms[0], (p - theta).norm());
+        return reward(theta);
       });
 }
 
@@ -221,7 +238,9 @@ const std::vector<RolloutTaskInfo>& rolloutTasks() {
       {"planar_viapoint", "optional YAML with dofs (10), seed (1), kernels (5), matrices (1), exploration (0.316)",
        "thesis Table 7.3: a planar arm through two via-points, a DR-DMP policy (FoldRolloutTask::encode)"},
       {"viapoint", "none",
-       "Stulp's 1-D DMP through a via-point (ps_benchmark pi2viapoint; reward: minus the summed step costs)"}};
+       "Stulp's 1-D DMP through a via-point (ps_benchmark pi2viapoint; terms: the step costs PI2 learns from, then "
+       "the via-point's error; reward: minus the summed step costs)"},
+      {"multimodal", "none", "the 2-D reward with three optima of thesis eq. 6.16 (ps_benchmark multimodal2d)"}};
   return tasks;
 }
 
@@ -232,6 +251,7 @@ std::unique_ptr<RolloutTask> makeRolloutTask(const std::string& name, const std:
   if (name == "circle") return makeCircle(config);
   if (name == "viapoint") return makeViaPoint();
   if (name == "planar_viapoint") return makePlanarViaPoint(config);
+  if (name == "multimodal") return makeMultimodal();
   std::string known;
   for (const RolloutTaskInfo& t : rolloutTasks()) known += (known.empty() ? "" : ", ") + t.name;
   throw std::invalid_argument("unknown rollout task '" + name + "' (known: " + known + ")");

@@ -22,8 +22,10 @@ struct RolloutTaskInfo {
 /// - "quadratic": reward −‖θ‖²/n + σ ε with ε ~ N(0, 1) drawn from the rollout's seed; no simulation, so a batch
 ///   of it measures what the dispatch itself costs. Its optional YAML file sets `dimension` (n, default 10) and
 ///   `noise` (σ, default 0).
-/// - "bottles", "circle", "viapoint": the policy-search tasks of Ch. 6 (tasks/policy_search_tasks.hpp), θ the DMP's
-///   weights; deterministic, so the seed is not used.
+/// - "bottles", "circle", "viapoint", "multimodal": the policy-search tasks of Ch. 6 (tasks/policy_search_tasks.hpp),
+///   θ the DMP's weights (the 2-D point of reward 6.16 for "multimodal"); deterministic, so the seed is not used.
+///   The via-point task's terms are its step costs (what PI2 learns from), then the via-point's error.
+/// - "planar_viapoint": Table 7.3's planar arm with a DR-DMP, exploration drawn from the rollout's seed.
 const std::vector<RolloutTaskInfo>& rolloutTasks();
 
 /// A new task `name` configured by the file `config` (read on this host; "" for the defaults where the task has
