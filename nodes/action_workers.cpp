@@ -102,12 +102,18 @@ class ActionWorkerLink : public rollout::WorkerLink {
     if (!r) return lost("it answered no result");
     const std::size_t n = r->rewards.size(), terms = r->term_names.size();
     if (r->ok.size() != n || r->outcomes.size() != n || r->reasons.size() != n || r->wall_seconds.size() != n ||
-        r->terms.size() != n * terms) {
+        r->terms.size() != n * terms || r->trajectory_rows.size() != n || r->trajectory_cols.size() != n) {
       return lost("it answered a malformed result (arrays of different lengths)");
     }
+    std::size_t values = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+      values += static_cast<std::size_t>(r->trajectory_rows[k]) * r->trajectory_cols[k];
+    }
+    if (values != r->trajectory.size()) return lost("it answered a malformed result (trajectory sizes)");
     Status status;
     status.state = State::Finished;
     status.done = n;
+    std::size_t offset = 0;
     for (std::size_t k = 0; k < n; ++k) {
       rollout::RolloutResult result;
       result.reward = r->rewards[k];
@@ -116,6 +122,9 @@ class ActionWorkerLink : public rollout::WorkerLink {
       result.outcome = r->outcomes[k];
       result.reason = r->reasons[k];
       result.wall_seconds = r->wall_seconds[k];
+      const Eigen::Index rows = r->trajectory_rows[k], cols = r->trajectory_cols[k];
+      result.trajectory = Eigen::Map<const Eigen::MatrixXd>(r->trajectory.data() + offset, rows, cols);
+      offset += static_cast<std::size_t>(rows * cols);
       status.results.push_back(std::move(result));
     }
     return status;

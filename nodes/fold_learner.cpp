@@ -66,7 +66,8 @@ const char* const kUsage =
     "\n"
     "Topics: /joint_states (sensor_msgs/JointState: the last rollout's final pose, or the replay), ~cloth\n"
     "  (visualization_msgs/Marker TRIANGLE_LIST: the last rollout's cloth), ~scene (the table), ~tool_paths\n"
-    "  (visualization_msgs/MarkerArray: the tool paths of the last rollouts, red = worst to green = best reward),\n"
+    "  (visualization_msgs/MarkerArray: the tool paths of the last rollouts, also of those run on workers, red =\n"
+    "  worst to green = best reward),\n"
     "  ~camera/image_raw (sensor_msgs/Image bgr8) and ~camera/depth/image_raw (32FC1, metres).\n";
 
 constexpr double kBagStart = 1.0;  ///< Bag time of the rollout's t = 0 [s] (ROS time 0 means "unset").
@@ -216,17 +217,21 @@ class FoldLearnerNode {
         record.terms.area_ratio, bt::toString(record.terms.outcome), record.reason.empty() ? "" : ": ",
         record.reason.c_str(), done_, total_, formatSeconds(eta).c_str());
     std::fflush(stdout);
-    if (record.resumed || rollout.cloth_vertices.cols() == 0) return;
+    if (record.resumed) return;
     const ros::Time now = ros::Time::now();
-    cloth_publisher_.publish(bs::nodes::clothMarker(rollout.cloth_vertices, rollout.cloth_triangles, now));
-    std_msgs::Header header;
-    header.stamp = now;
-    header.frame_id = "top_down_camera";
-    image_publisher_.publish(cv_bridge::CvImage(header, "bgr8", reward.bgr()).toImageMsg());
-    depth_publisher_.publish(cv_bridge::CvImage(header, "32FC1", reward.depth()).toImageMsg());
-    if (!rollout.joint_path.empty() && rollout.joint_path.front().cols() > 0) {
-      joint_publisher_.publish(jointState(rollout, rollout.joint_path.front().cols() - 1, now));
+    // The cloth, images and arms of a rollout simulated here; a rollout worker's answer has its tool paths only.
+    if (rollout.cloth_vertices.cols() > 0) {
+      cloth_publisher_.publish(bs::nodes::clothMarker(rollout.cloth_vertices, rollout.cloth_triangles, now));
+      std_msgs::Header header;
+      header.stamp = now;
+      header.frame_id = "top_down_camera";
+      image_publisher_.publish(cv_bridge::CvImage(header, "bgr8", reward.bgr()).toImageMsg());
+      depth_publisher_.publish(cv_bridge::CvImage(header, "32FC1", reward.depth()).toImageMsg());
+      if (!rollout.joint_path.empty() && rollout.joint_path.front().cols() > 0) {
+        joint_publisher_.publish(jointState(rollout, rollout.joint_path.front().cols() - 1, now));
+      }
     }
+    if (rollout.actual_path.empty()) return;
     // The paths of the last rollouts, coloured by reward from the worst (red) to the best (green) shown.
     paths_.push_back({record.terms.reward, rollout.actual_path});
     while (static_cast<int>(paths_.size()) > config_.rollouts) paths_.pop_front();

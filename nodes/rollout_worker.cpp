@@ -114,6 +114,10 @@ class RolloutWorker {
         result.outcomes.push_back(r.outcome);
         result.reasons.push_back(r.reason);
         result.wall_seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count());
+        result.trajectory_rows.push_back(static_cast<std::uint32_t>(r.trajectory.rows()));
+        result.trajectory_cols.push_back(static_cast<std::uint32_t>(r.trajectory.cols()));
+        result.trajectory.insert(result.trajectory.end(), r.trajectory.data(),
+                                 r.trajectory.data() + r.trajectory.size());
         // Progress at most every kFeedbackPeriod, and none after the last rollout (the result follows at once):
         // a feedback that reaches the learner after its goal's result, when the learner's action client already
         // holds the next goal, is logged there as an error of actionlib's client.

@@ -1,6 +1,7 @@
 // Learning to fold: the reward of the demonstration, the coordinated policy against the plain one, variant names,
 // learning files, and a small learning run that is the same on one or two threads and resumes from its directory.
 #include "bimanual_skills/rollout/fold_learning.hpp"
+#include "bimanual_skills/rollout/fold_rollout_task.hpp"
 
 #include "testing/program_output.hpp"
 
@@ -260,6 +261,23 @@ TEST(FoldLearning, ARolloutDoesNotDependOnTheRolloutsBeforeIt) {
   EXPECT_EQ(a.acceleration_cost, b.acceleration_cost);
   EXPECT_EQ(a.cloth_vertices, b.cloth_vertices);
   for (int arm = 0; arm < 2; ++arm) EXPECT_EQ(a.joint_path[arm], b.joint_path[arm]);
+}
+
+TEST(FoldLearning, ARolloutsResultCarriesItsToolPaths) {
+  // The trajectory summary a rollout worker sends back: both arms' actual tool paths, exactly.
+  const br::FoldLearningConfig config = br::withSimulationRenderer(smallConfig());
+  br::FoldRolloutTask task(config.task, config.reward);
+  const br::RolloutResult result = task.run(task.initialParameters(), 5);
+  ASSERT_TRUE(result.ok) << result.reason;
+  const std::vector<Eigen::Matrix3Xd>& actual = task.lastRollout().actual_path;
+  ASSERT_EQ(actual.size(), 2u);
+  ASSERT_GT(actual[0].cols(), 10);
+  EXPECT_EQ(result.trajectory.rows(), 6);
+  EXPECT_EQ(br::FoldRolloutTask::toolPaths(result), actual);
+  br::RolloutResult none;
+  EXPECT_TRUE(br::FoldRolloutTask::toolPaths(none).empty());
+  none.trajectory.resize(4, 3);
+  EXPECT_TRUE(br::FoldRolloutTask::toolPaths(none).empty()) << "4 rows are no 3-D paths";
 }
 
 TEST(FoldLearning, ConcurrentRolloutsEqualSerialOnes) {

@@ -3,16 +3,19 @@
 // ~stop_seconds (longer than the learner's worker timeout), then continues it. When the learner is done, its
 // results must be those of the same learning run on threads here (rollout::FoldLearner): every rollout exactly once,
 // with bit-identical rewards and reward terms, and the same learning curve (epochs.csv); its summary.json must
-// report both workers lost and their rollouts re-dispatched.
+// report both workers lost and their rollouts re-dispatched, and the learner must show the tool paths of the
+// workers' rollouts on ~tool_paths.
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "rollout_test_support.hpp"
 
 #include <ros/ros.h>
+#include <visualization_msgs/MarkerArray.h>
 
 #include <gtest/gtest.h>
 
 #include <signal.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -59,6 +62,19 @@ TEST(RolloutWorkers, AFaultRunLearnsExactlyAsTheFaultFreeOne) {
   ros::param::get("~stop_seconds", stop_seconds);
   ASSERT_TRUE(ros::param::get("/fold_learner/worker_timeout", timeout));
   ASSERT_GT(stop_seconds, timeout + 1.0) << "the stop must outlast the learner's worker timeout";
+  // The learner shows the tool paths of the rollouts the workers ran (their results' trajectory summaries).
+  ros::NodeHandle node;
+  std::size_t paths_seen = 0;
+  const ros::Subscriber paths = node.subscribe<visualization_msgs::MarkerArray>(
+      "/fold_learner/tool_paths", 1, [&](const visualization_msgs::MarkerArrayConstPtr& message) {
+        std::size_t n = 0;
+        for (const visualization_msgs::Marker& m : message->markers) {
+          if (m.type == visualization_msgs::Marker::LINE_STRIP && m.points.size() > 10) ++n;
+        }
+        paths_seen = std::max(paths_seen, n);
+      });
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
   const int killed = pidOf("/rollout_workers/worker_0"), stopped = pidOf("/rollout_workers/worker_1");
   ASSERT_GT(killed, 0);
   ASSERT_GT(stopped, 0);
@@ -87,6 +103,7 @@ TEST(RolloutWorkers, AFaultRunLearnsExactlyAsTheFaultFreeOne) {
   };
   EXPECT_GE(number("workers_lost"), 2) << summary;
   EXPECT_GE(number("redispatched"), 1) << summary;
+  EXPECT_GE(paths_seen, 2u) << "no tool paths of the workers' rollouts on /fold_learner/tool_paths";
 
   // The same learning on threads here.
   const std::string reference = out + "_threads";

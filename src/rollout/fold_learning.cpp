@@ -386,7 +386,9 @@ struct FoldLearner::Impl {
           if (fold) {
             observer.rollout(rec, fold->lastRollout(), fold->reward());
           } else {
-            observer.rollout(rec, tasks::FoldRollout{}, firstTask().reward());
+            tasks::FoldRollout paths;
+            paths.actual_path = FoldRolloutTask::toolPaths(result);
+            observer.rollout(rec, paths, firstTask().reward());
           }
         },
         observer.stop);

@@ -1,5 +1,6 @@
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <stdexcept>
@@ -95,7 +96,26 @@ RolloutResult FoldRolloutTask::run(const Eigen::VectorXd& parameters, std::uint3
   result.ok = last_.outcome == tasks::FoldOutcome::Ok;
   result.outcome = tasks::toString(last_.outcome);
   result.reason = last_.reason;
+  const std::vector<Eigen::Matrix3Xd>& paths = last_.actual_path;
+  const bool summarised = !paths.empty() && std::all_of(paths.begin(), paths.end(), [&](const Eigen::Matrix3Xd& p) {
+    return p.cols() == paths.front().cols();
+  });
+  if (summarised) {
+    result.trajectory.resize(3 * static_cast<Eigen::Index>(paths.size()), paths.front().cols());
+    for (std::size_t arm = 0; arm < paths.size(); ++arm) {
+      result.trajectory.middleRows(3 * static_cast<Eigen::Index>(arm), 3) = paths[arm];
+    }
+  }
   return result;
+}
+
+std::vector<Eigen::Matrix3Xd> FoldRolloutTask::toolPaths(const RolloutResult& result) {
+  std::vector<Eigen::Matrix3Xd> paths;
+  if (result.trajectory.rows() == 0 || result.trajectory.rows() % 3 != 0) return paths;
+  for (Eigen::Index row = 0; row < result.trajectory.rows(); row += 3) {
+    paths.emplace_back(result.trajectory.middleRows(row, 3));
+  }
+  return paths;
 }
 
 }  // namespace bimanual_skills::rollout

@@ -126,7 +126,8 @@ struct FoldLearningResult {
 
 /// Hooks for a user interface (a ROS node, a console). Called from one thread at a time, in completion order.
 struct FoldLearningObserver {
-  /// A rollout finished (or was read from disk: then `rollout` has no paths or mesh and `reward` no images).
+  /// A rollout finished. One that ran on a rollout worker has only its actual tool paths in `rollout` (no mesh, no
+  /// images in `reward`); one read from disk has neither.
   std::function<void(const FoldRolloutRecord& record, const tasks::FoldRollout& rollout,
                      const tasks::FoldReward& reward)>
       rollout;

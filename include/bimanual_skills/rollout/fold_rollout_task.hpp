@@ -32,7 +32,11 @@ class FoldRolloutTask : public RolloutTask {
   /// The terms of a result of run() (e.g. one that ran on a rollout worker); the vision status is not part of it.
   /// \throws std::invalid_argument for a result with other terms or an unknown outcome.
   static tasks::FoldRewardTerms termsOf(const RolloutResult& result);
-  /// One rollout of the encoded policy with the simulation's and the camera's noise seeded by `seed`.
+  /// The tool paths (world, per arm) of a result of run(): its trajectory summary, the arms' 3 rows each; none when
+  /// it holds no such summary.
+  static std::vector<Eigen::Matrix3Xd> toolPaths(const RolloutResult& result);
+  /// One rollout of the encoded policy with the simulation's and the camera's noise seeded by `seed`; its trajectory
+  /// summary holds the arms' actual tool paths, 3 rows per arm.
   RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override;
 
   tasks::ClothFoldTask& task() noexcept { return task_; }

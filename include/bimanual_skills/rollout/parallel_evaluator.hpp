@@ -23,6 +23,9 @@ struct RolloutResult {
   std::string outcome;    ///< The task's name for how it ended ("Ok", "IkFailed", ...).
   std::string reason;     ///< Why it failed; empty when ok.
   double wall_seconds = 0.0;
+  /// An optional summary of the rollout's trajectory, one column per sample (empty when the task gives none): the
+  /// fold's two tool paths (FoldRolloutTask::toolPaths), which a learner shows of rollouts that ran elsewhere.
+  Eigen::MatrixXd trajectory;
 };
 
 /// An episodic task. run() must give the same result for the same parameters and seed, whatever ran before it on
