@@ -1,5 +1,8 @@
 // Dynamics and the control cycle for one WAM per call: the core library's RNEA and mass matrix and KDL's in the same
-// run, and a whole controller + observer cycle.
+// run, and a whole controller + observer cycle. When built with Pinocchio (BIMANUAL_SKILLS_WITH_PINOCCHIO: the
+// headers that scripts/fetch_pinocchio.sh unpacks under build/peers/; Pinocchio is not a Debian package), also
+// Pinocchio's CRBA, compiled from its headers with this project's flags on the same chain, after checking that both
+// mass matrices agree to 1e-9 on every state.
 //
 //   control_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
 //
@@ -16,10 +19,16 @@
 #include <kdl/chaindynparam.hpp>
 #include <kdl/chainidsolver_recursive_newton_euler.hpp>
 #include <kdl_parser/kdl_parser.hpp>
+#ifdef BIMANUAL_SKILLS_WITH_PINOCCHIO
+#include <pinocchio/algorithm/crba.hpp>
+#include <pinocchio/multibody.hpp>
+#endif
 
 #include <sched.h>
 #include <sys/mman.h>
 
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <random>
 #include <string>
@@ -74,6 +83,56 @@ const Fixture& fixture() {
   static const Fixture instance;
   return instance;
 }
+
+#ifdef BIMANUAL_SKILLS_WITH_PINOCCHIO
+/// The same chain as a Pinocchio model: each joint at its origin in the previous link, revolute about its axis,
+/// carrying its link's inertia, with its rotor inertia as armature.
+pinocchio::Model pinocchioModel(const bk::ChainModel& chain) {
+  pinocchio::Model model;
+  pinocchio::JointIndex parent = 0;
+  for (const bk::ChainJoint& joint : chain.joints()) {
+    if (joint.type != bk::JointType::Revolute) throw std::runtime_error("control_bench: revolute joints only");
+    const pinocchio::SE3 placement(joint.origin.rotation(), joint.origin.translation());
+    const Eigen::Vector3d axis = joint.axis.normalized();
+    parent = axis.isApprox(Eigen::Vector3d::UnitZ())
+                 ? model.addJoint(parent, pinocchio::JointModelRZ(), placement, joint.name)
+                 : model.addJoint(parent, pinocchio::JointModelRevoluteUnaligned(axis), placement, joint.name);
+    model.appendBodyToJoint(parent, pinocchio::Inertia(joint.body.mass, joint.body.com, joint.body.inertia),
+                            pinocchio::SE3::Identity());
+  }
+  model.armature = chain.rotorInertia();
+  return model;
+}
+
+const pinocchio::Model& pinocchioWam() {
+  static const pinocchio::Model model = pinocchioModel(fixture().model);
+  return model;
+}
+
+/// The largest difference between Pinocchio's mass matrix and ours over the fixture's states.
+double pinocchioDifference() {
+  const Fixture& f = fixture();
+  bd::DynamicsData ours(f.model);
+  pinocchio::Data theirs(pinocchioWam());
+  double worst = 0.0;
+  for (const Eigen::VectorXd& q : f.q) {
+    if (bd::massMatrix(f.model, ours, q) != bd::DynamicsStatus::Success) return INFINITY;
+    pinocchio::crba(pinocchioWam(), theirs, q);
+    const Eigen::MatrixXd full = theirs.M.selfadjointView<Eigen::Upper>();
+    worst = std::max(worst, (full - ours.mass_matrix).cwiseAbs().maxCoeff());
+  }
+  return worst;
+}
+
+/// Pinocchio's CRBA (its default, local convention) fills the upper triangle of M; ours fills all of it.
+void BM_PinocchioCrba(benchmark::State& state) {
+  const Fixture& f = fixture();
+  pinocchio::Data data(pinocchioWam());
+  timeBatches(state, kStates, [&](int k) {
+    benchmark::DoNotOptimize(pinocchio::crba(pinocchioWam(), data, f.q[static_cast<std::size_t>(k)]).data());
+  });
+}
+#endif
 
 void BM_Rnea(benchmark::State& state) {
   const Fixture& f = fixture();
@@ -184,6 +243,9 @@ BENCHMARK(BM_Rnea);
 BENCHMARK(BM_KdlRnea);
 BENCHMARK(BM_MassMatrix);
 BENCHMARK(BM_KdlMassMatrix);
+#ifdef BIMANUAL_SKILLS_WITH_PINOCCHIO
+BENCHMARK(BM_PinocchioCrba);
+#endif
 BENCHMARK(BM_ForwardDynamics);
 BENCHMARK(BM_Cycle);
 BENCHMARK(BM_CycleJitterFloor);
@@ -206,6 +268,19 @@ int main(int argc, char** argv) {
   benchmark::AddCustomContext("seed", std::to_string(kSeed));
   benchmark::AddCustomContext("model", kWamUrdf + " (wam_base -> wam_tool)");
   benchmark::AddCustomContext("scheduling", scheduling);
+#ifdef BIMANUAL_SKILLS_WITH_PINOCCHIO
+  const double difference = pinocchioDifference();
+  std::fprintf(stderr, "control_bench: Pinocchio %s, max |M_ours - M_pinocchio| over %d states: %.3g\n",
+               PINOCCHIO_VERSION, kStates, difference);
+  if (!(difference <= 1e-9)) {
+    std::fprintf(stderr, "control_bench: the mass matrices differ by more than 1e-9\n");
+    return 1;
+  }
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g", difference);
+  benchmark::AddCustomContext("pinocchio", PINOCCHIO_VERSION);
+  benchmark::AddCustomContext("max_mass_matrix_difference_to_pinocchio", text);
+#endif
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();
   return 0;
