@@ -1,20 +1,35 @@
 // workspace_benchmark: the workspace analysis of thesis Sec. 3.2 on the WAM.
-//   map: the one-arm map by inverse sampling (Sec. 3.2.1, Fig. 3.7): a voxel grid over the reach, M tool
-//        orientations per voxel through the global IK (a fixed number of restarts, so the map does not depend on
-//        the machine's load), solution ratio, mean manipulability and condition number, forearm and tool cones.
-//        Default 5 cm and M = 50 (the target: at most 2 minutes on this machine); --quick: 20 cm, M = 10.
-// Writes DIR/summary.json (experiment, resolution_m, orientations, seconds, voxels, reachable_voxels, ...),
-// DIR/map.csv (one row per voxel) and, with scripts/plot_workspace_benchmark.py, DIR/map_slices.png and tables.md.
+//   map:    the one-arm map by inverse sampling (Sec. 3.2.1, Fig. 3.7): a voxel grid over the reach, M tool
+//           orientations per voxel through the global IK (a fixed number of restarts, so the map does not depend on
+//           the machine's load), solution ratio, mean manipulability and condition number, forearm and tool cones.
+//           Default 5 cm and M = 50 (the target: at most 2 minutes on this machine); --quick: 20 cm, M = 10.
+//   fig39:  the quality F (3.41) of placing a second WAM with its base perpendicular to the first's (its z axis along
+//           −x), over a grid of offsets dx, dz (Fig. 3.9); the best, the best with both offsets negative (the DARPA
+//           robot's quadrant) and a humanoid-like placement (z axes collinear, pointing away from a torso).
+//   fig310: the same with the second base upside down above the first (z axes parallel and facing, Fig. 3.10).
+//           Both on a map of 10 cm voxels by default (--resolution), grid step 0.1 m (--step); --quick: 20 cm, 0.4 m.
+//   placement: the search for fig39's best (dx, dz) by the thesis' genetic algorithm (10 generations of 20) and by
+//           NLopt's ESCH, CRS2, ISRES and DIRECT-L with the same budget, over --runs seeds (default 5; --quick: 2 runs
+//           of 40 evaluations): the best quality found and the evaluations each needed to reach the GA's.
+// Writes DIR/summary.json (rows with experiment, resolution_m, orientations, seconds, ...; best_dx, best_dz,
+// quality for the placements), DIR/map.csv (one row per voxel), DIR/<fig>.csv (one row per placement) and, with
+// scripts/plot_workspace_benchmark.py, DIR/map_slices.png, DIR/<fig>.png heat maps and tables.md.
+#include "bimanual_skills/workspace/pair_quality.hpp"
+#include "bimanual_skills/workspace/placement_search.hpp"
 #include "bimanual_skills/workspace/workspace_map.hpp"
 #include "experiment_cli.hpp"
 #include "summary_json.hpp"
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <optional>
 #include <string>
 #include <thread>
+#include <vector>
 
 namespace bs = bimanual_skills;
 namespace bw = bimanual_skills::workspace;
@@ -22,30 +37,290 @@ namespace bw = bimanual_skills::workspace;
 namespace {
 
 const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
+using Clock = std::chrono::steady_clock;
+
+double since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+/// Builds the WAM's map with progress lines; `seconds` gets its time.
+bw::WorkspaceMap buildMap(const bs::kinematics::ChainModel& model, const bw::WorkspaceMapSettings& settings,
+                          double& seconds) {
+  std::printf(
+      "workspace_benchmark: map of the WAM, %.3f m voxels, %d orientations each, %d IK restarts, seed %u, "
+      "%d threads\n",
+      settings.resolution, settings.orientations, settings.ik_attempts, settings.seed, settings.threads);
+  std::fflush(stdout);
+  const auto start = Clock::now();
+  bw::WorkspaceMap map = bw::WorkspaceMap::build(model, settings, [&](std::size_t done, std::size_t total) {
+    const double s = since(start);
+    std::printf("  %zu/%zu voxels, %.0f s%s\n", done, total, s,
+                done > 0 && done < total
+                    ? (", ETA " + std::to_string(static_cast<int>(s / done * (total - done))) + " s").c_str()
+                    : "");
+    std::fflush(stdout);
+  });
+  seconds = since(start);
+  return map;
+}
+
+void mapExperiment(const bs::bench::ExperimentOptions& options, const bw::WorkspaceMap& map, double seconds,
+                   std::vector<bs::bench::JsonRow>& rows) {
+  const bw::WorkspaceMapSettings& settings = map.settings();
+  std::ofstream csv(options.out + "/map.csv");
+  csv << "x,y,z,solved,pruned,solution_ratio,manipulability,condition,forearm_x,forearm_y,forearm_z,forearm_angle,"
+         "tool_angle\n";
+  long attempts_total = 0, pruned_total = 0;
+  for (const bw::WorkspaceVoxel& v : map.voxels()) {
+    attempts_total += settings.orientations;
+    pruned_total += v.pruned;
+    csv << v.centre.x() << ',' << v.centre.y() << ',' << v.centre.z() << ',' << v.solved << ',' << v.pruned << ','
+        << v.solution_ratio << ',' << v.manipulability << ',' << v.condition << ',' << v.forearm.axis.x() << ','
+        << v.forearm.axis.y() << ',' << v.forearm.axis.z() << ',' << v.forearm.angle << ',' << v.tool.angle << '\n';
+  }
+  rows.emplace_back()
+      .add("experiment", "map")
+      .add("robot", "wam")
+      .add("resolution_m", settings.resolution)
+      .add("orientations", settings.orientations)
+      .add("ik_attempts", settings.ik_attempts)
+      .add("threads", settings.threads)
+      .add("seconds", seconds)
+      .add("voxels", static_cast<long>(map.voxels().size()))
+      .add("reachable_voxels", static_cast<long>(map.reachable()))
+      .add("pruned_fraction", attempts_total > 0 ? static_cast<double>(pruned_total) / attempts_total : 0.0)
+      .add("wrist_test", settings.wrist_test)
+      .add("spherical_wrist", map.sphericalWrist())
+      .add("reach_m", map.reach());
+  std::printf(
+      "workspace_benchmark: %zu voxels (%zu reachable) in %.1f s; %.1f %% of the orientations ruled out by "
+      "the wrist-centre test\n",
+      map.voxels().size(), map.reachable(), seconds, attempts_total > 0 ? 100.0 * pruned_total / attempts_total : 0.0);
+}
+
+Eigen::Isometry3d basePose(double x, double y, double z, double angle, const Eigen::Vector3d& axis) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translate(Eigen::Vector3d(x, y, z));
+  t.rotate(Eigen::AngleAxisd(angle, axis));
+  return t;
+}
+
+/// The second base of fig39's setting: perpendicular to the first (its z axis along −x), at (dx, 0, dz).
+Eigen::Isometry3d perpendicularBase(double dx, double dz) {
+  return basePose(dx, 0.0, dz, -M_PI / 2, Eigen::Vector3d::UnitY());
+}
+
+/// The second base of fig310's setting: upside down above the first (z axes parallel, facing), at (dx, 0, dz).
+Eigen::Isometry3d facingBase(double dx, double dz) {
+  return basePose(dx, 0.0, dz, M_PI, Eigen::Vector3d::UnitX());
+}
+
+/// One of the thesis' two placement settings: the second base's pose for offsets (dx, dz) from the first's, and the
+/// grid of offsets.
+struct Setting {
+  std::string name, description;
+  std::function<Eigen::Isometry3d(double dx, double dz)> second_base;
+  double dx_min, dx_max, dz_min, dz_max;
+};
+
+/// The quality F of every placement of the grid, written to DIR/<setting>.csv as it goes; the best placements and
+/// the comparisons in `rows`.
+void placementExperiment(const bs::bench::ExperimentOptions& options, const Setting& setting,
+                         const bw::WorkspaceMap& map, double step, std::vector<bs::bench::JsonRow>& rows) {
+  const bw::WorkspacePoints points = bw::WorkspacePoints::of(map);
+  bw::PairQualitySettings quality;
+  quality.threads = options.jobs;
+  const auto count = [&](double lo, double hi) { return static_cast<int>(std::floor((hi - lo) / step + 1e-9)) + 1; };
+  const int nx = count(setting.dx_min, setting.dx_max), nz = count(setting.dz_min, setting.dz_max);
+  std::printf("workspace_benchmark: %s: %s; %d x %d placements, %zu reachable voxels per arm, L = %.2f +- %.2f m\n",
+              setting.name.c_str(), setting.description.c_str(), nx, nz, points.points.size(), quality.length,
+              quality.tolerance);
+  std::fflush(stdout);
+  std::ofstream csv(options.out + "/" + setting.name + ".csv");
+  csv << "dx,dz,quality,pair_sum,volume_m3,pairs,visited,seconds\n";
+  struct Best {
+    double dx = 0.0, dz = 0.0;
+    bw::PlacementQuality q;
+    bool found = false;
+  } best, negative;
+  double total_seconds = 0.0, worst_seconds = 0.0;
+  const auto start = Clock::now();
+  for (int iz = 0; iz < nz; ++iz) {
+    for (int ix = 0; ix < nx; ++ix) {
+      const double dx = setting.dx_min + ix * step, dz = setting.dz_min + iz * step;
+      const bw::PlacementQuality q =
+          bw::placementQuality(points, Eigen::Isometry3d::Identity(), points, setting.second_base(dx, dz), quality);
+      csv << dx << ',' << dz << ',' << q.quality << ',' << q.pair_sum << ',' << q.volume << ',' << q.pairs << ','
+          << q.visited << ',' << q.seconds << '\n';
+      total_seconds += q.seconds;
+      worst_seconds = std::max(worst_seconds, q.seconds);
+      if (!best.found || q.quality > best.q.quality) best = {dx, dz, q, true};
+      if (dx < -1e-9 && dz < -1e-9 && (!negative.found || q.quality > negative.q.quality)) {
+        negative = {dx, dz, q, true};
+      }
+    }
+    csv.flush();
+    const double s = since(start);
+    std::printf("  %s: %d/%d rows of placements, %.0f s, ETA %.0f s; best so far F = %.4g at dx = %.2f, dz = %.2f\n",
+                setting.name.c_str(), iz + 1, nz, s, s / (iz + 1) * (nz - iz - 1), best.q.quality, best.dx, best.dz);
+    std::fflush(stdout);
+  }
+  const int evaluations = nx * nz;
+  bs::bench::JsonRow& row = rows.emplace_back();
+  row.add("experiment", setting.name)
+      .add("resolution_m", map.settings().resolution)
+      .add("orientations", map.settings().orientations)
+      .add("step_m", step)
+      .add("evaluations", evaluations)
+      .add("seconds_per_evaluation", total_seconds / evaluations)
+      .add("max_seconds_per_evaluation", worst_seconds)
+      .add("best_dx", best.dx)
+      .add("best_dz", best.dz)
+      .add("quality", best.q.quality)
+      .add("pair_sum", best.q.pair_sum)
+      .add("volume_m3", best.q.volume)
+      .add("pairs", static_cast<long>(best.q.pairs));
+  std::printf("workspace_benchmark: %s: best F = %.4g at dx = %.2f m, dz = %.2f m (%.3f s per evaluation)\n",
+              setting.name.c_str(), best.q.quality, best.dx, best.dz, total_seconds / evaluations);
+  if (negative.found) {
+    row.add("best_negative_dx", negative.dx)
+        .add("best_negative_dz", negative.dz)
+        .add("negative_quality", negative.q.quality);
+    std::printf(
+        "workspace_benchmark: %s: best with dx, dz < 0 (the DARPA robot's quadrant): F = %.4g at dx = %.2f, "
+        "dz = %.2f\n",
+        setting.name.c_str(), negative.q.quality, negative.dx, negative.dz);
+  }
+  // Humanoid-like: the bases back to back, z axes collinear and pointing away from a torso of width w (ARMAR).
+  double humanoid = 0.0, humanoid_width = 0.0;
+  for (double w = 0.2; w <= 0.8 + 1e-9; w += 0.1) {
+    const bw::PlacementQuality q =
+        bw::placementQuality(points, basePose(0.0, -w / 2, 0.0, M_PI / 2, Eigen::Vector3d::UnitX()), points,
+                             basePose(0.0, w / 2, 0.0, -M_PI / 2, Eigen::Vector3d::UnitX()), quality);
+    if (q.quality > humanoid) {
+      humanoid = q.quality;
+      humanoid_width = w;
+    }
+  }
+  row.add("humanoid_quality", humanoid).add("humanoid_width_m", humanoid_width);
+  std::printf("workspace_benchmark: %s: humanoid-like (bases back to back, best torso width %.1f m): F = %.4g\n",
+              setting.name.c_str(), humanoid_width, humanoid);
+  std::fflush(stdout);
+}
+
+/// The searches for the best placement of `setting` (its two offsets) on `runs` seeds: the thesis' genetic algorithm
+/// and NLopt's, each with `budget` evaluations; DIR/placement.csv holds every search's best-so-far curve.
+void searchExperiment(const bs::bench::ExperimentOptions& options, const Setting& setting, const bw::WorkspaceMap& map,
+                      int runs, int budget, std::vector<bs::bench::JsonRow>& rows) {
+  const bw::WorkspacePoints points = bw::WorkspacePoints::of(map);
+  bw::PairQualitySettings quality;
+  quality.threads = options.jobs;
+  const bw::PlacementObjective objective = [&](const Eigen::VectorXd& x) {
+    return bw::placementQuality(points, Eigen::Isometry3d::Identity(), points, setting.second_base(x[0], x[1]), quality)
+        .quality;
+  };
+  bw::SearchBounds bounds;
+  bounds.lower = Eigen::Vector2d(setting.dx_min, setting.dz_min);
+  bounds.upper = Eigen::Vector2d(setting.dx_max, setting.dz_max);
+  std::printf("workspace_benchmark: placement: %s, dx in [%.1f, %.1f], dz in [%.1f, %.1f]; %d runs of %d evaluations\n",
+              setting.description.c_str(), setting.dx_min, setting.dx_max, setting.dz_min, setting.dz_max, runs,
+              budget);
+  std::fflush(stdout);
+  std::ofstream csv(options.out + "/placement.csv");
+  csv << "method,run,evaluation,best_quality\n";
+  std::vector<std::string> methods = {"GA"};
+  for (const std::string& name : bw::nloptPlacementAlgorithms()) methods.push_back(name);
+  struct Tally {
+    double quality = 0.0, seconds = 0.0, to_ga = 0.0, best = -1.0, dx = 0.0, dz = 0.0;
+    int reached_ga = 0, evaluations = 0;
+  };
+  std::vector<Tally> tally(methods.size());
+  for (int run = 0; run < runs; ++run) {
+    const std::uint32_t seed = options.seed + static_cast<std::uint32_t>(run);
+    bw::GeneticSettings genetic;
+    genetic.population = 20;
+    genetic.generations = budget / genetic.population;
+    genetic.seed = seed;
+    std::vector<bw::SearchResult> results = {bw::geneticSearch(bounds, objective, genetic)};
+    for (std::size_t m = 1; m < methods.size(); ++m) {
+      results.push_back(bw::nloptSearch(methods[m], bounds, objective, budget, seed));
+    }
+    const double ga = results.front().quality;
+    for (std::size_t m = 0; m < methods.size(); ++m) {
+      const bw::SearchResult& r = results[m];
+      for (std::size_t k = 0; k < r.best_after.size(); ++k) {
+        csv << methods[m] << ',' << run << ',' << k + 1 << ',' << r.best_after[k] << '\n';
+      }
+      Tally& t = tally[m];
+      t.quality += r.quality / runs;
+      t.seconds += r.seconds / runs;
+      t.evaluations += r.evaluations;
+      if (r.quality > t.best) {
+        t.best = r.quality;
+        t.dx = r.best[0];
+        t.dz = r.best[1];
+      }
+      const int reach = r.evaluationsToReach(ga);
+      if (reach > 0) {
+        ++t.reached_ga;
+        t.to_ga += reach;
+      }
+      std::printf(
+          "  run %d (seed %u) %-5s: F = %.4g at dx = %.2f, dz = %.2f after %d evaluations (%.1f s); the GA's "
+          "best reached after %d\n",
+          run + 1, seed, methods[m].c_str(), r.quality, r.best[0], r.best[1], r.evaluations, r.seconds, reach);
+    }
+    csv.flush();
+    std::fflush(stdout);
+  }
+  for (std::size_t m = 0; m < methods.size(); ++m) {
+    const Tally& t = tally[m];
+    rows.emplace_back()
+        .add("experiment", "placement")
+        .add("method", methods[m])
+        .add("runs", runs)
+        .add("budget", budget)
+        .add("resolution_m", map.settings().resolution)
+        .add("mean_quality", t.quality)
+        .add("best_quality", t.best)
+        .add("best_dx", t.dx)
+        .add("best_dz", t.dz)
+        .add("mean_evaluations", static_cast<double>(t.evaluations) / runs)
+        .add("runs_reaching_ga_best", t.reached_ga)
+        .add("mean_evaluations_to_ga_best", t.reached_ga > 0 ? t.to_ga / t.reached_ga : -1.0)
+        .add("mean_seconds", t.seconds);
+  }
+}
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  double resolution = 0.0;
+  double resolution = 0.0, step = 0.0;
   long orientations = 0, attempts = 20;
   bool no_wrist_test = false;
   bs::bench::ExperimentProgram program;
   program.name = "workspace_benchmark";
   program.description =
       "The workspace analysis of thesis Sec. 3.2 on the WAM: map = the one-arm workspace map by inverse sampling\n"
-      "(Fig. 3.7), timed, with the solution ratio, manipulability, condition number and bounding cones per voxel.";
-  program.experiments = {"map"};
+      "(Fig. 3.7), timed, with the solution ratio, manipulability, condition number and bounding cones per voxel;\n"
+      "fig39, fig310 = the quality (3.41) of the relative placement of two WAMs over a grid of offsets (Figs. 3.9,\n"
+      "3.10: bases perpendicular; bases parallel and facing); placement = the search for fig39's best placement by\n"
+      "the thesis' genetic algorithm and by NLopt's ESCH, CRS2, ISRES and DIRECT-L with the same budget.";
+  program.experiments = {"map", "fig39", "fig310", "placement", "all"};
+  program.with_runs = true;
   program.with_jobs = true;
   program.extra = [&](bs::cli::CommandLine& line) {
-    line.option("--resolution", "M", "voxel edge [m] (default 0.05; 0.2 with --quick)", &resolution);
+    line.option("--resolution", "M", "voxel edge [m] (default 0.05 for map, 0.1 for fig39/fig310; 0.2 with --quick)",
+                &resolution);
     line.option("--orientations", "N", "tool orientations per voxel (default 50; 10 with --quick)", &orientations, 1,
                 100000);
     line.option("--ik-attempts", "N", "IK restarts per orientation (default 20)", &attempts, 1, 100000);
     line.flag("--no-wrist-test", "IK calls only, without the wrist-centre test (the baseline)", &no_wrist_test);
+    line.option("--step", "M", "grid step of the placement offsets [m] (default 0.1; 0.4 with --quick)", &step);
   };
   const bs::bench::ExperimentOptions options = bs::bench::parseExperimentOptions(argc, argv, program);
-  if (resolution < 0.0 || (resolution > 0.0 && resolution < 0.005)) {
-    std::fprintf(stderr, "workspace_benchmark: --resolution must be >= 0.005 m (see --help)\n");
+  if (resolution < 0.0 || (resolution > 0.0 && resolution < 0.005) || step < 0.0 || (step > 0.0 && step < 0.01)) {
+    std::fprintf(stderr, "workspace_benchmark: --resolution must be >= 0.005 m and --step >= 0.01 m (see --help)\n");
     return 2;
   }
   try {
@@ -53,60 +328,56 @@ int main(int argc, char** argv) {
     const bs::kinematics::ChainModel model =
         bs::kinematics::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool");
     bw::WorkspaceMapSettings settings;
-    settings.resolution = resolution > 0.0 ? resolution : (options.quick ? 0.2 : 0.05);
     settings.orientations = orientations > 0 ? static_cast<int>(orientations) : (options.quick ? 10 : 50);
     settings.ik_attempts = static_cast<int>(attempts);
     settings.seed = options.seed;
     settings.threads = options.jobs;
     settings.wrist_test = !no_wrist_test;
-    std::printf(
-        "workspace_benchmark: map of the WAM, %.3f m voxels, %d orientations each, %d IK restarts, seed %u, "
-        "%d threads\n",
-        settings.resolution, settings.orientations, settings.ik_attempts, settings.seed, settings.threads);
-    std::fflush(stdout);
-    const auto start = std::chrono::steady_clock::now();
-    const bw::WorkspaceMap map = bw::WorkspaceMap::build(model, settings, [&](std::size_t done, std::size_t total) {
-      const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      std::printf("  %zu/%zu voxels, %.0f s%s\n", done, total, s,
-                  done > 0 && done < total
-                      ? (", ETA " + std::to_string(static_cast<int>(s / done * (total - done))) + " s").c_str()
-                      : "");
-      std::fflush(stdout);
-    });
-    const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    std::ofstream csv(options.out + "/map.csv");
-    csv << "x,y,z,solved,pruned,solution_ratio,manipulability,condition,forearm_x,forearm_y,forearm_z,forearm_angle,"
-           "tool_angle\n";
-    long attempts_total = 0, pruned_total = 0;
-    for (const bw::WorkspaceVoxel& v : map.voxels()) {
-      attempts_total += settings.orientations;
-      pruned_total += v.pruned;
-      csv << v.centre.x() << ',' << v.centre.y() << ',' << v.centre.z() << ',' << v.solved << ',' << v.pruned << ','
-          << v.solution_ratio << ',' << v.manipulability << ',' << v.condition << ',' << v.forearm.axis.x() << ','
-          << v.forearm.axis.y() << ',' << v.forearm.axis.z() << ',' << v.forearm.angle << ',' << v.tool.angle << '\n';
-    }
-    csv.close();
+    const auto wants = [&](const char* name) { return options.experiment == "all" || options.experiment == name; };
     std::vector<bs::bench::JsonRow> rows;
-    rows.emplace_back()
-        .add("experiment", "map")
-        .add("robot", "wam")
-        .add("resolution_m", settings.resolution)
-        .add("orientations", settings.orientations)
-        .add("ik_attempts", settings.ik_attempts)
-        .add("threads", settings.threads)
-        .add("seconds", seconds)
-        .add("voxels", static_cast<long>(map.voxels().size()))
-        .add("reachable_voxels", static_cast<long>(map.reachable()))
-        .add("pruned_fraction", attempts_total > 0 ? static_cast<double>(pruned_total) / attempts_total : 0.0)
-        .add("wrist_test", settings.wrist_test)
-        .add("spherical_wrist", map.sphericalWrist())
-        .add("reach_m", map.reach());
+    if (wants("map")) {
+      settings.resolution = resolution > 0.0 ? resolution : (options.quick ? 0.2 : 0.05);
+      double seconds = 0.0;
+      const bw::WorkspaceMap map = buildMap(model, settings, seconds);
+      mapExperiment(options, map, seconds, rows);
+      // One evaluation of the placement quality on this map: fig39's setting at the thesis' optimum dx = dz = 0.8 m.
+      bw::PairQualitySettings quality;
+      quality.threads = options.jobs;
+      const bw::WorkspacePoints points = bw::WorkspacePoints::of(map);
+      const bw::PlacementQuality q =
+          bw::placementQuality(points, Eigen::Isometry3d::Identity(), points, perpendicularBase(0.8, 0.8), quality);
+      rows.back()
+          .add("quality_seconds", q.seconds)
+          .add("quality_pairs", static_cast<long>(q.pairs))
+          .add("quality_pairs_visited", static_cast<long>(q.visited));
+      std::printf(
+          "workspace_benchmark: one evaluation of F on this map (fig39 at dx = dz = 0.8 m): %.3f s, %zu pairs "
+          "counted of %zu visited\n",
+          q.seconds, q.pairs, q.visited);
+    }
+    if (wants("fig39") || wants("fig310") || wants("placement")) {
+      settings.resolution = resolution > 0.0 ? resolution : (options.quick ? 0.2 : 0.1);
+      const double grid = step > 0.0 ? step : (options.quick ? 0.4 : 0.1);
+      double seconds = 0.0;
+      const bw::WorkspaceMap map = buildMap(model, settings, seconds);
+      const Setting perpendicular{"fig39",
+                                  "the second base perpendicular (its z axis along -x) at (dx, 0, dz)",
+                                  perpendicularBase,
+                                  -1.2,
+                                  1.2,
+                                  -1.2,
+                                  1.2};
+      const Setting facing{
+          "fig310", "the second base upside down (z axes parallel, facing) at (dx, 0, dz)", facingBase, -1.2, 1.2, 0.2,
+          2.6};
+      if (wants("fig39")) placementExperiment(options, perpendicular, map, grid, rows);
+      if (wants("fig310")) placementExperiment(options, facing, map, grid, rows);
+      if (wants("placement")) {
+        const int runs = options.runs > 0 ? options.runs : (options.quick ? 2 : 5);
+        searchExperiment(options, perpendicular, map, runs, options.quick ? 40 : 200, rows);
+      }
+    }
     bs::bench::writeSummaryJson(options, "workspace_benchmark", rows);
-    std::printf(
-        "workspace_benchmark: %zu voxels (%zu reachable) in %.1f s; %.1f %% of the orientations ruled out by "
-        "the wrist-centre test\n",
-        map.voxels().size(), map.reachable(), seconds,
-        attempts_total > 0 ? 100.0 * pruned_total / attempts_total : 0.0);
     bs::bench::runPlotScript("workspace_benchmark", kSourceDir + "/scripts/plot_workspace_benchmark.py", options.out);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "workspace_benchmark: %s\n", e.what());

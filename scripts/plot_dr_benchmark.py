@@ -7,16 +7,15 @@ mean and 95 % interval of the mean over runs), DIR/em_vs_pca.png (mean rho of 7.
 Usage: plot_dr_benchmark.py DIR
 """
 import csv
-import json
 import math
 import os
-import sys
 from collections import defaultdict
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from plot_common import output_directory, read_summary  # noqa: E402
 
 CHECKPOINTS = [1, 10, 25, 50, 100, 200]
 # Table 7.3: -log10(-R) after 1, 10, 25, 50, 100, 200 updates (mean, 95 % interval over 20 runs).
@@ -236,11 +235,8 @@ def tables(directory, summary, em):
 
 
 def main():
-    if len(sys.argv) != 2:
-        sys.exit(__doc__)
-    directory = sys.argv[1]
-    with open(os.path.join(directory, "summary.json")) as f:
-        summary = json.load(f)
+    directory = output_directory(__doc__)
+    summary = read_summary(directory)
     plot_panels(directory, "planar15", [("15-DoF planar arm, Cartesian tracking (7.22)", lambda a: True)],
                 lambda r: r, "reward of the mean policy", "planar15 (cf. Fig. 7.5), 95 % intervals")
     plot_panels(directory, "planar10",

@@ -10,7 +10,6 @@ import csv
 import json
 import math
 import os
-import sys
 from collections import defaultdict
 
 import matplotlib
@@ -18,6 +17,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
+from plot_common import output_directory  # noqa: E402
 
 # Thesis Table 7.5: mean reward of the rollouts at epoch 1 and epoch 15 (3 runs).
 THESIS_75 = {'DR-DMP0(12)': (-2.47, -1.14), 'IDR-DMP_CMU': (-2.48, -0.91), 'IDR-DMP_MCMU(3)': (-2.57, -1.00)}
@@ -117,10 +117,7 @@ def table(directory, epochs):
 
 
 def main():
-    if len(sys.argv) != 2 or sys.argv[1] in ('-h', '--help'):
-        print(__doc__)
-        sys.exit(0 if len(sys.argv) == 2 else 2)
-    directory = sys.argv[1]
+    directory = output_directory(__doc__)
     epochs = read_epochs(os.path.join(directory, 'epochs.csv'))
     learning_curve(directory, epochs)
     coordination(directory)

@@ -6,16 +6,15 @@ DIR/<experiment>.png (reward of the mean policy per update, mean ± 2 std over r
 Usage: plot_ps_benchmark.py DIR
 """
 import csv
-import json
 import math
 import os
-import sys
 from collections import defaultdict
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from plot_common import output_directory, read_summary  # noqa: E402
 
 TITLES = {
     "multimodal2d": "Multimodal 2-D reward (6.16), 100 rollouts/update (cf. Fig. 6.7)",
@@ -107,11 +106,8 @@ def tables(summary):
 
 
 def main():
-    if len(sys.argv) != 2:
-        sys.exit(__doc__)
-    directory = sys.argv[1]
-    with open(os.path.join(directory, "summary.json")) as f:
-        summary = json.load(f)
+    directory = output_directory(__doc__)
+    summary = read_summary(directory)
     for experiment in ("multimodal2d", "bottles617", "bottles", "circle", "pi2viapoint"):
         plot(directory, experiment)
     with open(os.path.join(directory, "tables.md"), "w") as f:

@@ -9,15 +9,12 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from plot_common import output_directory, read_summary  # noqa: E402
 
 
 def main():
-    if len(sys.argv) != 2 or sys.argv[1] in ("-h", "--help"):
-        print(__doc__)
-        return 0 if len(sys.argv) == 2 else 2
-    out = sys.argv[1]
-    with open(os.path.join(out, "summary.json")) as f:
-        summary = json.load(f)
+    out = output_directory(__doc__)
+    summary = read_summary(out)
     rows = summary["results"]
     throughput = [r for r in rows if r["experiment"] == "throughput"]
     overhead = [r for r in rows if r["experiment"] == "overhead"]

@@ -14,6 +14,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+from plot_common import output_directory  # noqa: E402
 
 MODELS = ["initial", "basic", "advanced"]
 # Thesis Table 4.1 (real WAM, joint 1, averaged over 8 validation trajectories).
@@ -153,10 +154,7 @@ def payload(directory, md):
 
 
 def main():
-    if len(sys.argv) != 2:
-        print(__doc__, file=sys.stderr)
-        return 2
-    directory = sys.argv[1]
+    directory = output_directory(__doc__)
     md = []
     friction(directory, md)
     payload(directory, md)

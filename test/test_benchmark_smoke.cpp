@@ -158,23 +158,30 @@ TEST(RolloutBenchmarkSmoke, WorkersGiveTheResultsOfThreads) {
   fs::remove_all(out);
 }
 
-TEST(WorkspaceBenchmarkSmoke, QuickMapWritesEveryOutput) {
+TEST(WorkspaceBenchmarkSmoke, QuickRunWritesEveryOutput) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_workspace_benchmark_smoke";
   fs::remove_all(out);
-  ASSERT_EQ(runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment map --seed 3 --quick --jobs 2 --out " +
+  ASSERT_EQ(runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment all --seed 3 --quick --jobs 2 --out " +
                        out.string()),
             0);
   const std::string summary = readTextFile(out / "summary.json");
-  for (const char* field : {"\"experiment\": \"map\"", "\"resolution_m\": 0.2", "\"orientations\": 10", "\"seconds\"",
-                            "\"reachable_voxels\"", "\"spherical_wrist\": true", "\"seed\": 3"}) {
+  for (const char* field :
+       {"\"experiment\": \"map\"", "\"resolution_m\": 0.2", "\"orientations\": 10", "\"seconds\"",
+        "\"reachable_voxels\"", "\"spherical_wrist\": true", "\"seed\": 3", "\"experiment\": \"fig39\"",
+        "\"experiment\": \"fig310\"", "\"best_dx\"", "\"best_dz\"", "\"quality\"", "\"humanoid_quality\"",
+        "\"best_negative_dx\"", "\"method\": \"GA\"", "\"method\": \"ESCH\"", "\"runs_reaching_ga_best\""}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field;
   }
-  for (const char* file : {"map.csv", "map_slices.png", "tables.md"}) {
+  for (const char* file : {"map.csv", "map_slices.png", "fig39.csv", "fig39.png", "fig310.csv", "fig310.png",
+                           "placement.csv", "placement.png", "tables.md"}) {
     EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
   }
-  EXPECT_EQ(runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment fig39 --seed 1 --out " + out.string()), 2);
+  EXPECT_EQ(runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment fig311 --seed 1 --out " + out.string()), 2);
   EXPECT_EQ(runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment map --resolution 0.001 --seed 1 --out " +
                        out.string()),
             2);
+  EXPECT_EQ(
+      runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment fig39 --step 0.001 --seed 1 --out " + out.string()),
+      2);
   fs::remove_all(out);
 }
