@@ -11,6 +11,9 @@
 //   placement: the search for fig39's best (dx, dz) by the thesis' genetic algorithm (10 generations of 20) and by
 //           NLopt's ESCH, CRS2, ISRES and DIRECT-L with the same budget, over --runs seeds (default 5; --quick: 2 runs
 //           of 40 evaluations): the best quality found and the evaluations each needed to reach the GA's.
+// Maps are kept in a cache directory (--cache, default ~/.cache/bimanual_skills/workspace; --no-cache), one file per
+// arm and settings: map always builds and times its map and writes it there; fig39, fig310 and placement read theirs
+// from it when it is there.
 // Writes DIR/summary.json (rows with experiment, resolution_m, orientations, seconds, ...; best_dx, best_dz,
 // quality for the placements), DIR/map.csv (one row per voxel), DIR/<fig>.csv (one row per placement) and, with
 // scripts/plot_workspace_benchmark.py, DIR/map_slices.png, DIR/<fig>.png heat maps and tables.md.
@@ -20,9 +23,11 @@
 #include "experiment_cli.hpp"
 #include "summary_json.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -43,24 +48,36 @@ double since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-/// Builds the WAM's map with progress lines; `seconds` gets its time.
+/// The WAM's map with progress lines: built (and saved into `cache` unless it is empty) when `rebuild` or when the
+/// cache does not hold it, else loaded from the cache; `seconds` gets the time it took.
 bw::WorkspaceMap buildMap(const bs::kinematics::ChainModel& model, const bw::WorkspaceMapSettings& settings,
-                          double& seconds) {
+                          const std::string& cache, bool rebuild, double& seconds) {
   std::printf(
       "workspace_benchmark: map of the WAM, %.3f m voxels, %d orientations each, %d IK restarts, seed %u, "
       "%d threads\n",
       settings.resolution, settings.orientations, settings.ik_attempts, settings.seed, settings.threads);
   std::fflush(stdout);
   const auto start = Clock::now();
-  bw::WorkspaceMap map = bw::WorkspaceMap::build(model, settings, [&](std::size_t done, std::size_t total) {
+  const auto progress = [&](std::size_t done, std::size_t total) {
     const double s = since(start);
     std::printf("  %zu/%zu voxels, %.0f s%s\n", done, total, s,
                 done > 0 && done < total
                     ? (", ETA " + std::to_string(static_cast<int>(s / done * (total - done))) + " s").c_str()
                     : "");
     std::fflush(stdout);
-  });
+  };
+  bool from_cache = false;
+  bw::WorkspaceMap map = rebuild ? bw::WorkspaceMap::build(model, settings, progress)
+                                 : bw::WorkspaceMap::cached(model, settings, cache, progress, &from_cache);
+  if (rebuild && !cache.empty()) {
+    std::filesystem::create_directories(cache);
+    map.save(bw::WorkspaceMap::cachePath(cache, model, settings), bw::WorkspaceMap::key(model, settings));
+  }
   seconds = since(start);
+  if (from_cache) {
+    std::printf("workspace_benchmark: the map from %s (%.2f s)\n",
+                bw::WorkspaceMap::cachePath(cache, model, settings).c_str(), seconds);
+  }
   return map;
 }
 
@@ -210,8 +227,27 @@ void placementExperiment(const bs::bench::ExperimentOptions& options, const Sett
 
 /// The searches for the best placement of `setting` (its two offsets) on `runs` seeds: the thesis' genetic algorithm
 /// and NLopt's, each with `budget` evaluations; DIR/placement.csv holds every search's best-so-far curve.
+/// Writes a bimanual configuration (the format of config/bimanual.yaml, which scripts/generate_bimanual_urdf.py turns
+/// into a URDF) with the first arm at the world's origin and the second at `second_base`.
+void writeBimanualConfig(const std::string& path, const Eigen::Isometry3d& second_base, const std::string& why) {
+  // URDF's rpy: R = Rz(yaw) Ry(pitch) Rx(roll).
+  const Eigen::Vector3d ypr = second_base.linear().eulerAngles(2, 1, 0);
+  const Eigen::Vector3d t = second_base.translation();
+  std::ofstream out(path);
+  out.precision(6);
+  out << "# Bimanual setup written by workspace_benchmark: " << why << "\n"
+      << "# Units: m and rad (roll, pitch, yaw about fixed x, y, z, as in URDF). Generate its URDF with\n"
+      << "#   scripts/generate_bimanual_urdf.py --config " << path << " --out FILE\n"
+      << "world_frame: world\narms:\n"
+      << "  - name: left\n    prefix: left_\n    xyz: [0.0, 0.0, 0.0]\n    rpy: [0.0, 0.0, 0.0]\n"
+      << "  - name: right\n    prefix: right_\n    xyz: [" << t.x() << ", " << t.y() << ", " << t.z() << "]\n"
+      << "    rpy: [" << ypr[2] << ", " << ypr[1] << ", " << ypr[0] << "]\n";
+  if (!out.flush()) throw std::runtime_error("cannot write " + path);
+  std::printf("workspace_benchmark: wrote %s (%s)\n", path.c_str(), why.c_str());
+}
+
 void searchExperiment(const bs::bench::ExperimentOptions& options, const Setting& setting, const bw::WorkspaceMap& map,
-                      int runs, int budget, std::vector<bs::bench::JsonRow>& rows) {
+                      int runs, int budget, const std::string& config, std::vector<bs::bench::JsonRow>& rows) {
   const bw::WorkspacePoints points = bw::WorkspacePoints::of(map);
   bw::PairQualitySettings quality;
   quality.threads = options.jobs;
@@ -290,12 +326,25 @@ void searchExperiment(const bs::bench::ExperimentOptions& options, const Setting
         .add("mean_evaluations_to_ga_best", t.reached_ga > 0 ? t.to_ga / t.reached_ga : -1.0)
         .add("mean_seconds", t.seconds);
   }
+  if (!config.empty()) {
+    const auto best =
+        std::max_element(tally.begin(), tally.end(), [](const Tally& a, const Tally& b) { return a.best < b.best; });
+    char why[160];
+    std::snprintf(why, sizeof why, "the best %s placement found, dx = %.3f m, dz = %.3f m, F = %.4g (%s)",
+                  setting.name.c_str(), best->dx, best->dz, best->best,
+                  methods[static_cast<std::size_t>(best - tally.begin())].c_str());
+    writeBimanualConfig(config, setting.second_base(best->dx, best->dz), why);
+  }
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   double resolution = 0.0, step = 0.0;
+  const char* home = std::getenv("HOME");
+  std::string cache = home != nullptr ? std::string(home) + "/.cache/bimanual_skills/workspace" : "";
+  bool no_cache = false;
+  std::string write_config;
   long orientations = 0, attempts = 20;
   bool no_wrist_test = false;
   bs::bench::ExperimentProgram program;
@@ -317,12 +366,22 @@ int main(int argc, char** argv) {
     line.option("--ik-attempts", "N", "IK restarts per orientation (default 20)", &attempts, 1, 100000);
     line.flag("--no-wrist-test", "IK calls only, without the wrist-centre test (the baseline)", &no_wrist_test);
     line.option("--step", "M", "grid step of the placement offsets [m] (default 0.1; 0.4 with --quick)", &step);
+    line.option("--cache", "DIR",
+                "maps are kept in DIR, one file per arm and settings (default ~/.cache/bimanual_skills/workspace); "
+                "map always builds and times the map and writes it there, the placement experiments read it",
+                &cache);
+    line.flag("--no-cache", "neither read nor write map files", &no_cache);
+    line.option("--write-config", "FILE",
+                "placement: write the best placement found as a bimanual configuration (config/bimanual.yaml's "
+                "format) for scripts/generate_bimanual_urdf.py",
+                &write_config);
   };
   const bs::bench::ExperimentOptions options = bs::bench::parseExperimentOptions(argc, argv, program);
   if (resolution < 0.0 || (resolution > 0.0 && resolution < 0.005) || step < 0.0 || (step > 0.0 && step < 0.01)) {
     std::fprintf(stderr, "workspace_benchmark: --resolution must be >= 0.005 m and --step >= 0.01 m (see --help)\n");
     return 2;
   }
+  if (no_cache) cache.clear();
   try {
     std::filesystem::create_directories(options.out);
     const bs::kinematics::ChainModel model =
@@ -338,7 +397,7 @@ int main(int argc, char** argv) {
     if (wants("map")) {
       settings.resolution = resolution > 0.0 ? resolution : (options.quick ? 0.2 : 0.05);
       double seconds = 0.0;
-      const bw::WorkspaceMap map = buildMap(model, settings, seconds);
+      const bw::WorkspaceMap map = buildMap(model, settings, cache, true, seconds);
       mapExperiment(options, map, seconds, rows);
       // One evaluation of the placement quality on this map: fig39's setting at the thesis' optimum dx = dz = 0.8 m.
       bw::PairQualitySettings quality;
@@ -359,7 +418,7 @@ int main(int argc, char** argv) {
       settings.resolution = resolution > 0.0 ? resolution : (options.quick ? 0.2 : 0.1);
       const double grid = step > 0.0 ? step : (options.quick ? 0.4 : 0.1);
       double seconds = 0.0;
-      const bw::WorkspaceMap map = buildMap(model, settings, seconds);
+      const bw::WorkspaceMap map = buildMap(model, settings, cache, false, seconds);
       const Setting perpendicular{"fig39",
                                   "the second base perpendicular (its z axis along -x) at (dx, 0, dz)",
                                   perpendicularBase,
@@ -374,7 +433,7 @@ int main(int argc, char** argv) {
       if (wants("fig310")) placementExperiment(options, facing, map, grid, rows);
       if (wants("placement")) {
         const int runs = options.runs > 0 ? options.runs : (options.quick ? 2 : 5);
-        searchExperiment(options, perpendicular, map, runs, options.quick ? 40 : 200, rows);
+        searchExperiment(options, perpendicular, map, runs, options.quick ? 40 : 200, write_config, rows);
       }
     }
     bs::bench::writeSummaryJson(options, "workspace_benchmark", rows);

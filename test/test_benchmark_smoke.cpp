@@ -161,9 +161,19 @@ TEST(RolloutBenchmarkSmoke, WorkersGiveTheResultsOfThreads) {
 TEST(WorkspaceBenchmarkSmoke, QuickRunWritesEveryOutput) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_workspace_benchmark_smoke";
   fs::remove_all(out);
-  ASSERT_EQ(runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment all --seed 3 --quick --jobs 2 --out " +
+  ASSERT_EQ(runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment all --seed 3 --quick --jobs 2 --cache " +
+                       (out / "cache").string() + " --write-config " + (out / "bimanual.yaml").string() + " --out " +
                        out.string()),
             0);
+  // The placement found, as a configuration the bimanual URDF generator accepts.
+  EXPECT_EQ(runQuietly("/usr/bin/python3 " + std::string(BIMANUAL_SKILLS_SOURCE_DIR) +
+                       "/scripts/generate_bimanual_urdf.py --config " + (out / "bimanual.yaml").string() + " --out " +
+                       (out / "placed.urdf").string()),
+            0);
+  EXPECT_NE(readTextFile(out / "placed.urdf").find("right_wam_base"), std::string::npos);
+  // map wrote its map into the cache; the placement experiments (same settings with --quick) read it from there.
+  EXPECT_EQ(std::distance(fs::directory_iterator(out / "cache"), fs::directory_iterator{}), 1);
+  EXPECT_NE(readTextFile(out / "tables.md").find("workspace_benchmark"), std::string::npos);
   const std::string summary = readTextFile(out / "summary.json");
   for (const char* field :
        {"\"experiment\": \"map\"", "\"resolution_m\": 0.2", "\"orientations\": 10", "\"seconds\"",

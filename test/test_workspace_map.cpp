@@ -2,13 +2,16 @@
 // the wrist-centre test never rules out a pose the arm reaches (2000 random configurations within the limits) and
 // rules out one beyond reach, every voxel's numbers are consistent (ratio, cones, pruned + solved ≤ M), a voxel at a
 // reached tool position is reachable, the map is the same on one thread and on three, and the same with and without
-// the wrist-centre test (it only saves IK calls that would fail).
+// the wrist-centre test (it only saves IK calls that would fail); the cache file gives back the same map, only for
+// the same arm and settings, and a damaged file is built again.
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/workspace/workspace_map.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <random>
 #include <stdexcept>
 
@@ -117,4 +120,63 @@ TEST(WorkspaceMap, BadSettings) {
   s = coarse(1);
   s.forearm_joint = 9;
   EXPECT_THROW(bw::WorkspaceMap::build(wam(), s), std::invalid_argument);
+}
+
+TEST(WorkspaceMap, TheCacheGivesBackTheSameMapAndOnlyForItsKey) {
+  const bk::ChainModel model = wam();
+  const std::string directory = testing::TempDir() + "/workspace_cache_test";
+  std::filesystem::remove_all(directory);
+  bool from_cache = true;
+  const bw::WorkspaceMap built = bw::WorkspaceMap::cached(model, coarse(2), directory, {}, &from_cache);
+  EXPECT_FALSE(from_cache);
+  const bw::WorkspaceMap loaded = bw::WorkspaceMap::cached(model, coarse(1), directory, {}, &from_cache);
+  EXPECT_TRUE(from_cache) << "the same model and settings but threads";
+  ASSERT_EQ(loaded.voxels().size(), built.voxels().size());
+  for (std::size_t i = 0; i < built.voxels().size(); ++i) {
+    const bw::WorkspaceVoxel& a = built.voxels()[i];
+    const bw::WorkspaceVoxel& b = loaded.voxels()[i];
+    EXPECT_EQ(a.centre, b.centre);
+    EXPECT_EQ(a.solved, b.solved);
+    EXPECT_EQ(a.pruned, b.pruned);
+    EXPECT_EQ(a.condition, b.condition);
+    EXPECT_EQ(a.manipulability, b.manipulability);
+    EXPECT_EQ(a.tool.axis, b.tool.axis);
+    EXPECT_EQ(a.tool.angle, b.tool.angle);
+    EXPECT_EQ(a.forearm.axis, b.forearm.axis);
+  }
+  EXPECT_EQ(loaded.reach(), built.reach());
+  EXPECT_EQ(loaded.sphericalWrist(), built.sphericalWrist());
+  EXPECT_EQ(loaded.settings().seed, 4u);
+  Eigen::Isometry3d far = Eigen::Isometry3d::Identity();
+  far.translation() = Eigen::Vector3d(3.0, 0.0, 0.0);
+  EXPECT_FALSE(loaded.mayReach(far)) << "the wrist-centre test survives the file";
+
+  // Other settings or another arm: another key.
+  bw::WorkspaceMapSettings other = coarse(2);
+  other.seed = 5;
+  EXPECT_NE(bw::WorkspaceMap::key(model, other), bw::WorkspaceMap::key(model, coarse(2)));
+  other = coarse(2);
+  other.orientations = 7;
+  EXPECT_NE(bw::WorkspaceMap::key(model, other), bw::WorkspaceMap::key(model, coarse(2)));
+  EXPECT_EQ(bw::WorkspaceMap::key(model, coarse(1)), bw::WorkspaceMap::key(model, coarse(3)));
+  const bk::ChainModel shorter =
+      bk::ChainModel::fromUrdfFile(std::string(BIMANUAL_SKILLS_SOURCE_DIR) + "/urdf/wam.urdf", "wam_base", "wam_link6");
+  EXPECT_NE(bw::WorkspaceMap::key(shorter, coarse(2)), bw::WorkspaceMap::key(model, coarse(2)));
+
+  // A file under another key, a truncated file and garbage are not maps: the caller builds again.
+  const std::string path = bw::WorkspaceMap::cachePath(directory, model, coarse(2));
+  EXPECT_FALSE(bw::WorkspaceMap::load(path, bw::WorkspaceMap::key(model, coarse(2)) + 1).has_value());
+  const auto size = std::filesystem::file_size(path);
+  std::filesystem::resize_file(path, size - 9);
+  EXPECT_FALSE(bw::WorkspaceMap::load(path, bw::WorkspaceMap::key(model, coarse(2))).has_value());
+  {
+    std::ofstream garbage(path, std::ios::binary | std::ios::trunc);
+    garbage << "not a map";
+  }
+  EXPECT_FALSE(bw::WorkspaceMap::load(path, bw::WorkspaceMap::key(model, coarse(2))).has_value());
+  EXPECT_FALSE(bw::WorkspaceMap::load(directory + "/missing.map", 1).has_value());
+  bw::WorkspaceMap::cached(model, coarse(2), directory, {}, &from_cache);
+  EXPECT_FALSE(from_cache) << "a damaged file is built again";
+  EXPECT_TRUE(bw::WorkspaceMap::load(path, bw::WorkspaceMap::key(model, coarse(2))).has_value()) << "and rewritten";
+  std::filesystem::remove_all(directory);
 }

@@ -9,7 +9,11 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <exception>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <mutex>
 #include <random>
@@ -132,6 +136,47 @@ Eigen::Matrix3d uniformRotation(std::mt19937& rng) {
   const Eigen::Quaterniond q(b * std::cos(2 * M_PI * u3), a * std::sin(2 * M_PI * u2), a * std::cos(2 * M_PI * u2),
                              b * std::sin(2 * M_PI * u3));
   return q.toRotationMatrix();
+}
+
+/// The cache file's header: magic, format version and a byte-order mark.
+constexpr char kMagic[8] = {'B', 'S', 'W', 'S', 'M', 'A', 'P', '\0'};
+constexpr std::uint32_t kFormatVersion = 1;
+constexpr std::uint32_t kByteOrder = 0x01020304u;
+
+/// FNV-1a over the bytes of values, for WorkspaceMap::key.
+class Fingerprint {
+ public:
+  template <typename T>
+  Fingerprint& add(const T& value) {
+    unsigned char bytes[sizeof(T)];
+    std::memcpy(bytes, &value, sizeof(T));
+    for (const unsigned char b : bytes) hash_ = (hash_ ^ b) * 0x100000001b3ull;
+    return *this;
+  }
+  Fingerprint& add(const Eigen::MatrixXd& m) {
+    for (Eigen::Index i = 0; i < m.size(); ++i) add(m.data()[i]);
+    return *this;
+  }
+  std::uint64_t value() const { return hash_; }
+
+ private:
+  std::uint64_t hash_ = 0xcbf29ce484222325ull;
+};
+
+/// Raw values to and from the cache file (this host's representation; the header's byte-order mark guards it).
+template <typename T>
+void put(std::ofstream& out, const T& value) {
+  out.write(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+template <typename T>
+bool get(std::ifstream& in, T& value) {
+  return static_cast<bool>(in.read(reinterpret_cast<char*>(&value), sizeof(T)));
+}
+void putVector(std::ofstream& out, const Eigen::Vector3d& v) {
+  for (int i = 0; i < 3; ++i) put(out, v[i]);
+}
+bool getVector(std::ifstream& in, Eigen::Vector3d& v) {
+  return get(in, v[0]) && get(in, v[1]) && get(in, v[2]);
 }
 
 }  // namespace
@@ -268,6 +313,117 @@ WorkspaceMap WorkspaceMap::build(const ChainModel& model, const WorkspaceMapSett
   for (std::thread& t : pool) t.join();
   if (error) std::rethrow_exception(error);
   if (progress) progress(done, map.voxels_.size());
+  return map;
+}
+
+std::uint64_t WorkspaceMap::key(const ChainModel& model, const WorkspaceMapSettings& settings) {
+  Fingerprint f;
+  f.add(kFormatVersion).add(model.nq());
+  for (const kinematics::ChainJoint& joint : model.joints()) {
+    f.add(static_cast<int>(joint.type)).add(Eigen::MatrixXd(joint.origin.matrix())).add(Eigen::MatrixXd(joint.axis));
+    f.add(joint.lower).add(joint.upper);
+  }
+  f.add(Eigen::MatrixXd(model.tipInLastFrame().matrix()));
+  f.add(settings.resolution).add(settings.orientations).add(settings.seed).add(settings.ik_attempts);
+  f.add(settings.forearm_joint).add(settings.wrist_test);
+  return f.value();
+}
+
+void WorkspaceMap::save(const std::string& path, std::uint64_t key) const {
+  const std::string partial = path + ".partial";
+  {
+    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error("workspace map: cannot write " + partial);
+    out.write(kMagic, sizeof kMagic);
+    put(out, kFormatVersion);
+    put(out, kByteOrder);
+    put(out, key);
+    put(out, settings_.resolution);
+    put(out, settings_.orientations);
+    put(out, settings_.seed);
+    put(out, settings_.ik_attempts);
+    put(out, settings_.forearm_joint);
+    put(out, settings_.wrist_test);
+    put(out, spherical_);
+    put(out, reach_);
+    putVector(out, shoulder_);
+    putVector(out, wrist_in_tool_);
+    put(out, wrist_min_);
+    put(out, wrist_max_);
+    put(out, static_cast<std::uint64_t>(voxels_.size()));
+    for (const WorkspaceVoxel& v : voxels_) {
+      putVector(out, v.centre);
+      put(out, v.solved);
+      put(out, v.pruned);
+      put(out, v.solution_ratio);
+      put(out, v.manipulability);
+      put(out, v.condition);
+      putVector(out, v.forearm.axis);
+      put(out, v.forearm.angle);
+      putVector(out, v.tool.axis);
+      put(out, v.tool.angle);
+    }
+    if (!out.flush()) throw std::runtime_error("workspace map: cannot write " + partial);
+  }
+  // Complete or absent: a reader never sees half a file.
+  std::filesystem::rename(partial, path);
+}
+
+std::optional<WorkspaceMap> WorkspaceMap::load(const std::string& path, std::uint64_t key) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return std::nullopt;
+  char magic[sizeof kMagic];
+  std::uint32_t version = 0, order = 0;
+  std::uint64_t stored = 0, count = 0;
+  if (!in.read(magic, sizeof magic) || std::memcmp(magic, kMagic, sizeof kMagic) != 0 || !get(in, version) ||
+      version != kFormatVersion || !get(in, order) || order != kByteOrder || !get(in, stored) || stored != key) {
+    return std::nullopt;
+  }
+  WorkspaceMap map;
+  WorkspaceMapSettings& s = map.settings_;
+  if (!get(in, s.resolution) || !get(in, s.orientations) || !get(in, s.seed) || !get(in, s.ik_attempts) ||
+      !get(in, s.forearm_joint) || !get(in, s.wrist_test) || !get(in, map.spherical_) || !get(in, map.reach_) ||
+      !getVector(in, map.shoulder_) || !getVector(in, map.wrist_in_tool_) || !get(in, map.wrist_min_) ||
+      !get(in, map.wrist_max_) || !get(in, count) || count > (std::uint64_t{1} << 32)) {
+    return std::nullopt;
+  }
+  map.voxels_.resize(static_cast<std::size_t>(count));
+  for (WorkspaceVoxel& v : map.voxels_) {
+    if (!getVector(in, v.centre) || !get(in, v.solved) || !get(in, v.pruned) || !get(in, v.solution_ratio) ||
+        !get(in, v.manipulability) || !get(in, v.condition) || !getVector(in, v.forearm.axis) ||
+        !get(in, v.forearm.angle) || !getVector(in, v.tool.axis) || !get(in, v.tool.angle)) {
+      return std::nullopt;
+    }
+  }
+  char extra = 0;
+  if (in.read(&extra, 1)) return std::nullopt;  // trailing bytes: not a file this code wrote
+  return map;
+}
+
+std::string WorkspaceMap::cachePath(const std::string& directory, const ChainModel& model,
+                                    const WorkspaceMapSettings& settings) {
+  char name[40];
+  std::snprintf(name, sizeof name, "workspace_%016llx.map", static_cast<unsigned long long>(key(model, settings)));
+  return (std::filesystem::path(directory) / name).string();
+}
+
+WorkspaceMap WorkspaceMap::cached(const ChainModel& model, const WorkspaceMapSettings& settings,
+                                  const std::string& directory,
+                                  const std::function<void(std::size_t, std::size_t)>& progress, bool* from_cache) {
+  const std::uint64_t k = key(model, settings);
+  if (!directory.empty()) {
+    if (std::optional<WorkspaceMap> map = load(cachePath(directory, model, settings), k)) {
+      map->settings_.threads = settings.threads;
+      if (from_cache != nullptr) *from_cache = true;
+      return std::move(*map);
+    }
+  }
+  WorkspaceMap map = build(model, settings, progress);
+  if (!directory.empty()) {
+    std::filesystem::create_directories(directory);
+    map.save(cachePath(directory, model, settings), k);
+  }
+  if (from_cache != nullptr) *from_cache = false;
   return map;
 }
 

@@ -21,6 +21,8 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
+#include <string>
 #include <vector>
 
 namespace bimanual_skills::workspace {
@@ -61,6 +63,25 @@ class WorkspaceMap {
   /// \throws std::invalid_argument for bad settings or a chain with fewer than 3 joints.
   static WorkspaceMap build(const kinematics::ChainModel& model, const WorkspaceMapSettings& settings,
                             const std::function<void(std::size_t done, std::size_t total)>& progress = {});
+
+  /// A fingerprint of everything a map depends on: the chain's kinematics (joint types, origins, axes, limits, the
+  /// tip) and the settings but `threads` (the map does not depend on them), with the file format's version.
+  static std::uint64_t key(const kinematics::ChainModel& model, const WorkspaceMapSettings& settings);
+  /// Writes the map to `path`: a binary file of this format version holding `key`, for this host's byte order.
+  /// \throws std::runtime_error when it cannot be written.
+  void save(const std::string& path, std::uint64_t key) const;
+  /// The map saved in `path` with `key`; none when the file is missing, of another format version, byte order or
+  /// key, or damaged (then the caller builds the map again).
+  static std::optional<WorkspaceMap> load(const std::string& path, std::uint64_t key);
+  /// The map of `model` and `settings` from the cache directory `directory` (a file named by its key) or, when it is
+  /// not there, built and saved there; `from_cache` (optional) says which. An empty directory: build only.
+  static WorkspaceMap cached(const kinematics::ChainModel& model, const WorkspaceMapSettings& settings,
+                             const std::string& directory,
+                             const std::function<void(std::size_t done, std::size_t total)>& progress = {},
+                             bool* from_cache = nullptr);
+  /// The cache file of `model` and `settings` in `directory`.
+  static std::string cachePath(const std::string& directory, const kinematics::ChainModel& model,
+                               const WorkspaceMapSettings& settings);
 
   const WorkspaceMapSettings& settings() const noexcept { return settings_; }
   /// Every voxel within the reach bound (reachable or not), in grid order (x fastest, then y, then z).

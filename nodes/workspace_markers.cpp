@@ -1,0 +1,145 @@
+// workspace_markers: an arm's workspace map (workspace/workspace_map.hpp, thesis Sec. 3.2.1) in rviz. A thin shell:
+// the map is built by the library (or read from its cache file) and published once, latched.
+#include "bimanual_skills/workspace/workspace_map.hpp"
+#include "node_cli.hpp"
+
+#include <ros/package.h>
+#include <ros/ros.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <string>
+
+namespace bs = bimanual_skills;
+namespace bw = bimanual_skills::workspace;
+
+namespace {
+
+const char* kUsage =
+    "usage: rosrun bimanual_skills workspace_markers [_urdf:=FILE] [_base:=LINK] [_tip:=LINK] [_resolution:=M]\n"
+    "                                                [_orientations:=N] [_seed:=S] [_cache:=DIR] [_slice_y:=M]\n"
+    "\n"
+    "An arm's workspace map by inverse sampling (thesis Sec. 3.2.1, Fig. 3.7) in rviz: the map is built, or read\n"
+    "from the cache directory where workspace_benchmark and this node keep maps (one file per arm and settings),\n"
+    "then published once, latched, in the frame of the base link.\n"
+    "\n"
+    "Parameters (private):\n"
+    "  ~urdf          the arm's URDF file (default: the package's urdf/wam.urdf)\n"
+    "  ~base, ~tip    the chain's links (default wam_base, wam_tool)\n"
+    "  ~resolution    voxel edge [m] (default 0.1)\n"
+    "  ~orientations  tool orientations tried per voxel (default 50)\n"
+    "  ~seed          of the orientations and IK restarts (default 1)\n"
+    "  ~cache         map files directory (default ~/.cache/bimanual_skills/workspace; \"\": build only)\n"
+    "  ~slice_y       the plane y = slice_y [m] whose tool cones are drawn (default 0)\n"
+    "  ~cutaway       draw only the voxels up to the slice, so that it shows (default true)\n"
+    "\n"
+    "Topics:\n"
+    "  ~map    visualization_msgs/MarkerArray: the reachable voxels (up to the slice with ~cutaway) as cubes,\n"
+    "          coloured by the ratio of orientations solved (blue: few, red: all)\n"
+    "  ~cones  visualization_msgs/MarkerArray: in the slice, each reachable voxel's cone of feasible tool z axes\n"
+    "          as an arrow along its axis, coloured by the cone's half-angle (blue: narrow, red: 180 degrees)\n";
+
+/// Blue → green → red for t in [0, 1].
+std_msgs::ColorRGBA heat(double t) {
+  t = std::clamp(t, 0.0, 1.0);
+  std_msgs::ColorRGBA c;
+  c.r = static_cast<float>(std::clamp(2.0 * t - 1.0, 0.0, 1.0));
+  c.g = static_cast<float>(1.0 - std::abs(2.0 * t - 1.0));
+  c.b = static_cast<float>(std::clamp(1.0 - 2.0 * t, 0.0, 1.0));
+  c.a = 1.0f;
+  return c;
+}
+
+geometry_msgs::Point point(const Eigen::Vector3d& p) {
+  geometry_msgs::Point out;
+  out.x = p.x();
+  out.y = p.y();
+  out.z = p.z();
+  return out;
+}
+
+visualization_msgs::Marker marker(const std::string& frame, const std::string& ns, int id, int type) {
+  visualization_msgs::Marker m;
+  m.header.frame_id = frame;
+  m.header.stamp = ros::Time(0);
+  m.ns = ns;
+  m.id = id;
+  m.type = type;
+  m.action = visualization_msgs::Marker::ADD;
+  m.pose.orientation.w = 1.0;
+  return m;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bs::nodes::handleCommandLine(argc, argv, kUsage);
+  ros::init(argc, argv, "workspace_markers");
+  ros::NodeHandle private_node("~");
+  try {
+    const std::string urdf =
+        private_node.param<std::string>("urdf", ros::package::getPath("bimanual_skills") + "/urdf/wam.urdf");
+    const std::string base = private_node.param<std::string>("base", "wam_base");
+    const std::string tip = private_node.param<std::string>("tip", "wam_tool");
+    const char* home = std::getenv("HOME");
+    const std::string cache = private_node.param<std::string>(
+        "cache", home != nullptr ? std::string(home) + "/.cache/bimanual_skills/workspace" : "");
+    bw::WorkspaceMapSettings settings;
+    settings.resolution = private_node.param("resolution", 0.1);
+    settings.orientations = private_node.param("orientations", 50);
+    const int seed = private_node.param("seed", 1);
+    if (seed < 0) throw std::invalid_argument("~seed must be >= 0");
+    settings.seed = static_cast<std::uint32_t>(seed);
+    const double slice = private_node.param("slice_y", 0.0);
+    const bool cutaway = private_node.param("cutaway", true);
+    if (!std::isfinite(slice)) throw std::invalid_argument("~slice_y must be finite");
+    const bs::kinematics::ChainModel model = bs::kinematics::ChainModel::fromUrdfFile(urdf, base, tip);
+
+    ROS_INFO("workspace_markers: the map of %s (%s -> %s), %.3f m voxels, %d orientations, seed %u", urdf.c_str(),
+             base.c_str(), tip.c_str(), settings.resolution, settings.orientations, settings.seed);
+    bool from_cache = false;
+    const ros::WallTime start = ros::WallTime::now();
+    const bw::WorkspaceMap map = bw::WorkspaceMap::cached(
+        model, settings, cache,
+        [](std::size_t done, std::size_t total) { ROS_INFO("workspace_markers: %zu/%zu voxels", done, total); },
+        &from_cache);
+    ROS_INFO("workspace_markers: %zu reachable voxels of %zu, %s in %.1f s", map.reachable(), map.voxels().size(),
+             from_cache ? "read from the cache" : "built", (ros::WallTime::now() - start).toSec());
+
+    const double h = settings.resolution;
+    visualization_msgs::MarkerArray voxels;
+    visualization_msgs::Marker cubes = marker(base, "workspace", 0, visualization_msgs::Marker::CUBE_LIST);
+    cubes.scale.x = cubes.scale.y = cubes.scale.z = 0.9 * h;
+    visualization_msgs::MarkerArray cones;
+    int id = 0;
+    for (const bw::WorkspaceVoxel& v : map.voxels()) {
+      if (v.solved == 0 || (cutaway && v.centre.y() > slice + 0.5 * h)) continue;
+      cubes.points.push_back(point(v.centre));
+      std_msgs::ColorRGBA c = heat(v.solution_ratio);
+      c.a = 0.6f;
+      cubes.colors.push_back(c);
+      if (std::abs(v.centre.y() - slice) > 0.5 * h) continue;
+      visualization_msgs::Marker arrow = marker(base, "tool_cones", id++, visualization_msgs::Marker::ARROW);
+      arrow.points = {point(v.centre), point(v.centre + 0.8 * h * v.tool.axis)};
+      arrow.scale.x = 0.08 * h;
+      arrow.scale.y = 0.2 * h;
+      arrow.scale.z = 0.3 * h;
+      arrow.color = heat(v.tool.angle / M_PI);
+      cones.markers.push_back(arrow);
+    }
+    voxels.markers.push_back(cubes);
+    ros::Publisher map_publisher = private_node.advertise<visualization_msgs::MarkerArray>("map", 1, true);
+    ros::Publisher cone_publisher = private_node.advertise<visualization_msgs::MarkerArray>("cones", 1, true);
+    map_publisher.publish(voxels);
+    cone_publisher.publish(cones);
+    ROS_INFO("workspace_markers: published %zu voxels on %s and %zu cones (y = %.2f m) on %s", cubes.points.size(),
+             map_publisher.getTopic().c_str(), cones.markers.size(), slice, cone_publisher.getTopic().c_str());
+    ros::spin();
+  } catch (const std::exception& e) {
+    ROS_FATAL("workspace_markers: %s", e.what());
+    return 1;
+  }
+  return 0;
+}
