@@ -17,6 +17,7 @@
 #include "experiment_cli.hpp"
 #include "parallel_runs.hpp"
 #include "summary_json.hpp"
+#include "tools/clock.hpp"
 
 #include <Eigen/QR>
 
@@ -47,11 +48,8 @@ const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 using Options = bb::ExperimentOptions;
-using Clock = std::chrono::steady_clock;
-
-double seconds(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using bimanual_skills::tools::Clock;
+using bimanual_skills::tools::secondsSince;
 
 // ---- the learning loop shared by planar15, planar10 and wam_circle ----
 
@@ -114,7 +112,7 @@ Curve learn(const Setup& setup, const Protocol& protocol, std::mt19937& rng) {
     curve.rollout_reward.push_back(rewards.mean());
     curve.latent_dims.push_back(learner.policy().latentDims());
   }
-  curve.seconds = seconds(start);
+  curve.seconds = secondsSince(start);
   return curve;
 }
 
@@ -186,7 +184,7 @@ void runLearning(const Options& options, const std::string& experiment, const Pr
         }
       });
   std::printf("  %s: %d runs of %zu algorithms in %.1f s on %d threads\n", experiment.c_str(), runs, algorithms.size(),
-              seconds(wall), options.jobs);
+              secondsSince(wall), options.jobs);
 }
 
 int runsOf(const Options& options, int runs, int quick_runs) {
@@ -241,7 +239,7 @@ double medianMilliseconds(int repetitions, const std::function<void()>& call) {
   for (int i = 0; i < repetitions; ++i) {
     const auto start = Clock::now();
     call();
-    times.push_back(1e3 * seconds(start));
+    times.push_back(1e3 * secondsSince(start));
   }
   std::sort(times.begin(), times.end());
   return times[times.size() / 2];
@@ -711,7 +709,7 @@ int main(int argc, char** argv) {
       if (!wants(name)) return;
       const auto start = Clock::now();
       run(options, rows);
-      std::printf("dr_benchmark: %s done in %.1f s\n", name, seconds(start));
+      std::printf("dr_benchmark: %s done in %.1f s\n", name, secondsSince(start));
       std::fflush(stdout);
     };
     timed("estep", estep);

@@ -15,6 +15,7 @@
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "experiment_cli.hpp"
 #include "summary_json.hpp"
+#include "tools/clock.hpp"
 
 #include <ros/ros.h>
 
@@ -43,11 +44,8 @@ namespace br = bimanual_skills::rollout;
 namespace {
 
 const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
-using Clock = std::chrono::steady_clock;
-
-double since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
+using bimanual_skills::tools::Clock;
+using bimanual_skills::tools::secondsSince;
 
 /// True when something accepts TCP connections on localhost:port.
 bool listening(int port) {
@@ -150,7 +148,7 @@ Timing onThreads(const Batch& b, int threads) {
   const auto start = Clock::now();
   Timing t;
   t.results = evaluator.evaluate(b.requests);
-  t.seconds = since(start);
+  t.seconds = secondsSince(start);
   return t;
 }
 
@@ -182,13 +180,13 @@ class WorkerSet {
     const auto start = Clock::now();
     auto last_change = start;
     std::size_t seen = 0;
-    while (since(start) < 60.0) {
+    while (secondsSince(start) < 60.0) {
       dispatcher_->evaluate({});
       if (dispatcher_->workers() != seen) {
         seen = dispatcher_->workers();
         last_change = Clock::now();
       }
-      if (workers > 0 ? static_cast<int>(seen) == workers : seen > 0 && since(last_change) > 3.0) break;
+      if (workers > 0 ? static_cast<int>(seen) == workers : seen > 0 && secondsSince(last_change) > 3.0) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(200));
     }
     count_ = static_cast<int>(dispatcher_->workers());
@@ -206,7 +204,7 @@ class WorkerSet {
     const auto start = Clock::now();
     Timing t;
     t.results = dispatcher_->evaluate(b.requests);
-    t.seconds = since(start);
+    t.seconds = secondsSince(start);
     return t;
   }
 

@@ -22,6 +22,7 @@
 #include "bimanual_skills/workspace/workspace_map.hpp"
 #include "experiment_cli.hpp"
 #include "summary_json.hpp"
+#include "tools/clock.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -42,11 +43,8 @@ namespace bw = bimanual_skills::workspace;
 namespace {
 
 const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
-using Clock = std::chrono::steady_clock;
-
-double since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
+using bimanual_skills::tools::Clock;
+using bimanual_skills::tools::secondsSince;
 
 /// The WAM's map with progress lines: built (and saved into `cache` unless it is empty) when `rebuild` or when the
 /// cache does not hold it, else loaded from the cache; `seconds` gets the time it took.
@@ -59,7 +57,7 @@ bw::WorkspaceMap buildMap(const bs::kinematics::ChainModel& model, const bw::Wor
   std::fflush(stdout);
   const auto start = Clock::now();
   const auto progress = [&](std::size_t done, std::size_t total) {
-    const double s = since(start);
+    const double s = secondsSince(start);
     std::printf("  %zu/%zu voxels, %.0f s%s\n", done, total, s,
                 done > 0 && done < total
                     ? (", ETA " + std::to_string(static_cast<int>(s / done * (total - done))) + " s").c_str()
@@ -73,7 +71,7 @@ bw::WorkspaceMap buildMap(const bs::kinematics::ChainModel& model, const bw::Wor
     std::filesystem::create_directories(cache);
     map.save(bw::WorkspaceMap::cachePath(cache, model, settings), bw::WorkspaceMap::key(model, settings));
   }
-  seconds = since(start);
+  seconds = secondsSince(start);
   if (from_cache) {
     std::printf("workspace_benchmark: the map from %s (%.2f s)\n",
                 bw::WorkspaceMap::cachePath(cache, model, settings).c_str(), seconds);
@@ -177,7 +175,7 @@ void placementExperiment(const bs::bench::ExperimentOptions& options, const Sett
       }
     }
     csv.flush();
-    const double s = since(start);
+    const double s = secondsSince(start);
     std::printf("  %s: %d/%d rows of placements, %.0f s, ETA %.0f s; best so far F = %.4g at dx = %.2f, dz = %.2f\n",
                 setting.name.c_str(), iz + 1, nz, s, s / (iz + 1) * (nz - iz - 1), best.q.quality, best.dx, best.dz);
     std::fflush(stdout);

@@ -1,4 +1,5 @@
 #include "bimanual_skills/rollout/dispatcher.hpp"
+#include "tools/clock.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -13,11 +14,8 @@ namespace bimanual_skills::rollout {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double since(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
+using bimanual_skills::tools::Clock;
+using bimanual_skills::tools::secondsSince;
 
 /// Why `results` cannot be the answer to a share of `size` rollouts of a task with `terms` terms; empty if it can.
 std::string garbage(const std::vector<RolloutResult>& results, std::size_t size, std::size_t terms) {
@@ -138,7 +136,7 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
                                     [](const std::unique_ptr<Worker>& w) { return !w->share.empty(); });
       if (stopping && !busy) throw std::runtime_error("stopped");
       if (workers_.empty()) {
-        if (since(waiting) > config_.wait_for_workers) {
+        if (secondsSince(waiting) > config_.wait_for_workers) {
           throw std::runtime_error("dispatch: no rollout worker alive for " +
                                    std::to_string(static_cast<int>(config_.wait_for_workers)) + " s (" +
                                    std::to_string(batch.size() - reported) + " rollouts left) " + directory_->where());
@@ -183,7 +181,7 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
             if (status.done > w.progress) {
               w.progress = status.done;
               w.since = Clock::now();
-            } else if (since(w.since) > config_.timeout) {
+            } else if (secondsSince(w.since) > config_.timeout) {
               w.link->cancel();
               drop(at--, "no rollout finished for " + std::to_string(static_cast<int>(config_.timeout)) + " s");
             }
@@ -217,12 +215,12 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
     cancelAll();
     last_.workers = took_part.size();
     last_.alive = workers_.size();
-    last_.seconds = since(start);
+    last_.seconds = secondsSince(start);
     throw;
   }
   last_.workers = took_part.size();
   last_.alive = workers_.size();
-  last_.seconds = since(start);
+  last_.seconds = secondsSince(start);
   if (config_.batch) config_.batch(last_);
   return results;
 }

@@ -4,6 +4,7 @@
 #include "bimanual_skills/primitives/dr_dmp.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "io/yaml_io.hpp"
+#include "tools/clock.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -20,12 +21,9 @@ namespace bimanual_skills::rollout {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using tools::Clock;
+using tools::secondsSince;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
-
-double secondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 std::string key(const std::string& algorithm, int run, int epoch, RolloutKind kind, int index) {
   return algorithm + '|' + std::to_string(run) + '|' + std::to_string(epoch) + '|' + toString(kind) + '|' +

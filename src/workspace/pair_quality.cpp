@@ -1,8 +1,9 @@
 #include "bimanual_skills/workspace/pair_quality.hpp"
 
+#include "tools/clock.hpp"
+
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <stdexcept>
@@ -120,10 +121,6 @@ double unionVolume(const WorkspacePoints& first, const Eigen::Isometry3d& first_
          second.voxel_volume * static_cast<double>(second.points.size() - shared);
 }
 
-double since(std::chrono::steady_clock::time_point start) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
-
 }  // namespace
 
 void PairQualitySettings::validate() const {
@@ -170,7 +167,7 @@ PlacementQuality placementQuality(const WorkspacePoints& first, const Eigen::Iso
                                   const WorkspacePoints& second, const Eigen::Isometry3d& second_base,
                                   const PairQualitySettings& settings) {
   checkInputs(first, second, settings);
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = tools::Clock::now();
   const std::vector<Prepared> a = inWorld(first, first_base), b = inWorld(second, second_base);
   const double lo = settings.length - settings.tolerance, hi = settings.length + settings.tolerance;
   PlacementQuality out;
@@ -277,7 +274,7 @@ PlacementQuality placementQuality(const WorkspacePoints& first, const Eigen::Iso
     out.visited += part.visited;
   }
   out.quality = out.volume * out.pair_sum;
-  out.seconds = since(start);
+  out.seconds = tools::secondsSince(start);
   return out;
 }
 
@@ -285,7 +282,7 @@ PlacementQuality bruteForcePlacementQuality(const WorkspacePoints& first, const 
                                             const WorkspacePoints& second, const Eigen::Isometry3d& second_base,
                                             const PairQualitySettings& settings) {
   checkInputs(first, second, settings);
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = tools::Clock::now();
   PlacementQuality out;
   out.volume = unionVolume(first, first_base, second, second_base);
   for (const WorkspacePoint& p : first.points) {
@@ -304,7 +301,7 @@ PlacementQuality bruteForcePlacementQuality(const WorkspacePoints& first, const 
     }
   }
   out.quality = out.volume * out.pair_sum;
-  out.seconds = since(start);
+  out.seconds = tools::secondsSince(start);
   return out;
 }
 

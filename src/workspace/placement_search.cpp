@@ -1,9 +1,10 @@
 #include "bimanual_skills/workspace/placement_search.hpp"
 
+#include "tools/clock.hpp"
+
 #include <nlopt.hpp>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <numeric>
 #include <random>
@@ -32,8 +33,8 @@ class Recorder {
     return value;
   }
 
-  SearchResult finish(std::chrono::steady_clock::time_point start) {
-    result_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  SearchResult finish(tools::Clock::time_point start) {
+    result_.seconds = tools::secondsSince(start);
     return result_;
   }
 
@@ -73,7 +74,7 @@ SearchResult geneticSearch(const SearchBounds& bounds, const PlacementObjective&
                            const GeneticSettings& settings) {
   bounds.validate();
   settings.validate();
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = tools::Clock::now();
   Recorder record("GA", objective);
   std::mt19937 rng(settings.seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -143,7 +144,7 @@ SearchResult nloptSearch(const std::string& algorithm, const SearchBounds& bound
     throw std::invalid_argument("placement search: unknown NLopt algorithm '" + algorithm +
                                 "' (ESCH, CRS2, ISRES, DIRECT)");
   }
-  const auto start = std::chrono::steady_clock::now();
+  const auto start = tools::Clock::now();
   Recorder record(algorithm, objective);
   const auto n = static_cast<unsigned>(bounds.lower.size());
   nlopt::opt optimiser(which, n);
