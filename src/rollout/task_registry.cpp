@@ -107,9 +107,10 @@ std::unique_ptr<RolloutTask> makeViaPoint() {
   terms.emplace_back("via_point_error");
   return std::make_unique<PolicySearchTask>(
       terms, task->policy().parameters(), [task](const Eigen::VectorXd& theta, std::uint32_t, Eigen::VectorXd& terms) {
-        const Eigen::VectorXd costs = task->stepCosts(theta);
+        double via_error = 0.0;
+        const Eigen::VectorXd costs = task->stepCosts(theta, &via_error);
         terms.head(costs.size()) = costs;
-        terms[costs.size()] = task->viaPointError(theta);
+        terms[costs.size()] = via_error;
         return -costs.sum();
       });
 }

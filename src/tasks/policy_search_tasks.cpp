@@ -229,8 +229,9 @@ ViaPointTask::ViaPointTask()
       basis_(policy_.stepBasis()),
       via_step_(static_cast<int>(std::lround(kViaTime / policy_.dt))) {}
 
-Eigen::VectorXd ViaPointTask::stepCosts(const Eigen::VectorXd& theta) {
+Eigen::VectorXd ViaPointTask::stepCosts(const Eigen::VectorXd& theta, double* via_error) {
   policy_.rollout(theta, y_, ydd_);
+  if (via_error != nullptr) *via_error = std::abs(y_(via_step_, 0) - kViaPosition);
   Eigen::VectorXd c = 1e-6 * ydd_.col(0).tail(policy_.steps).array().square().matrix();
   c[via_step_ - 1] += 1e4 * std::pow(y_(via_step_, 0) - kViaPosition, 2);
   return c;

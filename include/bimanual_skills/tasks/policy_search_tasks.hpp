@@ -107,8 +107,8 @@ class ViaPointTask {
   const DmpRollout& policy() const noexcept { return policy_; }
   /// PI2's basis per step (steps × kernels).
   const Eigen::MatrixXd& basis() const noexcept { return basis_; }
-  /// The immediate costs of θ (one per step).
-  Eigen::VectorXd stepCosts(const Eigen::VectorXd& theta);
+  /// The immediate costs of θ (one per step); `via_error` (optional) gets viaPointError(θ) of the same rollout.
+  Eigen::VectorXd stepCosts(const Eigen::VectorXd& theta, double* via_error = nullptr);
   /// |y(t_via) − y_via| of θ.
   double viaPointError(const Eigen::VectorXd& theta);
 
