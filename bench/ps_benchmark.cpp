@@ -74,13 +74,13 @@ class WorkerRollouts {
     } else {
       selection.names = bimanual_skills::nodes::splitWorkerNames(options.names);
     }
-    br::DispatchConfig config_;
-    config_.timeout = options.timeout;
-    config_.log = [](const std::string& line, bool) {
+    br::DispatchConfig dispatch;
+    dispatch.timeout = options.timeout;
+    dispatch.log = [](const std::string& line, bool) {
       std::printf("  [workers] %s\n", line.c_str());
       std::fflush(stdout);
     };
-    config_.batch = [this](const br::DispatchStats& s) {
+    dispatch.batch = [this](const br::DispatchStats& s) {
       ++batches_;
       rollouts_ += s.rollouts;
       redispatched_ += s.redispatched;
@@ -88,7 +88,7 @@ class WorkerRollouts {
       workers_ = std::max(workers_, s.workers);
     };
     dispatcher_ = std::make_unique<br::Dispatcher>(
-        std::make_unique<bimanual_skills::nodes::ActionWorkerDirectory>(selection), terms_, config_);
+        std::make_unique<bimanual_skills::nodes::ActionWorkerDirectory>(selection), terms_, dispatch);
   }
 
   /// The rewards of the rows of `samples`, and their step costs when `costs` is given.
