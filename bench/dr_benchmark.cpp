@@ -48,6 +48,9 @@ const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 using Options = bb::ExperimentOptions;
+
+/// --algorithms: the names of the algorithms to run in planar15, planar10 and wam_circle (empty: all).
+std::vector<std::string> selected_algorithms;
 using bimanual_skills::tools::Clock;
 using bimanual_skills::tools::secondsSince;
 
@@ -131,7 +134,20 @@ struct Summary {
 /// Runs every (algorithm, run) pair on options.jobs threads; writes DIR/<experiment>.csv in (algorithm, run) order
 /// and one summary row per algorithm.
 void runLearning(const Options& options, const std::string& experiment, const Protocol& protocol,
-                 const std::vector<Algorithm>& algorithms, std::vector<Summary>& out) {
+                 std::vector<Algorithm> algorithms, std::vector<Summary>& out) {
+  if (!selected_algorithms.empty()) {
+    std::string names;
+    for (const Algorithm& a : algorithms) names += (names.empty() ? "" : ", ") + a.name;
+    algorithms.erase(std::remove_if(algorithms.begin(), algorithms.end(),
+                                    [](const Algorithm& a) {
+                                      return std::find(selected_algorithms.begin(), selected_algorithms.end(),
+                                                       a.name) == selected_algorithms.end();
+                                    }),
+                     algorithms.end());
+    if (algorithms.empty()) {
+      throw std::invalid_argument("--algorithms names none of " + experiment + "'s algorithms: " + names);
+    }
+  }
   const int runs = protocol.runs;
   const int jobs = static_cast<int>(algorithms.size()) * runs;
   std::vector<Curve> curves(static_cast<std::size_t>(jobs));
@@ -697,7 +713,18 @@ int main(int argc, char** argv) {
   program.experiments = {"estep", "em_vs_pca", "planar15", "planar10", "wam_circle", "all"};
   program.with_runs = true;
   program.with_jobs = true;
+  std::string algorithms;
+  program.extra = [&](bimanual_skills::cli::CommandLine& line) {
+    line.option("--algorithms", "A,B,...",
+                "run only these algorithms of planar15, planar10 and wam_circle (their names in summary.json, e.g. "
+                "\"IDR-DMP_CMU,DR-DMP0(7)\")",
+                &algorithms);
+  };
   const Options options = bb::parseExperimentOptions(argc, argv, program);
+  std::stringstream names(algorithms);
+  for (std::string name; std::getline(names, name, ',');) {
+    if (!name.empty()) selected_algorithms.push_back(name);
+  }
   try {
     std::filesystem::create_directories(options.out);
     std::printf("dr_benchmark: experiment %s, seed %u, %d jobs%s, output %s\n", options.experiment.c_str(),

@@ -3,6 +3,9 @@
 //           orientations per voxel through the global IK (a fixed number of restarts, so the map does not depend on
 //           the machine's load), solution ratio, mean manipulability and condition number, forearm and tool cones.
 //           Default 5 cm and M = 50 (the target: at most 2 minutes on this machine); --quick: 20 cm, M = 10.
+//   quality: one evaluation of F (3.41) on the 5 cm map (the target: at most 1 s), fig39's setting at the
+//           thesis' dx = dz = 0.8 m, timed --runs times (default 10; --quick: 2 on the 20 cm map), beside the
+//           brute-force sum over every pair, which it must equal.
 //   fig39:  the quality F (3.41) of placing a second WAM with its base perpendicular to the first's (its z axis along
 //           −x), over a grid of offsets dx, dz (Fig. 3.9); the best, the best with both offsets negative (the DARPA
 //           robot's quadrant) and a humanoid-like placement (z axes collinear, pointing away from a torso).
@@ -128,6 +131,54 @@ Eigen::Isometry3d perpendicularBase(double dx, double dz) {
 /// The second base of fig310's setting: upside down above the first (z axes parallel, facing), at (dx, 0, dz).
 Eigen::Isometry3d facingBase(double dx, double dz) {
   return basePose(dx, 0.0, dz, M_PI, Eigen::Vector3d::UnitX());
+}
+
+/// One evaluation of F on `map`, fig39's setting at the thesis' optimum dx = dz = 0.8 m, timed `runs` times, beside
+/// the brute-force sum over every pair (once): the values must agree.
+void qualityExperiment(const bs::bench::ExperimentOptions& options, const bw::WorkspaceMap& map, int runs,
+                       std::vector<bs::bench::JsonRow>& rows) {
+  bw::PairQualitySettings quality;
+  quality.threads = options.jobs;
+  const bw::WorkspacePoints points = bw::WorkspacePoints::of(map);
+  const Eigen::Isometry3d first = Eigen::Isometry3d::Identity(), second = perpendicularBase(0.8, 0.8);
+  std::printf(
+      "workspace_benchmark: quality: F at fig39's dx = dz = 0.8 m on the %.3f m map (%zu reachable voxels "
+      "per arm), %d times on %d threads, then by brute force\n",
+      map.settings().resolution, points.points.size(), runs, options.jobs);
+  std::fflush(stdout);
+  std::vector<double> times;
+  bw::PlacementQuality q;
+  for (int run = 0; run < runs; ++run) {
+    q = bw::placementQuality(points, first, points, second, quality);
+    times.push_back(q.seconds);
+    std::printf("  run %d: F = %.6g, %.3f s (%zu pairs visited, %zu at a distance within L +- delta, %zu counted)\n",
+                run + 1, q.quality, q.seconds, q.visited, q.distance_pairs, q.pairs);
+    std::fflush(stdout);
+  }
+  std::sort(times.begin(), times.end());
+  const double median = times[times.size() / 2];
+  const bw::PlacementQuality brute = bw::bruteForcePlacementQuality(points, first, points, second, quality);
+  const double difference = std::abs(brute.quality - q.quality) / std::max(1e-300, std::abs(brute.quality));
+  std::printf(
+      "workspace_benchmark: quality: median %.3f s (min %.3f, max %.3f) against %.1f s by brute force "
+      "(%.0fx; F %.6g vs %.6g, relative difference %.1e)\n",
+      median, times.front(), times.back(), brute.seconds, brute.seconds / median, q.quality, brute.quality, difference);
+  rows.emplace_back()
+      .add("experiment", "quality")
+      .add("resolution_m", map.settings().resolution)
+      .add("reachable_voxels", static_cast<long>(points.points.size()))
+      .add("threads", options.jobs)
+      .add("runs", runs)
+      .add("quality", q.quality)
+      .add("pairs", static_cast<long>(q.pairs))
+      .add("pairs_visited", static_cast<long>(q.visited))
+      .add("distance_pairs", static_cast<long>(q.distance_pairs))
+      .add("median_seconds", median)
+      .add("min_seconds", times.front())
+      .add("max_seconds", times.back())
+      .add("brute_force_seconds", brute.seconds)
+      .add("brute_force_quality", brute.quality)
+      .add("relative_difference", difference);
 }
 
 /// One of the thesis' two placement settings: the second base's pose for offsets (dx, dz) from the first's, and the
@@ -350,10 +401,11 @@ int main(int argc, char** argv) {
   program.description =
       "The workspace analysis of thesis Sec. 3.2 on the WAM: map = the one-arm workspace map by inverse sampling\n"
       "(Fig. 3.7), timed, with the solution ratio, manipulability, condition number and bounding cones per voxel;\n"
+      "quality = one evaluation of the placement quality (3.41) on the 5 cm map, timed, beside the brute-force sum;\n"
       "fig39, fig310 = the quality (3.41) of the relative placement of two WAMs over a grid of offsets (Figs. 3.9,\n"
       "3.10: bases perpendicular; bases parallel and facing); placement = the search for fig39's best placement by\n"
       "the thesis' genetic algorithm and by NLopt's ESCH, CRS2, ISRES and DIRECT-L with the same budget.";
-  program.experiments = {"map", "fig39", "fig310", "placement", "all"};
+  program.experiments = {"map", "quality", "fig39", "fig310", "placement", "all"};
   program.with_runs = true;
   program.with_jobs = true;
   program.extra = [&](bs::cli::CommandLine& line) {
@@ -397,20 +449,12 @@ int main(int argc, char** argv) {
       double seconds = 0.0;
       const bw::WorkspaceMap map = buildMap(model, settings, cache, true, seconds);
       mapExperiment(options, map, seconds, rows);
-      // One evaluation of the placement quality on this map: fig39's setting at the thesis' optimum dx = dz = 0.8 m.
-      bw::PairQualitySettings quality;
-      quality.threads = options.jobs;
-      const bw::WorkspacePoints points = bw::WorkspacePoints::of(map);
-      const bw::PlacementQuality q =
-          bw::placementQuality(points, Eigen::Isometry3d::Identity(), points, perpendicularBase(0.8, 0.8), quality);
-      rows.back()
-          .add("quality_seconds", q.seconds)
-          .add("quality_pairs", static_cast<long>(q.pairs))
-          .add("quality_pairs_visited", static_cast<long>(q.visited));
-      std::printf(
-          "workspace_benchmark: one evaluation of F on this map (fig39 at dx = dz = 0.8 m): %.3f s, %zu pairs "
-          "counted of %zu visited\n",
-          q.seconds, q.pairs, q.visited);
+    }
+    if (wants("quality")) {
+      settings.resolution = resolution > 0.0 ? resolution : (options.quick ? 0.2 : 0.05);
+      double seconds = 0.0;
+      const bw::WorkspaceMap map = buildMap(model, settings, cache, false, seconds);
+      qualityExperiment(options, map, options.runs > 0 ? options.runs : (options.quick ? 2 : 10), rows);
     }
     if (wants("fig39") || wants("fig310") || wants("placement")) {
       settings.resolution = resolution > 0.0 ? resolution : (options.quick ? 0.2 : 0.1);

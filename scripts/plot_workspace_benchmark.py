@@ -122,6 +122,14 @@ def main():
                 f.write("| %.3f m | %d | %d | %d | %d | %d | %.1f %% | %.1f |\n\n" % (
                     row["resolution_m"], row["orientations"], row["ik_attempts"], row["threads"], row["voxels"],
                     row["reachable_voxels"], 100 * row["pruned_fraction"], row["seconds"]))
+            elif row["experiment"] == "quality":
+                f.write("## quality: one evaluation of F (fig39 at dx = dz = 0.8 m)\n\n")
+                f.write("| resolution | reachable voxels | threads | runs | median s | max s | brute force s |"
+                        " speed-up | relative difference |\n|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n")
+                f.write("| %.3f m | %d | %d | %d | %.3f | %.3f | %.1f | %.0fx | %.1e |\n\n" % (
+                    row["resolution_m"], row["reachable_voxels"], row["threads"], row["runs"], row["median_seconds"],
+                    row["max_seconds"], row["brute_force_seconds"], row["brute_force_seconds"] / row["median_seconds"],
+                    row["relative_difference"]))
             else:
                 plot_placements(out, row)
                 f.write("## %s: %s\n\n" % (row["experiment"], SETTINGS.get(row["experiment"], "")))

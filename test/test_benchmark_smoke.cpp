@@ -175,13 +175,33 @@ TEST(WorkspaceBenchmarkSmoke, QuickRunWritesEveryOutput) {
   EXPECT_EQ(std::distance(fs::directory_iterator(out / "cache"), fs::directory_iterator{}), 1);
   EXPECT_NE(readTextFile(out / "tables.md").find("workspace_benchmark"), std::string::npos);
   const std::string summary = readTextFile(out / "summary.json");
-  for (const char* field :
-       {"\"experiment\": \"map\"", "\"resolution_m\": 0.2", "\"orientations\": 10", "\"seconds\"",
-        "\"reachable_voxels\"", "\"spherical_wrist\": true", "\"seed\": 3", "\"experiment\": \"fig39\"",
-        "\"experiment\": \"fig310\"", "\"best_dx\"", "\"best_dz\"", "\"quality\"", "\"humanoid_quality\"",
-        "\"best_negative_dx\"", "\"method\": \"GA\"", "\"method\": \"ESCH\"", "\"runs_reaching_ga_best\""}) {
+  for (const char* field : {"\"experiment\": \"map\"",
+                            "\"resolution_m\": 0.2",
+                            "\"orientations\": 10",
+                            "\"seconds\"",
+                            "\"reachable_voxels\"",
+                            "\"spherical_wrist\": true",
+                            "\"seed\": 3",
+                            "\"experiment\": \"fig39\"",
+                            "\"experiment\": \"fig310\"",
+                            "\"best_dx\"",
+                            "\"best_dz\"",
+                            "\"quality\"",
+                            "\"humanoid_quality\"",
+                            "\"best_negative_dx\"",
+                            "\"method\": \"GA\"",
+                            "\"method\": \"ESCH\"",
+                            "\"runs_reaching_ga_best\"",
+                            "\"experiment\": \"quality\"",
+                            "\"median_seconds\"",
+                            "\"brute_force_seconds\""}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field;
   }
+  // The indexed, vectorised F and the brute-force sum over every pair agree.
+  const std::string difference_key = "\"relative_difference\": ";
+  const std::size_t at = summary.find(difference_key);
+  ASSERT_NE(at, std::string::npos);
+  EXPECT_LT(std::stod(summary.substr(at + difference_key.size())), 1e-9);
   for (const char* file : {"map.csv", "map_slices.png", "fig39.csv", "fig39.png", "fig310.csv", "fig310.png",
                            "placement.csv", "placement.png", "tables.md"}) {
     EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
