@@ -14,6 +14,7 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 #include <Eigen/QR>
 #include <Eigen/SVD>
@@ -371,6 +372,33 @@ TEST(CoordinatedReps, FixedCoordinationIsReps) {
     EXPECT_EQ(learner.policy().mean, expected.mean);
     EXPECT_EQ(learner.policy().covariance, expected.covariance);
   }
+}
+
+TEST(CoordinatedReps, CovarianceMemoryBlendsTheSampledCovarianceIn) {
+  // Fewer rollouts (6) than latent weights (8): REPS' covariance has rank 5 plus the ridge; with the memory λ the new
+  // covariance is (1 − λ) times it plus λ times the one sampled from, and keeps every direction.
+  std::mt19937 rng(11);
+  const bl::CoordinationGrid grid = dmpGrid(3, 4, 1, 20);
+  const Eigen::MatrixXd sampled = 2.0 * Eigen::MatrixXd::Identity(8, 8);
+  const bl::CoordinatedPolicy initial{{orthonormal(3, 2, rng)}, Eigen::VectorXd::Zero(8), sampled, {}};
+  bl::CoordinatedRepsParameters plain;
+  bl::CoordinatedRepsParameters remembering = plain;
+  remembering.covariance_memory = 0.9;
+  bl::CoordinatedReps without(plain, grid, initial), with(remembering, grid, initial);
+  const Eigen::MatrixXd samples = randomMatrix(6, 8, rng);
+  const Eigen::VectorXd rewards = -samples.rowwise().squaredNorm();
+  const std::vector<Eigen::MatrixXd> values(6, Eigen::MatrixXd::Zero(20, 3));
+  without.update(samples, values, rewards);
+  with.update(samples, values, rewards);
+  EXPECT_EQ(with.policy().mean, without.policy().mean);
+  EXPECT_LT((with.policy().covariance - (0.1 * without.policy().covariance + 0.9 * sampled)).cwiseAbs().maxCoeff(),
+            1e-12);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> lost(without.policy().covariance),
+      kept(with.policy().covariance);
+  EXPECT_LT(lost.eigenvalues().minCoeff(), 1e-6);
+  EXPECT_GE(kept.eigenvalues().minCoeff(), 0.9 * 2.0 - 1e-12);
+  remembering.covariance_memory = 1.0;
+  EXPECT_THROW(bl::CoordinatedReps(remembering, grid, initial), std::invalid_argument);
 }
 
 TEST(CoordinatedReps, CmuCarriesKeptRolloutsIntoTheNewCoordinates) {

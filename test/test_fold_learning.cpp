@@ -98,6 +98,9 @@ TEST(FoldLearning, LearningFiles) {
             std::string::npos);
   EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nlearning: {rollouts: 1}\n").find("rollouts"),
             std::string::npos);
+  EXPECT_NE(
+      message("sim: " + kSource + "/config/sim.yaml\nlearning: {covariance_memory: 1.0}\n").find("covariance_memory"),
+      std::string::npos);
   EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nlearnin: {}\n").find("learnin"), std::string::npos);
   EXPECT_NE(message("sim: [1, 2\n").find("YAML"), std::string::npos);
 }

@@ -12,6 +12,9 @@ void CoordinatedRepsParameters::validate() const {
   reps.validate();
   update.validate();
   em.validate();
+  if (!(covariance_memory >= 0.0 && covariance_memory < 1.0)) {
+    throw std::invalid_argument("CoordinatedRepsParameters: covariance_memory must be in [0, 1)");
+  }
 }
 
 CoordinatedReps::CoordinatedReps(const CoordinatedRepsParameters& parameters, const CoordinationGrid& grid,
@@ -80,12 +83,17 @@ CoordinatedRepsReport CoordinatedReps::update(const Eigen::MatrixXd& samples,
                                  parameters_.reps.epsilon, report.eta, report.kl);
   const double regularisation = parameters_.reps.covariance_regularisation;
   Eigen::MatrixXd sample_map;  // M† when the coordination changed
+  const double memory = parameters_.covariance_memory;
   switch (parameters_.rule) {
-    case CoordinationRule::Fixed:
-      std::tie(policy_.mean, policy_.covariance) = weightedGaussian(theta, report.weights, regularisation);
+    case CoordinationRule::Fixed: {
+      auto [mean, covariance] = weightedGaussian(theta, report.weights, regularisation);
+      policy_.covariance = (1.0 - memory) * covariance + memory * policy_.covariance;
+      policy_.mean = std::move(mean);
       break;
+    }
     case CoordinationRule::Cmu: {
-      const auto [mean, covariance] = weightedGaussian(theta, report.weights, regularisation);
+      auto [mean, covariance] = weightedGaussian(theta, report.weights, regularisation);
+      covariance = (1.0 - memory) * covariance + memory * policy_.covariance;
       CoordinationUpdateResult result = coordinationMatrixUpdate(grid_, parameters_.update, policy_.coordination,
                                                                  excitation_, all, report.weights, mean, covariance);
       policy_.coordination = std::move(result.matrices);

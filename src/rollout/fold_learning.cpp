@@ -172,6 +172,9 @@ void FoldLearningConfig::validate() const {
   if (!(epsilon > 0.0) || !(eta > 1.0) || !(initial_stddev > 0.0) || !std::isfinite(initial_stddev)) {
     throw std::invalid_argument("fold learning: epsilon > 0, eta > 1 and a finite initial_stddev > 0");
   }
+  if (!(covariance_memory >= 0.0 && covariance_memory < 1.0)) {
+    throw std::invalid_argument("fold learning: covariance_memory in [0, 1)");
+  }
   reward.validate("fold learning reward");
 }
 
@@ -225,7 +228,7 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     const std::string at = where + " learning";
     io::checkKeys(learning, at,
                   {"algorithms", "runs", "updates", "rollouts", "reuse", "epsilon", "eta", "initial_stddev",
-                   "repetitions", "seed", "jobs"});
+                   "covariance_memory", "repetitions", "seed", "jobs"});
     if (const YAML::Node algorithms = learning["algorithms"]) {
       if (!algorithms.IsSequence()) io::fail(at + ": 'algorithms' must be a list of names");
       c.algorithms.clear();
@@ -238,6 +241,7 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     c.epsilon = io::readDouble(learning, "epsilon", at, c.epsilon);
     c.eta = io::readDouble(learning, "eta", at, c.eta);
     c.initial_stddev = io::readDouble(learning, "initial_stddev", at, c.initial_stddev);
+    c.covariance_memory = io::readDouble(learning, "covariance_memory", at, c.covariance_memory);
     if (learning["repetitions"]) c.repetitions = io::readInt(learning, "repetitions", at);
     if (learning["seed"]) {
       const int seed = io::readInt(learning, "seed", at);
@@ -480,6 +484,7 @@ struct FoldLearner::Impl {
     learning::CoordinatedRepsParameters reps;
     reps.reps.epsilon = config.epsilon;
     reps.reps.reuse = config.reuse;
+    reps.covariance_memory = config.covariance_memory;
     reps.rule = variant.rule;
     reps.update.eta = variant.eta;
     const Eigen::VectorXd mean = fit.dmp.weights();

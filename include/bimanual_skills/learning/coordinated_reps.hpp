@@ -29,6 +29,11 @@ struct CoordinatedRepsParameters {
   CoordinationRule rule = CoordinationRule::Fixed;
   CoordinationUpdateParameters update;  ///< Cmu: η and the filter α.
   LatentEmParameters em;                ///< Em: iterations and floors (the grid must have one matrix).
+  /// λ in [0, 1): Fixed and Cmu take Σ_ω ← (1 − λ) Σ_ML + λ Σ_ω, Σ_ML REPS' weighted maximum-likelihood covariance
+  /// and Σ_ω the one the rollouts were drawn from. With fewer rollouts than latent weights Σ_ML has lower rank
+  /// than Σ_ω, and with λ = 0 (the thesis' update) the search never again explores the directions no rollout
+  /// happened to span; λ > 0 lets them shrink geometrically instead.
+  double covariance_memory = 0.0;
 
   void validate() const;
 };

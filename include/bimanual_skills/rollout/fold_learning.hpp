@@ -54,12 +54,13 @@ struct FoldLearningConfig {
   std::vector<std::string> algorithms = {"IDR-DMP_CMU"};
   int runs = 1;
   int updates = 8;
-  int rollouts = 12;            ///< Per epoch.
-  int reuse = 12;               ///< Rollouts of the previous epochs reused by REPS.
-  double epsilon = 0.5;         ///< REPS KL bound.
-  double eta = 50.0;            ///< IDR: σ_1/σ_r beyond which the last latent DoF is dropped.
-  double initial_stddev = 5.0;  ///< Of each latent weight at the start.
-  int repetitions = 0;          ///< Noise-free repetitions of the initial policy (varying only the sensors' noise).
+  int rollouts = 12;               ///< Per epoch.
+  int reuse = 12;                  ///< Rollouts of the previous epochs reused by REPS.
+  double epsilon = 0.5;            ///< REPS KL bound.
+  double eta = 50.0;               ///< IDR: σ_1/σ_r beyond which the last latent DoF is dropped.
+  double initial_stddev = 5.0;     ///< Of each latent weight at the start.
+  double covariance_memory = 0.0;  ///< λ of CoordinatedRepsParameters in [0, 1) (0: the thesis' REPS update).
+  int repetitions = 0;             ///< Noise-free repetitions of the initial policy (varying only the sensors' noise).
   std::uint32_t seed = 1;
   int jobs = 0;  ///< Rollouts evaluated in parallel (0: the hardware's threads).
 
