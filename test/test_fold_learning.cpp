@@ -79,6 +79,8 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_EQ(table.runs, 3);
   EXPECT_EQ(table.updates, 15);
   EXPECT_EQ(table.rollouts, 12);
+  EXPECT_DOUBLE_EQ(table.covariance_memory, 0.8);
+  EXPECT_DOUBLE_EQ(demo.covariance_memory, 0.0);
 
   const std::string dir = freshDirectory("files");
   std::filesystem::create_directories(dir);
