@@ -146,6 +146,11 @@ void runLearning(const Options& options, const std::string& experiment, const Pr
                                                        a.name) == selected_algorithms.end();
                                     }),
                      algorithms.end());
+    if (algorithms.empty() && options.experiment == "all") {
+      std::printf("  %s: none of --algorithms is one of its algorithms (%s); skipped\n", experiment.c_str(),
+                  names.c_str());
+      return;
+    }
     if (algorithms.empty()) {
       throw std::invalid_argument("--algorithms names none of " + experiment + "'s algorithms: " + names);
     }

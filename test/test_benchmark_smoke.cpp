@@ -135,6 +135,21 @@ TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --jobs -2 --seed 1 --out /tmp/x"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --fast"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --covariance-memory 1"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --quick --out /tmp/x --algorithms PoWER"), 1);
+}
+
+TEST(DrBenchmarkSmoke, AlgorithmsSelectsTheVariantsToRun) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_algorithms";
+  ASSERT_EQ(runQuietly(std::string(DR_BENCHMARK) + " --experiment planar10 --runs 2 --seed 5 --quick --jobs 2 " +
+                       "--algorithms \"IDR-DMP_CMU,DR-DMP_CMU(2)\" --out " + out.string()),
+            0);
+  const std::string csv = readTextFile(out / "planar10.csv");
+  EXPECT_NE(csv.find("\"IDR-DMP_CMU\""), std::string::npos);
+  EXPECT_NE(csv.find("\"DR-DMP_CMU(2)\""), std::string::npos);
+  EXPECT_EQ(csv.find("\"DR-DMP_CMU(10)\""), std::string::npos);
+  EXPECT_EQ(csv.find("MCMU"), std::string::npos);
+  fs::remove_all(out);
 }
 
 TEST(RolloutBenchmarkSmoke, WorkersGiveTheResultsOfThreads) {
