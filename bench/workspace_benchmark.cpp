@@ -274,8 +274,6 @@ void placementExperiment(const bs::bench::ExperimentOptions& options, const Sett
   std::fflush(stdout);
 }
 
-/// The searches for the best placement of `setting` (its two offsets) on `runs` seeds: the thesis' genetic algorithm
-/// and NLopt's, each with `budget` evaluations; DIR/placement.csv holds every search's best-so-far curve.
 /// Writes a bimanual configuration (the format of config/bimanual.yaml, which scripts/generate_bimanual_urdf.py turns
 /// into a URDF) with the first arm at the world's origin and the second at `second_base`.
 void writeBimanualConfig(const std::string& path, const Eigen::Isometry3d& second_base, const std::string& why) {
@@ -295,6 +293,8 @@ void writeBimanualConfig(const std::string& path, const Eigen::Isometry3d& secon
   std::printf("workspace_benchmark: wrote %s (%s)\n", path.c_str(), why.c_str());
 }
 
+/// The searches for the best placement of `setting` (its two offsets) on `runs` seeds: the thesis' genetic algorithm
+/// and NLopt's, each with `budget` evaluations; DIR/placement.csv holds every search's best-so-far curve.
 void searchExperiment(const bs::bench::ExperimentOptions& options, const Setting& setting, const bw::WorkspaceMap& map,
                       int runs, int budget, const std::string& config, std::vector<bs::bench::JsonRow>& rows) {
   const bw::WorkspacePoints points = bw::WorkspacePoints::of(map);

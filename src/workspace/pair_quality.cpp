@@ -26,6 +26,7 @@ struct Prepared {
   double inverse_angle = 0.0;  ///< 1/α (0 for a cone of no width, which no direction is inside).
   double cos_angle = 1.0;
   double ratio = 0.0, manipulability = 0.0, inverse_condition = 0.0;
+  double weight = 0.0;  ///< r · m̄ / κ̄: the point's part of SDF · MF · CF.
 };
 
 Prepared prepare(const WorkspacePoint& p) {
@@ -38,6 +39,7 @@ Prepared prepare(const WorkspacePoint& p) {
   out.ratio = p.solution_ratio;
   out.manipulability = p.manipulability;
   out.inverse_condition = 1.0 / p.condition;
+  out.weight = out.ratio * out.manipulability * out.inverse_condition;
   return out;
 }
 
@@ -74,13 +76,14 @@ PairFactors evaluate(const Prepared& p1, const Prepared& p2, const Eigen::Vector
   return f;
 }
 
-/// The second arm's points in cell order, one array per field, for the vectorised pair loop; `weight` is the
-/// per-point part of SDF · MF · CF, r · m̄ / κ̄.
+/// The second arm's points in cell order, one array per field, for the vectorised pair loop.
 struct Columns {
   std::vector<double> x, y, z, ax, ay, az, cos_angle, angle, inverse_angle, weight;
 
-  explicit Columns(const std::vector<Prepared>& points) {
-    for (const Prepared& p : points) {
+  /// `points` in the order of the indices `order`.
+  Columns(const std::vector<Prepared>& points, const std::vector<std::size_t>& order) {
+    for (const std::size_t i : order) {
+      const Prepared& p = points[i];
       x.push_back(p.position.x());
       y.push_back(p.position.y());
       z.push_back(p.position.z());
@@ -90,7 +93,7 @@ struct Columns {
       cos_angle.push_back(p.cos_angle);
       angle.push_back(p.angle);
       inverse_angle.push_back(p.inverse_angle);
-      weight.push_back(p.ratio * p.manipulability * p.inverse_condition);
+      weight.push_back(p.weight);
     }
   }
 };
@@ -140,7 +143,7 @@ __attribute__((target_clones("avx2", "default"))) RunSum sumRun(const Prepared& 
   const double x1 = p1.position.x(), y1 = p1.position.y(), z1 = p1.position.z();
   const double ax1 = p1.axis.x(), ay1 = p1.axis.y(), az1 = p1.axis.z();
   const double cos1 = p1.cos_angle, angle1 = p1.angle, inverse_angle1 = p1.inverse_angle;
-  const double weight1 = p1.ratio * p1.manipulability * p1.inverse_condition;
+  const double weight1 = p1.weight;
   RunSum out;
   double term[kChunk];
   std::int64_t in_shell[kChunk], in_cones[kChunk];
@@ -311,10 +314,7 @@ PlacementQuality placementQuality(const WorkspacePoints& first, const Eigen::Iso
   std::vector<std::size_t> order(b.size()), fill(begin.begin(), begin.end() - 1);
   for (std::size_t i = 0; i < b.size(); ++i) order[fill[cellOf(b[i].position)]++] = i;
   // The second arm's points in cell order, so that a cell's points, and a row's cells, are contiguous in memory.
-  std::vector<Prepared> sorted;
-  sorted.reserve(b.size());
-  for (const std::size_t i : order) sorted.push_back(b[i]);
-  const Columns columns(sorted);
+  const Columns columns(b, order);
 
   // Blocks of the first arm's points on threads; each block's sums are added in block order, so the result does not
   // depend on the number of threads.
