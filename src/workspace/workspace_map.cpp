@@ -172,11 +172,19 @@ template <typename T>
 bool get(std::ifstream& in, T& value) {
   return static_cast<bool>(in.read(reinterpret_cast<char*>(&value), sizeof(T)));
 }
-void putVector(std::ofstream& out, const Eigen::Vector3d& v) {
+void put(std::ofstream& out, const Eigen::Vector3d& v) {
   for (int i = 0; i < 3; ++i) put(out, v[i]);
 }
-bool getVector(std::ifstream& in, Eigen::Vector3d& v) {
+bool get(std::ifstream& in, Eigen::Vector3d& v) {
   return get(in, v[0]) && get(in, v[1]) && get(in, v[2]);
+}
+
+/// The fields of a voxel in the cache file, in file order: `field` is called on each until it returns false.
+template <typename Voxel, typename Field>
+bool voxelFields(Voxel& v, Field&& field) {
+  return field(v.centre) && field(v.solved) && field(v.pruned) && field(v.solution_ratio) && field(v.manipulability) &&
+         field(v.condition) && field(v.forearm.axis) && field(v.forearm.angle) && field(v.tool.axis) &&
+         field(v.tool.angle);
 }
 
 }  // namespace
@@ -329,6 +337,14 @@ std::uint64_t WorkspaceMap::key(const ChainModel& model, const WorkspaceMapSetti
   return f.value();
 }
 
+template <typename Map, typename Field>
+bool WorkspaceMap::headerFields(Map& map, Field&& field) {
+  return field(map.settings_.resolution) && field(map.settings_.orientations) && field(map.settings_.seed) &&
+         field(map.settings_.ik_attempts) && field(map.settings_.forearm_joint) && field(map.settings_.wrist_test) &&
+         field(map.spherical_) && field(map.reach_) && field(map.shoulder_) && field(map.wrist_in_tool_) &&
+         field(map.wrist_min_) && field(map.wrist_max_);
+}
+
 void WorkspaceMap::save(const std::string& path, std::uint64_t key) const {
   const std::string partial = path + ".partial";
   {
@@ -338,31 +354,13 @@ void WorkspaceMap::save(const std::string& path, std::uint64_t key) const {
     put(out, kFormatVersion);
     put(out, kByteOrder);
     put(out, key);
-    put(out, settings_.resolution);
-    put(out, settings_.orientations);
-    put(out, settings_.seed);
-    put(out, settings_.ik_attempts);
-    put(out, settings_.forearm_joint);
-    put(out, settings_.wrist_test);
-    put(out, spherical_);
-    put(out, reach_);
-    putVector(out, shoulder_);
-    putVector(out, wrist_in_tool_);
-    put(out, wrist_min_);
-    put(out, wrist_max_);
+    const auto write = [&](const auto& value) {
+      put(out, value);
+      return true;
+    };
+    headerFields(*this, write);
     put(out, static_cast<std::uint64_t>(voxels_.size()));
-    for (const WorkspaceVoxel& v : voxels_) {
-      putVector(out, v.centre);
-      put(out, v.solved);
-      put(out, v.pruned);
-      put(out, v.solution_ratio);
-      put(out, v.manipulability);
-      put(out, v.condition);
-      putVector(out, v.forearm.axis);
-      put(out, v.forearm.angle);
-      putVector(out, v.tool.axis);
-      put(out, v.tool.angle);
-    }
+    for (const WorkspaceVoxel& v : voxels_) voxelFields(v, write);
     if (!out.flush()) throw std::runtime_error("workspace map: cannot write " + partial);
   }
   // Complete or absent: a reader never sees half a file.
@@ -380,20 +378,11 @@ std::optional<WorkspaceMap> WorkspaceMap::load(const std::string& path, std::uin
     return std::nullopt;
   }
   WorkspaceMap map;
-  WorkspaceMapSettings& s = map.settings_;
-  if (!get(in, s.resolution) || !get(in, s.orientations) || !get(in, s.seed) || !get(in, s.ik_attempts) ||
-      !get(in, s.forearm_joint) || !get(in, s.wrist_test) || !get(in, map.spherical_) || !get(in, map.reach_) ||
-      !getVector(in, map.shoulder_) || !getVector(in, map.wrist_in_tool_) || !get(in, map.wrist_min_) ||
-      !get(in, map.wrist_max_) || !get(in, count) || count > (std::uint64_t{1} << 32)) {
-    return std::nullopt;
-  }
+  const auto read = [&](auto& value) { return get(in, value); };
+  if (!headerFields(map, read) || !get(in, count) || count > (std::uint64_t{1} << 32)) return std::nullopt;
   map.voxels_.resize(static_cast<std::size_t>(count));
   for (WorkspaceVoxel& v : map.voxels_) {
-    if (!getVector(in, v.centre) || !get(in, v.solved) || !get(in, v.pruned) || !get(in, v.solution_ratio) ||
-        !get(in, v.manipulability) || !get(in, v.condition) || !getVector(in, v.forearm.axis) ||
-        !get(in, v.forearm.angle) || !getVector(in, v.tool.axis) || !get(in, v.tool.angle)) {
-      return std::nullopt;
-    }
+    if (!voxelFields(v, read)) return std::nullopt;
   }
   char extra = 0;
   if (in.read(&extra, 1)) return std::nullopt;  // trailing bytes: not a file this code wrote

@@ -98,6 +98,11 @@ class WorkspaceMap {
   bool mayReach(const Eigen::Isometry3d& tool) const noexcept;
 
  private:
+  /// The map's fields before its voxels in the cache file, in file order (one list for save() and load()): `field`
+  /// is called on each until it returns false.
+  template <typename Map, typename Field>
+  static bool headerFields(Map& map, Field&& field);
+
   WorkspaceMapSettings settings_;
   std::vector<WorkspaceVoxel> voxels_;
   bool spherical_ = false;
