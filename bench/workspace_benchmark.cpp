@@ -31,7 +31,6 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -390,8 +389,7 @@ void searchExperiment(const bs::bench::ExperimentOptions& options, const Setting
 
 int main(int argc, char** argv) {
   double resolution = 0.0, step = 0.0;
-  const char* home = std::getenv("HOME");
-  std::string cache = home != nullptr ? std::string(home) + "/.cache/bimanual_skills/workspace" : "";
+  std::string cache = bw::WorkspaceMap::defaultCacheDirectory();
   bool no_cache = false;
   std::string write_config;
   long orientations = 0, attempts = 20;

@@ -5,6 +5,7 @@
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "node_cli.hpp"
+#include "scene_markers.hpp"
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/WrenchStamped.h>
@@ -208,15 +209,11 @@ class CtcControllerNode {
   /// Appends the actual and commanded tool positions; publishes both paths every tenth call.
   void publishToolPaths(const ros::Time& stamp) {
     const auto tool = [this](const Eigen::VectorXd& q) {
-      geometry_msgs::Point p;
-      if (bs::kinematics::forwardKinematics(controller_->model(), *kinematics_, q) ==
+      if (bs::kinematics::forwardKinematics(controller_->model(), *kinematics_, q) !=
           bs::kinematics::KinematicsStatus::Success) {
-        const Eigen::Vector3d t = kinematics_->tipPose().translation();
-        p.x = t.x();
-        p.y = t.y();
-        p.z = t.z();
+        return geometry_msgs::Point();
       }
-      return p;
+      return bs::nodes::toPoint(kinematics_->tipPose().translation());
     };
     for (auto* path : {&actual_path_, &desired_path_}) {
       if (path->size() >= kPathLength) path->pop_front();

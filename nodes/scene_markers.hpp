@@ -1,6 +1,6 @@
 /// \file
-/// rviz markers of the simulated scene shared by the nodes: the table as a box, the cloth as a TRIANGLE_LIST, a tool
-/// path as a LINE_STRIP (frame "world").
+/// rviz markers shared by the nodes: a marker of any frame and a point from Eigen, and the simulated scene's (frame
+/// "world"): the table as a box, the cloth as a TRIANGLE_LIST, a tool path as a LINE_STRIP.
 #pragma once
 
 #include "bimanual_skills/sim/table.hpp"
@@ -13,9 +13,11 @@
 
 namespace bimanual_skills::nodes {
 
-inline visualization_msgs::Marker worldMarker(const std::string& ns, int id, int type, const ros::Time& stamp) {
+/// An ADD marker in `frame`: identity pose, unit scale, opaque black.
+inline visualization_msgs::Marker marker(const std::string& frame, const std::string& ns, int id, int type,
+                                         const ros::Time& stamp) {
   visualization_msgs::Marker m;
-  m.header.frame_id = "world";
+  m.header.frame_id = frame;
   m.header.stamp = stamp;
   m.ns = ns;
   m.id = id;
@@ -25,6 +27,18 @@ inline visualization_msgs::Marker worldMarker(const std::string& ns, int id, int
   m.scale.x = m.scale.y = m.scale.z = 1.0;
   m.color.a = 1.0f;
   return m;
+}
+
+inline visualization_msgs::Marker worldMarker(const std::string& ns, int id, int type, const ros::Time& stamp) {
+  return marker("world", ns, id, type, stamp);
+}
+
+inline geometry_msgs::Point toPoint(const Eigen::Vector3d& v) {
+  geometry_msgs::Point p;
+  p.x = v.x();
+  p.y = v.y();
+  p.z = v.z();
+  return p;
 }
 
 inline visualization_msgs::Marker tableMarker(const sim::Table& table, const ros::Time& stamp) {
@@ -57,13 +71,7 @@ inline visualization_msgs::Marker clothMarker(const Eigen::Matrix3Xd& vertices, 
   m.color.b = 0.8f;
   if (triangles.size() > 0 && (triangles.minCoeff() < 0 || triangles.maxCoeff() >= vertices.cols())) return m;
   m.points.reserve(static_cast<std::size_t>(3 * triangles.cols()));
-  const auto point = [&](Eigen::Index i) {
-    geometry_msgs::Point p;
-    p.x = vertices(0, i);
-    p.y = vertices(1, i);
-    p.z = vertices(2, i);
-    m.points.push_back(p);
-  };
+  const auto point = [&](Eigen::Index i) { m.points.push_back(toPoint(vertices.col(i))); };
   for (Eigen::Index t = 0; t < triangles.cols(); ++t) {
     const Eigen::Vector3d a = vertices.col(triangles(0, t)), b = vertices.col(triangles(1, t)),
                           c = vertices.col(triangles(2, t));
@@ -81,13 +89,7 @@ inline visualization_msgs::Marker pathMarker(const std::string& ns, int id, cons
   visualization_msgs::Marker m = worldMarker(ns, id, visualization_msgs::Marker::LINE_STRIP, stamp);
   m.scale.x = width;
   m.points.reserve(static_cast<std::size_t>(path.cols()));
-  for (Eigen::Index k = 0; k < path.cols(); ++k) {
-    geometry_msgs::Point p;
-    p.x = path(0, k);
-    p.y = path(1, k);
-    p.z = path(2, k);
-    m.points.push_back(p);
-  }
+  for (Eigen::Index k = 0; k < path.cols(); ++k) m.points.push_back(toPoint(path.col(k)));
   return m;
 }
 

@@ -2,6 +2,7 @@
 // the map is built by the library (or read from its cache file) and published once, latched.
 #include "bimanual_skills/workspace/workspace_map.hpp"
 #include "node_cli.hpp"
+#include "scene_markers.hpp"
 
 #include <ros/package.h>
 #include <ros/ros.h>
@@ -9,7 +10,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdlib>
 #include <string>
 
 namespace bs = bimanual_skills;
@@ -52,26 +52,6 @@ std_msgs::ColorRGBA heat(double t) {
   return c;
 }
 
-geometry_msgs::Point point(const Eigen::Vector3d& p) {
-  geometry_msgs::Point out;
-  out.x = p.x();
-  out.y = p.y();
-  out.z = p.z();
-  return out;
-}
-
-visualization_msgs::Marker marker(const std::string& frame, const std::string& ns, int id, int type) {
-  visualization_msgs::Marker m;
-  m.header.frame_id = frame;
-  m.header.stamp = ros::Time(0);
-  m.ns = ns;
-  m.id = id;
-  m.type = type;
-  m.action = visualization_msgs::Marker::ADD;
-  m.pose.orientation.w = 1.0;
-  return m;
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -83,9 +63,7 @@ int main(int argc, char** argv) {
         private_node.param<std::string>("urdf", ros::package::getPath("bimanual_skills") + "/urdf/wam.urdf");
     const std::string base = private_node.param<std::string>("base", "wam_base");
     const std::string tip = private_node.param<std::string>("tip", "wam_tool");
-    const char* home = std::getenv("HOME");
-    const std::string cache = private_node.param<std::string>(
-        "cache", home != nullptr ? std::string(home) + "/.cache/bimanual_skills/workspace" : "");
+    const std::string cache = private_node.param<std::string>("cache", bw::WorkspaceMap::defaultCacheDirectory());
     bw::WorkspaceMapSettings settings;
     settings.resolution = private_node.param("resolution", 0.1);
     settings.orientations = private_node.param("orientations", 50);
@@ -110,19 +88,21 @@ int main(int argc, char** argv) {
 
     const double h = settings.resolution;
     visualization_msgs::MarkerArray voxels;
-    visualization_msgs::Marker cubes = marker(base, "workspace", 0, visualization_msgs::Marker::CUBE_LIST);
+    visualization_msgs::Marker cubes =
+        bs::nodes::marker(base, "workspace", 0, visualization_msgs::Marker::CUBE_LIST, ros::Time(0));
     cubes.scale.x = cubes.scale.y = cubes.scale.z = 0.9 * h;
     visualization_msgs::MarkerArray cones;
     int id = 0;
     for (const bw::WorkspaceVoxel& v : map.voxels()) {
       if (v.solved == 0 || (cutaway && v.centre.y() > slice + 0.5 * h)) continue;
-      cubes.points.push_back(point(v.centre));
+      cubes.points.push_back(bs::nodes::toPoint(v.centre));
       std_msgs::ColorRGBA c = heat(v.solution_ratio);
       c.a = 0.6f;
       cubes.colors.push_back(c);
       if (std::abs(v.centre.y() - slice) > 0.5 * h) continue;
-      visualization_msgs::Marker arrow = marker(base, "tool_cones", id++, visualization_msgs::Marker::ARROW);
-      arrow.points = {point(v.centre), point(v.centre + 0.8 * h * v.tool.axis)};
+      visualization_msgs::Marker arrow =
+          bs::nodes::marker(base, "tool_cones", id++, visualization_msgs::Marker::ARROW, ros::Time(0));
+      arrow.points = {bs::nodes::toPoint(v.centre), bs::nodes::toPoint(v.centre + 0.8 * h * v.tool.axis)};
       arrow.scale.x = 0.08 * h;
       arrow.scale.y = 0.2 * h;
       arrow.scale.z = 0.3 * h;

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <exception>
 #include <filesystem>
@@ -387,6 +388,11 @@ std::optional<WorkspaceMap> WorkspaceMap::load(const std::string& path, std::uin
   char extra = 0;
   if (in.read(&extra, 1)) return std::nullopt;  // trailing bytes: not a file this code wrote
   return map;
+}
+
+std::string WorkspaceMap::defaultCacheDirectory() {
+  const char* home = std::getenv("HOME");
+  return home != nullptr ? std::string(home) + "/.cache/bimanual_skills/workspace" : std::string();
 }
 
 std::string WorkspaceMap::cachePath(const std::string& directory, const ChainModel& model,

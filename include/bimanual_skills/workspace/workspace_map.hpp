@@ -79,6 +79,8 @@ class WorkspaceMap {
                              const std::string& directory,
                              const std::function<void(std::size_t done, std::size_t total)>& progress = {},
                              bool* from_cache = nullptr);
+  /// Where maps are kept unless told otherwise: $HOME/.cache/bimanual_skills/workspace ("" without HOME: no cache).
+  static std::string defaultCacheDirectory();
   /// The cache file of `model` and `settings` in `directory`.
   static std::string cachePath(const std::string& directory, const kinematics::ChainModel& model,
                                const WorkspaceMapSettings& settings);
