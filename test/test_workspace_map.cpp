@@ -143,6 +143,8 @@ TEST(WorkspaceMap, TheCacheGivesBackTheSameMapAndOnlyForItsKey) {
     EXPECT_EQ(a.tool.axis, b.tool.axis);
     EXPECT_EQ(a.tool.angle, b.tool.angle);
     EXPECT_EQ(a.forearm.axis, b.forearm.axis);
+    EXPECT_EQ(a.forearm.angle, b.forearm.angle);
+    EXPECT_EQ(a.solution_ratio, b.solution_ratio);
   }
   EXPECT_EQ(loaded.reach(), built.reach());
   EXPECT_EQ(loaded.sphericalWrist(), built.sphericalWrist());
