@@ -1,7 +1,7 @@
 // The thesis' reward-oriented dimensionality-reduction experiments (Ch. 7: Fig. 7.2, Fig. 7.5, Tables 7.3 and 7.4)
 // and the E-step benchmark, as one seeded program.
 //
-//   dr_benchmark --experiment estep|em_vs_pca|planar15|planar10|wam_circle|all --runs R --seed S --out DIR
+//   dr_benchmark --experiment estep|em_vs_pca|planar15|planar10|wam_circle|optima|all --runs R --seed S --out DIR
 //                [--jobs N] [--quick]
 //
 // Independent runs go to N threads; every run draws from its own generator seeded by (seed, experiment, run), the
@@ -20,6 +20,7 @@
 #include "tools/clock.hpp"
 
 #include <Eigen/QR>
+#include <nlopt.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -31,7 +32,6 @@
 #include <limits>
 #include <memory>
 #include <random>
-#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -53,6 +53,8 @@ using Options = bb::ExperimentOptions;
 std::vector<std::string> selected_algorithms;
 /// --covariance-memory: λ of CoordinatedRepsParameters for planar10 and wam_circle (NaN: the experiment's).
 double covariance_memory = std::numeric_limits<double>::quiet_NaN();
+/// --exploration: σ of the exploration outside the latent space for planar10 and wam_circle (NaN: the experiment's).
+double exploration_override = std::numeric_limits<double>::quiet_NaN();
 using bimanual_skills::tools::Clock;
 using bimanual_skills::tools::secondsSince;
 
@@ -578,8 +580,10 @@ struct DrDmpTask {
   double smoothing_hz = 20.0;
   double exploration = 0.0;
   /// Latent Σ_ω: the demonstrations' sample covariance plus `relative_prior` times its mean variance, or, with one
-  /// demonstration, `initial_variance` I.
-  double relative_prior = 0.01, initial_variance = 1.0;
+  /// demonstration, diag(forcing_variance / max_t g_i(x_t)²) for the weights of kernel i: every weight moves the
+  /// forcing term at its kernel's peak by about √forcing_variance (an isotropic Σ_ω would explore the early kernels
+  /// up to 1/x(τ)² ≈ 3000 times as much, in variance, as the last ones, whose basis carries the factor x).
+  double relative_prior = 0.01, forcing_variance = 1.0;
   bl::CoordinatedRepsParameters parameters;
   std::function<std::function<double(const bt::DrDmpRollout&)>()> reward;  ///< A fresh reward (own scratch).
 };
@@ -592,19 +596,22 @@ Algorithm drDmpAlgorithm(const DrDmpTask& task, const DrDmpVariant& variant) {
             const bp::DrDmpFit fit =
                 bp::DrDmp::fit(parameters, task.demonstrations, task.dt, variant.r, task.smoothing_hz);
             Eigen::VectorXd mean = fit.dmp.weights();
+            auto grid = std::make_shared<const bl::CoordinationGrid>(fit.dmp.grid(task.dt, task.steps));
             Eigen::MatrixXd covariance;
             if (fit.latent_weights.rows() > 1) {
               covariance = bl::sampleMoments(fit.latent_weights).second;
               covariance.diagonal().array() += task.relative_prior * covariance.diagonal().mean();
             } else {
-              covariance = task.initial_variance * Eigen::MatrixXd::Identity(mean.size(), mean.size());
+              const Eigen::ArrayXd peak = grid->basis().colwise().maxCoeff().transpose().array();
+              covariance = Eigen::MatrixXd::Zero(mean.size(), mean.size());
+              covariance.diagonal() = (task.forcing_variance / peak.square()).replicate(variant.r, 1).matrix();
             }
             Setup setup;
             setup.parameters = task.parameters;
             if (!std::isnan(covariance_memory)) setup.parameters.covariance_memory = covariance_memory;
             setup.parameters.rule = variant.rule;
             setup.parameters.update.eta = variant.eta;
-            setup.grid = std::make_shared<const bl::CoordinationGrid>(fit.dmp.grid(task.dt, task.steps));
+            setup.grid = std::move(grid);
             setup.policy = {fit.dmp.coordination(), mean, covariance, {}};
             setup.excitation = fit.excitation;
             if (variant.rule == bl::CoordinationRule::Em) {
@@ -634,13 +641,13 @@ Algorithm drDmpAlgorithm(const DrDmpTask& task, const DrDmpVariant& variant) {
           }};
 }
 
-void planar10(const Options& options, std::vector<Summary>& out) {
-  constexpr int dofs = 10;
-  const bt::PlanarViaPointTask via(dofs, options.seed);
+/// Table 7.3's task (10-DoF planar arm, two via-points) with the settings of planar10.
+DrDmpTask planar10Task(std::uint32_t seed) {
+  auto via = std::make_shared<const bt::PlanarViaPointTask>(10, seed);
   DrDmpTask task;
-  task.demonstrations = via.demonstrations();
-  task.dt = via.dt();
-  task.steps = via.steps();
+  task.demonstrations = via->demonstrations();
+  task.dt = via->dt();
+  task.steps = via->steps();
   // The thesis gives ε = 0.5, η = 50 and the exploration N(0, 0.1) outside the latent space (taken as a variance),
   // not the kernels per DoF, the reuse or the prior on Σ_ω. Chosen by a sweep of DR-DMP_CMU(2) (2 runs, seed 1,
   // 200 updates; docs/RESULTS.md): 5 kernels and a prior of 0.3 times the demonstrations' mean weight variance
@@ -655,35 +662,28 @@ void planar10(const Options& options, std::vector<Summary>& out) {
   // −log10(−R) = 1.87, 1.73, 1.54 with λ = 0.8 against 1.12, 1.70, 1.23 with the thesis' λ = 0 (λ = 0.5 did less,
   // 0.9 the same within 0.02).
   task.parameters.covariance_memory = 0.8;
-  task.reward = [&via]() {
-    return [&via](const bt::DrDmpRollout& rollout) { return via.reward(rollout.positions, rollout.accelerations); };
+  task.reward = [via]() {
+    return [via](const bt::DrDmpRollout& rollout) { return via->reward(rollout.positions, rollout.accelerations); };
   };
-  Protocol protocol;
-  protocol.runs = runsOf(options, 20, 2);
-  protocol.updates = options.quick ? 3 : 200;
-  protocol.rollouts = protocol.first_rollouts = 20;
-  std::vector<Algorithm> algorithms;
-  for (const DrDmpVariant& variant : drDmpVariants("planar10", dofs, {10, 8, 5, 2, 1}, 2, 50.0)) {
-    algorithms.push_back(drDmpAlgorithm(task, variant));
-  }
-  runLearning(options, "planar10", protocol, algorithms, out);
+  return task;
 }
 
-void wamCircle(const Options& options, std::vector<Summary>& out) {
-  const bt::WamCircleTask circle(bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool"),
-                                 options.seed);
+/// Table 7.4's task (the WAM circle) with the settings of wam_circle.
+DrDmpTask wamCircleTask(std::uint32_t seed) {
+  auto circle = std::make_shared<const bt::WamCircleTask>(
+      bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool"), seed);
   DrDmpTask task;
-  task.demonstrations = {circle.demonstration()};
-  task.dt = circle.dt();
-  task.steps = circle.steps();
+  task.demonstrations = {circle->demonstration()};
+  task.dt = circle->dt();
+  task.steps = circle->steps();
   task.kernels = 20;
   task.smoothing_hz = 2.0;
   task.exploration = std::sqrt(0.1);
-  // Initial Σ_ω and λ are not in the thesis; chosen by a sweep of DR-DMP0(7), DR-DMP_CMU(3), DR-DMP_CMU(1) and
-  // IDR-DMP_CMU (2 runs, seed 7, 250 updates; docs/RESULTS.md): Σ_ω = 1000 I with λ = 0.9 reached −0.50, −0.32,
-  // −1.84 and −0.51; DR-DMP0(7), DR-DMP_CMU(3) and IDR-DMP_CMU reached −0.87, −2.70 and −0.87 with I and λ = 0
-  // (variances 1–10⁴, λ 0–0.95 tried).
-  task.initial_variance = 1000.0;
+  // The initial Σ_ω and λ are not in the thesis; chosen by a sweep of DR-DMP0(7), DR-DMP_CMU(3) and IDR-DMP_CMU
+  // (2 runs, seed 7, 250 updates, λ = 0.9; docs/RESULTS.md): forcing variances 10, 30, 100, 300 reached −0.37, −0.36,
+  // −0.37, −0.45; −0.33, −0.31, −0.31, −0.28; −0.34, −0.35, −0.33, −0.45, against −0.50, −0.32, −0.51 with the
+  // isotropic Σ_ω = 1000 I.
+  task.forcing_variance = 100.0;
   task.parameters.covariance_memory = 0.9;
   task.parameters.reps.epsilon = 0.5;
   task.parameters.reps.reuse = 80;  // the last 4 epochs of 20 rollouts
@@ -691,19 +691,183 @@ void wamCircle(const Options& options, std::vector<Summary>& out) {
   task.parameters.em.max_iterations = 10;
   task.parameters.em.tolerance = 1e-6;
   task.parameters.em.noise_floor = 1e-6;
-  task.reward = [&circle]() {
-    auto own = std::make_shared<bt::WamCircleTask>(circle);
+  task.reward = [circle]() {
+    auto own = std::make_shared<bt::WamCircleTask>(*circle);  // its own scratch
     return [own](const bt::DrDmpRollout& rollout) { return own->reward(rollout.positions, rollout.accelerations); };
   };
+  return task;
+}
+
+/// planar10 and wam_circle: every DR-DMP variant of the experiment's table, learned in `runs` runs.
+struct DrDmpExperiment {
+  std::string name;
+  std::function<DrDmpTask(std::uint32_t seed)> task;
+  int runs, updates, dofs;
+  std::vector<int> dims;  ///< The fixed latent dimensions of the table.
+  int matrices;           ///< N_s of the MCMU variants.
+};
+
+const std::vector<DrDmpExperiment>& drDmpExperiments() {
+  static const std::vector<DrDmpExperiment> experiments = {
+      {"planar10", planar10Task, 20, 200, 10, {10, 8, 5, 2, 1}, 2},
+      {"wam_circle", wamCircleTask, 10, 250, 7, {7, 6, 5, 4, 3, 2, 1}, 3}};
+  return experiments;
+}
+
+void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::vector<Summary>& out) {
+  DrDmpTask task = experiment.task(options.seed);
+  if (!std::isnan(exploration_override)) task.exploration = exploration_override;
   Protocol protocol;
-  protocol.runs = runsOf(options, 10, 2);
-  protocol.updates = options.quick ? 3 : 250;
+  protocol.runs = runsOf(options, experiment.runs, 2);
+  protocol.updates = options.quick ? 3 : experiment.updates;
   protocol.rollouts = protocol.first_rollouts = 20;
   std::vector<Algorithm> algorithms;
-  for (const DrDmpVariant& variant : drDmpVariants("wam_circle", 7, {7, 6, 5, 4, 3, 2, 1}, 3, 50.0)) {
+  for (const DrDmpVariant& variant :
+       drDmpVariants(experiment.name, experiment.dofs, experiment.dims, experiment.matrices, 50.0)) {
     algorithms.push_back(drDmpAlgorithm(task, variant));
   }
-  runLearning(options, "wam_circle", protocol, algorithms, out);
+  runLearning(options, experiment.name, protocol, algorithms, out);
+}
+
+void planar10(const Options& options, std::vector<Summary>& out) {
+  learnDrDmp(options, drDmpExperiments()[0], out);
+}
+
+void wamCircle(const Options& options, std::vector<Summary>& out) {
+  learnDrDmp(options, drDmpExperiments()[1], out);
+}
+
+// ---- optima: the best reward a fixed coordination allows, by a local optimiser with gradients ----
+
+/// The noise-free reward of latent weights through the fixed coordination matrices of a DR-DMP, and the number of
+/// rollouts it took.
+class FixedCoordinationObjective {
+ public:
+  FixedCoordinationObjective(bp::DrDmp dmp, const DrDmpTask& task)
+      : dmp_(std::move(dmp)), dt_(task.dt), steps_(task.steps), reward_(task.reward()) {}
+
+  double operator()(const double* w, int size) {
+    ++rollouts_;
+    std::mt19937 unused;
+    bt::rolloutDrDmp(dmp_.withWeights(Eigen::Map<const Eigen::VectorXd>(w, size)), dt_, steps_, 0.0, unused, rollout_);
+    return reward_(rollout_);
+  }
+  long rollouts() const noexcept { return rollouts_; }
+
+ private:
+  bp::DrDmp dmp_;
+  double dt_;
+  int steps_;
+  std::function<double(const bt::DrDmpRollout&)> reward_;
+  bt::DrDmpRollout rollout_;
+  long rollouts_ = 0;
+};
+
+/// L-BFGS (NLopt) on the objective with central differences of step 10⁻⁴.
+double lbfgsObjective(unsigned n, const double* w, double* gradient, void* data) {
+  auto& objective = *static_cast<FixedCoordinationObjective*>(data);
+  const int size = static_cast<int>(n);
+  const double value = objective(w, size);
+  if (gradient != nullptr) {
+    std::vector<double> x(w, w + n);
+    for (int i = 0; i < size; ++i) {
+      constexpr double h = 1e-4;
+      x[i] = w[i] + h;
+      const double up = objective(x.data(), size);
+      x[i] = w[i] - h;
+      const double down = objective(x.data(), size);
+      x[i] = w[i];
+      gradient[i] = (up - down) / (2.0 * h);
+    }
+  }
+  return value;
+}
+
+/// For each fixed-dimension DR-DMP with constant coordination (the PCA initialisation, DR-DMP⁰(r) and
+/// DR-DMP⁰_MCMU(N_s, r)), the noise-free reward L-BFGS reaches from the initial mean weights: a local optimum, the
+/// reference for what that coordination allows and for how far policy search ends from it.
+void optima(const Options& options, std::vector<Summary>& out) {
+  struct Job {
+    std::string task;
+    const DrDmpTask* setup;
+    DrDmpVariant variant;
+  };
+  std::vector<DrDmpTask> tasks;
+  for (const DrDmpExperiment& experiment : drDmpExperiments()) tasks.push_back(experiment.task(options.seed));
+  std::vector<Job> jobs;
+  for (std::size_t e = 0; e < tasks.size(); ++e) {
+    const DrDmpExperiment& experiment = drDmpExperiments()[e];
+    for (const int ns : {1, experiment.matrices}) {
+      for (const int r : experiment.dims) {
+        const std::string name = ns == 1 ? "DR-DMP0(" + std::to_string(r) + ")"
+                                         : "DR-DMP0_MCMU(" + std::to_string(ns) + "," + std::to_string(r) + ")";
+        jobs.push_back({experiment.name, &tasks[e], {name, ns, r, bl::CoordinationRule::Fixed, kInfinity}});
+      }
+    }
+  }
+  const long budget = options.quick ? 2000 : 1000000;  // rollouts per optimisation
+  struct Result {
+    double initial = 0.0, optimum = 0.0, seconds = 0.0;
+    long rollouts = 0;
+    int weights = 0;
+  };
+  std::vector<Result> results(jobs.size());
+  std::ofstream csv(options.out + "/optima.csv");
+  csv << "task,algorithm,latent_dims,matrices,weights,initial_reward,optimum_reward,rollouts,seconds\n";
+  csv.precision(10);
+  bb::parallelRuns(
+      static_cast<int>(jobs.size()), options.jobs,
+      [&](int i) {
+        const Job& job = jobs[static_cast<std::size_t>(i)];
+        const auto start = Clock::now();
+        bp::DrDmpParameters parameters;
+        parameters.dmp.kernels = job.setup->kernels;
+        parameters.matrices = job.variant.matrices;
+        const bp::DrDmpFit fit = bp::DrDmp::fit(parameters, job.setup->demonstrations, job.setup->dt, job.variant.r,
+                                                job.setup->smoothing_hz);
+        FixedCoordinationObjective objective(fit.dmp, *job.setup);
+        const Eigen::VectorXd w0 = fit.dmp.weights();
+        std::vector<double> w(w0.data(), w0.data() + w0.size());
+        Result& result = results[static_cast<std::size_t>(i)];
+        result.weights = static_cast<int>(w.size());
+        result.initial = objective(w.data(), result.weights);
+        nlopt::opt optimiser(nlopt::LD_LBFGS, static_cast<unsigned>(w.size()));
+        optimiser.set_max_objective(
+            [](unsigned n, const double* x, double* g, void* d) { return lbfgsObjective(n, x, g, d); }, &objective);
+        optimiser.set_maxeval(static_cast<int>(budget / (2 * static_cast<long>(w.size()) + 1)));
+        optimiser.set_ftol_rel(1e-10);
+        double value = result.initial;
+        try {
+          optimiser.optimize(w, value);
+        } catch (const std::runtime_error&) {
+          // Round-off limited or a failed line search (the reward has kinks where the tool meets the circle): the
+          // best point found stands.
+          value = optimiser.last_optimum_value();
+        }
+        result.optimum = std::max(value, result.initial);
+        result.rollouts = objective.rollouts();
+        result.seconds = secondsSince(start);
+      },
+      [&](int i) {
+        const Job& job = jobs[static_cast<std::size_t>(i)];
+        const Result& r = results[static_cast<std::size_t>(i)];
+        csv << job.task << ",\"" << job.variant.name << "\"," << job.variant.r << ',' << job.variant.matrices << ','
+            << r.weights << ',' << r.initial << ',' << r.optimum << ',' << r.rollouts << ',' << r.seconds << '\n';
+        csv.flush();
+        std::printf("  optima %-10s %-20s %3d weights: %.4g -> %.4g (%ld rollouts, %.1f s)\n", job.task.c_str(),
+                    job.variant.name.c_str(), r.weights, r.initial, r.optimum, r.rollouts, r.seconds);
+        std::fflush(stdout);
+        out.push_back({"optima",
+                       job.variant.name,
+                       {{"latent_dims", job.variant.r},
+                        {"matrices", job.variant.matrices},
+                        {"weights", r.weights},
+                        {"initial_reward", r.initial},
+                        {"optimum_reward", r.optimum},
+                        {"rollouts", static_cast<double>(r.rollouts)},
+                        {"seconds", r.seconds}},
+                       {{"task", job.task}}});
+      });
 }
 
 void writeSummary(const Options& options, const std::vector<Summary>& rows) {
@@ -725,9 +889,11 @@ int main(int argc, char** argv) {
   program.description =
       "The thesis' reward-oriented dimensionality-reduction experiments (Ch. 7): the fast E-step against the naive\n"
       "one, EM vs PCA fits (Fig. 7.2), the 15-DoF planar tracking task (Fig. 7.5), the 10-DoF via-point task\n"
-      "(Table 7.3) and the WAM circle (Table 7.4). Writes DIR/<experiment>.csv, DIR/summary.json, learning-curve\n"
-      "PNGs (mean and 95 % interval over runs) and DIR/tables.md.";
-  program.experiments = {"estep", "em_vs_pca", "planar15", "planar10", "wam_circle", "all"};
+      "(Table 7.3) and the WAM circle (Table 7.4), and (optima) the local optimum L-BFGS reaches from each\n"
+      "constant coordination's initial policy of the last two. Writes DIR/<experiment>.csv, DIR/summary.json, "
+      "learning-curve PNGs\n"
+      "(mean and 95 % interval over runs) and DIR/tables.md.";
+  program.experiments = {"estep", "em_vs_pca", "planar15", "planar10", "wam_circle", "optima", "all"};
   program.with_runs = true;
   program.with_jobs = true;
   std::string algorithms;
@@ -740,15 +906,31 @@ int main(int argc, char** argv) {
                 "planar10, wam_circle: the new latent covariance keeps L of the one sampled from, (1 - L) Sigma_ML + "
                 "L Sigma, 0 <= L < 1 (default: the experiment's)",
                 &covariance_memory);
+    line.option("--exploration", "S",
+                "planar10, wam_circle: the standard deviation of the noise added to every forcing value outside the "
+                "latent space, per step, S >= 0 (default: the experiment's, sqrt(0.1))",
+                &exploration_override);
   };
   const Options options = bb::parseExperimentOptions(argc, argv, program);
   if (!std::isnan(covariance_memory) && !(covariance_memory >= 0.0 && covariance_memory < 1.0)) {
     std::fprintf(stderr, "dr_benchmark: --covariance-memory must be in [0, 1) (see --help)\n");
     return 2;
   }
-  std::stringstream names(algorithms);
-  for (std::string name; std::getline(names, name, ',');) {
-    if (!name.empty()) selected_algorithms.push_back(name);
+  if (!std::isnan(exploration_override) && !(exploration_override >= 0.0 && std::isfinite(exploration_override))) {
+    std::fprintf(stderr, "dr_benchmark: --exploration must be finite and >= 0 (see --help)\n");
+    return 2;
+  }
+  // Names hold commas inside parentheses ("DR-DMP_MCMU(3,4)"): split only at the others.
+  std::string name;
+  int depth = 0;
+  for (const char c : algorithms + ",") {
+    depth += c == '(' ? 1 : c == ')' ? -1 : 0;
+    if (c != ',' || depth > 0) {
+      name += c;
+    } else if (!name.empty()) {
+      selected_algorithms.push_back(name);
+      name.clear();
+    }
   }
   try {
     std::filesystem::create_directories(options.out);
@@ -769,6 +951,7 @@ int main(int argc, char** argv) {
     timed("planar15", planar15);
     timed("planar10", planar10);
     timed("wam_circle", wamCircle);
+    timed("optima", optima);
     writeSummary(options, rows);
     if (!bb::runPlotScript("dr_benchmark", kSourceDir + "/scripts/plot_dr_benchmark.py", options.out)) return 1;
   } catch (const std::exception& e) {

@@ -231,6 +231,17 @@ def tables(directory, summary, em):
             if algorithm in thesis:
                 lines.append("| thesis | | | " + " | ".join(fmt(c) for c in thesis[algorithm]) + " |")
         lines.append("")
+    optima = [r for r in rows if r["experiment"] == "optima"]
+    if optima:
+        lines += ["### optima: the noise-free reward L-BFGS reaches from the initial mean weights with each constant "
+                  "coordination (PCA initialisation)\n",
+                  "| task | coordination | weights | initial R | optimum R | optimum -log10(-R) | rollouts |",
+                  "|---|---|---:|---:|---:|---:|---:|"]
+        for r in optima:
+            log = "%.3f" % neglog(r["optimum_reward"]) if r["task"] == "planar10" else "–"
+            lines.append("| %s | %s | %d | %.4f | %.4f | %s | %d |" % (
+                r["task"], r["algorithm"], r["weights"], r["initial_reward"], r["optimum_reward"], log, r["rollouts"]))
+        lines.append("")
     return "\n".join(lines) + "\n"
 
 

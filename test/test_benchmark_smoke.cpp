@@ -101,13 +101,15 @@ TEST(DrBenchmarkSmoke, QuickRunWritesEveryOutput) {
                             "\"algorithm\": \"DR-DMP0_MCMU(3,1)\"",
                             "\"algorithm\": \"IDR-DMP_CMU\"",
                             "\"algorithm\": \"EM DR-DMP(3)\"",
+                            "\"experiment\": \"optima\"",
+                            "\"optimum_reward\"",
                             "\"final_reward\"",
                             "\"runs\": 2",
                             "\"seed\": 3"}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field;
   }
   for (const char* file : {"em_vs_pca.csv", "planar15.csv", "planar10.csv", "wam_circle.csv", "em_vs_pca.png",
-                           "planar15.png", "planar10.png", "wam_circle.png", "tables.md"}) {
+                           "planar15.png", "planar10.png", "wam_circle.png", "optima.csv", "tables.md"}) {
     EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
   }
   fs::remove_all(out);
@@ -136,19 +138,23 @@ TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --fast"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --covariance-memory 1"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --exploration -1"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --exploration nan"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --quick --out /tmp/x --algorithms PoWER"), 1);
 }
 
 TEST(DrBenchmarkSmoke, AlgorithmsSelectsTheVariantsToRun) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_algorithms";
   ASSERT_EQ(runQuietly(std::string(DR_BENCHMARK) + " --experiment planar10 --runs 2 --seed 5 --quick --jobs 2 " +
-                       "--algorithms \"IDR-DMP_CMU,DR-DMP_CMU(2)\" --out " + out.string()),
+                       "--algorithms \"IDR-DMP_CMU,DR-DMP_MCMU(2,5),DR-DMP_CMU(2)\" --out " + out.string()),
             0);
   const std::string csv = readTextFile(out / "planar10.csv");
   EXPECT_NE(csv.find("\"IDR-DMP_CMU\""), std::string::npos);
   EXPECT_NE(csv.find("\"DR-DMP_CMU(2)\""), std::string::npos);
+  EXPECT_NE(csv.find("\"DR-DMP_MCMU(2,5)\""), std::string::npos);  // a comma inside the name
   EXPECT_EQ(csv.find("\"DR-DMP_CMU(10)\""), std::string::npos);
-  EXPECT_EQ(csv.find("MCMU"), std::string::npos);
+  EXPECT_EQ(csv.find("\"DR-DMP_MCMU(2,2)\""), std::string::npos);
+  EXPECT_EQ(csv.find("IDR-DMP_MCMU"), std::string::npos);
   fs::remove_all(out);
 }
 
