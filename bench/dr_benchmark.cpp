@@ -51,10 +51,15 @@ using Options = bb::ExperimentOptions;
 
 /// --algorithms: the names of the algorithms to run in planar15, planar10 and wam_circle (empty: all).
 std::vector<std::string> selected_algorithms;
-/// --covariance-memory: λ of CoordinatedRepsParameters for planar10 and wam_circle (NaN: the experiment's).
-double covariance_memory = std::numeric_limits<double>::quiet_NaN();
-/// --exploration: σ of the exploration outside the latent space for planar10 and wam_circle (NaN: the experiment's).
-double exploration_override = std::numeric_limits<double>::quiet_NaN();
+/// Command-line overrides of the planar10 and wam_circle settings (NaN or -1: the experiment's).
+struct DrDmpOverrides {
+  double covariance_memory = std::numeric_limits<double>::quiet_NaN();  ///< --covariance-memory: λ.
+  double exploration = std::numeric_limits<double>::quiet_NaN();        ///< --exploration: σ outside the subspace.
+  double epsilon = std::numeric_limits<double>::quiet_NaN();            ///< --epsilon: REPS' KL bound.
+  double forcing_variance = std::numeric_limits<double>::quiet_NaN();   ///< --forcing-variance (one demonstration).
+  long reuse = -1;    ///< --reuse: rollouts kept (-1: the experiment's).
+  long updates = -1;  ///< --updates: policy updates per run (-1: the thesis').
+} overrides;
 using bimanual_skills::tools::Clock;
 using bimanual_skills::tools::secondsSince;
 
@@ -608,7 +613,6 @@ Algorithm drDmpAlgorithm(const DrDmpTask& task, const DrDmpVariant& variant) {
             }
             Setup setup;
             setup.parameters = task.parameters;
-            if (!std::isnan(covariance_memory)) setup.parameters.covariance_memory = covariance_memory;
             setup.parameters.rule = variant.rule;
             setup.parameters.update.eta = variant.eta;
             setup.grid = std::move(grid);
@@ -716,10 +720,16 @@ const std::vector<DrDmpExperiment>& drDmpExperiments() {
 
 void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::vector<Summary>& out) {
   DrDmpTask task = experiment.task(options.seed);
-  if (!std::isnan(exploration_override)) task.exploration = exploration_override;
+  if (!std::isnan(overrides.exploration)) task.exploration = overrides.exploration;
+  if (!std::isnan(overrides.covariance_memory)) task.parameters.covariance_memory = overrides.covariance_memory;
+  if (!std::isnan(overrides.epsilon)) task.parameters.reps.epsilon = overrides.epsilon;
+  if (!std::isnan(overrides.forcing_variance)) task.forcing_variance = overrides.forcing_variance;
+  if (overrides.reuse >= 0) task.parameters.reps.reuse = static_cast<int>(overrides.reuse);
   Protocol protocol;
   protocol.runs = runsOf(options, experiment.runs, 2);
-  protocol.updates = options.quick ? 3 : experiment.updates;
+  protocol.updates = options.quick           ? 3
+                     : overrides.updates > 0 ? static_cast<int>(overrides.updates)
+                                             : experiment.updates;
   protocol.rollouts = protocol.first_rollouts = 20;
   std::vector<Algorithm> algorithms;
   for (const DrDmpVariant& variant :
@@ -890,9 +900,8 @@ int main(int argc, char** argv) {
       "The thesis' reward-oriented dimensionality-reduction experiments (Ch. 7): the fast E-step against the naive\n"
       "one, EM vs PCA fits (Fig. 7.2), the 15-DoF planar tracking task (Fig. 7.5), the 10-DoF via-point task\n"
       "(Table 7.3) and the WAM circle (Table 7.4), and (optima) the local optimum L-BFGS reaches from each\n"
-      "constant coordination's initial policy of the last two. Writes DIR/<experiment>.csv, DIR/summary.json, "
-      "learning-curve PNGs\n"
-      "(mean and 95 % interval over runs) and DIR/tables.md.";
+      "constant coordination's initial policy of the last two. Writes DIR/<experiment>.csv, DIR/summary.json,\n"
+      "learning-curve PNGs (mean and 95 % interval over runs) and DIR/tables.md.";
   program.experiments = {"estep", "em_vs_pca", "planar15", "planar10", "wam_circle", "optima", "all"};
   program.with_runs = true;
   program.with_jobs = true;
@@ -905,20 +914,43 @@ int main(int argc, char** argv) {
     line.option("--covariance-memory", "L",
                 "planar10, wam_circle: the new latent covariance keeps L of the one sampled from, (1 - L) Sigma_ML + "
                 "L Sigma, 0 <= L < 1 (default: the experiment's)",
-                &covariance_memory);
+                &overrides.covariance_memory);
     line.option("--exploration", "S",
                 "planar10, wam_circle: the standard deviation of the noise added to every forcing value outside the "
                 "latent space, per step, S >= 0 (default: the experiment's, sqrt(0.1))",
-                &exploration_override);
+                &overrides.exploration);
+    line.option("--epsilon", "E",
+                "planar10, wam_circle: REPS' bound on the KL divergence of each update, E > 0 (default: the thesis' "
+                "0.5)",
+                &overrides.epsilon);
+    line.option("--reuse", "N",
+                "planar10, wam_circle: rollouts of earlier updates reused in each update (default: the experiment's, "
+                "80)",
+                &overrides.reuse, 0, 100000);
+    line.option("--updates", "N",
+                "planar10, wam_circle: policy updates per run (default: the thesis', 200 and 250; tables stop at 200)",
+                &overrides.updates, 1, 100000);
+    line.option("--forcing-variance", "V",
+                "wam_circle: the initial latent variance, as the variance of the forcing term each weight moves at "
+                "its kernel's peak, V > 0 (default: the experiment's, 100)",
+                &overrides.forcing_variance);
   };
   const Options options = bb::parseExperimentOptions(argc, argv, program);
-  if (!std::isnan(covariance_memory) && !(covariance_memory >= 0.0 && covariance_memory < 1.0)) {
+  const double memory = overrides.covariance_memory;
+  if (!std::isnan(memory) && !(memory >= 0.0 && memory < 1.0)) {
     std::fprintf(stderr, "dr_benchmark: --covariance-memory must be in [0, 1) (see --help)\n");
     return 2;
   }
-  if (!std::isnan(exploration_override) && !(exploration_override >= 0.0 && std::isfinite(exploration_override))) {
+  if (!std::isnan(overrides.exploration) && !(overrides.exploration >= 0.0 && std::isfinite(overrides.exploration))) {
     std::fprintf(stderr, "dr_benchmark: --exploration must be finite and >= 0 (see --help)\n");
     return 2;
+  }
+  for (const auto& [value, name] :
+       {std::pair{overrides.epsilon, "--epsilon"}, std::pair{overrides.forcing_variance, "--forcing-variance"}}) {
+    if (!std::isnan(value) && !(value > 0.0 && std::isfinite(value))) {
+      std::fprintf(stderr, "dr_benchmark: %s must be finite and > 0 (see --help)\n", name);
+      return 2;
+    }
   }
   // Names hold commas inside parentheses ("DR-DMP_MCMU(3,4)"): split only at the others.
   std::string name;

@@ -140,6 +140,9 @@ TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --covariance-memory 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --exploration -1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --exploration nan"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --epsilon 0"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --reuse -1"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment wam_circle --seed 1 --out /tmp/x --forcing-variance inf"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --quick --out /tmp/x --algorithms PoWER"), 1);
 }
 
