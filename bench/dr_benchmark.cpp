@@ -57,6 +57,8 @@ struct DrDmpOverrides {
   double exploration = std::numeric_limits<double>::quiet_NaN();        ///< --exploration: σ outside the subspace.
   double epsilon = std::numeric_limits<double>::quiet_NaN();            ///< --epsilon: REPS' KL bound.
   double forcing_variance = std::numeric_limits<double>::quiet_NaN();   ///< --forcing-variance (one demonstration).
+  double relative_prior = std::numeric_limits<double>::quiet_NaN();     ///< --relative-prior (demonstrations).
+  long kernels = -1;  ///< --kernels: basis functions per latent DoF (-1: the experiment's).
   long reuse = -1;    ///< --reuse: rollouts kept (-1: the experiment's).
   long updates = -1;  ///< --updates: policy updates per run (-1: the thesis').
 } overrides;
@@ -653,18 +655,13 @@ DrDmpTask planar10Task(std::uint32_t seed) {
   task.dt = via->dt();
   task.steps = via->steps();
   // The thesis gives ε = 0.5, η = 50 and the exploration N(0, 0.1) outside the latent space (taken as a variance),
-  // not the kernels per DoF, the reuse or the prior on Σ_ω. Chosen by a sweep of DR-DMP_CMU(2) (2 runs, seed 1,
-  // 200 updates; docs/RESULTS.md): 5 kernels and a prior of 0.3 times the demonstrations' mean weight variance
-  // reached −log10(−R) = 1.70, against 1.23 with 10 kernels and 0.01; larger ε, less reuse or more exploration
-  // outside the subspace did not help.
+  // not the kernels per DoF, the reuse, the prior on Σ_ω or λ. 5 kernels per latent DoF (a sweep of DR-DMP_CMU(2)
+  // preferred them to 10). The prior (0.01 of the demonstrations' mean weight variance, the default) and λ = 0.8 by a
+  // sweep of DR-DMP_CMU(10, 5, 2, 1), IDR-DMP_CMU and IDR-DMP_MCMU(2) (4 runs, seed 1, 200 updates; docs/RESULTS.md).
   task.kernels = 5;
-  task.relative_prior = 0.3;
   task.exploration = std::sqrt(0.1);
   task.parameters.reps.epsilon = 0.5;
   task.parameters.reps.reuse = 80;  // the last 4 updates of 20 rollouts, as in the WAM experiment
-  // λ, not in the thesis: a sweep of DR-DMP_CMU(10), DR-DMP_CMU(2) and IDR-DMP_CMU (4 runs, seed 1) gave
-  // −log10(−R) = 1.87, 1.73, 1.54 with λ = 0.8 against 1.12, 1.70, 1.23 with the thesis' λ = 0 (λ = 0.5 did less,
-  // 0.9 the same within 0.02).
   task.parameters.covariance_memory = 0.8;
   task.reward = [via]() {
     return [via](const bt::DrDmpRollout& rollout) { return via->reward(rollout.positions, rollout.accelerations); };
@@ -724,7 +721,9 @@ void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::
   if (!std::isnan(overrides.covariance_memory)) task.parameters.covariance_memory = overrides.covariance_memory;
   if (!std::isnan(overrides.epsilon)) task.parameters.reps.epsilon = overrides.epsilon;
   if (!std::isnan(overrides.forcing_variance)) task.forcing_variance = overrides.forcing_variance;
+  if (!std::isnan(overrides.relative_prior)) task.relative_prior = overrides.relative_prior;
   if (overrides.reuse >= 0) task.parameters.reps.reuse = static_cast<int>(overrides.reuse);
+  if (overrides.kernels > 0) task.kernels = static_cast<int>(overrides.kernels);
   Protocol protocol;
   protocol.runs = runsOf(options, experiment.runs, 2);
   protocol.updates = options.quick           ? 3
@@ -927,6 +926,9 @@ int main(int argc, char** argv) {
                 "planar10, wam_circle: rollouts of earlier updates reused in each update (default: the experiment's, "
                 "80)",
                 &overrides.reuse, 0, 100000);
+    line.option("--kernels", "K",
+                "planar10, wam_circle: basis functions per latent DoF (default: the experiment's, 5 and 20)",
+                &overrides.kernels, 2, 1000);
     line.option("--updates", "N",
                 "planar10, wam_circle: policy updates per run (default: the thesis', 200 and 250; tables stop at 200)",
                 &overrides.updates, 1, 100000);
@@ -934,6 +936,10 @@ int main(int argc, char** argv) {
                 "wam_circle: the initial latent variance, as the variance of the forcing term each weight moves at "
                 "its kernel's peak, V > 0 (default: the experiment's, 100)",
                 &overrides.forcing_variance);
+    line.option("--relative-prior", "P",
+                "planar10: the initial latent covariance is the demonstrations' plus P times their mean weight "
+                "variance on the diagonal, P > 0 (default: the experiment's, 0.01)",
+                &overrides.relative_prior);
   };
   const Options options = bb::parseExperimentOptions(argc, argv, program);
   const double memory = overrides.covariance_memory;
@@ -946,7 +952,8 @@ int main(int argc, char** argv) {
     return 2;
   }
   for (const auto& [value, name] :
-       {std::pair{overrides.epsilon, "--epsilon"}, std::pair{overrides.forcing_variance, "--forcing-variance"}}) {
+       {std::pair{overrides.epsilon, "--epsilon"}, std::pair{overrides.forcing_variance, "--forcing-variance"},
+        std::pair{overrides.relative_prior, "--relative-prior"}}) {
     if (!std::isnan(value) && !(value > 0.0 && std::isfinite(value))) {
       std::fprintf(stderr, "dr_benchmark: %s must be finite and > 0 (see --help)\n", name);
       return 2;

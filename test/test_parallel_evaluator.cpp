@@ -465,6 +465,24 @@ TEST(TaskRegistry, PlanarViaPointRunsTheFittedDrDmpWithSeededExploration) {
   EXPECT_FALSE(noisy->run(theta.head(theta.size() - 1), 4).ok);
 }
 
+TEST(PlanarViaPointTask, ViaPointsLieOnTheMeanTipPathOneMetreAhead) {
+  for (const int dofs : {2, 6, 10}) {
+    const bt::PlanarViaPointTask via(dofs, 1);
+    const double amplitude = 2.0 * M_PI / dofs;
+    ASSERT_EQ(via.viaPoints().size(), 2u);
+    for (std::size_t v = 0; v < 2; ++v) {
+      const double now = amplitude * bt::minimumJerk(via.viaSteps()[v] * via.dt());
+      const Eigen::Vector2d here = bt::planarTip(Eigen::VectorXd::Constant(dofs, now));
+      EXPECT_NEAR((via.viaPoints()[v] - here).norm(), 1.0, 1e-9) << dofs << " DoF, via-point " << v;
+      // Walking the path forwards in fine steps: the first point 1 m from here is the via-point.
+      double theta = now;
+      while ((bt::planarTip(Eigen::VectorXd::Constant(dofs, theta)) - here).norm() < 1.0) theta += 1e-6;
+      EXPECT_NEAR((bt::planarTip(Eigen::VectorXd::Constant(dofs, theta)) - via.viaPoints()[v]).norm(), 0.0, 1e-4)
+          << dofs << " DoF, via-point " << v;
+    }
+  }
+}
+
 TEST(FoldRolloutTask, PolicyEncodingRoundTrips) {
   const int dofs = 12, kernels = 20;
   std::mt19937 rng(2);

@@ -77,12 +77,23 @@ PlanarViaPointTask::PlanarViaPointTask(int dofs, std::uint32_t seed) : dofs_(dof
     demonstrations_.push_back(
         perturbedMinimumJerk(dofs, kSteps + 1, amplitude, {1.0 / 3.0, 2.0 / 3.0}, 0.1, 1.0 / (4.0 * dofs), rng));
   }
-  const std::vector<std::pair<double, Eigen::Vector2d>> vias = {{0.3, Eigen::Vector2d(0.0, -1.0)},
-                                                                {0.6, Eigen::Vector2d(1.0, 0.0)}};
-  for (const auto& [time, offset] : vias) {
+  // Every joint at the same angle θ: the mean motion's tip path, which the arm follows at θ = amplitude · s(t).
+  const auto pathTip = [dofs](double theta) { return planarTip(Eigen::VectorXd::Constant(dofs, theta)); };
+  for (const double time : {0.3, 0.6}) {
     via_steps_.push_back(static_cast<int>(std::lround(time / kDt)));
-    const Eigen::VectorXd q = Eigen::VectorXd::Constant(dofs, amplitude * minimumJerk(time));
-    via_points_.push_back(planarTip(q) + offset);
+    const double now = amplitude * minimumJerk(time);
+    const Eigen::Vector2d here = pathTip(now);
+    double behind = now, ahead = now + kViaAngleStep;
+    // The path passes (d, 0) and the origin, d ≥ 2 apart, within one turn: some point is kViaLead away.
+    while ((pathTip(ahead) - here).norm() < kViaLead && ahead < now + 2.0 * M_PI) {
+      behind = ahead;
+      ahead += kViaAngleStep;
+    }
+    for (int i = 0; i < 60; ++i) {
+      const double mid = 0.5 * (behind + ahead);
+      ((pathTip(mid) - here).norm() < kViaLead ? behind : ahead) = mid;
+    }
+    via_points_.push_back(pathTip(ahead));
   }
   acceleration_weights_ = Eigen::VectorXd::LinSpaced(dofs, dofs, 1.0);
   acceleration_weights_ *= kAccelerationWeight / acceleration_weights_.sum();

@@ -47,9 +47,11 @@ void rolloutDrDmp(const primitives::DrDmp& dmp, double dt, int steps, double exp
 
 /// Table 7.3's task: a d-DoF planar arm of unit links whose joints all move from 0 to 2π/d in 1 s (minimum jerk,
 /// 100 steps of 10 ms) must pass two via-points. Ten demonstrations perturb every joint by two bumps (centres 1/3 and
-/// 2/3 of the movement, width 0.1, A_a ~ N(0, 1/(4d)), Fig. 7.6b). The via-points are the unperturbed movement's tip
-/// at 0.3 s and 0.6 s moved by (0, −1) m and (1, 0) m. Reward (7.50) with C_x = 0.1 I and, on joint accelerations,
-/// C_u = 10⁻⁵ diag(d + 1 − j) / Σ_j (d + 1 − j), which weighs the first joints, which move the whole arm, most.
+/// 2/3 of the movement, width 0.1, A_a ~ N(0, 1/(4d)), Fig. 7.6b). The via-points lie on the unperturbed movement's tip
+/// path ("along the trajectory"), 1 m ahead of where its tip is at 0.3 s and 0.6 s: the arm must run ahead of its
+/// schedule, which the joints' common (first principal) direction can do alone. Reward (7.50) with C_x = 0.1 I and, on
+/// joint accelerations, C_u = 10⁻⁵ diag(d + 1 − j) / Σ_j (d + 1 − j), which weighs the first joints, which move the
+/// whole arm, most.
 class PlanarViaPointTask {
  public:
   /// The demonstrations' bumps come from a generator seeded with `seed`. \throws std::invalid_argument for dofs < 2.
@@ -66,6 +68,8 @@ class PlanarViaPointTask {
   double reward(const Eigen::MatrixXd& positions, const Eigen::MatrixXd& accelerations) const;
 
   static constexpr double kDt = 0.01, kViaWeight = 0.1, kAccelerationWeight = 1e-5;
+  /// The via-points lie kViaLead [m] ahead of the mean motion's tip on its path (searched in steps of kViaAngleStep).
+  static constexpr double kViaLead = 1.0, kViaAngleStep = 1e-3;
   static constexpr int kSteps = 100, kDemonstrations = 10;
 
  private:
