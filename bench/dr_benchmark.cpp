@@ -58,9 +58,10 @@ struct DrDmpOverrides {
   double epsilon = std::numeric_limits<double>::quiet_NaN();            ///< --epsilon: REPS' KL bound.
   double forcing_variance = std::numeric_limits<double>::quiet_NaN();   ///< --forcing-variance (one demonstration).
   double relative_prior = std::numeric_limits<double>::quiet_NaN();     ///< --relative-prior (demonstrations).
-  long kernels = -1;  ///< --kernels: basis functions per latent DoF (-1: the experiment's).
-  long reuse = -1;    ///< --reuse: rollouts kept (-1: the experiment's).
-  long updates = -1;  ///< --updates: policy updates per run (-1: the thesis').
+  long kernels = -1;   ///< --kernels: basis functions per latent DoF (-1: the experiment's).
+  long rollouts = -1;  ///< --rollouts: rollouts per update (-1: the thesis' 20).
+  long reuse = -1;     ///< --reuse: rollouts kept (-1: the experiment's).
+  long updates = -1;   ///< --updates: policy updates per run (-1: the thesis').
 } overrides;
 using bimanual_skills::tools::Clock;
 using bimanual_skills::tools::secondsSince;
@@ -729,7 +730,7 @@ void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::
   protocol.updates = options.quick           ? 3
                      : overrides.updates > 0 ? static_cast<int>(overrides.updates)
                                              : experiment.updates;
-  protocol.rollouts = protocol.first_rollouts = 20;
+  protocol.rollouts = protocol.first_rollouts = overrides.rollouts > 0 ? static_cast<int>(overrides.rollouts) : 20;
   std::vector<Algorithm> algorithms;
   for (const DrDmpVariant& variant :
        drDmpVariants(experiment.name, experiment.dofs, experiment.dims, experiment.matrices, 50.0)) {
@@ -929,6 +930,8 @@ int main(int argc, char** argv) {
     line.option("--kernels", "K",
                 "planar10, wam_circle: basis functions per latent DoF (default: the experiment's, 5 and 20)",
                 &overrides.kernels, 2, 1000);
+    line.option("--rollouts", "N", "planar10, wam_circle: rollouts per policy update (default: the thesis', 20)",
+                &overrides.rollouts, 2, 100000);
     line.option("--updates", "N",
                 "planar10, wam_circle: policy updates per run (default: the thesis', 200 and 250; tables stop at 200)",
                 &overrides.updates, 1, 100000);
