@@ -6,8 +6,9 @@
 //
 // Independent runs go to N threads; every run draws from its own generator seeded by (seed, experiment, run), the
 // same for every algorithm, so the results do not depend on N. Writes DIR/<experiment>.csv (rows in run order),
-// DIR/summary.json, then runs scripts/plot_dr_benchmark.py for the PNGs (mean and 95 % interval over runs) and
-// DIR/tables.md.
+// DIR/summary.json, for planar10 and wam_circle the first run's paths before and after learning and the task's
+// target (DIR/<experiment>_paths.csv, DIR/<experiment>_target.csv), then runs scripts/plot_dr_benchmark.py for the
+// PNGs (learning curves with the mean and 95 % interval over runs, paths) and DIR/tables.md.
 #include "bimanual_skills/learning/coordinated_reps.hpp"
 #include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/learning/latent_trajectory_em.hpp"
@@ -81,6 +82,8 @@ struct Setup {
   bl::CoordinatedPolicy policy;
   std::vector<Eigen::MatrixXd> excitation;
   Rollout rollout;
+  /// The noise-free path of a policy for the pictures (one row per sample; empty: none).
+  std::function<Eigen::MatrixXd(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& weights)> path;
 };
 
 struct Protocol {
@@ -91,11 +94,12 @@ struct Protocol {
 };
 
 /// One run's learning curve: the mean policy's reward before the first update and after each, the mean reward of
-/// each update's rollouts, the latent dimension after each update.
+/// each update's rollouts, the latent dimension after each update; the mean policy's path before and after learning.
 struct Curve {
   std::vector<double> policy_reward, rollout_reward;
   std::vector<int> latent_dims;
   double seconds = 0.0;
+  Eigen::MatrixXd initial_path, final_path;
 };
 
 Curve learn(const Setup& setup, const Protocol& protocol, std::mt19937& rng) {
@@ -109,6 +113,7 @@ Curve learn(const Setup& setup, const Protocol& protocol, std::mt19937& rng) {
   };
   curve.policy_reward.push_back(evaluate());
   curve.latent_dims.push_back(learner.policy().latentDims());
+  if (setup.path) curve.initial_path = setup.path(learner.policy().coordination, learner.policy().mean);
   const auto start = Clock::now();
   for (int u = 0; u < protocol.updates; ++u) {
     const bl::CoordinatedPolicy& policy = learner.policy();
@@ -128,6 +133,7 @@ Curve learn(const Setup& setup, const Protocol& protocol, std::mt19937& rng) {
     curve.latent_dims.push_back(learner.policy().latentDims());
   }
   curve.seconds = secondsSince(start);
+  if (setup.path) curve.final_path = setup.path(learner.policy().coordination, learner.policy().mean);
   return curve;
 }
 
@@ -143,10 +149,23 @@ struct Summary {
   std::vector<std::pair<std::string, std::string>> texts;
 };
 
+/// Rows of DIR/<experiment>_paths.csv: the first run's path of one algorithm's mean policy before and after learning.
+void writePaths(std::ofstream& csv, const std::string& algorithm, const Curve& curve) {
+  for (const auto& [policy, path] :
+       {std::pair{"initial", &curve.initial_path}, std::pair{"final", &curve.final_path}}) {
+    for (Eigen::Index i = 0; i < path->rows(); ++i) {
+      csv << '"' << algorithm << "\"," << policy << ',' << i;
+      for (Eigen::Index j = 0; j < path->cols(); ++j) csv << ',' << (*path)(i, j);
+      csv << '\n';
+    }
+  }
+}
+
 /// Runs every (algorithm, run) pair on options.jobs threads; writes DIR/<experiment>.csv in (algorithm, run) order
 /// and one summary row per algorithm.
 void runLearning(const Options& options, const std::string& experiment, const Protocol& protocol,
-                 std::vector<Algorithm> algorithms, std::vector<Summary>& out) {
+                 std::vector<Algorithm> algorithms, std::vector<Summary>& out,
+                 const std::vector<std::string>& path_columns = {}) {
   if (!selected_algorithms.empty()) {
     std::string names;
     for (const Algorithm& a : algorithms) names += (names.empty() ? "" : ", ") + a.name;
@@ -171,6 +190,14 @@ void runLearning(const Options& options, const std::string& experiment, const Pr
   std::ofstream csv(options.out + "/" + experiment + ".csv");
   csv << "experiment,algorithm,run,update,policy_reward,rollout_reward,latent_dims\n";
   csv.precision(10);
+  std::ofstream paths;
+  if (!path_columns.empty()) {
+    paths.open(options.out + "/" + experiment + "_paths.csv");
+    paths << "algorithm,policy,sample";
+    for (const std::string& column : path_columns) paths << ',' << column;
+    paths << '\n';
+    paths.precision(10);
+  }
   const auto wall = Clock::now();
   bb::parallelRuns(
       jobs, options.jobs,
@@ -187,6 +214,10 @@ void runLearning(const Options& options, const std::string& experiment, const Pr
               << ',' << (u > 0 ? c.rollout_reward[u - 1] : c.policy_reward[0]) << ',' << c.latent_dims[u] << '\n';
         }
         csv.flush();
+        if (paths.is_open() && i % runs == 0) {
+          writePaths(paths, algorithm.name, c);
+          paths.flush();
+        }
         if (i % runs == runs - 1) {
           double sum = 0.0, squares = 0.0, dims = 0.0, time = 0.0;
           for (int r = i - runs + 1; r <= i; ++r) {
@@ -472,7 +503,7 @@ void planar15(const Options& options, std::vector<Summary>& out) {
          const bp::DrDmp dmp = fit.dmp.withCoordination({Eigen::MatrixXd::Identity(dofs, dofs)}, mean);
          const int steps = samples - 1;
          const auto dmp_grid = std::make_shared<const bl::CoordinationGrid>(dmp.grid(task.dt(), steps));
-         Setup setup{reps, dmp_grid, {{Eigen::MatrixXd::Identity(dofs, dofs)}, mean, covariance, {}}, {}, {}};
+         Setup setup{reps, dmp_grid, {{Eigen::MatrixXd::Identity(dofs, dofs)}, mean, covariance, {}}, {}, {}, {}};
          setup.parameters.rule = bl::CoordinationRule::Fixed;
          auto rollout = std::make_shared<bt::DrDmpRollout>();
          setup.rollout = [&task, dmp, rollout, steps](const std::vector<Eigen::MatrixXd>& omega,
@@ -489,11 +520,9 @@ void planar15(const Options& options, std::vector<Summary>& out) {
   // ProMP+REPS: the ProMP of the demonstrations (Ω = I), REPS on its weights.
   algorithms.push_back(
       {"ProMP+REPS", [&, grid]() {
-         Setup setup{reps,
-                     grid,
-                     {{Eigen::MatrixXd::Identity(dofs, dofs)}, full.weightMean(), full.weightCovariance(), {}},
-                     {},
-                     {}};
+         Setup setup{
+             reps, grid, {{Eigen::MatrixXd::Identity(dofs, dofs)}, full.weightMean(), full.weightCovariance(), {}},
+             {},   {},   {}};
          setup.parameters.rule = bl::CoordinationRule::Fixed;
          setup.rollout = [&task, grid](const std::vector<Eigen::MatrixXd>& omega, const Eigen::VectorXd& w,
                                        std::mt19937*, Eigen::MatrixXd& values) {
@@ -519,6 +548,7 @@ void planar15(const Options& options, std::vector<Summary>& out) {
                                          model.latent().weightMean(),
                                          model.latent().weightCovariance(),
                                          model.observationCovariance()},
+                                        {},
                                         {},
                                         {}};
                             setup.parameters.rule = bl::CoordinationRule::Em;
@@ -594,6 +624,12 @@ struct DrDmpTask {
   double relative_prior = 0.01, forcing_variance = 1.0;
   bl::CoordinatedRepsParameters parameters;
   std::function<std::function<double(const bt::DrDmpRollout&)>()> reward;  ///< A fresh reward (own scratch).
+  /// For the pictures: a fresh map from a rollout to its path (one row per sample, `path_columns` wide: the planar
+  /// arm's joint angles, the WAM's tool position) and the target (rows of `target_columns`: the via-points, points
+  /// of the circle).
+  std::function<std::function<Eigen::MatrixXd(const bt::DrDmpRollout&)>()> path;
+  std::vector<std::string> path_columns, target_columns;
+  Eigen::MatrixXd target;
 };
 
 Algorithm drDmpAlgorithm(const DrDmpTask& task, const DrDmpVariant& variant) {
@@ -644,6 +680,13 @@ Algorithm drDmpAlgorithm(const DrDmpTask& task, const DrDmpVariant& variant) {
               values = rollout->forcing;
               return (*reward)(*rollout);
             };
+            auto path = std::make_shared<std::function<Eigen::MatrixXd(const bt::DrDmpRollout&)>>(task.path());
+            setup.path = [dmp, rollout, path, dt, steps](const std::vector<Eigen::MatrixXd>& omega,
+                                                         const Eigen::VectorXd& w) {
+              std::mt19937 unused;
+              bt::rolloutDrDmp(dmp.withCoordination(omega, w), dt, steps, 0.0, unused, *rollout);
+              return (*path)(*rollout);
+            };
             return setup;
           }};
 }
@@ -667,6 +710,15 @@ DrDmpTask planar10Task(std::uint32_t seed) {
   task.reward = [via]() {
     return [via](const bt::DrDmpRollout& rollout) { return via->reward(rollout.positions, rollout.accelerations); };
   };
+  task.path = []() { return [](const bt::DrDmpRollout& rollout) { return rollout.positions; }; };
+  for (int j = 1; j <= via->dofs(); ++j) task.path_columns.push_back("q" + std::to_string(j));
+  task.target_columns = {"t", "x", "y"};
+  task.target.resize(static_cast<Eigen::Index>(via->viaPoints().size()), 3);
+  for (std::size_t v = 0; v < via->viaPoints().size(); ++v) {
+    const auto row = static_cast<Eigen::Index>(v);
+    task.target(row, 0) = via->viaSteps()[v] * via->dt();
+    task.target.row(row).tail(2) = via->viaPoints()[v].transpose();
+  }
   return task;
 }
 
@@ -697,6 +749,19 @@ DrDmpTask wamCircleTask(std::uint32_t seed) {
     auto own = std::make_shared<bt::WamCircleTask>(*circle);  // its own scratch
     return [own](const bt::DrDmpRollout& rollout) { return own->reward(rollout.positions, rollout.accelerations); };
   };
+  task.path = [circle]() {
+    auto own = std::make_shared<bt::WamCircleTask>(*circle);
+    return [own](const bt::DrDmpRollout& rollout) { return own->toolPath(rollout.positions); };
+  };
+  task.path_columns = task.target_columns = {"x", "y", "z"};
+  // 200 points of the circle the reward measures distances from.
+  const bt::Circle3d& fit = circle->circle();
+  const Eigen::Vector3d u = fit.normal.unitOrthogonal(), v = fit.normal.cross(u);
+  task.target.resize(200, 3);
+  for (Eigen::Index i = 0; i < task.target.rows(); ++i) {
+    const double angle = 2.0 * M_PI * static_cast<double>(i) / static_cast<double>(task.target.rows());
+    task.target.row(i) = (fit.centre + fit.radius * (std::cos(angle) * u + std::sin(angle) * v)).transpose();
+  }
   return task;
 }
 
@@ -736,7 +801,15 @@ void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::
        drDmpVariants(experiment.name, experiment.dofs, experiment.dims, experiment.matrices, 50.0)) {
     algorithms.push_back(drDmpAlgorithm(task, variant));
   }
-  runLearning(options, experiment.name, protocol, algorithms, out);
+  std::ofstream target(options.out + "/" + experiment.name + "_target.csv");
+  target.precision(10);
+  for (std::size_t c = 0; c < task.target_columns.size(); ++c) target << (c > 0 ? "," : "") << task.target_columns[c];
+  target << '\n';
+  for (Eigen::Index i = 0; i < task.target.rows(); ++i) {
+    for (Eigen::Index j = 0; j < task.target.cols(); ++j) target << (j > 0 ? "," : "") << task.target(i, j);
+    target << '\n';
+  }
+  runLearning(options, experiment.name, protocol, algorithms, out, task.path_columns);
 }
 
 void planar10(const Options& options, std::vector<Summary>& out) {
@@ -901,7 +974,9 @@ int main(int argc, char** argv) {
       "one, EM vs PCA fits (Fig. 7.2), the 15-DoF planar tracking task (Fig. 7.5), the 10-DoF via-point task\n"
       "(Table 7.3) and the WAM circle (Table 7.4), and (optima) the local optimum L-BFGS reaches from each\n"
       "constant coordination's initial policy of the last two. Writes DIR/<experiment>.csv, DIR/summary.json,\n"
-      "learning-curve PNGs (mean and 95 % interval over runs) and DIR/tables.md.";
+      "learning-curve PNGs (mean and 95 % interval over runs), the first run's paths before and after learning\n"
+      "with the task's target (planar10 and wam_circle: <experiment>_paths.csv, _target.csv, _paths.png) and\n"
+      "DIR/tables.md.";
   program.experiments = {"estep", "em_vs_pca", "planar15", "planar10", "wam_circle", "optima", "all"};
   program.with_runs = true;
   program.with_jobs = true;

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
-"""Learning curves, the EM-vs-PCA map and markdown tables for dr_benchmark output: reads DIR/*.csv and
+"""Learning curves, paths, the EM-vs-PCA map and markdown tables for dr_benchmark output: reads DIR/*.csv and
 DIR/summary.json, writes DIR/planar15.png, DIR/planar10.png, DIR/wam_circle.png (reward of the mean policy per update,
-mean and 95 % interval of the mean over runs), DIR/em_vs_pca.png (mean rho of 7.21 per (d, r)) and DIR/tables.md
+mean and 95 % interval of the mean over runs), DIR/planar10_paths.png (the arm's initial motion and the first run's
+path before and after learning, via-points; cf. Fig. 7.6a, c), DIR/wam_circle_paths.png (the tool's path before and
+after learning against the circle; cf. Fig. 7.7a), DIR/em_vs_pca.png (mean rho of 7.21 per (d, r)) and DIR/tables.md
 (measured figures next to the thesis' Tables 7.3 and 7.4).
 
 Usage: plot_dr_benchmark.py DIR
@@ -12,6 +14,7 @@ import os
 from collections import defaultdict
 
 import matplotlib
+import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
@@ -129,6 +132,129 @@ def plot_panels(directory, experiment, panels, transform, ylabel, title):
     fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     fig.savefig(os.path.join(directory, experiment + ".png"), dpi=110)
+    plt.close(fig)
+
+
+def read_paths(directory, experiment):
+    """{algorithm: {"initial"|"final": rows}} of DIR/<experiment>_paths.csv and the rows of DIR/<experiment>_target.csv,
+    or None when either is missing."""
+    paths_file = os.path.join(directory, experiment + "_paths.csv")
+    target_file = os.path.join(directory, experiment + "_target.csv")
+    if not (os.path.exists(paths_file) and os.path.exists(target_file)):
+        return None
+    paths = defaultdict(lambda: defaultdict(list))
+    with open(paths_file) as f:
+        reader = csv.reader(f)
+        next(reader)
+        for row in reader:
+            paths[row[0]][row[1]].append([float(v) for v in row[3:]])
+    with open(target_file) as f:
+        reader = csv.reader(f)
+        next(reader)
+        target = np.array([[float(v) for v in row] for row in reader])
+    return paths, target
+
+
+def best_algorithm(directory, experiment, paths):
+    """The algorithm with the best mean final reward over its runs, among those with paths."""
+    rewards, _ = curves(os.path.join(directory, experiment + ".csv"))
+    finals = {a: sum(run[max(run)] for run in runs.values()) / len(runs) for a, runs in rewards.items() if a in paths}
+    return max(finals, key=finals.get)
+
+
+def arm(q):
+    """Base, joints and tip of the planar arm of unit links at joint angles q (2 x (d + 1))."""
+    angles = np.cumsum(q)
+    return np.vstack([np.zeros(2), np.cumsum(np.column_stack([np.cos(angles), np.sin(angles)]), axis=0)]).T
+
+
+def plot_planar10_paths(directory):
+    data = read_paths(directory, "planar10")
+    if data is None:
+        return
+    paths, target = data
+    algorithm = "IDR-DMP_CMU" if "IDR-DMP_CMU" in paths else best_algorithm(directory, "planar10", paths)
+    initial, final = np.array(paths[algorithm]["initial"]), np.array(paths[algorithm]["final"])
+    steps = len(initial) - 1
+    via_steps = [int(round(t * steps)) for t in target[:, 0]]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 5.6))
+    ax = axes[0]
+    shown = range(0, steps + 1, max(steps // 5, 1))
+    for k, i in enumerate(shown):
+        links = arm(initial[i])
+        ax.plot(links[0], links[1], "-o", color=plt.get_cmap("viridis")(k / max(len(shown) - 1, 1)), ms=2.5, lw=1.2,
+                label="t = %.1f s" % (i / steps))
+    tips = np.array([arm(q)[:, -1] for q in initial])
+    ax.plot(tips[:, 0], tips[:, 1], "r-", lw=1.3, label="tip path")
+    ax.set_title("the initial motion (the demonstrations' DMP; cf. Fig. 7.6a)", fontsize=9)
+    ax = axes[1]
+    for label, rows, colour in (("initial", initial, "m"), ("after learning", final, "b")):
+        tips = np.array([arm(q)[:, -1] for q in rows])
+        ax.plot(tips[:, 0], tips[:, 1], "-", color=colour, lw=1.4, label="%s tip path" % label)
+        for n, i in enumerate(via_steps):
+            links = arm(rows[i])
+            ax.plot(links[0], links[1], "-", color=colour, lw=0.8, alpha=0.6,
+                    label="%s arm at the via-point times" % label if n == 0 else None)
+            ax.plot(*tips[i], "o", color=colour, ms=5)
+    ax.plot(target[:, 1], target[:, 2], "kx", ms=12, mew=1.5, zorder=1, label="via-points (t = %s s)" % ", ".join(
+        "%.1f" % t for t in target[:, 0]))
+    ax.set_title("%s, first run: before and after learning (cf. Fig. 7.6c)" % algorithm, fontsize=9)
+    for ax in axes:
+        ax.set_aspect("equal")
+        ax.grid(alpha=0.3)
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.17), ncol=2)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "planar10_paths.png"), dpi=110)
+    plt.close(fig)
+
+
+def plot_wam_circle_paths(directory):
+    data = read_paths(directory, "wam_circle")
+    if data is None:
+        return
+    paths, circle = data
+    algorithm = best_algorithm(directory, "wam_circle", paths)
+    centre = circle.mean(axis=0)
+    normal = np.linalg.svd(circle - centre)[2][2]
+    u = (circle[0] - centre) / np.linalg.norm(circle[0] - centre)
+    v = np.cross(normal, u)
+    radius = np.linalg.norm(circle - centre, axis=1).mean()
+
+    def in_plane(points):
+        return (points - centre) @ u * 1e3, (points - centre) @ v * 1e3
+
+    def distance(points):
+        offset = points - centre
+        height = offset @ normal
+        planar = np.linalg.norm(offset - np.outer(height, normal), axis=1)
+        return np.hypot(planar - radius, height) * 1e3
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [1, 1.4]})
+    axes[0].plot(*in_plane(np.vstack([circle, circle[:1]])), "g-", lw=2.5, alpha=0.6, label="the fitted circle")
+    # The full-dimension DMP's initial policy is the demonstration's fit; the reduced ones project it first.
+    full = "DR-DMP0(7)" if "DR-DMP0(7)" in paths else algorithm
+    for label, points, colour in (("the demonstration's DMP (%s before learning)" % full, paths[full]["initial"], "b"),
+                                  ("%s after learning" % algorithm, paths[algorithm]["final"], "k")):
+        points = np.array(points)
+        axes[0].plot(*in_plane(points), "-", color=colour, lw=1.1, label=label)
+        t = np.linspace(0.0, 8.0, len(points))
+        axes[1].plot(t, distance(points), "-", color=colour, lw=1.1,
+                     label="%s: sum %.3f m" % (label, distance(points).sum() * 1e-3))
+    axes[0].set_aspect("equal")
+    axes[0].set_xlabel("in the circle's plane [mm]")
+    axes[0].set_ylabel("[mm]")
+    axes[0].set_title("the tool's path, first run (cf. Fig. 7.7a)", fontsize=9)
+    axes[1].set_xlabel("time [s]")
+    axes[1].set_ylabel("distance from the circle [mm]")
+    axes[1].set_yscale("log")
+    axes[1].set_title("the reward's distance term (7.51), per sample", fontsize=9)
+    for ax in axes:
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "wam_circle_paths.png"), dpi=110)
     plt.close(fig)
 
 
@@ -262,6 +388,8 @@ def main():
                  ("MCMU (3)", lambda a: a.startswith("DR-DMP_MCMU")),
                  ("IDR and EM", lambda a: a.startswith("IDR") or a.startswith("EM"))],
                 lambda r: r, "reward of the mean policy", "wam_circle (cf. Table 7.4, Fig. 7.7b), 95 % intervals")
+    plot_planar10_paths(directory)
+    plot_wam_circle_paths(directory)
     em = plot_em_vs_pca(directory)
     with open(os.path.join(directory, "tables.md"), "w") as f:
         f.write(tables(directory, summary, em))

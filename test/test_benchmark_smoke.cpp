@@ -12,8 +12,10 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <string>
+#include <tuple>
 
 namespace fs = std::filesystem;
 
@@ -108,9 +110,27 @@ TEST(DrBenchmarkSmoke, QuickRunWritesEveryOutput) {
                             "\"seed\": 3"}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field;
   }
-  for (const char* file : {"em_vs_pca.csv", "planar15.csv", "planar10.csv", "wam_circle.csv", "em_vs_pca.png",
-                           "planar15.png", "planar10.png", "wam_circle.png", "optima.csv", "tables.md"}) {
+  for (const char* file :
+       {"em_vs_pca.csv", "planar15.csv", "planar10.csv", "wam_circle.csv", "em_vs_pca.png", "planar15.png",
+        "planar10.png", "wam_circle.png", "optima.csv", "tables.md", "planar10_target.csv", "wam_circle_target.csv",
+        "planar10_paths.png", "wam_circle_paths.png"}) {
     EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
+  }
+  // The first run's paths: every algorithm's mean policy before and after learning, one row per sample.
+  for (const auto& [experiment, header, samples] :
+       {std::tuple{"planar10", "algorithm,policy,sample,q1,q2,q3,q4,q5,q6,q7,q8,q9,q10", 101},
+        std::tuple{"wam_circle", "algorithm,policy,sample,x,y,z", 201}}) {
+    std::istringstream paths(readTextFile(out / (std::string(experiment) + "_paths.csv")));
+    std::string line;
+    std::getline(paths, line);
+    EXPECT_EQ(line, header);
+    std::map<std::string, int> rows;
+    while (std::getline(paths, line)) {
+      const std::size_t policy = line.find(',', line.rfind('"')) + 1;  // algorithm names are quoted
+      ++rows[line.substr(0, line.find(',', policy))];
+    }
+    EXPECT_FALSE(rows.empty()) << experiment;
+    for (const auto& [key, count] : rows) EXPECT_EQ(count, samples) << experiment << ' ' << key;
   }
   fs::remove_all(out);
 }

@@ -483,6 +483,36 @@ TEST(PlanarViaPointTask, ViaPointsLieOnTheMeanTipPathOneMetreAhead) {
   }
 }
 
+TEST(WamCircleTask, ToolPathAndRewardFollowTheDemonstrationsCircle) {
+  const auto model = bimanual_skills::kinematics::ChainModel::fromUrdfFile(
+      std::string(BIMANUAL_SKILLS_SOURCE_DIR) + "/urdf/wam.urdf", "wam_base", "wam_tool");
+  bt::WamCircleTask task(model, 7);
+  const Eigen::MatrixXd& q = task.demonstration();
+  const Eigen::MatrixXd tool = task.toolPath(q);
+  ASSERT_EQ(tool.rows(), q.rows());
+  ASSERT_EQ(tool.cols(), 3);
+  bimanual_skills::kinematics::ChainData data(model);
+  for (const Eigen::Index i : {Eigen::Index{0}, q.rows() / 2, q.rows() - 1}) {
+    ASSERT_EQ(bimanual_skills::kinematics::forwardKinematics(model, data, q.row(i).transpose()),
+              bimanual_skills::kinematics::KinematicsStatus::Success);
+    EXPECT_LT((tool.row(i).transpose() - data.tipPose().translation()).norm(), 1e-12) << i;
+  }
+  // A 0.12 m circle drawn with perturbations of a few millimetres to centimetres: the fit is near it.
+  EXPECT_NEAR(task.circle().radius, 0.12, 0.02);
+  double distance = 0.0;
+  for (Eigen::Index i = 0; i < tool.rows(); ++i) distance += task.circle().distance(tool.row(i).transpose());
+  EXPECT_LT(distance / static_cast<double>(tool.rows()), 0.01);
+  // (7.51): the distances plus α Σ‖q̈‖².
+  const Eigen::MatrixXd accelerations = Eigen::MatrixXd::Constant(q.rows(), 7, 0.5);
+  EXPECT_NEAR(task.reward(q, accelerations),
+              -(distance + bt::WamCircleTask::kAccelerationWeight * accelerations.squaredNorm()), 1e-12);
+  EXPECT_THROW(task.toolPath(q.leftCols(6)), std::invalid_argument);
+  Eigen::MatrixXd broken = q;
+  broken(3, 2) = std::nan("");
+  EXPECT_THROW(task.toolPath(broken), std::invalid_argument);
+  EXPECT_THROW(task.reward(q.topRows(10), accelerations.topRows(10)), std::invalid_argument);
+}
+
 TEST(FoldRolloutTask, PolicyEncodingRoundTrips) {
   const int dofs = 12, kernels = 20;
   std::mt19937 rng(2);

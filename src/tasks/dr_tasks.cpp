@@ -192,16 +192,20 @@ Eigen::MatrixXd circleDemonstration(const kinematics::ChainModel& model, std::ui
 WamCircleTask::WamCircleTask(const kinematics::ChainModel& model, std::uint32_t seed)
     : model_(model.nq() == 7 ? model : throw std::invalid_argument("WamCircleTask: needs a 7-joint chain")),
       data_(model_),
-      demonstration_(circleDemonstration(model_, seed)) {
-  Eigen::MatrixXd tool(demonstration_.rows(), 3);
-  for (Eigen::Index i = 0; i < demonstration_.rows(); ++i) {
-    if (kinematics::forwardKinematics(model_, data_, demonstration_.row(i).transpose()) !=
+      demonstration_(circleDemonstration(model_, seed)),
+      circle_(Circle3d::fit(toolPath(demonstration_))) {}
+
+Eigen::MatrixXd WamCircleTask::toolPath(const Eigen::MatrixXd& positions) {
+  if (positions.cols() != 7) throw std::invalid_argument("WamCircleTask::toolPath: positions must have 7 columns");
+  Eigen::MatrixXd tool(positions.rows(), 3);
+  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
+    if (kinematics::forwardKinematics(model_, data_, positions.row(i).transpose()) !=
         kinematics::KinematicsStatus::Success) {
-      throw std::invalid_argument("WamCircleTask: forward kinematics failed on the demonstration");
+      throw std::invalid_argument("WamCircleTask: non-finite positions at row " + std::to_string(i));
     }
     tool.row(i) = data_.tipPose().translation().transpose();
   }
-  circle_ = Circle3d::fit(tool);
+  return tool;
 }
 
 double WamCircleTask::reward(const Eigen::MatrixXd& positions, const Eigen::MatrixXd& accelerations) {
@@ -209,14 +213,9 @@ double WamCircleTask::reward(const Eigen::MatrixXd& positions, const Eigen::Matr
       accelerations.cols() != 7) {
     throw std::invalid_argument("WamCircleTask::reward: positions and accelerations must be (steps + 1) x 7");
   }
+  const Eigen::MatrixXd tool = toolPath(positions);
   double distance = 0.0;
-  for (Eigen::Index i = 0; i < positions.rows(); ++i) {
-    if (kinematics::forwardKinematics(model_, data_, positions.row(i).transpose()) !=
-        kinematics::KinematicsStatus::Success) {
-      throw std::invalid_argument("WamCircleTask::reward: non-finite positions");
-    }
-    distance += circle_.distance(data_.tipPose().translation());
-  }
+  for (Eigen::Index i = 0; i < tool.rows(); ++i) distance += circle_.distance(tool.row(i).transpose());
   return -(distance + kAccelerationWeight * accelerations.squaredNorm());
 }
 

@@ -124,6 +124,9 @@ class WamCircleTask {
   /// (7.51) of a rollout (positions and accelerations, steps + 1 rows each). Uses this task's scratch: one task per
   /// thread. \throws std::invalid_argument for wrong sizes.
   double reward(const Eigen::MatrixXd& positions, const Eigen::MatrixXd& accelerations);
+  /// The tool position (rows × 3) at each row of joint positions (rows × 7). Uses this task's scratch.
+  /// \throws std::invalid_argument for other than 7 columns or non-finite positions.
+  Eigen::MatrixXd toolPath(const Eigen::MatrixXd& positions);
 
   static constexpr double kDt = 0.04, kDuration = 8.0, kAccelerationWeight = 2e-5;
 
