@@ -518,19 +518,19 @@ void planar15(const Options& options, std::vector<Summary>& out) {
          return setup;
        }});
   // ProMP+REPS: the ProMP of the demonstrations (Ω = I), REPS on its weights.
-  algorithms.push_back(
-      {"ProMP+REPS", [&, grid]() {
-         Setup setup{
-             reps, grid, {{Eigen::MatrixXd::Identity(dofs, dofs)}, full.weightMean(), full.weightCovariance(), {}},
-             {},   {},   {}};
-         setup.parameters.rule = bl::CoordinationRule::Fixed;
-         setup.rollout = [&task, grid](const std::vector<Eigen::MatrixXd>& omega, const Eigen::VectorXd& w,
-                                       std::mt19937*, Eigen::MatrixXd& values) {
-           values = bl::coordinatedValues(*grid, omega, w);
-           return task.reward(values);
-         };
-         return setup;
-       }});
+  algorithms.push_back({"ProMP+REPS", [&, grid]() {
+                          bl::CoordinatedPolicy policy{
+                              {Eigen::MatrixXd::Identity(dofs, dofs)}, full.weightMean(), full.weightCovariance(), {}};
+                          Setup setup{reps, grid, std::move(policy), {}, {}, {}};
+                          setup.parameters.rule = bl::CoordinationRule::Fixed;
+                          setup.rollout = [&task, grid](const std::vector<Eigen::MatrixXd>& omega,
+                                                        const Eigen::VectorXd& w, std::mt19937*,
+                                                        Eigen::MatrixXd& values) {
+                            values = bl::coordinatedValues(*grid, omega, w);
+                            return task.reward(values);
+                          };
+                          return setup;
+                        }});
   // EM-ProMP+REPS (Alg. 7.1): DR-ProMP fitted by EM, REPS weights, EM on the rollouts; Ω perturbed by N(0, α²) per
   // element before each rollout.
   for (const auto& [r, alpha] : std::vector<std::pair<int, double>>{{dofs, 0.0}, {8, 0.0}, {8, 0.01}}) {
