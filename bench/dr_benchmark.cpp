@@ -59,10 +59,11 @@ struct DrDmpOverrides {
   double epsilon = std::numeric_limits<double>::quiet_NaN();            ///< --epsilon: REPS' KL bound.
   double forcing_variance = std::numeric_limits<double>::quiet_NaN();   ///< --forcing-variance (one demonstration).
   double relative_prior = std::numeric_limits<double>::quiet_NaN();     ///< --relative-prior (demonstrations).
-  long kernels = -1;   ///< --kernels: basis functions per latent DoF (-1: the experiment's).
-  long rollouts = -1;  ///< --rollouts: rollouts per update (-1: the thesis' 20).
-  long reuse = -1;     ///< --reuse: rollouts kept (-1: the experiment's).
-  long updates = -1;   ///< --updates: policy updates per run (-1: the thesis').
+  long kernels = -1;                ///< --kernels: basis functions per latent DoF (-1: the experiment's).
+  long rollouts = -1;               ///< --rollouts: rollouts per update (-1: the thesis' 20).
+  long reuse = -1;                  ///< --reuse: rollouts kept (-1: the experiment's).
+  long updates = -1;                ///< --updates: policy updates per run (-1: the thesis').
+  bool adapted_covariance = false;  ///< --adapted-covariance: CovarianceRule::Adapted instead of REPS' own.
 } overrides;
 using bimanual_skills::tools::Clock;
 using bimanual_skills::tools::secondsSince;
@@ -375,6 +376,9 @@ void emVsPca(const Options& options, std::vector<Summary>& out) {
   std::ofstream csv(options.out + "/em_vs_pca.csv");
   csv << "experiment,d,r,run,kl_em,kl_pca,rho,em_iterations\n";
   csv.precision(10);
+  std::ofstream progress(options.out + "/optima_progress.csv");
+  progress << "task,algorithm,rollouts,best_reward\n";
+  progress.precision(10);
   bb::parallelRuns(
       static_cast<int>(cells.size()), options.jobs,
       [&](int i) {
@@ -653,6 +657,9 @@ Algorithm drDmpAlgorithm(const DrDmpTask& task, const DrDmpVariant& variant) {
             Setup setup;
             setup.parameters = task.parameters;
             setup.parameters.rule = variant.rule;
+            if (variant.rule == bl::CoordinationRule::Em) {
+              setup.parameters.covariance_rule = bl::CovarianceRule::MaximumLikelihood;  // EM fits its own Σ_ω
+            }
             setup.parameters.update.eta = variant.eta;
             setup.grid = std::move(grid);
             setup.policy = {fit.dmp.coordination(), mean, covariance, {}};
@@ -790,6 +797,10 @@ void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::
   if (!std::isnan(overrides.relative_prior)) task.relative_prior = overrides.relative_prior;
   if (overrides.reuse >= 0) task.parameters.reps.reuse = static_cast<int>(overrides.reuse);
   if (overrides.kernels > 0) task.kernels = static_cast<int>(overrides.kernels);
+  if (overrides.adapted_covariance) {
+    task.parameters.covariance_rule = bl::CovarianceRule::Adapted;
+    task.parameters.covariance_memory = 0.0;
+  }
   Protocol protocol;
   protocol.runs = runsOf(options, experiment.runs, 2);
   protocol.updates = options.quick           ? 3
@@ -822,8 +833,9 @@ void wamCircle(const Options& options, std::vector<Summary>& out) {
 
 // ---- optima: the best reward a fixed coordination allows, by a local optimiser with gradients ----
 
-/// The noise-free reward of latent weights through the fixed coordination matrices of a DR-DMP, and the number of
-/// rollouts it took.
+/// The noise-free reward of latent weights through the fixed coordination matrices of a DR-DMP, the number of
+/// rollouts it took, and the optimiser's progress: the best reward of its iterates against the rollouts spent, a row
+/// whenever it improved by 0.5 % or more.
 class FixedCoordinationObjective {
  public:
   FixedCoordinationObjective(bp::DrDmp dmp, const DrDmpTask& task)
@@ -837,6 +849,19 @@ class FixedCoordinationObjective {
   }
   long rollouts() const noexcept { return rollouts_; }
 
+  /// The optimiser evaluated an iterate (with its gradient) to `value`.
+  void iterate(double value) {
+    if (progress_.empty() || value - progress_.back().second >= 0.005 * std::abs(progress_.back().second)) {
+      progress_.emplace_back(rollouts_, value);
+    }
+  }
+  /// (rollouts, best reward) rows, ending with the final count.
+  std::vector<std::pair<long, double>> progress() const {
+    std::vector<std::pair<long, double>> out = progress_;
+    if (!out.empty()) out.emplace_back(rollouts_, out.back().second);
+    return out;
+  }
+
  private:
   bp::DrDmp dmp_;
   double dt_;
@@ -844,6 +869,7 @@ class FixedCoordinationObjective {
   std::function<double(const bt::DrDmpRollout&)> reward_;
   bt::DrDmpRollout rollout_;
   long rollouts_ = 0;
+  std::vector<std::pair<long, double>> progress_;
 };
 
 /// L-BFGS (NLopt) on the objective with central differences of step 10⁻⁴.
@@ -862,13 +888,15 @@ double lbfgsObjective(unsigned n, const double* w, double* gradient, void* data)
       x[i] = w[i];
       gradient[i] = (up - down) / (2.0 * h);
     }
+    objective.iterate(value);
   }
   return value;
 }
 
 /// For each fixed-dimension DR-DMP with constant coordination (the PCA initialisation, DR-DMP⁰(r) and
 /// DR-DMP⁰_MCMU(N_s, r)), the noise-free reward L-BFGS reaches from the initial mean weights: a local optimum, the
-/// reference for what that coordination allows and for how far policy search ends from it.
+/// reference for what that coordination allows and for how far policy search ends from it. optima_progress.csv has
+/// the rollouts L-BFGS spent to reach each level, against the learners' budget.
 void optima(const Options& options, std::vector<Summary>& out) {
   struct Job {
     std::string task;
@@ -893,11 +921,15 @@ void optima(const Options& options, std::vector<Summary>& out) {
     double initial = 0.0, optimum = 0.0, seconds = 0.0;
     long rollouts = 0;
     int weights = 0;
+    std::vector<std::pair<long, double>> progress;
   };
   std::vector<Result> results(jobs.size());
   std::ofstream csv(options.out + "/optima.csv");
   csv << "task,algorithm,latent_dims,matrices,weights,initial_reward,optimum_reward,rollouts,seconds\n";
   csv.precision(10);
+  std::ofstream progress(options.out + "/optima_progress.csv");
+  progress << "task,algorithm,rollouts,best_reward\n";
+  progress.precision(10);
   bb::parallelRuns(
       static_cast<int>(jobs.size()), options.jobs,
       [&](int i) {
@@ -929,6 +961,7 @@ void optima(const Options& options, std::vector<Summary>& out) {
         }
         result.optimum = std::max(value, result.initial);
         result.rollouts = objective.rollouts();
+        result.progress = objective.progress();
         result.seconds = secondsSince(start);
       },
       [&](int i) {
@@ -937,6 +970,10 @@ void optima(const Options& options, std::vector<Summary>& out) {
         csv << job.task << ",\"" << job.variant.name << "\"," << job.variant.r << ',' << job.variant.matrices << ','
             << r.weights << ',' << r.initial << ',' << r.optimum << ',' << r.rollouts << ',' << r.seconds << '\n';
         csv.flush();
+        for (const auto& [rollouts, best] : r.progress) {
+          progress << job.task << ",\"" << job.variant.name << "\"," << rollouts << ',' << best << '\n';
+        }
+        progress.flush();
         std::printf("  optima %-10s %-20s %3d weights: %.4g -> %.4g (%ld rollouts, %.1f s)\n", job.task.c_str(),
                     job.variant.name.c_str(), r.weights, r.initial, r.optimum, r.rollouts, r.seconds);
         std::fflush(stdout);
@@ -990,6 +1027,11 @@ int main(int argc, char** argv) {
                 "planar10, wam_circle: the new latent covariance keeps L of the one sampled from, (1 - L) Sigma_ML + "
                 "L Sigma, 0 <= L < 1 (default: the experiment's)",
                 &overrides.covariance_memory);
+    line.flag("--adapted-covariance",
+              "planar10, wam_circle: REPS' weights and mean with the latent covariance and a step size adapted as in "
+              "CMA-ES (Hansen 2006, the thesis' ref. [135]) instead of REPS' weighted maximum likelihood; not in the "
+              "thesis' experiments (the EM variants keep theirs; --covariance-memory does not apply)",
+              &overrides.adapted_covariance);
     line.option("--exploration", "S",
                 "planar10, wam_circle: the standard deviation of the noise added to every forcing value outside the "
                 "latent space, per step, S >= 0 (default: the experiment's, sqrt(0.1))",
@@ -1023,6 +1065,10 @@ int main(int argc, char** argv) {
   const double memory = overrides.covariance_memory;
   if (!std::isnan(memory) && !(memory >= 0.0 && memory < 1.0)) {
     std::fprintf(stderr, "dr_benchmark: --covariance-memory must be in [0, 1) (see --help)\n");
+    return 2;
+  }
+  if (!std::isnan(memory) && overrides.adapted_covariance) {
+    std::fprintf(stderr, "dr_benchmark: --covariance-memory does not apply with --adapted-covariance (see --help)\n");
     return 2;
   }
   if (!std::isnan(overrides.exploration) && !(overrides.exploration >= 0.0 && std::isfinite(overrides.exploration))) {

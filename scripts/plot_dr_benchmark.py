@@ -3,8 +3,9 @@
 DIR/summary.json, writes DIR/planar15.png, DIR/planar10.png, DIR/wam_circle.png (reward of the mean policy per update,
 mean and 95 % interval of the mean over runs), DIR/planar10_paths.png (the arm's initial motion and the first run's
 path before and after learning, via-points; cf. Fig. 7.6a, c), DIR/wam_circle_paths.png (the tool's path before and
-after learning against the circle; cf. Fig. 7.7a), DIR/em_vs_pca.png (mean rho of 7.21 per (d, r)) and DIR/tables.md
-(measured figures next to the thesis' Tables 7.3 and 7.4).
+after learning against the circle; cf. Fig. 7.7a), DIR/em_vs_pca.png (mean rho of 7.21 per (d, r)),
+DIR/optima_progress.png (the cost L-BFGS reaches against the rollouts it spent, beside the learners' budget) and
+DIR/tables.md (measured figures next to the thesis' Tables 7.3 and 7.4).
 
 Usage: plot_dr_benchmark.py DIR
 """
@@ -258,6 +259,48 @@ def plot_wam_circle_paths(directory):
     plt.close(fig)
 
 
+# Rollouts each learner of planar10 and wam_circle spends: 20 per update, 200 and 250 updates.
+LEARNER_BUDGET = {"planar10": 20 * 200, "wam_circle": 20 * 250}
+
+
+def plot_optima_progress(directory):
+    path = os.path.join(directory, "optima_progress.csv")
+    if not os.path.exists(path):
+        return
+    progress = defaultdict(lambda: defaultdict(list))
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            progress[row["task"]][row["algorithm"]].append((int(row["rollouts"]), float(row["best_reward"])))
+    fig, axes = plt.subplots(1, len(progress), figsize=(6.2 * len(progress), 4.6), squeeze=False)
+    for ax, (task, algorithms) in zip(axes[0], progress.items()):
+        learned = os.path.join(directory, task + ".csv")
+        finals = {}
+        if os.path.exists(learned):
+            rewards, _ = curves(learned)
+            finals = {a: mean_ci([run[max(run)] for run in runs.values()])[0] for a, runs in rewards.items()}
+        for algorithm, points in algorithms.items():
+            x, y = zip(*points)
+            line, = ax.plot(x, [-v for v in y], "--" if "MCMU" in algorithm else "-", lw=1.1, label=algorithm)
+            if algorithm in finals:
+                ax.plot([LEARNER_BUDGET[task]], [-finals[algorithm]], "o", color=line.get_color(), ms=5)
+        ax.axvline(LEARNER_BUDGET[task], color="k", ls=":", lw=1,
+                   label="the learners' budget (%d rollouts)%s" % (LEARNER_BUDGET[task],
+                                                                   "; dots: where they end" if finals else ""))
+        thesis = [-cells[-1][0] if task == "wam_circle" else 10 ** -cells[-1][0]
+                  for cells in (THESIS_74 if task == "wam_circle" else THESIS_73).values()]
+        ax.axhspan(min(thesis), max(thesis), color="0.5", alpha=0.15, label="the thesis' learners after 200 updates")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("rollouts spent (central-difference gradients)")
+        ax.set_ylabel("cost -R of the best iterate")
+        ax.set_title("%s: L-BFGS from each constant coordination's initial policy" % task, fontsize=9)
+        ax.grid(alpha=0.3, which="both")
+        ax.legend(fontsize=6, ncol=2)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "optima_progress.png"), dpi=110)
+    plt.close(fig)
+
+
 def plot_em_vs_pca(directory):
     path = os.path.join(directory, "em_vs_pca.csv")
     if not os.path.exists(path):
@@ -390,6 +433,7 @@ def main():
                 lambda r: r, "reward of the mean policy", "wam_circle (cf. Table 7.4, Fig. 7.7b), 95 % intervals")
     plot_planar10_paths(directory)
     plot_wam_circle_paths(directory)
+    plot_optima_progress(directory)
     em = plot_em_vs_pca(directory)
     with open(os.path.join(directory, "tables.md"), "w") as f:
         f.write(tables(directory, summary, em))

@@ -113,7 +113,7 @@ TEST(DrBenchmarkSmoke, QuickRunWritesEveryOutput) {
   for (const char* file :
        {"em_vs_pca.csv", "planar15.csv", "planar10.csv", "wam_circle.csv", "em_vs_pca.png", "planar15.png",
         "planar10.png", "wam_circle.png", "optima.csv", "tables.md", "planar10_target.csv", "wam_circle_target.csv",
-        "planar10_paths.png", "wam_circle_paths.png"}) {
+        "planar10_paths.png", "wam_circle_paths.png", "optima_progress.csv", "optima_progress.png"}) {
     EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
   }
   // The first run's paths: every algorithm's mean policy before and after learning, one row per sample.
@@ -158,6 +158,9 @@ TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --fast"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --covariance-memory 1"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --adapted-covariance "
+                                 "--covariance-memory 0.5"),
+            2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --exploration -1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --exploration nan"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --epsilon 0"), 2);
@@ -167,6 +170,20 @@ TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --kernels 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --rollouts 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --quick --out /tmp/x --algorithms PoWER"), 1);
+}
+
+TEST(DrBenchmarkSmoke, AdaptedCovarianceRunsBesideTheEmVariants) {
+  // --adapted-covariance applies to the REPS-based rules; the EM variants keep their own covariance.
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_adapted";
+  ASSERT_EQ(runQuietly(std::string(DR_BENCHMARK) + " --experiment wam_circle --runs 2 --seed 5 --quick --jobs 2 " +
+                       "--adapted-covariance --algorithms \"DR-DMP0(7),DR-DMP_MCMU(3,2),EM DR-DMP(3)\" --out " +
+                       out.string()),
+            0);
+  const std::string csv = readTextFile(out / "wam_circle.csv");
+  EXPECT_NE(csv.find("\"DR-DMP0(7)\""), std::string::npos);
+  EXPECT_NE(csv.find("\"DR-DMP_MCMU(3,2)\""), std::string::npos);
+  EXPECT_NE(csv.find("\"EM DR-DMP(3)\""), std::string::npos);
+  fs::remove_all(out);
 }
 
 TEST(DrBenchmarkSmoke, AlgorithmsSelectsTheVariantsToRun) {

@@ -401,6 +401,74 @@ TEST(CoordinatedReps, CovarianceMemoryBlendsTheSampledCovarianceIn) {
   EXPECT_THROW(bl::CoordinatedReps(remembering, grid, initial), std::invalid_argument);
 }
 
+TEST(CoordinatedReps, AdaptedCovarianceIsCmaDrivenByRepsWeights) {
+  // Fixed: REPS' mean, and Σ_ω the σ² C of a CovarianceAdaptation fed REPS' weights and mean (plus the ridge).
+  std::mt19937 rng(12);
+  const bl::CoordinationGrid grid = dmpGrid(3, 4, 1, 20);
+  bl::CoordinatedRepsParameters parameters;
+  parameters.covariance_rule = bl::CovarianceRule::Adapted;
+  const bl::CoordinatedPolicy initial{
+      {orthonormal(3, 2, rng)}, Eigen::VectorXd::Zero(8), Eigen::MatrixXd::Identity(8, 8), {}};
+  bl::CoordinatedReps learner(parameters, grid, initial);
+  bl::Reps reps(parameters.reps);
+  bl::CovarianceAdaptation reference = bl::CovarianceAdaptation::start(initial.covariance);
+  Eigen::VectorXd mean = initial.mean;
+  for (int u = 0; u < 4; ++u) {
+    const Eigen::MatrixXd samples = randomMatrix(15, 8, rng);
+    const Eigen::VectorXd rewards = -samples.rowwise().squaredNorm();
+    learner.update(samples, std::vector<Eigen::MatrixXd>(15, Eigen::MatrixXd::Zero(20, 3)), rewards);
+    const bl::RepsUpdate expected = reps.update(samples, rewards);
+    reference.update(mean, expected.mean, samples, expected.weights);
+    mean = expected.mean;
+    EXPECT_EQ(learner.policy().mean, expected.mean);
+    Eigen::MatrixXd covariance = reference.covariance();
+    covariance.diagonal().array() += parameters.reps.covariance_regularisation;
+    EXPECT_LT((learner.policy().covariance - covariance).cwiseAbs().maxCoeff(), 1e-12);
+  }
+  bl::CoordinatedRepsParameters bad = parameters;
+  bad.covariance_memory = 0.5;
+  EXPECT_THROW(bl::CoordinatedReps(bad, grid, initial), std::invalid_argument);
+  bad = parameters;
+  bad.rule = bl::CoordinationRule::Em;
+  EXPECT_THROW(
+      bl::CoordinatedReps(bad, grid,
+                          {initial.coordination, initial.mean, initial.covariance, Eigen::MatrixXd::Identity(3, 3)}),
+      std::invalid_argument);
+}
+
+TEST(CoordinatedReps, AdaptedCovarianceFollowsTheCoordinationWhenItDropsADimension) {
+  // Cmu with η = 1.0001 drops a dimension at every update: the adapted state moves into the r − 1 coordinates and the
+  // next updates sample from it.
+  std::mt19937 rng(13);
+  constexpr int d = 4, n = 5, steps = 30;
+  const bl::CoordinationGrid grid = dmpGrid(d, n, 1, steps);
+  bl::CoordinatedRepsParameters parameters;
+  parameters.rule = bl::CoordinationRule::Cmu;
+  parameters.update.eta = 1.0001;
+  parameters.covariance_rule = bl::CovarianceRule::Adapted;
+  parameters.reps.reuse = 10;
+  bl::CoordinatedReps learner(
+      parameters, grid,
+      {{orthonormal(d, 3, rng)}, Eigen::VectorXd::Zero(3 * n), Eigen::MatrixXd::Identity(3 * n, 3 * n), {}});
+  bl::GaussianSampler sampler;
+  for (int u = 0; u < 3; ++u) {
+    const bl::CoordinatedPolicy& policy = learner.policy();
+    const Eigen::MatrixXd samples = sampler.draw(policy.mean, bl::choleskyFactor(policy.covariance), 10, rng);
+    std::vector<Eigen::MatrixXd> values;
+    Eigen::VectorXd rewards(10);
+    for (int k = 0; k < 10; ++k) {
+      values.push_back(bl::coordinatedValues(grid, policy.coordination, samples.row(k).transpose()));
+      rewards[k] = -values.back().squaredNorm();
+    }
+    const bl::CoordinatedRepsReport report = learner.update(samples, values, rewards);
+    EXPECT_EQ(learner.policy().latentDims(), 2 - u) << "update " << u;
+    EXPECT_TRUE(report.reduced);
+    EXPECT_EQ(learner.policy().covariance.rows(), learner.policy().mean.size());
+    EXPECT_TRUE(learner.policy().covariance.allFinite());
+    if (learner.policy().latentDims() == 1) break;
+  }
+}
+
 TEST(CoordinatedReps, CmuCarriesKeptRolloutsIntoTheNewCoordinates) {
   // Rollouts whose forcing lies in a 2-D subspace; the learner starts in another one with r = 3 and η = ∞: after an
   // update Ω spans the rollouts' subspace (plus one direction), and kept samples are mapped by M†.

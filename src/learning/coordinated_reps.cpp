@@ -15,6 +15,10 @@ void CoordinatedRepsParameters::validate() const {
   if (!(covariance_memory >= 0.0 && covariance_memory < 1.0)) {
     throw std::invalid_argument("CoordinatedRepsParameters: covariance_memory must be in [0, 1)");
   }
+  if (covariance_rule == CovarianceRule::Adapted && (rule == CoordinationRule::Em || covariance_memory != 0.0)) {
+    throw std::invalid_argument(
+        "CoordinatedRepsParameters: the adapted covariance needs the Fixed or Cmu rule and covariance_memory 0");
+  }
 }
 
 CoordinatedReps::CoordinatedReps(const CoordinatedRepsParameters& parameters, const CoordinationGrid& grid,
@@ -50,6 +54,9 @@ CoordinatedReps::CoordinatedReps(const CoordinatedRepsParameters& parameters, co
           "coordination matrix");
     }
   }
+  if (parameters_.covariance_rule == CovarianceRule::Adapted) {
+    adaptation_ = CovarianceAdaptation::start(policy_.covariance);
+  }
 }
 
 CoordinatedRepsReport CoordinatedReps::update(const Eigen::MatrixXd& samples,
@@ -83,17 +90,28 @@ CoordinatedRepsReport CoordinatedReps::update(const Eigen::MatrixXd& samples,
                                  parameters_.reps.epsilon, report.eta, report.kl);
   const double regularisation = parameters_.reps.covariance_regularisation;
   Eigen::MatrixXd sample_map;  // M† when the coordination changed
-  const double memory = parameters_.covariance_memory;
+  const bool adapted = parameters_.covariance_rule == CovarianceRule::Adapted;
+  // Fixed and Cmu: REPS' mean, and its weighted maximum-likelihood covariance blended with the sampled one by λ or
+  // the adapted σ² C.
+  const auto repsGaussian = [&]() {
+    auto gaussian = weightedGaussian(theta, report.weights, regularisation);
+    if (adapted) {
+      adaptation_.update(policy_.mean, gaussian.first, theta, report.weights);
+      gaussian.second = adaptation_.covariance();
+      gaussian.second.diagonal().array() += regularisation;
+    } else {
+      const double memory = parameters_.covariance_memory;
+      gaussian.second = (1.0 - memory) * gaussian.second + memory * policy_.covariance;
+    }
+    return gaussian;
+  };
   switch (parameters_.rule) {
     case CoordinationRule::Fixed: {
-      auto [mean, covariance] = weightedGaussian(theta, report.weights, regularisation);
-      policy_.covariance = (1.0 - memory) * covariance + memory * policy_.covariance;
-      policy_.mean = std::move(mean);
+      std::tie(policy_.mean, policy_.covariance) = repsGaussian();
       break;
     }
     case CoordinationRule::Cmu: {
-      auto [mean, covariance] = weightedGaussian(theta, report.weights, regularisation);
-      covariance = (1.0 - memory) * covariance + memory * policy_.covariance;
+      auto [mean, covariance] = repsGaussian();
       CoordinationUpdateResult result = coordinationMatrixUpdate(grid_, parameters_.update, policy_.coordination,
                                                                  excitation_, all, report.weights, mean, covariance);
       policy_.coordination = std::move(result.matrices);
@@ -104,6 +122,10 @@ CoordinatedRepsReport CoordinatedReps::update(const Eigen::MatrixXd& samples,
       policy_.covariance.diagonal().array() += regularisation;
       excitation_ = std::move(result.excitation);
       sample_map = std::move(result.sample_map);
+      if (adapted) {
+        adaptation_.moveTo(sample_map.size() > 0 ? sample_map : Eigen::MatrixXd::Identity(size, size),
+                           policy_.covariance);
+      }
       report.reduced = result.reduced;
       break;
     }

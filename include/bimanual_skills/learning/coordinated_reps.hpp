@@ -7,6 +7,7 @@
 #pragma once
 
 #include "bimanual_skills/learning/coordination_matrix.hpp"
+#include "bimanual_skills/learning/covariance_adaptation.hpp"
 #include "bimanual_skills/learning/latent_trajectory_em.hpp"
 #include "bimanual_skills/learning/reps.hpp"
 
@@ -24,6 +25,15 @@ enum class CoordinationRule {
   Em,  ///< REPS weights, then weighted EM of Ω, μ_ω, Σ_ω, Σ_y on the rollouts' values (EM DR-DMP(r), Alg. 7.1).
 };
 
+/// How Σ_ω follows the rollouts under the Fixed and Cmu rules.
+enum class CovarianceRule {
+  MaximumLikelihood,  ///< REPS' weighted maximum-likelihood covariance (5.7), blended by covariance_memory λ.
+  /// REPS' weights and mean, with the covariance and a step size adapted as in CMA-ES (CovarianceAdaptation; the
+  /// thesis' ref. [135]): Σ_ω = σ² C. Not in the thesis' experiments; its Sec. 8 proposes it against premature
+  /// convergence.
+  Adapted,
+};
+
 struct CoordinatedRepsParameters {
   RepsParameters reps;  ///< ε, rollouts reused from earlier updates, rewards normalised, ridge on Σ_ω.
   CoordinationRule rule = CoordinationRule::Fixed;
@@ -34,6 +44,8 @@ struct CoordinatedRepsParameters {
   /// than Σ_ω, and with λ = 0 (the thesis' update) the search never again explores the directions no rollout
   /// happened to span; λ > 0 lets them shrink geometrically instead.
   double covariance_memory = 0.0;
+  /// MaximumLikelihood (the thesis) or Adapted; Adapted needs the Fixed or Cmu rule and λ = 0.
+  CovarianceRule covariance_rule = CovarianceRule::MaximumLikelihood;
 
   void validate() const;
 };
@@ -67,7 +79,7 @@ class CoordinatedReps {
   /// `grid`: the basis and activations of the rollouts' N_t steps. `initial_excitation`: F_co^s of the
   /// demonstrations for the CMU filter (may be empty: no filtering at the first update). \throws
   /// std::invalid_argument for invalid parameters, a policy inconsistent with the grid, or Em with N_s ≠ 1 or
-  /// without a noise covariance.
+  /// without a noise covariance. With CovarianceRule::Adapted the initial Σ_ω is σ² C with σ = 1.
   CoordinatedReps(const CoordinatedRepsParameters& parameters, const CoordinationGrid& grid,
                   const CoordinatedPolicy& initial, const std::vector<Eigen::MatrixXd>& initial_excitation = {});
 
@@ -90,6 +102,7 @@ class CoordinatedReps {
   CoordinatedPolicy policy_;
   std::vector<Eigen::MatrixXd> excitation_;
   std::deque<Rollout> kept_;
+  CovarianceAdaptation adaptation_;  ///< Adapted only: σ, C and the paths; Σ_ω = σ² C.
 };
 
 }  // namespace bimanual_skills::learning
