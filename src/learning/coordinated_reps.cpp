@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 #include <tuple>
+#include <utility>
 
 namespace bimanual_skills::learning {
 
@@ -93,16 +94,17 @@ CoordinatedRepsReport CoordinatedReps::update(const Eigen::MatrixXd& samples,
   const bool adapted = parameters_.covariance_rule == CovarianceRule::Adapted;
   // Fixed and Cmu: REPS' mean, and its weighted maximum-likelihood covariance blended with the sampled one by λ or
   // the adapted σ² C.
-  const auto repsGaussian = [&]() {
-    auto gaussian = weightedGaussian(theta, report.weights, regularisation);
+  const auto repsGaussian = [&]() -> std::pair<Eigen::VectorXd, Eigen::MatrixXd> {
     if (adapted) {
-      adaptation_.update(policy_.mean, gaussian.first, theta, report.weights);
-      gaussian.second = adaptation_.covariance();
-      gaussian.second.diagonal().array() += regularisation;
-    } else {
-      const double memory = parameters_.covariance_memory;
-      gaussian.second = (1.0 - memory) * gaussian.second + memory * policy_.covariance;
+      Eigen::VectorXd mean = theta.transpose() * report.weights;  // REPS' mean, as weightedGaussian has it
+      adaptation_.update(policy_.mean, mean, theta, report.weights);
+      Eigen::MatrixXd covariance = adaptation_.covariance();
+      covariance.diagonal().array() += regularisation;
+      return {std::move(mean), std::move(covariance)};
     }
+    auto gaussian = weightedGaussian(theta, report.weights, regularisation);
+    const double memory = parameters_.covariance_memory;
+    gaussian.second = (1.0 - memory) * gaussian.second + memory * policy_.covariance;
     return gaussian;
   };
   switch (parameters_.rule) {

@@ -60,7 +60,7 @@ void CovarianceAdaptation::update(const Eigen::VectorXd& old_mean, const Eigen::
   shape_path = (1.0 - c_c) * shape_path + (h_sigma ? std::sqrt(c_c * (2.0 - c_c) * mu_eff) : 0.0) * y_w;
 
   const Eigen::MatrixXd y = (samples.rowwise() - old_mean.transpose()) / step_size;
-  Eigen::MatrixXd rank_mu = y.transpose() * weights.asDiagonal() * y;
+  const Eigen::MatrixXd rank_mu = y.transpose() * weights.asDiagonal() * y;
   const double stalled = h_sigma ? 0.0 : c_c * (2.0 - c_c);
   shape = (1.0 - c_1 - c_mu + c_1 * stalled) * shape + c_1 * shape_path * shape_path.transpose() + c_mu * rank_mu;
   shape = 0.5 * (shape + shape.transpose()).eval();

@@ -19,7 +19,8 @@ struct CovarianceAdaptation {
   Eigen::VectorXd shape_path;  ///< p_c, the evolution path of the rank-one update.
   int generations = 0;         ///< Updates done (for the h_σ stall test).
 
-  /// σ = 1, C = `covariance`, zero paths. \throws std::invalid_argument unless `covariance` is square and finite.
+  /// σ = 1, C = `covariance`, zero paths. \throws std::invalid_argument unless `covariance` is square and finite
+  /// with a positive diagonal.
   static CovarianceAdaptation start(const Eigen::MatrixXd& covariance);
 
   Eigen::MatrixXd covariance() const { return step_size * step_size * shape; }  ///< σ² C.
