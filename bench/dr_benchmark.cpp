@@ -376,9 +376,6 @@ void emVsPca(const Options& options, std::vector<Summary>& out) {
   std::ofstream csv(options.out + "/em_vs_pca.csv");
   csv << "experiment,d,r,run,kl_em,kl_pca,rho,em_iterations\n";
   csv.precision(10);
-  std::ofstream progress(options.out + "/optima_progress.csv");
-  progress << "task,algorithm,rollouts,best_reward\n";
-  progress.precision(10);
   bb::parallelRuns(
       static_cast<int>(cells.size()), options.jobs,
       [&](int i) {

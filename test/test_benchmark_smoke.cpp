@@ -13,6 +13,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <tuple>
@@ -170,6 +171,18 @@ TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --kernels 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --rollouts 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --quick --out /tmp/x --algorithms PoWER"), 1);
+}
+
+TEST(DrBenchmarkSmoke, AnExperimentWritesOnlyItsOwnFiles) {
+  // em_vs_pca run into a directory that holds optima's results leaves them alone.
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_own_files";
+  fs::remove_all(out);
+  ASSERT_EQ(runQuietly(std::string(DR_BENCHMARK) + " --experiment em_vs_pca --seed 1 --quick --out " + out.string()),
+            0);
+  std::set<std::string> files;
+  for (const auto& entry : fs::directory_iterator(out)) files.insert(entry.path().filename().string());
+  EXPECT_EQ(files, (std::set<std::string>{"em_vs_pca.csv", "em_vs_pca.png", "summary.json", "tables.md"}));
+  fs::remove_all(out);
 }
 
 TEST(DrBenchmarkSmoke, AdaptedCovarianceRunsBesideTheEmVariants) {
