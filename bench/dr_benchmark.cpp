@@ -64,6 +64,8 @@ struct DrDmpOverrides {
   long reuse = -1;                  ///< --reuse: rollouts kept (-1: the experiment's).
   long updates = -1;                ///< --updates: policy updates per run (-1: the thesis').
   bool adapted_covariance = false;  ///< --adapted-covariance: CovarianceRule::Adapted instead of REPS' own.
+  /// --demonstration: where wam_circle's demonstration is perturbed.
+  bt::CirclePerturbation demonstration = bt::CirclePerturbation::Joint;
 } overrides;
 using bimanual_skills::tools::Clock;
 using bimanual_skills::tools::secondsSince;
@@ -729,7 +731,8 @@ DrDmpTask planar10Task(std::uint32_t seed) {
 /// Table 7.4's task (the WAM circle) with the settings of wam_circle.
 DrDmpTask wamCircleTask(std::uint32_t seed) {
   auto circle = std::make_shared<const bt::WamCircleTask>(
-      bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool"), seed);
+      bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool"), seed,
+      overrides.demonstration);
   DrDmpTask task;
   task.demonstrations = {circle->demonstration()};
   task.dt = circle->dt();
@@ -824,8 +827,14 @@ void planar10(const Options& options, std::vector<Summary>& out) {
   learnDrDmp(options, drDmpExperiments()[0], out);
 }
 
+const char* demonstrationName() {
+  return overrides.demonstration == bt::CirclePerturbation::Task ? "task" : "joint";
+}
+
 void wamCircle(const Options& options, std::vector<Summary>& out) {
+  const std::size_t first = out.size();
   learnDrDmp(options, drDmpExperiments()[1], out);
+  for (std::size_t i = first; i < out.size(); ++i) out[i].texts.emplace_back("demonstration", demonstrationName());
 }
 
 // ---- optima: the best reward a fixed coordination allows, by a local optimiser with gradients ----
@@ -984,6 +993,7 @@ void optima(const Options& options, std::vector<Summary>& out) {
                         {"rollouts", static_cast<double>(r.rollouts)},
                         {"seconds", r.seconds}},
                        {{"task", job.task}}});
+        if (job.task == "wam_circle") out.back().texts.emplace_back("demonstration", demonstrationName());
       });
 }
 
@@ -1014,7 +1024,7 @@ int main(int argc, char** argv) {
   program.experiments = {"estep", "em_vs_pca", "planar15", "planar10", "wam_circle", "optima", "all"};
   program.with_runs = true;
   program.with_jobs = true;
-  std::string algorithms;
+  std::string algorithms, demonstration = "joint";
   program.extra = [&](bimanual_skills::cli::CommandLine& line) {
     line.option("--algorithms", "A,B,...",
                 "run only these algorithms of planar15, planar10 and wam_circle (their names in summary.json, e.g. "
@@ -1053,6 +1063,10 @@ int main(int argc, char** argv) {
                 "wam_circle: the initial latent variance, as the variance of the forcing term each weight moves at "
                 "its kernel's peak, V > 0 (default: the experiment's, 100)",
                 &overrides.forcing_variance);
+    line.option("--demonstration", "joint|task",
+                "wam_circle, optima: where the demonstration's smooth perturbations act, on the joints after IK "
+                "(default) or on the tool before IK, as a hand guiding it would (tasks::CirclePerturbation)",
+                &demonstration);
     line.option("--relative-prior", "P",
                 "planar10: the initial latent covariance is the demonstrations' plus P times their mean weight "
                 "variance on the diagonal, P > 0 (default: the experiment's, 0.01)",
@@ -1079,6 +1093,12 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "dr_benchmark: %s must be finite and > 0 (see --help)\n", name);
       return 2;
     }
+  }
+  if (demonstration == "task") {
+    overrides.demonstration = bt::CirclePerturbation::Task;
+  } else if (demonstration != "joint") {
+    std::fprintf(stderr, "dr_benchmark: --demonstration must be joint or task (see --help)\n");
+    return 2;
   }
   // Names hold commas inside parentheses ("DR-DMP_MCMU(3,4)"): split only at the others.
   std::string name;

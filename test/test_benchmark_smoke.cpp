@@ -170,6 +170,7 @@ TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --relative-prior 0"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --kernels 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --rollouts 1"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment wam_circle --seed 1 --out /tmp/x --demonstration hand"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --quick --out /tmp/x --algorithms PoWER"), 1);
 }
 
@@ -182,6 +183,18 @@ TEST(DrBenchmarkSmoke, AnExperimentWritesOnlyItsOwnFiles) {
   std::set<std::string> files;
   for (const auto& entry : fs::directory_iterator(out)) files.insert(entry.path().filename().string());
   EXPECT_EQ(files, (std::set<std::string>{"em_vs_pca.csv", "em_vs_pca.png", "summary.json", "tables.md"}));
+  fs::remove_all(out);
+}
+
+TEST(DrBenchmarkSmoke, TaskSpaceDemonstrationIsRecordedInTheSummary) {
+  // --demonstration task perturbs the circle on the tool; summary.json says which demonstration each row learned.
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_task_demonstration";
+  ASSERT_EQ(runQuietly(std::string(DR_BENCHMARK) + " --experiment wam_circle --runs 2 --seed 5 --quick --jobs 2 " +
+                       "--demonstration task --algorithms \"DR-DMP0(7)\" --out " + out.string()),
+            0);
+  const std::string summary = readTextFile(out / "summary.json");
+  EXPECT_NE(summary.find("\"demonstration\": \"task\""), std::string::npos) << summary;
+  EXPECT_EQ(summary.find("\"demonstration\": \"joint\""), std::string::npos) << summary;
   fs::remove_all(out);
 }
 

@@ -11,6 +11,7 @@
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
 
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
@@ -511,6 +512,51 @@ TEST(WamCircleTask, ToolPathAndRewardFollowTheDemonstrationsCircle) {
   broken(3, 2) = std::nan("");
   EXPECT_THROW(task.toolPath(broken), std::invalid_argument);
   EXPECT_THROW(task.reward(q.topRows(10), accelerations.topRows(10)), std::invalid_argument);
+}
+
+TEST(WamCircleTask, TaskPerturbationDisplacesTheToolNotItsOrientation) {
+  const auto model = bimanual_skills::kinematics::ChainModel::fromUrdfFile(
+      std::string(BIMANUAL_SKILLS_SOURCE_DIR) + "/urdf/wam.urdf", "wam_base", "wam_tool");
+  bimanual_skills::kinematics::ChainData data(model);
+  Eigen::VectorXd nominal_q(7);
+  nominal_q << 0.0, 0.6, 0.0, 1.6, 0.0, 0.4, 0.0;
+  ASSERT_EQ(bimanual_skills::kinematics::forwardKinematics(model, data, nominal_q),
+            bimanual_skills::kinematics::KinematicsStatus::Success);
+  const Eigen::Isometry3d nominal = data.tipPose();
+  // The largest angle between the tool's orientation along a demonstration and the nominal one.
+  const auto largestTilt = [&](const Eigen::MatrixXd& q) {
+    double largest = 0.0;
+    for (Eigen::Index i = 0; i < q.rows(); ++i) {
+      EXPECT_EQ(bimanual_skills::kinematics::forwardKinematics(model, data, q.row(i).transpose()),
+                bimanual_skills::kinematics::KinematicsStatus::Success);
+      const Eigen::AngleAxisd tilt(nominal.linear().transpose() * data.tipPose().linear());
+      largest = std::max(largest, std::abs(tilt.angle()));
+    }
+    return largest;
+  };
+  bt::WamCircleTask task(model, 7, bt::CirclePerturbation::Task);
+  bt::WamCircleTask joint(model, 7, bt::CirclePerturbation::Joint);
+  const Eigen::MatrixXd tool = task.toolPath(task.demonstration());
+  // It starts and ends at the nominal posture's tool position (to the IK's tolerance), where the deviations are
+  // faded out.
+  EXPECT_LT((tool.row(0).transpose() - nominal.translation()).norm(), 1e-5);
+  EXPECT_LT((tool.bottomRows(1).transpose() - nominal.translation()).norm(), 1e-5);
+  // In between, the tool strays from its circle by millimetres.
+  double distance = 0.0;
+  for (Eigen::Index i = 0; i < tool.rows(); ++i) distance += task.circle().distance(tool.row(i).transpose());
+  distance /= static_cast<double>(tool.rows());
+  EXPECT_GT(distance, 5e-4);
+  EXPECT_LT(distance, 0.01);
+  // IK keeps the orientation: only the joints' white noise tilts the tool, where joint bumps tilt it by far more.
+  const double task_tilt = largestTilt(task.demonstration()), joint_tilt = largestTilt(joint.demonstration());
+  EXPECT_LT(task_tilt, 0.02);   // 0.011 rad for this seed
+  EXPECT_GT(joint_tilt, 0.04);  // 0.083 rad
+  // Deterministic in the seed.
+  EXPECT_EQ(bt::WamCircleTask(model, 7, bt::CirclePerturbation::Task).demonstration(), task.demonstration());
+  EXPECT_GT((bt::WamCircleTask(model, 8, bt::CirclePerturbation::Task).demonstration() - task.demonstration())
+                .cwiseAbs()
+                .maxCoeff(),
+            1e-3);
 }
 
 TEST(FoldRolloutTask, PolicyEncodingRoundTrips) {

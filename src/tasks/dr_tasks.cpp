@@ -2,9 +2,12 @@
 
 #include "bimanual_skills/kinematics/global_ik.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace bimanual_skills::tasks {
 
@@ -142,8 +145,10 @@ double PlanarTrackingTask::reward(const Eigen::MatrixXd& positions) const {
 
 namespace {
 
-/// The demonstration of WamCircleTask: the circle through the IK solver, then the perturbations.
-Eigen::MatrixXd circleDemonstration(const kinematics::ChainModel& model, std::uint32_t seed) {
+/// The demonstration of WamCircleTask: the circle through the IK solver, perturbed on the tool before IK or on the
+/// joints after it, then the joints' white noise.
+Eigen::MatrixXd circleDemonstration(const kinematics::ChainModel& model, std::uint32_t seed,
+                                    CirclePerturbation perturbation) {
   Eigen::VectorXd q(7);
   q << 0.0, 0.6, 0.0, 1.6, 0.0, 0.4, 0.0;
   kinematics::ChainData data(model);
@@ -158,28 +163,44 @@ Eigen::MatrixXd circleDemonstration(const kinematics::ChainModel& model, std::ui
   kinematics::GlobalIkParameters parameters;
   parameters.timeout = 1.0;  // never binding: the same attempts, hence the same answer, on any machine
   kinematics::GlobalIkSolver solver(model, parameters);
-  const int samples = static_cast<int>(std::lround(WamCircleTask::kDuration / WamCircleTask::kDt)) + 1;
+  constexpr double duration = WamCircleTask::kDuration;
+  const int samples = static_cast<int>(std::lround(duration / WamCircleTask::kDt)) + 1;
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> uniform(0.0, duration);
+  const auto bump = [](double t, double centre, double width) {
+    return std::exp(-(t - centre) * (t - centre) / (width * width));
+  };
+  // CirclePerturbation::Task: the tool's deviations, faded in and out over a second at either end.
+  std::vector<std::pair<double, Eigen::Vector3d>> deviations;
+  if (perturbation == CirclePerturbation::Task) {
+    std::normal_distribution<double> amplitude(0.0, 0.008);
+    for (int b = 0; b < 4; ++b) {
+      const double c = uniform(rng);
+      const double dx = amplitude(rng), dy = amplitude(rng), dz = amplitude(rng);
+      deviations.emplace_back(c, Eigen::Vector3d(dx, dy, dz));
+    }
+  }
   Eigen::MatrixXd y(samples, 7);
   Eigen::VectorXd solution(7);
   for (int i = 0; i < samples; ++i) {
+    const double t = i * WamCircleTask::kDt;
     const double angle = 2.0 * M_PI * minimumJerk(static_cast<double>(i) / (samples - 1));
     Eigen::Isometry3d target = nominal;
     target.translation() = centre + radius * (std::cos(angle) * u + std::sin(angle) * v);
+    const double fade = minimumJerk(std::min(1.0, t)) * minimumJerk(std::min(1.0, duration - t));
+    for (const auto& [c, a] : deviations) target.translation() += fade * bump(t, c, 1.0) * a;
     if (solver.solve(target, q, solution).status != kinematics::IkStatus::Converged) {
       throw std::invalid_argument("WamCircleTask: no IK solution at sample " + std::to_string(i));
     }
     q = solution;
     y.row(i) = q.transpose();
   }
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<double> uniform(0.0, WamCircleTask::kDuration);
-  std::normal_distribution<double> bump(0.0, 0.03), noise(0.0, 0.002);
+  std::normal_distribution<double> joint_amplitude(0.0, 0.03), noise(0.0, 0.002);
   for (int j = 0; j < 7; ++j) {
-    for (int b = 0; b < 3; ++b) {
-      const double c = uniform(rng), a = bump(rng);
-      for (int i = 0; i < samples; ++i) {
-        const double t = i * WamCircleTask::kDt;
-        y(i, j) += a * std::exp(-(t - c) * (t - c) / (0.4 * 0.4));
+    if (perturbation == CirclePerturbation::Joint) {
+      for (int b = 0; b < 3; ++b) {
+        const double c = uniform(rng), a = joint_amplitude(rng);
+        for (int i = 0; i < samples; ++i) y(i, j) += a * bump(i * WamCircleTask::kDt, c, 0.4);
       }
     }
     for (int i = 1; i + 1 < samples; ++i) y(i, j) += noise(rng);
@@ -189,10 +210,10 @@ Eigen::MatrixXd circleDemonstration(const kinematics::ChainModel& model, std::ui
 
 }  // namespace
 
-WamCircleTask::WamCircleTask(const kinematics::ChainModel& model, std::uint32_t seed)
+WamCircleTask::WamCircleTask(const kinematics::ChainModel& model, std::uint32_t seed, CirclePerturbation perturbation)
     : model_(model.nq() == 7 ? model : throw std::invalid_argument("WamCircleTask: needs a 7-joint chain")),
       data_(model_),
-      demonstration_(circleDemonstration(model_, seed)),
+      demonstration_(circleDemonstration(model_, seed, perturbation)),
       circle_(Circle3d::fit(toolPath(demonstration_))) {}
 
 Eigen::MatrixXd WamCircleTask::toolPath(const Eigen::MatrixXd& positions) {

@@ -105,17 +105,30 @@ class PlanarTrackingTask {
   Eigen::MatrixXd target_;
 };
 
+/// Where the smooth perturbations of WamCircleTask's demonstration act.
+enum class CirclePerturbation {
+  /// On every joint, three bumps (centres uniform in time, width 0.4 s, amplitudes N(0, 0.03²) rad) added after IK:
+  /// independent per joint, so the demonstration's deviations span all seven joint directions.
+  Joint,
+  /// On the tool, before IK, as a hand guiding the tool deviates from the circle: four bumps (centres uniform in
+  /// time, width 1 s, amplitudes N(0, 0.008²) m per axis), faded in over the first second and out over the last
+  /// (minimum-jerk ramps), so the demonstration starts and ends at the nominal posture on the circle and its joint
+  /// deviations are those of the tool through the arm's kinematics.
+  Task,
+};
+
 /// Table 7.4's task on the WAM (7 DoF): a "kinesthetic" demonstration of a circle of radius 0.12 m (tilted 30° about
 /// the base x axis, around the tool position of q = (0, 0.6, 0, 1.6, 0, 0.4, 0)) drawn once in 8 s with
 /// minimum-jerk timing at 25 Hz: the circle through the global IK solver (constant tool orientation, each sample
-/// seeded with the previous solution), plus on every joint three smooth bumps (centres uniform in time, width
-/// 0.4 s, amplitudes N(0, 0.03²) rad) and white noise of 2 mrad. Reward (7.51):
+/// seeded with the previous solution), smooth perturbations on the joints or on the tool (CirclePerturbation), and
+/// white noise of 2 mrad on every joint but at the first and last sample. Reward (7.51):
 /// R = −(Σ_t r_circle^t + α Σ_t ‖q̈_t‖²), r_circle^t [m] the tool's distance from the circle that best fits the
 /// demonstrated tool path, α = 2 · 10⁻⁵.
 class WamCircleTask {
  public:
   /// \throws std::invalid_argument for a chain without 7 joints or an IK failure along the circle.
-  WamCircleTask(const kinematics::ChainModel& model, std::uint32_t seed);
+  WamCircleTask(const kinematics::ChainModel& model, std::uint32_t seed,
+                CirclePerturbation perturbation = CirclePerturbation::Joint);
 
   const Eigen::MatrixXd& demonstration() const noexcept { return demonstration_; }  ///< (steps + 1) × 7
   double dt() const noexcept { return kDt; }
