@@ -112,8 +112,9 @@ enum class CirclePerturbation {
   Joint,
   /// On the tool, before IK, as a hand guiding the tool deviates from the circle: four bumps (centres uniform in
   /// time, width 1 s, amplitudes N(0, 0.008²) m per axis), faded in over the first second and out over the last
-  /// (minimum-jerk ramps), so the demonstration starts and ends at the nominal posture on the circle and its joint
-  /// deviations are those of the tool through the arm's kinematics.
+  /// (minimum-jerk ramps), so the tool starts and ends at the nominal point of the circle (the posture may end
+  /// elsewhere along the arm's self-motion; the circle the reward fits passes a few millimetres off, the deviations
+  /// shift it) and the joint deviations are those of the tool through the arm's kinematics.
   Task,
 };
 
