@@ -1063,7 +1063,7 @@ int main(int argc, char** argv) {
                 "wam_circle: the initial latent variance, as the variance of the forcing term each weight moves at "
                 "its kernel's peak, V > 0 (default: the experiment's, 100)",
                 &overrides.forcing_variance);
-    line.option("--demonstration", "joint|task",
+    line.choice("--demonstration", {"joint", "task"},
                 "wam_circle, optima: where the demonstration's smooth perturbations act, on the joints after IK "
                 "(default) or on the tool before IK, as a hand guiding it would (tasks::CirclePerturbation)",
                 &demonstration);
@@ -1094,12 +1094,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  if (demonstration == "task") {
-    overrides.demonstration = bt::CirclePerturbation::Task;
-  } else if (demonstration != "joint") {
-    std::fprintf(stderr, "dr_benchmark: --demonstration must be joint or task (see --help)\n");
-    return 2;
-  }
+  if (demonstration == "task") overrides.demonstration = bt::CirclePerturbation::Task;
   // Names hold commas inside parentheses ("DR-DMP_MCMU(3,4)"): split only at the others.
   std::string name;
   int depth = 0;

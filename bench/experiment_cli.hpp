@@ -48,7 +48,7 @@ inline ExperimentOptions parseExperimentOptions(int argc, char** argv, const Exp
                         "--experiment " + names + " --seed S --out DIR" + (program.with_runs ? " [--runs R]" : "") +
                             (program.with_jobs ? " [--jobs N]" : "") + " [--quick] [options]",
                         program.description);
-  line.option("--experiment", "NAME", "the experiment to run: " + names, &options.experiment);
+  line.choice("--experiment", program.experiments, "the experiment to run", &options.experiment);
   line.option("--seed", "S", "seed of every random generator (default 1)", &seed, 0, 0xffffffffL);
   line.option("--out", "DIR", "output directory: summary.json, CSV, PNG and tables.md", &options.out);
   if (program.with_runs)
@@ -60,10 +60,7 @@ inline ExperimentOptions parseExperimentOptions(int argc, char** argv, const Exp
   line.flag("--quick", "a smoke run of a few seconds (fewer samples, runs and updates)", &options.quick);
   if (program.extra) program.extra(line);
   line.parse(argc, argv);
-  if (std::find(program.experiments.begin(), program.experiments.end(), options.experiment) ==
-      program.experiments.end()) {
-    line.fail("--experiment must be one of " + names);
-  }
+  if (options.experiment.empty()) line.fail("--experiment " + names + " is required");
   if (options.out.empty()) line.fail("--out DIR is required");
   options.seed = static_cast<std::uint32_t>(seed);
   options.runs = static_cast<int>(runs);

@@ -23,11 +23,11 @@
 #include "experiment_cli.hpp"
 #include "sim_experiments.hpp"
 #include "summary_json.hpp"
+#include "tools/clock.hpp"
 
 #include <sched.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -47,11 +47,8 @@ namespace {
 
 const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
 using Options = bs::bench::ExperimentOptions;
-using Clock = std::chrono::steady_clock;
-
-double seconds(Clock::time_point from, Clock::time_point to) {
-  return std::chrono::duration<double>(to - from).count();
-}
+using bs::tools::Clock;
+using bs::tools::seconds;
 
 /// One row of summary.json and speed.csv: a simulation setting.
 struct Row {

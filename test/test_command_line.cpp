@@ -1,7 +1,8 @@
 // Every program of the project answers --help and -h with its usage on stdout and exit status 0, and an unknown
 // argument with the error and the usage on stderr and exit status 2. The programs' paths come from CMake
-// (PROGRAMS: a comma-separated list).
+// (PROGRAMS: a comma-separated list). CommandLine's options that take one of a set of values accept only those.
 #include "testing/program_output.hpp"
+#include "tools/command_line.hpp"
 
 #include <gtest/gtest.h>
 
@@ -40,6 +41,27 @@ Outcome run(const std::string& program, const std::string& arguments) {
 }
 
 }  // namespace
+
+/// Parses `arguments` (after the program's name) with one choice option --mode a|b|c; the value it took.
+std::string parseMode(std::vector<std::string> arguments) {
+  bimanual_skills::cli::CommandLine line("prog", "--mode a|b|c", "A test program.");
+  std::string mode = "a";
+  line.choice("--mode", {"a", "b", "c"}, "the mode (default a)", &mode);
+  arguments.insert(arguments.begin(), "prog");
+  std::vector<char*> argv;
+  for (std::string& a : arguments) argv.push_back(a.data());
+  line.parse(static_cast<int>(argv.size()), argv.data());
+  return mode;
+}
+
+TEST(CommandLine, AChoiceTakesOneOfItsValuesAndRejectsOthers) {
+  EXPECT_EQ(parseMode({}), "a");
+  EXPECT_EQ(parseMode({"--mode", "c"}), "c");
+  EXPECT_EXIT(parseMode({"--mode", "d"}), ::testing::ExitedWithCode(2), "--mode: 'd' is not one of a\\|b\\|c");
+  EXPECT_EXIT(parseMode({"--mode", "A"}), ::testing::ExitedWithCode(2), "is not one of");
+  EXPECT_EXIT(parseMode({"--mode"}), ::testing::ExitedWithCode(2), "--mode needs a value a\\|b\\|c");
+  EXPECT_EXIT(parseMode({"--help"}), ::testing::ExitedWithCode(0), "");
+}
 
 TEST(CommandLine, EveryProgramPrintsItsUsageOnHelpAndRejectsUnknownArguments) {
   ASSERT_GE(programs().size(), 8u);

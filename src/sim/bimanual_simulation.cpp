@@ -3,10 +3,10 @@
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bullet_arm.hpp"
 #include "bullet_conversions.hpp"
+#include "tools/clock.hpp"
 
 #include <BulletDynamics/Featherstone/btMultiBodyConstraintSolver.h>
 
-#include <chrono>
 #include <cmath>
 #include <optional>
 #include <stdexcept>
@@ -14,11 +14,8 @@
 namespace bimanual_skills::sim {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double seconds(Clock::time_point from, Clock::time_point to) {
-  return std::chrono::duration<double>(to - from).count();
-}
+using tools::Clock;
+using tools::seconds;
 
 /// Joint speed beyond which an arm counts as diverged [rad/s or m/s] (the WAM's joints stay below 3 rad/s).
 constexpr double kDivergedSpeed = 100.0;

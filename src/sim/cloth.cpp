@@ -1,6 +1,7 @@
 #include "bimanual_skills/sim/cloth.hpp"
 
 #include "bullet_conversions.hpp"
+#include "tools/clock.hpp"
 
 #include <BulletSoftBody/btSoftBodyHelpers.h>
 #include <BulletSoftBody/btSoftBodyInternals.h>
@@ -9,7 +10,6 @@
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -18,11 +18,8 @@
 namespace bimanual_skills::sim {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double seconds(Clock::time_point from, Clock::time_point to) {
-  return std::chrono::duration<double>(to - from).count();
-}
+using tools::Clock;
+using tools::seconds;
 
 /// Gripper bodies: heavy, unaffected by gravity and colliding with nothing, so the anchor impulses Bullet applies to
 /// them barely move them and can be read back as the cloth's pull (momentum change over the step).

@@ -1,6 +1,6 @@
 /// \file
-/// The wall-clock time of offline work (benchmarks, learning runs, dispatch), for progress lines and results. Not
-/// for real-time paths.
+/// Wall-clock intervals on the steady clock: the time of offline work (benchmarks, learning runs, dispatch) for
+/// progress lines and results, and the simulator's profile of its step. Reading the clock neither allocates nor locks.
 #pragma once
 
 #include <chrono>
@@ -8,6 +8,11 @@
 namespace bimanual_skills::tools {
 
 using Clock = std::chrono::steady_clock;
+
+/// Seconds from `from` to `to`.
+inline double seconds(Clock::time_point from, Clock::time_point to) {
+  return std::chrono::duration<double>(to - from).count();
+}
 
 /// Seconds from `start` to now.
 inline double secondsSince(Clock::time_point start) {

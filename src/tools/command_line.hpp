@@ -1,7 +1,8 @@
 /// \file
 /// The command line of the project's programs: `--flag value` options and `--switch` flags declared with a help
 /// line each; `--help` or `-h` prints the usage on stdout and exits 0; an unknown argument, a missing or malformed
-/// value prints the error and the usage on stderr and exits 2. Programs only (not installed).
+/// value (or one outside an option's choices) prints the error and the usage on stderr and exits 2. Programs only (not
+/// installed).
 #pragma once
 
 #include <algorithm>
@@ -53,12 +54,25 @@ class CommandLine {
       return true;
     });
   }
+  /// An option whose value is one of `choices` (the usage shows them as its value, a|b|c).
+  void choice(const std::string& flag, const std::vector<std::string>& choices, const std::string& help,
+              std::string* target) {
+    std::string names;
+    for (const std::string& c : choices) names += (names.empty() ? "" : "|") + c;
+    options_.push_back({flag, names, help,
+                        [target, choices](const std::string& text) {
+                          if (std::find(choices.begin(), choices.end(), text) == choices.end()) return false;
+                          *target = text;
+                          return true;
+                        },
+                        "one of " + names});
+  }
   /// A switch without a value.
   void flag(const std::string& flag, const std::string& help, bool* target) {
-    options_.push_back({flag, "", help, [target](const std::string&) {
-                          *target = true;
-                          return true;
-                        }});
+    add(flag, "", help, [target](const std::string&) {
+      *target = true;
+      return true;
+    });
   }
 
   /// Parses argv (see the file comment). Does not return on --help or an error.
@@ -79,7 +93,7 @@ class CommandLine {
         if (i + 1 >= argc) fail(arg + " needs a value " + match->value_name);
         value = argv[++i];
       }
-      if (!match->set(value)) fail(arg + ": '" + value + "' is not a valid " + match->value_name);
+      if (!match->set(value)) fail(arg + ": '" + value + "' is not " + match->expected);
     }
   }
 
@@ -104,10 +118,11 @@ class CommandLine {
   struct Option {
     std::string flag, value_name, help;
     std::function<bool(const std::string&)> set;
+    std::string expected;  ///< What a rejected value is not ("a valid N", "one of a|b").
   };
   void add(const std::string& flag, const std::string& value_name, const std::string& help,
            std::function<bool(const std::string&)> set) {
-    options_.push_back({flag, value_name, help, std::move(set)});
+    options_.push_back({flag, value_name, help, std::move(set), "a valid " + value_name});
   }
 
   std::string program_, synopsis_, description_;

@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
       "columns are t, q1..qn, qd1..qdn, qdd1..qddn, tau1..taun (tau: applied torques). Friction is observed as\n"
       "tau - M qdd - C qd - G (2.12) with the arm model; the fit uses the first 1 - holdout of the samples and prints\n"
       "the errors of Table 4.1 (MAE, MSE, maximum) on the held-out rest; the model is written as YAML.");
-  line.option("--model", "TYPE", "viscous, initial, basic or advanced", &model_name);
+  line.choice("--model", {"viscous", "initial", "basic", "advanced"}, "the friction model (Table 4.1)", &model_name);
   line.option("--in", "FILE", "the log (CSV)", &in);
   line.option("--out", "FILE", "the fitted model (YAML)", &out);
   line.option("--urdf", "FILE", "robot description (default: urdf/wam.urdf)", &urdf);
@@ -67,15 +67,13 @@ int main(int argc, char** argv) {
               &options.holdout);
   line.option("--restarts", "N", "seeded starts of the nonlinear search (default 8)", &restarts, 1, 1000);
   line.option("--seed", "S", "seed of the search's starts (default 1)", &seed, 0, 0xffffffffL);
-  line.option("--sign", "SOURCE", "sign of qdd from the logged qdd (logged) or filtered velocities (filtered)", &sign);
+  line.choice("--sign", {"logged", "filtered"},
+              "sign of qdd from the logged qdd (logged) or filtered velocities (filtered; default logged)", &sign);
   line.parse(argc, argv);
   options.restarts = static_cast<int>(restarts);
   options.seed = static_cast<std::uint32_t>(seed);
-  if (!bd::parseFrictionModelType(model_name, options.type)) {
-    line.fail("--model must be viscous, initial, basic or advanced");
-  }
+  if (!bd::parseFrictionModelType(model_name, options.type)) line.fail("--model is required");
   if (in.empty() || out.empty()) line.fail("--in and --out are required");
-  if (sign != "logged" && sign != "filtered") line.fail("--sign must be logged or filtered");
   try {
     const bk::ChainModel model = bk::ChainModel::fromUrdfFile(urdf, base, tip);
     const bd::FrictionLog log = bd::readFrictionLog(in);
