@@ -181,15 +181,14 @@ class WorkerSet {
     auto last_change = start;
     std::size_t seen = 0;
     while (secondsSince(start) < 60.0) {
-      dispatcher_->evaluate({});
-      if (dispatcher_->workers() != seen) {
-        seen = dispatcher_->workers();
+      if (const std::size_t now = dispatcher_->discover(); now != seen) {
+        seen = now;
         last_change = Clock::now();
       }
       if (workers > 0 ? static_cast<int>(seen) == workers : seen > 0 && secondsSince(last_change) > 3.0) break;
       std::this_thread::sleep_for(std::chrono::milliseconds(200));
     }
-    count_ = static_cast<int>(dispatcher_->workers());
+    count_ = static_cast<int>(seen);
     if (workers > 0 ? count_ != workers : count_ == 0) {
       throw std::runtime_error(std::to_string(count_) + " workers came up under " + space + " (see " + log + ")");
     }

@@ -307,6 +307,35 @@ TEST(Dispatcher, WorkersJoinBetweenBatches) {
   EXPECT_EQ(results.size(), 12u);
 }
 
+TEST(Dispatcher, DiscoverFindsTheWorkersWithoutSendingRollouts) {
+  std::vector<FakeWorker> workers(3);
+  auto directory = std::make_unique<FakeDirectory>(workers, 0);
+  FakeDirectory& listing = *directory;
+  br::DispatchConfig config = quickDispatch();
+  std::vector<std::string> joined;
+  int batches = 0;
+  config.log = [&](const std::string& line, bool fault) {
+    EXPECT_FALSE(fault) << line;
+    joined.push_back(line);
+  };
+  config.batch = [&](const br::DispatchStats&) { ++batches; };
+  br::Dispatcher dispatcher(std::move(directory), 2, config);
+  EXPECT_EQ(dispatcher.discover(), 0u);
+  listing.listed_ = 2;
+  EXPECT_EQ(dispatcher.discover(), 2u);
+  EXPECT_EQ(dispatcher.discover(), 2u) << "known workers are not connected twice";
+  EXPECT_EQ(joined, (std::vector<std::string>{"worker w0 joined", "worker w1 joined"}));
+  workers[0].dead = true;
+  listing.listed_ = 3;
+  EXPECT_EQ(dispatcher.discover(), 2u) << "w0 dropped, w2 joined";
+  EXPECT_EQ(joined.back(), "worker w2 joined");
+  EXPECT_EQ(batches, 0);
+  for (const FakeWorker& w : workers) EXPECT_EQ(w.shares, 0) << "no rollout sent";
+  EXPECT_EQ(dispatcher.evaluate(batch(5)).size(), 5u);
+  EXPECT_EQ(dispatcher.lastBatch().workers, 2u);
+  EXPECT_EQ(workers[0].shares, 0);
+}
+
 TEST(Dispatcher, ClearErrorsWhenNoWorkerIsLeftARolloutKillsThemOrAWorkerRefuses) {
   using F = FakeWorker::Fault;
   {

@@ -60,6 +60,28 @@ Dispatcher::Dispatcher(std::unique_ptr<WorkerDirectory> directory, std::size_t t
 
 Dispatcher::~Dispatcher() = default;
 
+std::size_t Dispatcher::discover() {
+  const std::vector<std::string> alive = directory_->alive();
+  workers_.erase(std::remove_if(workers_.begin(), workers_.end(),
+                                [&](const std::unique_ptr<Worker>& w) {
+                                  return std::find(alive.begin(), alive.end(), w->name) == alive.end();
+                                }),
+                 workers_.end());
+  for (const std::string& name : alive) {
+    const bool known = std::any_of(workers_.begin(), workers_.end(),
+                                   [&](const std::unique_ptr<Worker>& w) { return w->name == name; });
+    if (known) continue;
+    std::unique_ptr<WorkerLink> link = directory_->connect(name);
+    if (!link) continue;
+    auto w = std::make_unique<Worker>();
+    w->name = name;
+    w->link = std::move(link);
+    workers_.push_back(std::move(w));
+    if (config_.log) config_.log("worker " + name + " joined", false);
+  }
+  return workers_.size();
+}
+
 std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest>& batch, const Done& done,
                                                 const std::function<bool()>& stop) {
   const auto start = Clock::now();
@@ -69,28 +91,6 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
   last_ = DispatchStats{};
   last_.rollouts = batch.size();
   std::set<std::string> took_part;
-
-  // Workers that are alive now: keep the links of those still listed, connect the new ones.
-  const auto discover = [&] {
-    const std::vector<std::string> alive = directory_->alive();
-    workers_.erase(std::remove_if(workers_.begin(), workers_.end(),
-                                  [&](const std::unique_ptr<Worker>& w) {
-                                    return std::find(alive.begin(), alive.end(), w->name) == alive.end();
-                                  }),
-                   workers_.end());
-    for (const std::string& name : alive) {
-      const bool known = std::any_of(workers_.begin(), workers_.end(),
-                                     [&](const std::unique_ptr<Worker>& w) { return w->name == name; });
-      if (known) continue;
-      std::unique_ptr<WorkerLink> link = directory_->connect(name);
-      if (!link) continue;
-      auto w = std::make_unique<Worker>();
-      w->name = name;
-      w->link = std::move(link);
-      workers_.push_back(std::move(w));
-      log("worker " + name + " joined", false);
-    }
-  };
 
   std::deque<std::size_t> pending;
   for (std::size_t i = 0; i < batch.size(); ++i) pending.push_back(i);

@@ -106,9 +106,12 @@ class Dispatcher : public Evaluator {
   std::vector<RolloutResult> evaluate(const std::vector<RolloutRequest>& batch, const Done& done = {},
                                       const std::function<bool()>& stop = {}) override;
 
+  /// Looks the workers up now, as each batch does first: drops the links of workers no longer listed and connects
+  /// the new ones (config.log hears of each that joins). Returns how many are connected; no rollout is sent. For
+  /// waiting until workers are up before a batch.
+  std::size_t discover();
+
   const DispatchStats& lastBatch() const noexcept { return last_; }
-  /// Workers alive after the last batch.
-  std::size_t workers() const noexcept { return last_.alive; }
 
  private:
   struct Worker;
