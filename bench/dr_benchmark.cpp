@@ -59,6 +59,7 @@ struct DrDmpOverrides {
   double epsilon = std::numeric_limits<double>::quiet_NaN();            ///< --epsilon: REPS' KL bound.
   double forcing_variance = std::numeric_limits<double>::quiet_NaN();   ///< --forcing-variance (one demonstration).
   double relative_prior = std::numeric_limits<double>::quiet_NaN();     ///< --relative-prior (demonstrations).
+  double alpha_z = std::numeric_limits<double>::quiet_NaN();            ///< --alpha-z: the DMPs' stiffness.
   long kernels = -1;                ///< --kernels: basis functions per latent DoF (-1: the experiment's).
   long rollouts = -1;               ///< --rollouts: rollouts per update (-1: the thesis' 20).
   long reuse = -1;                  ///< --reuse: rollouts kept (-1: the experiment's).
@@ -618,6 +619,7 @@ struct DrDmpTask {
   double dt = 0.01;
   int steps = 100;
   int kernels = 10;
+  double alpha_z = 25.0;  ///< The DMPs' α_z, with β_z = α_z/4 (critically damped).
   double smoothing_hz = 20.0;
   double exploration = 0.0;
   /// Latent Σ_ω: the demonstrations' sample covariance plus `relative_prior` times its mean variance, or, with one
@@ -633,13 +635,28 @@ struct DrDmpTask {
   std::function<std::function<Eigen::MatrixXd(const bt::DrDmpRollout&)>()> path;
   std::vector<std::string> path_columns, target_columns;
   Eigen::MatrixXd target;
+
+  /// The DR-DMP's shape with `matrices` coordination matrices. \throws std::invalid_argument for an α_z whose steps
+  /// of dt are unstable over the demonstration's duration (DmpParameters::stableStep).
+  bp::DrDmpParameters dmpParameters(int matrices) const {
+    bp::DrDmpParameters parameters;
+    parameters.dmp.kernels = kernels;
+    parameters.dmp.alpha_z = alpha_z;
+    parameters.dmp.beta_z = alpha_z / 4.0;
+    parameters.matrices = matrices;
+    if (!parameters.dmp.stableStep(dt, dt * steps)) {
+      char text[160];
+      std::snprintf(text, sizeof text, "alpha_z = %g makes the DMP's steps of %g s unstable over %g s", alpha_z, dt,
+                    dt * steps);
+      throw std::invalid_argument(text);
+    }
+    return parameters;
+  }
 };
 
 Algorithm drDmpAlgorithm(const DrDmpTask& task, const DrDmpVariant& variant) {
   return {variant.name, [&task, variant]() {
-            bp::DrDmpParameters parameters;
-            parameters.dmp.kernels = task.kernels;
-            parameters.matrices = variant.matrices;
+            const bp::DrDmpParameters parameters = task.dmpParameters(variant.matrices);
             const bp::DrDmpFit fit =
                 bp::DrDmp::fit(parameters, task.demonstrations, task.dt, variant.r, task.smoothing_hz);
             Eigen::VectorXd mean = fit.dmp.weights();
@@ -797,6 +814,8 @@ void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::
   if (!std::isnan(overrides.relative_prior)) task.relative_prior = overrides.relative_prior;
   if (overrides.reuse >= 0) task.parameters.reps.reuse = static_cast<int>(overrides.reuse);
   if (overrides.kernels > 0) task.kernels = static_cast<int>(overrides.kernels);
+  if (!std::isnan(overrides.alpha_z)) task.alpha_z = overrides.alpha_z;
+  task.dmpParameters(1);  // an unstable α_z stops here, before any run
   if (overrides.adapted_covariance) {
     task.parameters.covariance_rule = bl::CovarianceRule::Adapted;
     task.parameters.covariance_memory = 0.0;
@@ -941,9 +960,7 @@ void optima(const Options& options, std::vector<Summary>& out) {
       [&](int i) {
         const Job& job = jobs[static_cast<std::size_t>(i)];
         const auto start = Clock::now();
-        bp::DrDmpParameters parameters;
-        parameters.dmp.kernels = job.setup->kernels;
-        parameters.matrices = job.variant.matrices;
+        const bp::DrDmpParameters parameters = job.setup->dmpParameters(job.variant.matrices);
         const bp::DrDmpFit fit = bp::DrDmp::fit(parameters, job.setup->demonstrations, job.setup->dt, job.variant.r,
                                                 job.setup->smoothing_hz);
         FixedCoordinationObjective objective(fit.dmp, *job.setup);
@@ -1063,6 +1080,10 @@ int main(int argc, char** argv) {
                 "wam_circle: the initial latent variance, as the variance of the forcing term each weight moves at "
                 "its kernel's peak, V > 0 (default: the experiment's, 100)",
                 &overrides.forcing_variance);
+    line.option("--alpha-z", "A",
+                "planar10, wam_circle: the DMPs' alpha_z, with beta_z = alpha_z/4 (critically damped), A > 0 and small "
+                "enough for a stable step (default 25)",
+                &overrides.alpha_z);
     line.choice("--demonstration", {"joint", "task"},
                 "wam_circle, optima: where the demonstration's smooth perturbations act, on the joints after IK "
                 "(default) or on the tool before IK, as a hand guiding it would (tasks::CirclePerturbation)",
@@ -1088,7 +1109,7 @@ int main(int argc, char** argv) {
   }
   for (const auto& [value, name] :
        {std::pair{overrides.epsilon, "--epsilon"}, std::pair{overrides.forcing_variance, "--forcing-variance"},
-        std::pair{overrides.relative_prior, "--relative-prior"}}) {
+        std::pair{overrides.relative_prior, "--relative-prior"}, std::pair{overrides.alpha_z, "--alpha-z"}}) {
     if (!std::isnan(value) && !(value > 0.0 && std::isfinite(value))) {
       std::fprintf(stderr, "dr_benchmark: %s must be finite and > 0 (see --help)\n", name);
       return 2;

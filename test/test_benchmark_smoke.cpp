@@ -171,7 +171,10 @@ TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --kernels 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --rollouts 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment wam_circle --seed 1 --out /tmp/x --demonstration hand"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment wam_circle --seed 1 --out /tmp/x --alpha-z 0"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --quick --out /tmp/x --algorithms PoWER"), 1);
+  // planar10's steps of 0.01 s over 1 s are unstable from α_z ≈ 166 on.
+  EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --quick --out /tmp/x --alpha-z 200"), 1);
 }
 
 TEST(DrBenchmarkSmoke, AnExperimentWritesOnlyItsOwnFiles) {

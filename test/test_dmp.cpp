@@ -1,9 +1,11 @@
 // DMPs (thesis 5.14–5.15): reproduction of a demonstration, goal reaching, time scaling, the goal-scaled variant's
-// exact rescaling, goal change while running, noisy demonstrations, bad input and allocation-free steps.
+// exact rescaling, goal change while running, noisy demonstrations, the step's stability bound, bad input and
+// allocation-free steps.
 #include "bimanual_skills/primitives/dmp.hpp"
 #include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
+#include <Eigen/Eigenvalues>
 
 #include <cmath>
 #include <random>
@@ -110,6 +112,48 @@ TEST(Dmp, NoisyDemonstrationsAreSmoothedBeforeDifferentiation) {
   // Measured 9.9e-4 smoothed and 7.8e-3 without: the bound fails when the smoothing is off.
   EXPECT_LE(rmse, 2e-3);
   EXPECT_LT(rmse, 0.25 * raw_rmse);
+}
+
+TEST(Dmp, StableStepIsWhereTheStepsErrorsDoNotGrow) {
+  // Independent reference: the spectral radius of the step's map of (y − g, ẏ) without forcing, taken from one step
+  // of each unit vector, over a grid of stiffnesses, dampings and steps.
+  for (const double alpha : {5.0, 25.0, 100.0, 400.0}) {
+    for (const double beta_ratio : {0.05, 0.25, 1.0, 4.0}) {
+      for (double dt = 0.005; dt < 0.5; dt *= 1.21) {
+        bp::DmpParameters p;
+        p.kernels = 5;
+        p.alpha_z = alpha;
+        p.beta_z = beta_ratio * alpha;
+        const double tau = 4.0;
+        const bp::Dmp dmp(p, Eigen::MatrixXd::Zero(1, 5), Eigen::VectorXd::Zero(1), Eigen::VectorXd::Zero(1), tau);
+        Eigen::Matrix2d step_map;
+        for (int column = 0; column < 2; ++column) {
+          const double y = column == 0 ? 1.0 : 0.0, yd = column == 1 ? 1.0 : 0.0;
+          const double ydd = bp::transformationAcceleration(p, tau, -y, yd, 0.0);
+          step_map(1, column) = yd + dt * ydd;
+          step_map(0, column) = y + dt * step_map(1, column);
+        }
+        const double radius = step_map.eigenvalues().cwiseAbs().maxCoeff();
+        if (std::abs(radius - 1.0) < 1e-9) continue;  // on the boundary
+        EXPECT_EQ(p.stableStep(dt, tau), radius < 1.0) << "alpha " << alpha << " beta " << p.beta_z << " dt " << dt;
+        bp::DmpState state = dmp.initialState();
+        state.y[0] = 1.0;
+        const bp::DmpStatus status = dmp.step(state, dt);
+        EXPECT_EQ(status == bp::DmpStatus::Success, radius < 1.0);
+        if (status != bp::DmpStatus::Success) {
+          EXPECT_EQ(state.y[0], 1.0) << "the state is unchanged";
+        }
+      }
+    }
+  }
+  // The WAM circle's DR-DMPs (τ = 8 s, dt = 0.04 s) with β_z = α_z/4: stable up to α_z ≈ 331.
+  bp::DmpParameters p;
+  p.alpha_z = 300.0;
+  p.beta_z = 75.0;
+  EXPECT_TRUE(p.stableStep(0.04, 8.0));
+  p.alpha_z = 400.0;
+  p.beta_z = 100.0;
+  EXPECT_FALSE(p.stableStep(0.04, 8.0));
 }
 
 TEST(Dmp, BadInputAndNoAllocation) {

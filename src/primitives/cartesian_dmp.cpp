@@ -170,8 +170,8 @@ DmpStatus CartesianDmp::step(CartesianDmpState& state, double dt,
 DmpStatus CartesianDmp::stepWith(CartesianDmpState& state, double dt,
                                  const Eigen::Ref<const Eigen::VectorXd>* forcing) const noexcept {
   const bool vector_encoding = encoding_ == OrientationEncoding::QuaternionVector;
-  if (!(dt > 0.0) || !std::isfinite(dt) || !validDmpState(state.position) || !isUnit(state.orientation) ||
-      !isUnit(state.goal_orientation) || !state.angular_velocity.allFinite() ||
+  if (!(dt > 0.0) || !std::isfinite(dt) || !parameters().stableStep(dt, duration()) || !validDmpState(state.position) ||
+      !isUnit(state.orientation) || !isUnit(state.goal_orientation) || !state.angular_velocity.allFinite() ||
       !state.angular_acceleration.allFinite() || (vector_encoding && !validDmpState(state.orientation_vector))) {
     return DmpStatus::InvalidInput;
   }

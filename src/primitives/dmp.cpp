@@ -32,6 +32,11 @@ void DmpParameters::validate() const {
   }
 }
 
+bool DmpParameters::stableStep(double dt, double tau) const noexcept {
+  const double c = alpha_z * dt / tau, k = alpha_z * beta_z * dt * dt / (tau * tau);
+  return c > 0.0 && c < 2.0 && 2.0 * c + k < 4.0;
+}
+
 Dmp::Dmp(const DmpParameters& parameters, const Eigen::MatrixXd& weights, const Eigen::VectorXd& start,
          const Eigen::VectorXd& goal, double duration)
     : parameters_(parameters), weights_(weights), start_(start), goal_(goal), duration_(duration) {
@@ -137,8 +142,8 @@ DmpState Dmp::initialState() const {
 bool Dmp::steppable(const DmpState& state, double dt) const noexcept {
   const int d = dofs();
   return state.y.size() == d && state.yd.size() == d && state.ydd.size() == d && state.goal.size() == d && dt > 0.0 &&
-         std::isfinite(dt) && state.y.allFinite() && state.yd.allFinite() && state.goal.allFinite() &&
-         std::isfinite(state.x) && std::isfinite(state.t);
+         std::isfinite(dt) && parameters_.stableStep(dt, duration_) && state.y.allFinite() && state.yd.allFinite() &&
+         state.goal.allFinite() && std::isfinite(state.x) && std::isfinite(state.t);
 }
 
 void Dmp::advance(DmpState& state, double dt) const noexcept {

@@ -13,7 +13,9 @@ inline constexpr int kDmpMaxKernels = 256;
 enum class DmpStatus {
   Success,
   VectorClamped,  ///< CartesianDmp with QuaternionVector: ‖v‖ > 1 was clamped to 1 in this step (step done).
-  InvalidInput,   ///< wrong sizes, non-finite values, a non-unit quaternion or dt ≤ 0: the state is unchanged.
+  /// Wrong sizes, non-finite values, a non-unit quaternion, dt ≤ 0 or a dt too long for a stable step
+  /// (DmpParameters::stableStep): the state is unchanged.
+  InvalidInput,
 };
 const char* toString(DmpStatus status) noexcept;
 
@@ -31,6 +33,11 @@ struct DmpParameters {
   double regularisation = 1e-8;  ///< Ridge term of the least-squares fit.
 
   void validate() const;
+  /// Whether the steps' semi-implicit Euler of the transformation system is stable for a step dt and a duration τ:
+  /// in the error e = y − g and h ė the step is linear, [[1 − k, 1 − c], [−k, 1 − c]] with c = α_z dt/τ and
+  /// k = α_z β_z dt²/τ², and its eigenvalues lie inside the unit circle iff 0 < c < 2 and 2c + k < 4 (Jury's test).
+  /// A longer step makes every error grow without bound. For β_z = α_z/4: dt < 0.828 · 2τ/α_z.
+  bool stableStep(double dt, double tau) const noexcept;
 };
 
 /// The transformation system of (5.14) solved for the acceleration, the one home of the DMP dynamics (joint and
@@ -102,7 +109,8 @@ class Dmp {
   void basis(double x, Eigen::Ref<Eigen::VectorXd> basis) const noexcept;
 
   /// One integration step of dt (semi-implicit Euler on y, exact on the phase). InvalidInput (state unchanged) for
-  /// a state of the wrong size, non-finite values or dt ≤ 0. Real-time safe: no allocation, no exceptions.
+  /// a state of the wrong size, non-finite values, dt ≤ 0 or a dt the step is unstable for
+  /// (DmpParameters::stableStep with the duration). Real-time safe: no allocation, no exceptions.
   [[nodiscard]] DmpStatus step(DmpState& state, double dt) const noexcept;
 
   /// The same step with the forcing term f (dofs values) given by the caller instead of the weights' g(x)ᵀ ω_j
@@ -113,7 +121,7 @@ class Dmp {
                                const Eigen::Ref<const Eigen::VectorXd>& forcing) const noexcept;
 
  private:
-  /// Whether a state and dt can be stepped: sizes, finiteness, dt > 0.
+  /// Whether a state and dt can be stepped: sizes, finiteness, dt > 0 and a stable step.
   bool steppable(const DmpState& state, double dt) const noexcept;
   /// Integrates ẏ and y over dt from the acceleration already in state.ydd, and advances the phase and time.
   void advance(DmpState& state, double dt) const noexcept;
