@@ -231,6 +231,11 @@ TEST(CartesianDmp, BadInputIsRefused) {
     bp::CartesianDmpState state = good;
     EXPECT_EQ(dmp.step(state, 0.0), bp::DmpStatus::InvalidInput);
     EXPECT_EQ(dmp.step(state, std::nan("")), bp::DmpStatus::InvalidInput);
+    // α_z dt/τ = 2: the transformation system's steps would diverge (DmpParameters::stableStep).
+    EXPECT_EQ(dmp.step(state, 2.0 * dmp.duration() / bp::DmpParameters().alpha_z), bp::DmpStatus::InvalidInput);
+    EXPECT_EQ(state.position.t, 0.0);
+    EXPECT_EQ(dmp.step(state, 0.5 * dmp.duration() / bp::DmpParameters().alpha_z), bp::DmpStatus::Success);
+    state = good;
     state.position.y[1] = std::nan("");
     EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::InvalidInput);
     EXPECT_TRUE(std::isnan(state.position.y[1]));  // unchanged

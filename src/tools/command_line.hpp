@@ -59,13 +59,14 @@ class CommandLine {
               std::string* target) {
     std::string names;
     for (const std::string& c : choices) names += (names.empty() ? "" : "|") + c;
-    options_.push_back({flag, names, help,
-                        [target, choices](const std::string& text) {
-                          if (std::find(choices.begin(), choices.end(), text) == choices.end()) return false;
-                          *target = text;
-                          return true;
-                        },
-                        "one of " + names});
+    add(
+        flag, names, help,
+        [target, choices](const std::string& text) {
+          if (std::find(choices.begin(), choices.end(), text) == choices.end()) return false;
+          *target = text;
+          return true;
+        },
+        "one of " + names);
   }
   /// A switch without a value.
   void flag(const std::string& flag, const std::string& help, bool* target) {
@@ -120,9 +121,10 @@ class CommandLine {
     std::function<bool(const std::string&)> set;
     std::string expected;  ///< What a rejected value is not ("a valid N", "one of a|b").
   };
+  /// `expected`: what a rejected value is not (default "a valid " + value_name).
   void add(const std::string& flag, const std::string& value_name, const std::string& help,
-           std::function<bool(const std::string&)> set) {
-    options_.push_back({flag, value_name, help, std::move(set), "a valid " + value_name});
+           std::function<bool(const std::string&)> set, const std::string& expected = "") {
+    options_.push_back({flag, value_name, help, std::move(set), expected.empty() ? "a valid " + value_name : expected});
   }
 
   std::string program_, synopsis_, description_;
