@@ -635,6 +635,14 @@ struct DrDmpTask {
   std::function<std::function<Eigen::MatrixXd(const bt::DrDmpRollout&)>()> path;
   std::vector<std::string> path_columns, target_columns;
   Eigen::MatrixXd target;
+  /// Labels of how the task was made, for summary.json (wam_circle: where its demonstration was perturbed).
+  std::vector<std::pair<std::string, std::string>> labels;
+
+  /// Adds to a row of summary.json how the task was made: the DMPs' shape and the labels.
+  void describe(Summary& row) const {
+    row.numbers.insert(row.numbers.end(), {{"kernels", kernels}, {"alpha_z", alpha_z}, {"beta_z", alpha_z / 4.0}});
+    row.texts.insert(row.texts.end(), labels.begin(), labels.end());
+  }
 
   /// The DR-DMP's shape with `matrices` coordination matrices. \throws std::invalid_argument for an α_z whose steps
   /// of dt are unstable over the demonstration's duration (DmpParameters::stableStep).
@@ -778,6 +786,7 @@ DrDmpTask wamCircleTask(std::uint32_t seed) {
     return [own](const bt::DrDmpRollout& rollout) { return own->toolPath(rollout.positions); };
   };
   task.path_columns = task.target_columns = {"x", "y", "z"};
+  task.labels = {{"demonstration", overrides.demonstration == bt::CirclePerturbation::Task ? "task" : "joint"}};
   // 200 points of the circle the reward measures distances from.
   const bt::Circle3d& fit = circle->circle();
   const Eigen::Vector3d u = fit.normal.unitOrthogonal(), v = fit.normal.cross(u);
@@ -805,8 +814,9 @@ const std::vector<DrDmpExperiment>& drDmpExperiments() {
   return experiments;
 }
 
-void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::vector<Summary>& out) {
-  DrDmpTask task = experiment.task(options.seed);
+/// The experiment's task with the command line's overrides. \throws std::invalid_argument for an unstable --alpha-z.
+DrDmpTask configuredTask(const DrDmpExperiment& experiment, std::uint32_t seed) {
+  DrDmpTask task = experiment.task(seed);
   if (!std::isnan(overrides.exploration)) task.exploration = overrides.exploration;
   if (!std::isnan(overrides.covariance_memory)) task.parameters.covariance_memory = overrides.covariance_memory;
   if (!std::isnan(overrides.epsilon)) task.parameters.reps.epsilon = overrides.epsilon;
@@ -815,11 +825,16 @@ void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::
   if (overrides.reuse >= 0) task.parameters.reps.reuse = static_cast<int>(overrides.reuse);
   if (overrides.kernels > 0) task.kernels = static_cast<int>(overrides.kernels);
   if (!std::isnan(overrides.alpha_z)) task.alpha_z = overrides.alpha_z;
-  task.dmpParameters(1);  // an unstable α_z stops here, before any run
+  task.dmpParameters(1);  // throws for an unstable α_z
   if (overrides.adapted_covariance) {
     task.parameters.covariance_rule = bl::CovarianceRule::Adapted;
     task.parameters.covariance_memory = 0.0;
   }
+  return task;
+}
+
+void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::vector<Summary>& out) {
+  const DrDmpTask task = configuredTask(experiment, options.seed);
   Protocol protocol;
   protocol.runs = runsOf(options, experiment.runs, 2);
   protocol.updates = options.quick           ? 3
@@ -839,21 +854,29 @@ void learnDrDmp(const Options& options, const DrDmpExperiment& experiment, std::
     for (Eigen::Index j = 0; j < task.target.cols(); ++j) target << (j > 0 ? "," : "") << task.target(i, j);
     target << '\n';
   }
+  const std::size_t first = out.size();
   runLearning(options, experiment.name, protocol, algorithms, out, task.path_columns);
+  // Every row says what it learned with, overrides included.
+  const bool adapted = task.parameters.covariance_rule == bl::CovarianceRule::Adapted;
+  const bool one_demonstration = task.demonstrations.size() == 1;
+  for (std::size_t i = first; i < out.size(); ++i) {
+    task.describe(out[i]);
+    out[i].numbers.insert(out[i].numbers.end(), {{"epsilon", task.parameters.reps.epsilon},
+                                                 {"reuse", task.parameters.reps.reuse},
+                                                 {"exploration", task.exploration},
+                                                 {"covariance_memory", task.parameters.covariance_memory},
+                                                 {one_demonstration ? "forcing_variance" : "relative_prior",
+                                                  one_demonstration ? task.forcing_variance : task.relative_prior}});
+    out[i].texts.emplace_back("covariance_rule", adapted ? "adapted" : "reps");
+  }
 }
 
 void planar10(const Options& options, std::vector<Summary>& out) {
   learnDrDmp(options, drDmpExperiments()[0], out);
 }
 
-const char* demonstrationName() {
-  return overrides.demonstration == bt::CirclePerturbation::Task ? "task" : "joint";
-}
-
 void wamCircle(const Options& options, std::vector<Summary>& out) {
-  const std::size_t first = out.size();
   learnDrDmp(options, drDmpExperiments()[1], out);
-  for (std::size_t i = first; i < out.size(); ++i) out[i].texts.emplace_back("demonstration", demonstrationName());
 }
 
 // ---- optima: the best reward a fixed coordination allows, by a local optimiser with gradients ----
@@ -929,7 +952,9 @@ void optima(const Options& options, std::vector<Summary>& out) {
     DrDmpVariant variant;
   };
   std::vector<DrDmpTask> tasks;
-  for (const DrDmpExperiment& experiment : drDmpExperiments()) tasks.push_back(experiment.task(options.seed));
+  for (const DrDmpExperiment& experiment : drDmpExperiments()) {
+    tasks.push_back(configuredTask(experiment, options.seed));
+  }
   std::vector<Job> jobs;
   for (std::size_t e = 0; e < tasks.size(); ++e) {
     const DrDmpExperiment& experiment = drDmpExperiments()[e];
@@ -1010,7 +1035,7 @@ void optima(const Options& options, std::vector<Summary>& out) {
                         {"rollouts", static_cast<double>(r.rollouts)},
                         {"seconds", r.seconds}},
                        {{"task", job.task}}});
-        if (job.task == "wam_circle") out.back().texts.emplace_back("demonstration", demonstrationName());
+        job.setup->describe(out.back());
       });
 }
 
@@ -1069,7 +1094,7 @@ int main(int argc, char** argv) {
                 "80)",
                 &overrides.reuse, 0, 100000);
     line.option("--kernels", "K",
-                "planar10, wam_circle: basis functions per latent DoF (default: the experiment's, 5 and 20)",
+                "planar10, wam_circle, optima: basis functions per latent DoF (default: the experiment's, 5 and 20)",
                 &overrides.kernels, 2, 1000);
     line.option("--rollouts", "N", "planar10, wam_circle: rollouts per policy update (default: the thesis', 20)",
                 &overrides.rollouts, 2, 100000);
@@ -1080,10 +1105,11 @@ int main(int argc, char** argv) {
                 "wam_circle: the initial latent variance, as the variance of the forcing term each weight moves at "
                 "its kernel's peak, V > 0 (default: the experiment's, 100)",
                 &overrides.forcing_variance);
-    line.option("--alpha-z", "A",
-                "planar10, wam_circle: the DMPs' alpha_z, with beta_z = alpha_z/4 (critically damped), A > 0 and small "
-                "enough for a stable step (default 25)",
-                &overrides.alpha_z);
+    line.option(
+        "--alpha-z", "A",
+        "planar10, wam_circle, optima: the DMPs' alpha_z, with beta_z = alpha_z/4 (critically damped), A > 0 and small "
+        "enough for a stable step (default 25)",
+        &overrides.alpha_z);
     line.choice("--demonstration", {"joint", "task"},
                 "wam_circle, optima: where the demonstration's smooth perturbations act, on the joints after IK "
                 "(default) or on the tool before IK, as a hand guiding it would (tasks::CirclePerturbation)",
@@ -1128,13 +1154,23 @@ int main(int argc, char** argv) {
       name.clear();
     }
   }
+  const auto wants = [&](const std::string& name) { return options.experiment == "all" || options.experiment == name; };
   try {
+    // An --alpha-z whose steps are unstable is a bad argument: refuse it before any experiment runs.
+    for (const DrDmpExperiment& experiment : drDmpExperiments()) {
+      if (std::isnan(overrides.alpha_z) || !(wants(experiment.name) || wants("optima"))) continue;
+      try {
+        configuredTask(experiment, options.seed);
+      } catch (const std::invalid_argument& e) {
+        std::fprintf(stderr, "dr_benchmark: --alpha-z: %s in %s (see --help)\n", e.what(), experiment.name.c_str());
+        return 2;
+      }
+    }
     std::filesystem::create_directories(options.out);
     std::printf("dr_benchmark: experiment %s, seed %u, %d jobs%s, output %s\n", options.experiment.c_str(),
                 options.seed, options.jobs, options.quick ? " (quick)" : "", options.out.c_str());
     std::fflush(stdout);
     std::vector<Summary> rows;
-    const auto wants = [&](const char* name) { return options.experiment == "all" || options.experiment == name; };
     const auto timed = [&](const char* name, const std::function<void(const Options&, std::vector<Summary>&)>& run) {
       if (!wants(name)) return;
       const auto start = Clock::now();
