@@ -6,6 +6,7 @@
 //
 // Writes DIR/summary.json (one object per solver x setting), DIR/<experiment>.csv (one row per sample, written as
 // samples complete), then runs scripts/plot_ik_benchmark.py for the PNG plots and DIR/tables.md.
+#include "bimanual_skills/kinematics/chain_model.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "experiment_cli.hpp"
 #include "summary_json.hpp"
@@ -150,14 +151,6 @@ std::vector<Method> table35Methods() {
           method(InverseOperator::SvfSelectiveDamping, LimitScheme::ContinuousTaskPriority, "-")};
 }
 
-Eigen::VectorXd uniformWithin(const bk::ChainModel& model, std::mt19937& rng) {
-  Eigen::VectorXd q(model.nq());
-  for (int i = 0; i < model.nq(); ++i) {
-    q[i] = std::uniform_real_distribution<double>(model.lowerLimits()[i], model.upperLimits()[i])(rng);
-  }
-  return q;
-}
-
 /// q_F uniform in the box |q_F − q_0| < A intersected with the limits (the thesis' acceptance test, sampled directly:
 /// rejection from independent draws has an acceptance of ~1e-7 at A = 0.25).
 Eigen::VectorXd uniformNear(const bk::ChainModel& model, const Eigen::VectorXd& q0, double A, std::mt19937& rng) {
@@ -213,8 +206,8 @@ void table34(const Options& options, std::vector<Summary>& out) {
   std::mt19937 rng(options.seed);
   std::vector<Eigen::VectorXd> starts, goals;
   for (int k = 0; k < samples; ++k) {
-    starts.push_back(uniformWithin(model, rng));
-    goals.push_back(uniformWithin(model, rng));
+    starts.push_back(bk::randomWithinLimits(model, rng));
+    goals.push_back(bk::randomWithinLimits(model, rng));
   }
   const auto targets = forward(model, goals);
   std::ofstream csv = openCsv(options, "table34", kSampleHeader);
@@ -231,7 +224,7 @@ void limitExperiment(const Options& options, const std::string& name, const std:
     std::mt19937 rng(options.seed);
     std::vector<Eigen::VectorXd> starts, goals;
     for (int k = 0; k < samples; ++k) {
-      starts.push_back(uniformWithin(model, rng));
+      starts.push_back(bk::randomWithinLimits(model, rng));
       goals.push_back(uniformNear(model, starts.back(), A, rng));
     }
     const auto targets = forward(model, goals);
@@ -352,8 +345,8 @@ void tracik(const Options& options, const Arm& arm, std::vector<Summary>& out) {
   const double budget = 0.005, eps = 1e-5;
   std::mt19937 rng(options.seed);
   std::vector<Eigen::VectorXd> goals, random_seeds;
-  for (int k = 0; k < samples; ++k) goals.push_back(uniformWithin(model, rng));
-  for (int k = 0; k < samples; ++k) random_seeds.push_back(uniformWithin(model, rng));
+  for (int k = 0; k < samples; ++k) goals.push_back(bk::randomWithinLimits(model, rng));
+  for (int k = 0; k < samples; ++k) random_seeds.push_back(bk::randomWithinLimits(model, rng));
   const auto targets = forward(model, goals);
   const Eigen::VectorXd nominal = 0.5 * (model.lowerLimits() + model.upperLimits());
   std::ofstream csv = openCsv(options, "tracik", kSampleHeader);
@@ -482,7 +475,7 @@ void closest(const Options& options, const Arm& arm, std::vector<Summary>& out) 
     std::vector<double> excess_first, excess_closest;
     int best_first = 0, best_closest = 0, failures = 0;
     for (int k = 0; k < samples; ++k) {
-      const Eigen::VectorXd goal = uniformWithin(model, rng);
+      const Eigen::VectorXd goal = bk::randomWithinLimits(model, rng);
       const Eigen::VectorXd seed = uniformNear(model, goal, A, rng);
       const Eigen::Isometry3d target = forward(model, {goal}).front();
       Eigen::VectorXd q(model.nq());

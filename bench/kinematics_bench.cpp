@@ -7,6 +7,7 @@
 // iteration, counters give the per-call median, p99 and worst case (ns), each from batches of kBatch calls timed with
 // a steady clock (per-call = batch time / kBatch, so clock overhead is spread over the batch).
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/kinematics/chain_model.hpp"
 #include "bimanual_skills/kinematics/clik.hpp"
 
 #include "bench_timing.hpp"
@@ -46,10 +47,7 @@ struct Fixture {
     }
     std::mt19937 rng(kSeed);
     for (int k = 0; k < kConfigurations; ++k) {
-      Eigen::VectorXd sample(model.nq());
-      for (int i = 0; i < model.nq(); ++i) {
-        sample[i] = std::uniform_real_distribution<double>(model.lowerLimits()[i], model.upperLimits()[i])(rng);
-      }
+      const Eigen::VectorXd sample = bk::randomWithinLimits(model, rng);
       q.push_back(sample);
       KDL::JntArray sample_kdl(chain.getNrOfJoints());
       sample_kdl.data = sample;
