@@ -39,8 +39,7 @@ struct ExperimentProgram {
 /// Parses the command line: --help/-h prints the usage and exits 0; an error prints it with the usage on stderr and
 /// exits 2.
 inline ExperimentOptions parseExperimentOptions(int argc, char** argv, const ExperimentProgram& program) {
-  std::string names;
-  for (const std::string& e : program.experiments) names += (names.empty() ? "" : "|") + e;
+  const std::string names = cli::joined(program.experiments, "|");
   ExperimentOptions options;
   long seed = options.seed, runs = 0;
   long jobs = std::max(1u, std::thread::hardware_concurrency());

@@ -17,6 +17,13 @@
 
 namespace bimanual_skills::cli {
 
+/// The items with `separator` between them ("a|b|c" for the choices of an option).
+inline std::string joined(const std::vector<std::string>& items, const std::string& separator) {
+  std::string text;
+  for (std::size_t i = 0; i < items.size(); ++i) text += (i > 0 ? separator : "") + items[i];
+  return text;
+}
+
 class CommandLine {
  public:
   /// `synopsis`: the arguments after the program name; `description`: what the program does (any lines).
@@ -57,8 +64,7 @@ class CommandLine {
   /// An option whose value is one of `choices` (the usage shows them as its value, a|b|c).
   void choice(const std::string& flag, const std::vector<std::string>& choices, const std::string& help,
               std::string* target) {
-    std::string names;
-    for (const std::string& c : choices) names += (names.empty() ? "" : "|") + c;
+    const std::string names = joined(choices, "|");
     add(
         flag, names, help,
         [target, choices](const std::string& text) {
