@@ -67,6 +67,8 @@ struct DrDmpOverrides {
   bool adapted_covariance = false;  ///< --adapted-covariance: CovarianceRule::Adapted instead of REPS' own.
   /// --demonstration: where wam_circle's demonstration is perturbed.
   bt::CirclePerturbation demonstration = bt::CirclePerturbation::Joint;
+  /// --circle: the circle wam_circle's reward measures distances from.
+  bt::CircleTarget circle = bt::CircleTarget::Fitted;
 } overrides;
 using bimanual_skills::tools::Clock;
 using bimanual_skills::tools::secondsSince;
@@ -757,7 +759,7 @@ DrDmpTask planar10Task(std::uint32_t seed) {
 DrDmpTask wamCircleTask(std::uint32_t seed) {
   auto circle = std::make_shared<const bt::WamCircleTask>(
       bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool"), seed,
-      overrides.demonstration);
+      overrides.demonstration, overrides.circle);
   DrDmpTask task;
   task.demonstrations = {circle->demonstration()};
   task.dt = circle->dt();
@@ -786,7 +788,8 @@ DrDmpTask wamCircleTask(std::uint32_t seed) {
     return [own](const bt::DrDmpRollout& rollout) { return own->toolPath(rollout.positions); };
   };
   task.path_columns = task.target_columns = {"x", "y", "z"};
-  task.labels = {{"demonstration", overrides.demonstration == bt::CirclePerturbation::Task ? "task" : "joint"}};
+  task.labels = {{"demonstration", overrides.demonstration == bt::CirclePerturbation::Task ? "task" : "joint"},
+                 {"circle", overrides.circle == bt::CircleTarget::Nominal ? "nominal" : "fitted"}};
   // 200 points of the circle the reward measures distances from.
   const bt::Circle3d& fit = circle->circle();
   const Eigen::Vector3d u = fit.normal.unitOrthogonal(), v = fit.normal.cross(u);
@@ -1066,7 +1069,7 @@ int main(int argc, char** argv) {
   program.experiments = {"estep", "em_vs_pca", "planar15", "planar10", "wam_circle", "optima", "all"};
   program.with_runs = true;
   program.with_jobs = true;
-  std::string algorithms, demonstration = "joint";
+  std::string algorithms, demonstration = "joint", circle = "fitted";
   program.extra = [&](bimanual_skills::cli::CommandLine& line) {
     line.option("--algorithms", "A,B,...",
                 "run only these algorithms of planar15, planar10 and wam_circle (their names in summary.json, e.g. "
@@ -1114,6 +1117,11 @@ int main(int argc, char** argv) {
                 "wam_circle, optima: where the demonstration's smooth perturbations act, on the joints after IK "
                 "(default) or on the tool before IK, as a hand guiding it would (tasks::CirclePerturbation)",
                 &demonstration);
+    line.choice("--circle", {"fitted", "nominal"},
+                "wam_circle, optima: the circle the reward measures distances from, the one that best fits the "
+                "demonstrated tool path (default, as the thesis computes it) or the one the demonstration was made "
+                "from (tasks::CircleTarget)",
+                &circle);
     line.option("--relative-prior", "P",
                 "planar10: the initial latent covariance is the demonstrations' plus P times their mean weight "
                 "variance on the diagonal, P > 0 (default: the experiment's, 0.01)",
@@ -1142,6 +1150,7 @@ int main(int argc, char** argv) {
     }
   }
   if (demonstration == "task") overrides.demonstration = bt::CirclePerturbation::Task;
+  if (circle == "nominal") overrides.circle = bt::CircleTarget::Nominal;
   // Names hold commas inside parentheses ("DR-DMP_MCMU(3,4)"): split only at the others.
   std::string name;
   int depth = 0;

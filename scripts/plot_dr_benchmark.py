@@ -211,7 +211,7 @@ def plot_planar10_paths(directory):
     plt.close(fig)
 
 
-def plot_wam_circle_paths(directory):
+def plot_wam_circle_paths(directory, summary):
     data = read_paths(directory, "wam_circle")
     if data is None:
         return
@@ -233,7 +233,10 @@ def plot_wam_circle_paths(directory):
         return np.hypot(planar - radius, height) * 1e3
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.8), gridspec_kw={"width_ratios": [1, 1.4]})
-    axes[0].plot(*in_plane(np.vstack([circle, circle[:1]])), "g-", lw=2.5, alpha=0.6, label="the fitted circle")
+    # The circle the reward measured from (dr_benchmark --circle), as its rows record it.
+    target = next((r.get("circle", "fitted") for r in summary["results"] if r["experiment"] == "wam_circle"), "fitted")
+    label = "the fitted circle" if target == "fitted" else "the circle the demonstration was made from"
+    axes[0].plot(*in_plane(np.vstack([circle, circle[:1]])), "g-", lw=2.5, alpha=0.6, label=label)
     # The full-dimension DMP's initial policy is the demonstration's fit; the reduced ones project it first.
     full = "DR-DMP0(7)" if "DR-DMP0(7)" in paths else algorithm
     for label, points, colour in (("the demonstration's DMP (%s before learning)" % full, paths[full]["initial"], "b"),
@@ -432,7 +435,7 @@ def main():
                  ("IDR and EM", lambda a: a.startswith("IDR") or a.startswith("EM"))],
                 lambda r: r, "reward of the mean policy", "wam_circle (cf. Table 7.4, Fig. 7.7b), 95 % intervals")
     plot_planar10_paths(directory)
-    plot_wam_circle_paths(directory)
+    plot_wam_circle_paths(directory, summary)
     plot_optima_progress(directory)
     em = plot_em_vs_pca(directory)
     with open(os.path.join(directory, "tables.md"), "w") as f:

@@ -171,6 +171,7 @@ TEST(DrBenchmarkSmoke, BadArgumentsAreRejected) {
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --kernels 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --out /tmp/x --rollouts 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment wam_circle --seed 1 --out /tmp/x --demonstration hand"), 2);
+  EXPECT_EQ(runQuietly(program + " --experiment wam_circle --seed 1 --out /tmp/x --circle square"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment wam_circle --seed 1 --out /tmp/x --alpha-z 0"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment planar10 --seed 1 --quick --out /tmp/x --algorithms PoWER"), 1);
   // planar10's steps of 0.01 s over 1 s are unstable from α_z ≈ 166 on (optima optimises planar10's DMPs too).
@@ -191,17 +192,20 @@ TEST(DrBenchmarkSmoke, AnExperimentWritesOnlyItsOwnFiles) {
 }
 
 TEST(DrBenchmarkSmoke, OverridesAreRecordedInTheSummary) {
-  // --demonstration task perturbs the circle on the tool; summary.json says which demonstration each row learned,
-  // and with which settings, the overridden ones included.
+  // --demonstration task perturbs the circle on the tool, --circle nominal measures from the circle it was made
+  // from; summary.json says which demonstration and circle each row learned, and with which settings.
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_dr_benchmark_task_demonstration";
-  ASSERT_EQ(runQuietly(std::string(DR_BENCHMARK) + " --experiment wam_circle --runs 2 --seed 5 --quick --jobs 2 " +
-                       "--demonstration task --kernels 12 --alpha-z 50 --epsilon 0.7 --algorithms \"DR-DMP0(7)\" " +
-                       "--out " + out.string()),
-            0);
+  ASSERT_EQ(
+      runQuietly(
+          std::string(DR_BENCHMARK) + " --experiment wam_circle --runs 2 --seed 5 --quick --jobs 2 " +
+          "--demonstration task --circle nominal --kernels 12 --alpha-z 50 --epsilon 0.7 --algorithms \"DR-DMP0(7)\" " +
+          "--out " + out.string()),
+      0);
   const std::string summary = readTextFile(out / "summary.json");
   for (const char* field :
-       {"\"demonstration\": \"task\"", "\"kernels\": 12", "\"alpha_z\": 50", "\"beta_z\": 12.5", "\"epsilon\": 0.7",
-        "\"reuse\": 80", "\"covariance_memory\": 0.9", "\"forcing_variance\": 100", "\"covariance_rule\": \"reps\""}) {
+       {"\"demonstration\": \"task\"", "\"circle\": \"nominal\"", "\"kernels\": 12", "\"alpha_z\": 50",
+        "\"beta_z\": 12.5", "\"epsilon\": 0.7", "\"reuse\": 80", "\"covariance_memory\": 0.9",
+        "\"forcing_variance\": 100", "\"covariance_rule\": \"reps\""}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field << " missing from " << summary;
   }
   EXPECT_EQ(summary.find("\"demonstration\": \"joint\""), std::string::npos) << summary;

@@ -145,10 +145,16 @@ double PlanarTrackingTask::reward(const Eigen::MatrixXd& positions) const {
 
 namespace {
 
+/// The demonstration of WamCircleTask and the circle it was made from.
+struct CircleDemonstration {
+  Eigen::MatrixXd positions;
+  Circle3d nominal;
+};
+
 /// The demonstration of WamCircleTask: the circle through the IK solver, perturbed on the tool before IK or on the
 /// joints after it, then the joints' white noise.
-Eigen::MatrixXd circleDemonstration(const kinematics::ChainModel& model, std::uint32_t seed,
-                                    CirclePerturbation perturbation) {
+CircleDemonstration circleDemonstration(const kinematics::ChainModel& model, std::uint32_t seed,
+                                        CirclePerturbation perturbation) {
   Eigen::VectorXd q(7);
   q << 0.0, 0.6, 0.0, 1.6, 0.0, 0.4, 0.0;
   kinematics::ChainData data(model);
@@ -205,16 +211,23 @@ Eigen::MatrixXd circleDemonstration(const kinematics::ChainModel& model, std::ui
     }
     for (int i = 1; i + 1 < samples; ++i) y(i, j) += noise(rng);
   }
-  return y;
+  Circle3d circle;
+  circle.centre = centre;
+  circle.normal = u.cross(v);
+  circle.radius = radius;
+  return {y, circle};
 }
 
 }  // namespace
 
-WamCircleTask::WamCircleTask(const kinematics::ChainModel& model, std::uint32_t seed, CirclePerturbation perturbation)
+WamCircleTask::WamCircleTask(const kinematics::ChainModel& model, std::uint32_t seed, CirclePerturbation perturbation,
+                             CircleTarget target)
     : model_(model.nq() == 7 ? model : throw std::invalid_argument("WamCircleTask: needs a 7-joint chain")),
-      data_(model_),
-      demonstration_(circleDemonstration(model_, seed, perturbation)),
-      circle_(Circle3d::fit(toolPath(demonstration_))) {}
+      data_(model_) {
+  CircleDemonstration made = circleDemonstration(model_, seed, perturbation);
+  demonstration_ = std::move(made.positions);
+  circle_ = target == CircleTarget::Nominal ? made.nominal : Circle3d::fit(toolPath(demonstration_));
+}
 
 Eigen::MatrixXd WamCircleTask::toolPath(const Eigen::MatrixXd& positions) {
   if (positions.cols() != 7) throw std::invalid_argument("WamCircleTask::toolPath: positions must have 7 columns");

@@ -118,18 +118,29 @@ enum class CirclePerturbation {
   Task,
 };
 
+/// The circle WamCircleTask's reward measures distances from.
+enum class CircleTarget {
+  /// The circle that best fits the demonstrated tool path, as the thesis computes it from its recorded
+  /// demonstration (Circle3d::fit); the perturbations shift it off the demonstration's start.
+  Fitted,
+  /// The circle the demonstration was made from: the teacher's intent, which a real recording does not give. The
+  /// tool starts on it with CirclePerturbation::Task (its deviations fade in), not with Joint.
+  Nominal,
+};
+
 /// Table 7.4's task on the WAM (7 DoF): a "kinesthetic" demonstration of a circle of radius 0.12 m (tilted 30° about
 /// the base x axis, around the tool position of q = (0, 0.6, 0, 1.6, 0, 0.4, 0)) drawn once in 8 s with
 /// minimum-jerk timing at 25 Hz: the circle through the global IK solver (constant tool orientation, each sample
 /// seeded with the previous solution), smooth perturbations on the joints or on the tool (CirclePerturbation), and
 /// white noise of 2 mrad on every joint but at the first and last sample. Reward (7.51):
 /// R = −(Σ_t r_circle^t + α Σ_t ‖q̈_t‖²), r_circle^t [m] the tool's distance from the circle that best fits the
-/// demonstrated tool path, α = 2 · 10⁻⁵.
+/// demonstrated tool path (or the nominal one, CircleTarget), α = 2 · 10⁻⁵.
 class WamCircleTask {
  public:
   /// \throws std::invalid_argument for a chain without 7 joints or an IK failure along the circle.
   WamCircleTask(const kinematics::ChainModel& model, std::uint32_t seed,
-                CirclePerturbation perturbation = CirclePerturbation::Joint);
+                CirclePerturbation perturbation = CirclePerturbation::Joint,
+                CircleTarget target = CircleTarget::Fitted);
 
   const Eigen::MatrixXd& demonstration() const noexcept { return demonstration_; }  ///< (steps + 1) × 7
   double dt() const noexcept { return kDt; }
