@@ -211,11 +211,7 @@ CircleDemonstration circleDemonstration(const kinematics::ChainModel& model, std
     }
     for (int i = 1; i + 1 < samples; ++i) y(i, j) += noise(rng);
   }
-  Circle3d circle;
-  circle.centre = centre;
-  circle.normal = u.cross(v);
-  circle.radius = radius;
-  return {y, circle};
+  return {y, Circle3d{centre, u.cross(v), radius}};
 }
 
 }  // namespace
