@@ -885,8 +885,8 @@ void wamCircle(const Options& options, std::vector<Summary>& out) {
 // ---- optima: the best reward a fixed coordination allows, by a local optimiser with gradients ----
 
 /// The noise-free reward of latent weights through the fixed coordination matrices of a DR-DMP, the number of
-/// rollouts it took, and the optimiser's progress: the best reward of its iterates against the rollouts spent, a row
-/// whenever it improved by 0.5 % or more.
+/// rollouts it took, the best iterate, and the optimiser's progress: the best reward of its iterates against the
+/// rollouts spent, a row whenever it improved by 0.5 % or more.
 class FixedCoordinationObjective {
  public:
   FixedCoordinationObjective(bp::DrDmp dmp, const DrDmpTask& task)
@@ -899,9 +899,15 @@ class FixedCoordinationObjective {
     return reward_(rollout_);
   }
   long rollouts() const noexcept { return rollouts_; }
+  /// The best iterate so far (empty before the first).
+  const std::vector<double>& best() const noexcept { return best_; }
 
-  /// The optimiser evaluated an iterate (with its gradient) to `value`.
-  void iterate(double value) {
+  /// The optimiser evaluated the iterate `w` (with its gradient) to `value`.
+  void iterate(const double* w, int size, double value) {
+    if (best_.empty() || value > best_value_) {
+      best_.assign(w, w + size);
+      best_value_ = value;
+    }
     if (progress_.empty() || value - progress_.back().second >= 0.005 * std::abs(progress_.back().second)) {
       progress_.emplace_back(rollouts_, value);
     }
@@ -920,8 +926,21 @@ class FixedCoordinationObjective {
   std::function<double(const bt::DrDmpRollout&)> reward_;
   bt::DrDmpRollout rollout_;
   long rollouts_ = 0;
+  std::vector<double> best_;
+  double best_value_ = 0.0;
   std::vector<std::pair<long, double>> progress_;
 };
+
+/// The length of a task's path (the sum of its steps' Euclidean lengths): the tool's travel for wam_circle, in m,
+/// the joints' for planar10, in rad.
+double pathLength(const DrDmpTask& task, const bp::DrDmp& dmp, const std::vector<double>& w) {
+  std::mt19937 unused;
+  bt::DrDmpRollout rollout;
+  bt::rolloutDrDmp(dmp.withWeights(Eigen::Map<const Eigen::VectorXd>(w.data(), static_cast<Eigen::Index>(w.size()))),
+                   task.dt, task.steps, 0.0, unused, rollout);
+  const Eigen::MatrixXd path = task.path()(rollout);
+  return (path.bottomRows(path.rows() - 1) - path.topRows(path.rows() - 1)).rowwise().norm().sum();
+}
 
 /// L-BFGS (NLopt) on the objective with central differences of step 10⁻⁴.
 double lbfgsObjective(unsigned n, const double* w, double* gradient, void* data) {
@@ -939,15 +958,17 @@ double lbfgsObjective(unsigned n, const double* w, double* gradient, void* data)
       x[i] = w[i];
       gradient[i] = (up - down) / (2.0 * h);
     }
-    objective.iterate(value);
+    objective.iterate(w, size, value);
   }
   return value;
 }
 
 /// For each fixed-dimension DR-DMP with constant coordination (the PCA initialisation, DR-DMP⁰(r) and
 /// DR-DMP⁰_MCMU(N_s, r)), the noise-free reward L-BFGS reaches from the initial mean weights: a local optimum, the
-/// reference for what that coordination allows and for how far policy search ends from it. optima_progress.csv has
-/// the rollouts L-BFGS spent to reach each level, against the learners' budget.
+/// reference for how far policy search ends from it. Beside it, the reward with all latent weights zero (no forcing
+/// term: only the transformation system's pull from start to goal), a point every coordination contains, so a lower
+/// bound on each coordination's global optimum. optima_progress.csv has the rollouts L-BFGS spent to reach each
+/// level, against the learners' budget.
 void optima(const Options& options, std::vector<Summary>& out) {
   struct Job {
     std::string task;
@@ -971,14 +992,15 @@ void optima(const Options& options, std::vector<Summary>& out) {
   }
   const long budget = options.quick ? 2000 : 1000000;  // rollouts per optimisation
   struct Result {
-    double initial = 0.0, optimum = 0.0, seconds = 0.0;
+    double initial = 0.0, optimum = 0.0, zero_weights = 0.0, initial_path = 0.0, optimum_path = 0.0, seconds = 0.0;
     long rollouts = 0;
     int weights = 0;
     std::vector<std::pair<long, double>> progress;
   };
   std::vector<Result> results(jobs.size());
   std::ofstream csv(options.out + "/optima.csv");
-  csv << "task,algorithm,latent_dims,matrices,weights,initial_reward,optimum_reward,rollouts,seconds\n";
+  csv << "task,algorithm,latent_dims,matrices,weights,initial_reward,optimum_reward,zero_weights_reward,"
+         "initial_path_length,optimum_path_length,rollouts,seconds\n";
   csv.precision(10);
   std::ofstream progress(options.out + "/optima_progress.csv");
   progress << "task,algorithm,rollouts,best_reward\n";
@@ -997,6 +1019,9 @@ void optima(const Options& options, std::vector<Summary>& out) {
         Result& result = results[static_cast<std::size_t>(i)];
         result.weights = static_cast<int>(w.size());
         result.initial = objective(w.data(), result.weights);
+        const std::vector<double> zero(w.size(), 0.0);
+        result.zero_weights = FixedCoordinationObjective(fit.dmp, *job.setup)(zero.data(), result.weights);
+        result.initial_path = pathLength(*job.setup, fit.dmp, w);
         nlopt::opt optimiser(nlopt::LD_LBFGS, static_cast<unsigned>(w.size()));
         optimiser.set_max_objective(
             [](unsigned n, const double* x, double* g, void* d) { return lbfgsObjective(n, x, g, d); }, &objective);
@@ -1011,6 +1036,9 @@ void optima(const Options& options, std::vector<Summary>& out) {
           value = optimiser.last_optimum_value();
         }
         result.optimum = std::max(value, result.initial);
+        result.optimum_path = result.optimum > result.initial && !objective.best().empty()
+                                  ? pathLength(*job.setup, fit.dmp, objective.best())
+                                  : result.initial_path;
         result.rollouts = objective.rollouts();
         result.progress = objective.progress();
         result.seconds = secondsSince(start);
@@ -1019,14 +1047,18 @@ void optima(const Options& options, std::vector<Summary>& out) {
         const Job& job = jobs[static_cast<std::size_t>(i)];
         const Result& r = results[static_cast<std::size_t>(i)];
         csv << job.task << ",\"" << job.variant.name << "\"," << job.variant.r << ',' << job.variant.matrices << ','
-            << r.weights << ',' << r.initial << ',' << r.optimum << ',' << r.rollouts << ',' << r.seconds << '\n';
+            << r.weights << ',' << r.initial << ',' << r.optimum << ',' << r.zero_weights << ',' << r.initial_path
+            << ',' << r.optimum_path << ',' << r.rollouts << ',' << r.seconds << '\n';
         csv.flush();
         for (const auto& [rollouts, best] : r.progress) {
           progress << job.task << ",\"" << job.variant.name << "\"," << rollouts << ',' << best << '\n';
         }
         progress.flush();
-        std::printf("  optima %-10s %-20s %3d weights: %.4g -> %.4g (%ld rollouts, %.1f s)\n", job.task.c_str(),
-                    job.variant.name.c_str(), r.weights, r.initial, r.optimum, r.rollouts, r.seconds);
+        std::printf(
+            "  optima %-10s %-20s %3d weights: %.4g -> %.4g, path %.3g -> %.3g (%ld rollouts, %.1f s; zero weights "
+            "%.4g)\n",
+            job.task.c_str(), job.variant.name.c_str(), r.weights, r.initial, r.optimum, r.initial_path, r.optimum_path,
+            r.rollouts, r.seconds, r.zero_weights);
         std::fflush(stdout);
         out.push_back({"optima",
                        job.variant.name,
@@ -1035,6 +1067,9 @@ void optima(const Options& options, std::vector<Summary>& out) {
                         {"weights", r.weights},
                         {"initial_reward", r.initial},
                         {"optimum_reward", r.optimum},
+                        {"zero_weights_reward", r.zero_weights},
+                        {"initial_path_length", r.initial_path},
+                        {"optimum_path_length", r.optimum_path},
                         {"rollouts", static_cast<double>(r.rollouts)},
                         {"seconds", r.seconds}},
                        {{"task", job.task}}});
@@ -1062,7 +1097,8 @@ int main(int argc, char** argv) {
       "The thesis' reward-oriented dimensionality-reduction experiments (Ch. 7): the fast E-step against the naive\n"
       "one, EM vs PCA fits (Fig. 7.2), the 15-DoF planar tracking task (Fig. 7.5), the 10-DoF via-point task\n"
       "(Table 7.3) and the WAM circle (Table 7.4), and (optima) the local optimum L-BFGS reaches from each\n"
-      "constant coordination's initial policy of the last two. Writes DIR/<experiment>.csv, DIR/summary.json,\n"
+      "constant coordination's initial policy of the last two, with its path length and the reward of all latent\n"
+      "weights zero. Writes DIR/<experiment>.csv, DIR/summary.json,\n"
       "learning-curve PNGs (mean and 95 % interval over runs), the first run's paths before and after learning\n"
       "with the task's target (planar10 and wam_circle: <experiment>_paths.csv, _target.csv, _paths.png) and\n"
       "DIR/tables.md.";

@@ -407,12 +407,17 @@ def tables(directory, summary, em):
     if optima:
         lines += ["### optima: the noise-free reward L-BFGS reaches from the initial mean weights with each constant "
                   "coordination (PCA initialisation)\n",
-                  "| task | coordination | weights | initial R | optimum R | optimum -log10(-R) | rollouts |",
-                  "|---|---|---:|---:|---:|---:|---:|"]
+                  "Path: the length of the task's path before and after (planar10: the joints', rad; wam_circle: the "
+                  "tool's, m). Zero weights: the reward with all latent weights zero, which every coordination "
+                  "contains.\n",
+                  "| task | coordination | weights | initial R | optimum R | optimum -log10(-R) | path | "
+                  "zero weights R | rollouts |",
+                  "|---|---|---:|---:|---:|---:|---:|---:|---:|"]
         for r in optima:
             log = "%.3f" % neglog(r["optimum_reward"]) if r["task"] == "planar10" else "–"
-            lines.append("| %s | %s | %d | %.4f | %.4f | %s | %d |" % (
-                r["task"], r["algorithm"], r["weights"], r["initial_reward"], r["optimum_reward"], log, r["rollouts"]))
+            lines.append("| %s | %s | %d | %.4f | %.4f | %s | %.3f → %.3f | %.4f | %d |" % (
+                r["task"], r["algorithm"], r["weights"], r["initial_reward"], r["optimum_reward"], log,
+                r["initial_path_length"], r["optimum_path_length"], r["zero_weights_reward"], r["rollouts"]))
         lines.append("")
     return "\n".join(lines) + "\n"
 

@@ -9,6 +9,8 @@
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -20,6 +22,9 @@
 
 namespace fs = std::filesystem;
 
+using bimanual_skills::testing::csvNumber;
+using bimanual_skills::testing::CsvRow;
+using bimanual_skills::testing::readCsv;
 using bimanual_skills::testing::readTextFile;
 using bimanual_skills::testing::runQuietly;
 
@@ -133,6 +138,19 @@ TEST(DrBenchmarkSmoke, QuickRunWritesEveryOutput) {
     EXPECT_FALSE(rows.empty()) << experiment;
     for (const auto& [key, count] : rows) EXPECT_EQ(count, samples) << experiment << ' ' << key;
   }
+  // optima.csv: the circle demonstration's DMP moves the tool about once round the circle (0.754 m), before and after
+  // L-BFGS; the reward with all latent weights zero is a finite cost.
+  const std::vector<CsvRow> optima = readCsv(out / "optima.csv");
+  const auto row = std::find_if(optima.begin(), optima.end(), [](const CsvRow& r) {
+    return r.at("task") == "wam_circle" && r.at("algorithm") == "DR-DMP0(7)";
+  });
+  ASSERT_NE(row, optima.end());
+  for (const char* path : {"initial_path_length", "optimum_path_length"}) {
+    EXPECT_GT(csvNumber(*row, path), 0.6) << path;
+    EXPECT_LT(csvNumber(*row, path), 0.95) << path;
+  }
+  EXPECT_TRUE(std::isfinite(csvNumber(*row, "zero_weights_reward")));
+  EXPECT_LT(csvNumber(*row, "zero_weights_reward"), 0.0);
   fs::remove_all(out);
 }
 

@@ -34,16 +34,25 @@ inline std::string readTextFile(const std::string& path) {
 using CsvRow = std::map<std::string, std::string>;
 
 /// The rows of a CSV file with a header line, as column → value maps; a row of the wrong width is a test failure.
+/// A cell in double quotes may hold commas (the experiment programs quote algorithm names such as
+/// "DR-DMP0_MCMU(3,7)"); its value is the text between the quotes.
 inline std::vector<CsvRow> readCsv(const std::string& path) {
   std::ifstream file(path);
   std::string line;
   std::vector<std::string> header;
   std::vector<CsvRow> rows;
   const auto split = [](const std::string& text) {
-    std::vector<std::string> cells;
-    std::stringstream stream(text);
-    std::string cell;
-    while (std::getline(stream, cell, ',')) cells.push_back(cell);
+    std::vector<std::string> cells(1);
+    bool quoted = false;
+    for (const char c : text) {
+      if (c == '"') {
+        quoted = !quoted;
+      } else if (c == ',' && !quoted) {
+        cells.emplace_back();
+      } else {
+        cells.back() += c;
+      }
+    }
     return cells;
   };
   if (std::getline(file, line)) header = split(line);
