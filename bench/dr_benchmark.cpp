@@ -885,18 +885,25 @@ void wamCircle(const Options& options, std::vector<Summary>& out) {
 // ---- optima: the best reward a fixed coordination allows, by a local optimiser with gradients ----
 
 /// The noise-free reward of latent weights through the fixed coordination matrices of a DR-DMP, the number of
-/// rollouts it took, the best iterate, and the optimiser's progress: the best reward of its iterates against the
-/// rollouts spent, a row whenever it improved by 0.5 % or more.
+/// rollouts the optimiser spent, the best iterate, and the optimiser's progress: the best reward of its iterates
+/// against the rollouts spent, a row whenever it improved by 0.5 % or more.
 class FixedCoordinationObjective {
  public:
   FixedCoordinationObjective(bp::DrDmp dmp, const DrDmpTask& task)
-      : dmp_(std::move(dmp)), dt_(task.dt), steps_(task.steps), reward_(task.reward()) {}
+      : dmp_(std::move(dmp)), dt_(task.dt), steps_(task.steps), reward_(task.reward()), path_(task.path()) {}
 
+  /// The reward of `w`, counted as a rollout of the optimiser.
   double operator()(const double* w, int size) {
     ++rollouts_;
-    std::mt19937 unused;
-    bt::rolloutDrDmp(dmp_.withWeights(Eigen::Map<const Eigen::VectorXd>(w, size)), dt_, steps_, 0.0, unused, rollout_);
-    return reward_(rollout_);
+    return reward(w, size);
+  }
+  /// The reward of `w`, not counted (a reference point, not a step of the optimiser).
+  double reward(const double* w, int size) { return reward_(rollout(w, size)); }
+  /// The length of the task's path for `w` (the sum of its steps' Euclidean lengths): the tool's travel for
+  /// wam_circle, in m, the joints' for planar10, in rad. Not counted.
+  double pathLength(const std::vector<double>& w) {
+    const Eigen::MatrixXd path = path_(rollout(w.data(), static_cast<int>(w.size())));
+    return (path.bottomRows(path.rows() - 1) - path.topRows(path.rows() - 1)).rowwise().norm().sum();
   }
   long rollouts() const noexcept { return rollouts_; }
   /// The best iterate so far (empty before the first).
@@ -920,27 +927,23 @@ class FixedCoordinationObjective {
   }
 
  private:
+  const bt::DrDmpRollout& rollout(const double* w, int size) {
+    std::mt19937 unused;
+    bt::rolloutDrDmp(dmp_.withWeights(Eigen::Map<const Eigen::VectorXd>(w, size)), dt_, steps_, 0.0, unused, rollout_);
+    return rollout_;
+  }
+
   bp::DrDmp dmp_;
   double dt_;
   int steps_;
   std::function<double(const bt::DrDmpRollout&)> reward_;
+  std::function<Eigen::MatrixXd(const bt::DrDmpRollout&)> path_;
   bt::DrDmpRollout rollout_;
   long rollouts_ = 0;
   std::vector<double> best_;
   double best_value_ = 0.0;
   std::vector<std::pair<long, double>> progress_;
 };
-
-/// The length of a task's path (the sum of its steps' Euclidean lengths): the tool's travel for wam_circle, in m,
-/// the joints' for planar10, in rad.
-double pathLength(const DrDmpTask& task, const bp::DrDmp& dmp, const std::vector<double>& w) {
-  std::mt19937 unused;
-  bt::DrDmpRollout rollout;
-  bt::rolloutDrDmp(dmp.withWeights(Eigen::Map<const Eigen::VectorXd>(w.data(), static_cast<Eigen::Index>(w.size()))),
-                   task.dt, task.steps, 0.0, unused, rollout);
-  const Eigen::MatrixXd path = task.path()(rollout);
-  return (path.bottomRows(path.rows() - 1) - path.topRows(path.rows() - 1)).rowwise().norm().sum();
-}
 
 /// L-BFGS (NLopt) on the objective with central differences of step 10⁻⁴.
 double lbfgsObjective(unsigned n, const double* w, double* gradient, void* data) {
@@ -1020,8 +1023,8 @@ void optima(const Options& options, std::vector<Summary>& out) {
         result.weights = static_cast<int>(w.size());
         result.initial = objective(w.data(), result.weights);
         const std::vector<double> zero(w.size(), 0.0);
-        result.zero_weights = FixedCoordinationObjective(fit.dmp, *job.setup)(zero.data(), result.weights);
-        result.initial_path = pathLength(*job.setup, fit.dmp, w);
+        result.zero_weights = objective.reward(zero.data(), result.weights);
+        result.initial_path = objective.pathLength(w);
         nlopt::opt optimiser(nlopt::LD_LBFGS, static_cast<unsigned>(w.size()));
         optimiser.set_max_objective(
             [](unsigned n, const double* x, double* g, void* d) { return lbfgsObjective(n, x, g, d); }, &objective);
@@ -1036,9 +1039,8 @@ void optima(const Options& options, std::vector<Summary>& out) {
           value = optimiser.last_optimum_value();
         }
         result.optimum = std::max(value, result.initial);
-        result.optimum_path = result.optimum > result.initial && !objective.best().empty()
-                                  ? pathLength(*job.setup, fit.dmp, objective.best())
-                                  : result.initial_path;
+        // The best iterate (the first is the initial point) is where the optimum was reached.
+        result.optimum_path = objective.best().empty() ? result.initial_path : objective.pathLength(objective.best());
         result.rollouts = objective.rollouts();
         result.progress = objective.progress();
         result.seconds = secondsSince(start);
