@@ -14,18 +14,11 @@
 #include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "experiment_cli.hpp"
+#include "ros_processes.hpp"
 #include "summary_json.hpp"
 #include "tools/clock.hpp"
 
 #include <ros/ros.h>
-
-#include <arpa/inet.h>
-#include <fcntl.h>
-#include <netinet/in.h>
-#include <signal.h>
-#include <sys/socket.h>
-#include <sys/wait.h>
-#include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
@@ -46,79 +39,6 @@ namespace {
 const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
 using bimanual_skills::tools::Clock;
 using bimanual_skills::tools::secondsSince;
-
-/// True when something accepts TCP connections on localhost:port.
-bool listening(int port) {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  if (fd < 0) return false;
-  sockaddr_in address{};
-  address.sin_family = AF_INET;
-  address.sin_port = htons(static_cast<std::uint16_t>(port));
-  address.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  const bool ok = ::connect(fd, reinterpret_cast<sockaddr*>(&address), sizeof address) == 0;
-  ::close(fd);
-  return ok;
-}
-
-/// A child process (a ROS master, a rollout worker) with its output appended to `log`; stopped by the destructor.
-class Child {
- public:
-  Child(const std::vector<std::string>& argv, const std::string& log) {
-    pid_ = ::fork();
-    if (pid_ < 0) throw std::runtime_error("cannot fork");
-    if (pid_ == 0) {
-      const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_APPEND, 0644);
-      if (fd >= 0) {
-        ::dup2(fd, 1);
-        ::dup2(fd, 2);
-      }
-      std::vector<char*> args;
-      for (const std::string& a : argv) args.push_back(const_cast<char*>(a.c_str()));
-      args.push_back(nullptr);
-      ::execvp(args[0], args.data());
-      std::_Exit(127);
-    }
-  }
-  ~Child() {
-    if (pid_ <= 0) return;
-    ::kill(pid_, SIGINT);
-    for (int i = 0; i < 50; ++i) {
-      if (::waitpid(pid_, nullptr, WNOHANG) == pid_) return;
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    }
-    ::kill(pid_, SIGKILL);
-    ::waitpid(pid_, nullptr, 0);
-  }
-  Child(const Child&) = delete;
-  Child& operator=(const Child&) = delete;
-
- private:
-  pid_t pid_ = -1;
-};
-
-/// A ROS master for the benchmark: the one at ROS_MASTER_URI if it answers, else a new one on a free port.
-std::unique_ptr<Child> ensureMaster(const std::string& log) {
-  const char* uri = std::getenv("ROS_MASTER_URI");
-  int port = 11311;
-  if (uri != nullptr) {
-    const std::string text = uri;
-    const std::size_t colon = text.rfind(':');
-    if (colon != std::string::npos) port = std::atoi(text.c_str() + colon + 1);
-  }
-  if (listening(port)) return nullptr;
-  // A master of its own, on the loopback interface unless ROS_IP or ROS_HOSTNAME says otherwise.
-  if (std::getenv("ROS_IP") == nullptr && std::getenv("ROS_HOSTNAME") == nullptr)
-    ::setenv("ROS_HOSTNAME", "localhost", 1);
-  port = 11711 + static_cast<int>(::getpid() % 1000);
-  while (listening(port)) ++port;
-  ::setenv("ROS_MASTER_URI", ("http://localhost:" + std::to_string(port)).c_str(), 1);
-  auto master =
-      std::make_unique<Child>(std::vector<std::string>{"rosmaster", "--core", "-p", std::to_string(port)}, log);
-  for (int i = 0; i < 100 && !listening(port); ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
-  if (!listening(port)) throw std::runtime_error("no ROS master answers and rosmaster did not start (see " + log + ")");
-  std::printf("rollout_benchmark: started a ROS master on port %d\n", port);
-  return master;
-}
 
 struct Batch {
   std::string task, config;
@@ -163,7 +83,7 @@ class WorkerSet {
       const std::string binary = (std::filesystem::read_symlink("/proc/self/exe").parent_path() / "rollout_worker");
       space = "/rollout_benchmark_" + std::to_string(::getpid()) + "_" + std::to_string(++sets_);
       for (int i = 0; i < workers; ++i) {
-        children_.push_back(std::make_unique<Child>(
+        children_.push_back(std::make_unique<bs::bench::Child>(
             std::vector<std::string>{binary, "__name:=worker_" + std::to_string(i), "__ns:=" + space}, log));
       }
     }
@@ -210,7 +130,7 @@ class WorkerSet {
  private:
   static inline int sets_ = 0;
   int count_ = 0;
-  std::vector<std::unique_ptr<Child>> children_;
+  std::vector<std::unique_ptr<bs::bench::Child>> children_;
   std::unique_ptr<br::Dispatcher> dispatcher_;
 };
 
@@ -268,7 +188,7 @@ int main(int argc, char** argv) {
     const int n = rollouts > 0 ? static_cast<int>(rollouts) : (options.quick ? 4 : 16);
     std::filesystem::create_directories(options.out);
     const std::string log = options.out + "/ros.log";
-    const std::unique_ptr<Child> master = ensureMaster(log);
+    const std::unique_ptr<bs::bench::Child> master = bs::bench::ensureMaster(log, "rollout_benchmark");
     int ros_argc = 1;
     ros::init(ros_argc, argv, "rollout_benchmark",
               ros::init_options::AnonymousName | ros::init_options::NoSigintHandler);

@@ -3,6 +3,7 @@
 // robot_state_publisher derives from the same robot_description. Exits (0 on agreement) unless ~hold is true.
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 
+#include "bimanual_skills/ros_layer/parameters.hpp"
 #include "node_cli.hpp"
 
 #include <ros/ros.h>
@@ -85,13 +86,12 @@ bool readNumberList(const ros::NodeHandle& node, const std::string& name, std::v
 }
 
 /// Loads the arms named in ~arms from robot_description; throws std::invalid_argument with a clear message.
-std::vector<Arm> loadArms(const ros::NodeHandle& node, const std::string& world, const std::string& tip) {
+std::vector<Arm> loadArms(const ros::NodeHandle& node, const std::vector<std::string>& names, const std::string& world,
+                          const std::string& tip) {
   std::string description;
   if (!ros::param::get("robot_description", description)) {
     throw std::invalid_argument("parameter 'robot_description' is not set");
   }
-  std::vector<std::string> names;
-  node.param("arms", names, std::vector<std::string>{"left", "right"});
   std::vector<Arm> arms;
   for (const std::string& name : names) {
     Arm arm;
@@ -144,15 +144,21 @@ int main(int argc, char** argv) {
   bimanual_skills::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "bimanual_fk_demo");
   ros::NodeHandle node("~");
-  const std::string world = node.param<std::string>("world_frame", "world");
-  const std::string tip = node.param<std::string>("tip_link", "wam_tool");
-  const double rate_hz = node.param("publish_rate", 50.0);
-  const double tf_timeout = node.param("tf_timeout", 5.0);
-  const bool hold = node.param("hold", false);
-
+  std::string world, tip;
+  double rate_hz = 50.0, tf_timeout = 5.0;
+  bool hold = false;
   std::vector<Arm> arms;
   try {
-    arms = loadArms(node, world, tip);
+    bimanual_skills::ros_layer::ParameterReader p(node, "bimanual_fk_demo");
+    world = p.text("world_frame", "world");
+    tip = p.text("tip_link", "wam_tool");
+    rate_hz = p.number("publish_rate", 50.0, 0.1, 1000.0);
+    tf_timeout = p.number("tf_timeout", 5.0, 0.0, 600.0);
+    hold = p.boolean("hold", false);
+    const std::vector<std::string> names = p.texts("arms", {"left", "right"});
+    for (const std::string& name : names) p.accept("q_" + name);  // read by loadArms
+    p.warnUnknown();
+    arms = loadArms(node, names, world, tip);
   } catch (const std::invalid_argument& e) {
     ROS_FATAL("bimanual_fk_demo: %s", e.what());
     return 2;

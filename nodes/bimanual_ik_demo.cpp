@@ -3,6 +3,7 @@
 // Exits 0 when every arm was solved and reached its target within 1e-4 (m and rad), unless ~hold is true.
 #include "bimanual_skills/SolveIk.h"
 
+#include "bimanual_skills/ros_layer/parameters.hpp"
 #include "node_cli.hpp"
 
 #include <ros/ros.h>
@@ -71,14 +72,25 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "bimanual_ik_demo");
   ros::NodeHandle node("~");
   ros::NodeHandle root;
-  const std::string world = node.param<std::string>("world_frame", "world");
-  const std::string method = node.param<std::string>("method", "");  // empty: the server's default
-  const double timeout = node.param("timeout", 0.05);
-  const double tf_timeout = node.param("tf_timeout", 5.0);
-  const double rate_hz = node.param("publish_rate", 50.0);
-  const bool hold = node.param("hold", false);
+  std::string world, method;
+  double timeout = 0.05, tf_timeout = 5.0, rate_hz = 50.0;
+  bool hold = false;
   std::vector<std::string> names;
-  node.param("arms", names, std::vector<std::string>{"left", "right"});
+  try {
+    bimanual_skills::ros_layer::ParameterReader p(node, "bimanual_ik_demo");
+    world = p.text("world_frame", "world");
+    method = p.text("method", "");  // empty: the server's default
+    timeout = p.number("timeout", 0.05, 0.0, 60.0);
+    tf_timeout = p.number("tf_timeout", 5.0, 0.0, 600.0);
+    rate_hz = p.number("publish_rate", 50.0, 0.1, 1000.0);
+    hold = p.boolean("hold", false);
+    names = p.texts("arms", {"left", "right"});
+    for (const std::string& name : names) p.accept("target_" + name);  // read below
+    p.warnUnknown();
+  } catch (const std::invalid_argument& e) {
+    ROS_FATAL("bimanual_ik_demo: %s", e.what());
+    return 2;
+  }
 
   std::vector<Arm> arms;
   for (const std::string& name : names) {

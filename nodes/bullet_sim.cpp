@@ -1,14 +1,24 @@
-// bullet_sim: the Bullet simulation of the bimanual WAM (sim::BimanualSimulation) as a ROS node. A thin shell: it
-// moves joint states, torque commands, the cloth and service requests between ROS and the library.
+// bullet_sim: the Bullet simulation of the bimanual WAM (sim::BimanualSimulation) as a ROS node, hosting the arms'
+// controllers the way a robot's driver hosts them. The loop thread owns the simulation: each cycle it reads the
+// joint states, runs each hosted controller (control::RealtimeArmController), writes the torques and steps the
+// physics, paced on the wall clock; services, topics and the controllers' ROS interfaces run on other threads and
+// reach the loop only through lock-free handoffs and a request mailbox the loop polls without waiting.
 #include "bimanual_skills/ApplyWrench.h"
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/SetPayload.h"
 #include "bimanual_skills/SimStep.h"
+#include "bimanual_skills/realtime/loop_pacer.hpp"
+#include "bimanual_skills/realtime/period_recorder.hpp"
+#include "bimanual_skills/realtime/triple_buffer.hpp"
+#include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
+#include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/sim/torque_command_gate.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
+#include "testing/allocation_counter.hpp"
 
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <ros/callback_queue.h>
 #include <ros/package.h>
 #include <ros/ros.h>
@@ -19,312 +29,660 @@
 #include <std_srvs/Trigger.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <semaphore.h>
+
+#include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <deque>
+#include <fstream>
+#include <functional>
+#include <future>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <random>
+#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
 
 namespace bs = bimanual_skills;
 namespace sim = bimanual_skills::sim;
+namespace rt = bimanual_skills::realtime;
 
 namespace {
 
-const char* const kUsage =
-    "usage: rosrun bimanual_skills bullet_sim [_config:=FILE] [_lockstep:=true|false] [ROS remappings]\n"
-    "\n"
-    "The Bullet simulation of the bimanual WAM (two arms with their true plant, table, cloth) as a ROS node.\n"
-    "Simulated time is published on /clock (set /use_sim_time true for the other nodes).\n"
-    "\n"
-    "Parameters (private, defaults in config/bullet_sim.yaml):\n"
-    "  ~config             simulation file (default: the package's config/sim.yaml)\n"
-    "  ~lockstep           true: each physics step waits for one command of every expected controller, so a run\n"
-    "                      is repeatable bit for bit; false: free-running at ~realtime_factor\n"
-    "  ~controllers        arms whose commands a lockstep step waits for (default: all)\n"
-    "  ~lockstep_timeout   wall seconds a lockstep step waits before braking the missing arms (default 0.2)\n"
-    "  ~realtime_factor    free-running speed, simulated s per wall s (default 1; 0: as fast as possible)\n"
-    "  ~command_timeout    simulated s after which a command is stale: zero torque plus braking (default 0.05)\n"
-    "  ~braking_damping    N m s/rad per joint applied when commands are stale\n"
-    "  ~initial_positions  map arm -> joint positions at start and after ~reset\n"
-    "  ~marker_rate        cloth and table marker rate [Hz of simulated time] (default 30)\n"
-    "  ~paused             start paused (default false)\n"
-    "\n"
-    "Topics: publishes /joint_states (sensor_msgs/JointState, every step), /clock, ~markers\n"
-    "  (visualization_msgs/MarkerArray: cloth TRIANGLE_LIST and table); subscribes <arm>/effort_command\n"
-    "  (std_msgs/Float64MultiArray, one torque per joint [N m]).\n"
-    "Services: ~reset (std_srvs/Trigger), ~pause (std_srvs/SetBool), ~step (bimanual_skills/SimStep),\n"
-    "  ~set_payload (bimanual_skills/SetPayload), ~apply_wrench (bimanual_skills/ApplyWrench),\n"
-    "  ~grasp (bimanual_skills/ClothGrasp).\n";
+const std::string kUsage = std::string(
+                               "usage: rosrun bimanual_skills bullet_sim [_param:=value ...] [ROS remappings]\n"
+                               "\n"
+                               "The Bullet simulation of the bimanual WAM (two arms with their true plant, table, "
+                               "cloth) as a ROS node that hosts\n"
+                               "the arms' computed-torque controllers in its real-time loop, as a robot's driver "
+                               "would. Simulated time is\n"
+                               "published on /clock (set /use_sim_time true for the other nodes).\n"
+                               "\n"
+                               "Parameters (private, defaults in config/bullet_sim.yaml):\n"
+                               "  ~config               simulation file (default: the package's config/sim.yaml)\n"
+                               "  ~hosted_controllers   arms whose controller runs in this node's loop (default: "
+                               "all); each reads its\n"
+                               "                        parameters from ARM/ctc_controller/ (see below)\n"
+                               "  ~external_controllers arms commanded on ARM/effort_command by a separate "
+                               "controller (ctc_controller);\n"
+                               "                        lockstep waits for them (default: none)\n"
+                               "  ~lockstep             true: each step waits for one command of every external "
+                               "controller, so a run is\n"
+                               "                        repeatable bit for bit; false: free-running at "
+                               "~realtime_factor\n"
+                               "  ~lockstep_timeout     wall seconds a lockstep step waits before braking the "
+                               "missing arms (default 0.2)\n"
+                               "  ~realtime_factor      free-running speed, simulated s per wall s (default 1; 0: as "
+                               "fast as possible)\n"
+                               "  ~max_drift            wall seconds the loop may fall behind or run ahead before "
+                               "its schedule restarts (0.05)\n"
+                               "  ~loop_priority        SCHED_FIFO priority of the loop thread, 1-99 (0: "
+                               "unchanged, the default)\n"
+                               "  ~max_step_duration    most simulated seconds one ~step call may ask for (default "
+                               "60)\n"
+                               "  ~max_payload          heaviest ~set_payload [kg] (default 4, the WAM's rated "
+                               "payload)\n"
+                               "  ~max_force, ~max_torque  largest ~apply_wrench [N, N m] (default 200, 50)\n"
+                               "  ~command_timeout      simulated s after which an external command is stale: zero "
+                               "torque plus braking (0.05)\n"
+                               "  ~braking_damping      N m s/rad per joint applied when external commands are "
+                               "stale\n"
+                               "  ~initial_positions    map arm -> joint positions at start and after ~reset\n"
+                               "  ~marker_rate          cloth and table marker rate [Hz of simulated time] (default "
+                               "30)\n"
+                               "  ~paused               start paused (default false)\n"
+                               "  ~statistics_file      at exit, write the loop's periods and the times its "
+                               "controllers took commands (CSV)\n"
+                               "\n"
+                               "Hosted controller parameters (ARM/ctc_controller/...):\n") +
+                           bs::ros_layer::kControllerParameterHelp +
+                           "\n"
+                           "Topics: publishes joint_states (sensor_msgs/JointState, every step; effort: the applied "
+                           "torque), /clock,\n"
+                           "  ~markers (cloth TRIANGLE_LIST and table), /diagnostics (loop period, real-time factor, "
+                           "allocations per cycle);\n"
+                           "  subscribes ARM/effort_command (std_msgs/Float64MultiArray) for external controllers.\n"
+                           "  Each hosted controller serves ARM/command (trajectory_msgs/JointTrajectory), "
+                           "ARM/follow_joint_trajectory\n"
+                           "  (bimanual_skills/FollowJointTrajectory action), ARM/set_mode and publishes ARM/state, "
+                           "ARM/estimated_wrench,\n"
+                           "  ARM/tool_paths.\n"
+                           "Services: ~reset (std_srvs/Trigger), ~pause (std_srvs/SetBool), ~step "
+                           "(bimanual_skills/SimStep, bounded),\n"
+                           "  ~set_payload, ~apply_wrench (bounded), ~grasp (bimanual_skills/ClothGrasp: fails when "
+                           "no cloth node is in reach).\n";
 
-/// One arm as the node sees it.
+/// Wall seconds a service waits for the loop to take a request (the loop polls between cycles).
+constexpr double kServiceWait = 5.0;
+
+double wallNow() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+/// A torque command of an external controller, handed from the subscriber thread to the loop.
+struct ExternalCommand {
+  Eigen::VectorXd torque;
+  bool well_formed = false;
+};
+
+/// One arm in the loop.
 struct Arm {
   std::string name;
   std::vector<std::string> joint_names;
-  std::unique_ptr<sim::TorqueCommandGate> gate;
-  ros::Subscriber command_subscriber;
+  int n = 0;
   sim::JointState state;
-  Eigen::VectorXd command, torque, initial;
-  bool expected = true;   ///< Lockstep waits for its commands.
-  int commands_seen = 0;  ///< Commands accepted since the last joint-state publication.
+  Eigen::VectorXd torque, initial;
+  std::unique_ptr<bs::ros_layer::ArmControllerInterface> controller;  ///< Hosted; null for an external one.
+  std::uint64_t commands_taken = 0;                                   ///< By the hosted controller (loop side).
+  // External controllers.
+  bool external = false;
+  std::unique_ptr<sim::TorqueCommandGate> gate;
+  std::unique_ptr<rt::TripleBuffer<ExternalCommand>> commands;
+  std::atomic<long> commands_received{0};
+  long commands_answered = 0;  ///< Loop side: commands_received when the state was last published.
   bool braking = false;
+  ros::Subscriber subscriber;
+};
+
+/// What the loop hands to the publisher thread after a cycle.
+struct Snapshot {
+  double time = 0.0;
+  Eigen::VectorXd position, velocity, effort;  ///< All arms, in joint-name order.
+  bool with_cloth = false;
+  Eigen::Matrix3Xd cloth;
+};
+
+/// A service request for the loop thread; the service thread waits for `done`.
+struct Request {
+  /// Runs on the loop thread; returns false when the loop finishes the request later (a ~step in progress).
+  std::function<bool(const std::shared_ptr<Request>&)> run;
+  std::promise<void> done;
+  bool success = false;
+  std::string message;
+  double time = 0.0;
+  int nodes = 0;
+  std::uint32_t steps = 0, stepped = 0;  ///< ~step: asked and done.
 };
 
 class BulletSimNode {
  public:
   BulletSimNode(ros::NodeHandle& node, ros::NodeHandle& private_node) : node_(node) {
-    std::string config_path;
-    private_node.param<std::string>("config", config_path,
-                                    ros::package::getPath("bimanual_skills") + "/config/sim.yaml");
+    bs::ros_layer::ParameterReader p(private_node, "bullet_sim");
+    const std::string config_path = p.text("config", ros::package::getPath("bimanual_skills") + "/config/sim.yaml");
     simulation_ = std::make_unique<sim::BimanualSimulation>(sim::SimConfig::fromYamlFile(config_path));
-    private_node.param("lockstep", lockstep_, false);
-    private_node.param("lockstep_timeout", lockstep_timeout_, 0.2);
-    private_node.param("realtime_factor", realtime_factor_, 1.0);
-    private_node.param("marker_rate", marker_rate_, 30.0);
-    private_node.param("paused", paused_, false);
-    double command_timeout = 0.05;
-    private_node.param("command_timeout", command_timeout, command_timeout);
-    std::vector<double> damping;
-    private_node.param("braking_damping", damping, std::vector<double>{});
-    std::vector<std::string> controllers;
-    const bool controllers_given = private_node.getParam("controllers", controllers);
-    if (lockstep_timeout_ <= 0.0 || realtime_factor_ < 0.0 || marker_rate_ <= 0.0) {
-      throw std::invalid_argument("lockstep_timeout and marker_rate must be > 0, realtime_factor >= 0");
+    lockstep_ = p.boolean("lockstep", false);
+    lockstep_timeout_ = p.number("lockstep_timeout", 0.2, 1e-3, 60.0);
+    realtime_factor_ = p.number("realtime_factor", 1.0, 0.0, 1000.0);
+    const double max_drift = p.number("max_drift", 0.05, 1e-3, 10.0);
+    loop_priority_ = p.integer("loop_priority", 0, 0, 99);
+    max_step_duration_ = p.number("max_step_duration", 60.0, simulation_->stepSize(), 86400.0);
+    max_payload_ = p.number("max_payload", 4.0, 0.0, 1000.0);
+    max_force_ = p.number("max_force", 200.0, 0.0, 1e5);
+    max_torque_ = p.number("max_torque", 50.0, 0.0, 1e5);
+    marker_rate_ = p.number("marker_rate", 30.0, 0.1, 1000.0);
+    paused_ = p.boolean("paused", false);
+    statistics_file_ = p.text("statistics_file", "");
+    const double command_timeout = p.number("command_timeout", 0.05, 1e-4, 10.0);
+    std::vector<std::string> all_arms;
+    for (int a = 0; a < simulation_->armCount(); ++a) all_arms.push_back(simulation_->config().arms[a].name);
+    const std::vector<std::string> external = p.texts("external_controllers", {});
+    std::vector<std::string> hosted_default;
+    for (const std::string& a : all_arms) {
+      if (std::find(external.begin(), external.end(), a) == external.end()) hosted_default.push_back(a);
     }
-    for (int a = 0; a < simulation_->armCount(); ++a) {
-      Arm arm;
-      arm.name = simulation_->config().arms[a].name;
-      const int n = simulation_->jointCount(a);
-      arm.joint_names = simulation_->armModel(a).jointNames();
-      if (damping.empty()) damping.assign(n, 10.0);
-      if (static_cast<int>(damping.size()) != n) {
-        throw std::invalid_argument("~braking_damping needs " + std::to_string(n) + " entries");
-      }
-      arm.gate = std::make_unique<sim::TorqueCommandGate>(n, command_timeout,
-                                                          Eigen::Map<const Eigen::VectorXd>(damping.data(), n));
-      arm.state = sim::JointState(n);
-      arm.command = arm.torque = Eigen::VectorXd::Zero(n);
-      std::vector<double> initial;
-      if (private_node.getParam("initial_positions/" + arm.name, initial)) {
-        if (static_cast<int>(initial.size()) != n) {
-          throw std::invalid_argument("~initial_positions/" + arm.name + " needs " + std::to_string(n) + " entries");
+    const std::vector<std::string> hosted = p.texts("hosted_controllers", hosted_default);
+    for (const std::vector<std::string>* list : {&external, &hosted}) {
+      for (const std::string& name : *list) {
+        if (simulation_->armIndex(name) < 0) {
+          throw std::invalid_argument("~hosted_controllers and ~external_controllers name an unknown arm '" + name +
+                                      "'");
         }
-        arm.initial = Eigen::Map<const Eigen::VectorXd>(initial.data(), n);
-      } else {
-        arm.initial = simulation_->trueState(a).q;
       }
-      arm.expected =
-          !controllers_given || std::find(controllers.begin(), controllers.end(), arm.name) != controllers.end();
-      arms_.push_back(std::move(arm));
     }
-    for (const std::string& c : controllers) {
-      if (simulation_->armIndex(c) < 0) throw std::invalid_argument("~controllers names an unknown arm '" + c + "'");
+    pacer_ = std::make_unique<rt::LoopPacer>(
+        simulation_->stepSize() / (realtime_factor_ > 0.0 ? realtime_factor_ : 1.0), max_drift);
+    std::string description;
+    std::string description_key;
+    if (!node.searchParam("robot_description", description_key) || !node.getParam(description_key, description)) {
+      std::ifstream urdf(simulation_->config().urdf_path);
+      description.assign(std::istreambuf_iterator<char>(urdf), std::istreambuf_iterator<char>());
     }
+    const std::size_t arms = all_arms.size();
+    arms_.reserve(arms);
+    int total = 0;
+    for (std::size_t a = 0; a < arms; ++a) {
+      arms_.push_back(std::make_unique<Arm>());
+      Arm& arm = *arms_.back();
+      arm.name = all_arms[a];
+      arm.n = simulation_->jointCount(static_cast<int>(a));
+      arm.joint_names = simulation_->armModel(static_cast<int>(a)).jointNames();
+      arm.state = sim::JointState(arm.n);
+      arm.torque = Eigen::VectorXd::Zero(arm.n);
+      arm.initial = simulation_->trueState(static_cast<int>(a)).q;
+      const auto n = static_cast<std::size_t>(arm.n);
+      if (p.has("initial_positions/" + arm.name)) {
+        const auto q = p.numbers("initial_positions/" + arm.name, {}, n);
+        arm.initial = Eigen::Map<const Eigen::VectorXd>(q.data(), arm.n);
+      }
+      const std::vector<double> damping = p.numbers("braking_damping", std::vector<double>(n, 10.0), n, 0.0, 1e4);
+      arm.gate = std::make_unique<sim::TorqueCommandGate>(arm.n, command_timeout,
+                                                          Eigen::Map<const Eigen::VectorXd>(damping.data(), arm.n));
+      ExternalCommand initial;
+      initial.torque = Eigen::VectorXd::Zero(arm.n);
+      arm.commands = std::make_unique<rt::TripleBuffer<ExternalCommand>>(initial);
+      arm.external = std::find(external.begin(), external.end(), arm.name) != external.end();
+      if (std::find(hosted.begin(), hosted.end(), arm.name) != hosted.end()) {
+        if (arm.external) throw std::invalid_argument("arm '" + arm.name + "' is both hosted and external");
+        ros::NodeHandle arm_node(node, arm.name);
+        bs::ros_layer::ParameterReader parameters(ros::NodeHandle(arm_node, "ctc_controller"),
+                                                  "bullet_sim: " + arm.name + " controller");
+        arm.controller = std::make_unique<bs::ros_layer::ArmControllerInterface>(
+            arm_node, parameters, arm.name, description, "bullet_sim: " + arm.name + " controller");
+        parameters.warnUnknown();
+        if (arm.controller->jointNames() != arm.joint_names) {
+          throw std::invalid_argument("the controller of '" + arm.name +
+                                      "' does not drive the simulated arm's joints (check base_link and tip_link)");
+        }
+        const double rate = arm.controller->settings().config.observer.rate_hz;
+        if (std::abs(rate * simulation_->stepSize() - 1.0) > 0.2) {
+          ROS_WARN(
+              "bullet_sim: %s: the observer's rate (%.0f Hz, %s) differs from the simulation's (%.0f Hz); it "
+              "integrates the measured step, but its FIR cut-off was designed for %.0f Hz",
+              arm.name.c_str(), rate, ros::NodeHandle(arm_node, "ctc_controller").resolveName("observer/rate").c_str(),
+              1.0 / simulation_->stepSize(), rate);
+        }
+      }
+      total += arm.n;
+    }
+    p.warnUnknown();
     resetSimulation();
 
-    // Commands have their own queue: a lockstep step waits on it alone, so services can run steps.
-    for (int a = 0; a < static_cast<int>(arms_.size()); ++a) {
+    Snapshot initial_snapshot;
+    initial_snapshot.position = initial_snapshot.velocity = initial_snapshot.effort = Eigen::VectorXd::Zero(total);
+    if (simulation_->hasCloth()) {
+      initial_snapshot.cloth = simulation_->cloth().vertices();
+      cloth_triangles_ = simulation_->cloth().triangles();
+    }
+    snapshots_ = std::make_unique<rt::TripleBuffer<Snapshot>>(initial_snapshot);
+    for (const auto& arm : arms_) names_.insert(names_.end(), arm->joint_names.begin(), arm->joint_names.end());
+    sem_init(&publish_signal_, 0, 0);
+
+    // External commands arrive on a queue and thread of their own and reach the loop through a triple buffer.
+    for (std::size_t a = 0; a < arms_.size(); ++a) {
+      Arm& arm = *arms_[a];
+      if (arm.controller) continue;
       ros::SubscribeOptions options = ros::SubscribeOptions::create<std_msgs::Float64MultiArray>(
-          arms_[a].name + "/effort_command", 10,
-          [this, a](const std_msgs::Float64MultiArray::ConstPtr& message) { onCommand(a, *message); }, ros::VoidPtr(),
-          &command_queue_);
+          arm.name + "/effort_command", 10,
+          [this, &arm](const std_msgs::Float64MultiArray::ConstPtr& message) { onCommand(arm, *message); },
+          ros::VoidPtr(), &command_queue_);
       options.transport_hints = ros::TransportHints().tcpNoDelay();
-      arms_[a].command_subscriber = node_.subscribe(options);
+      arm.subscriber = node_.subscribe(options);
     }
     joint_state_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10);
     clock_publisher_ = node_.advertise<rosgraph_msgs::Clock>("/clock", 10);
     marker_publisher_ = private_node.advertise<visualization_msgs::MarkerArray>("markers", 1, true);
+    diagnostics_publisher_ = node_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     services_.push_back(private_node.advertiseService("reset", &BulletSimNode::onReset, this));
     services_.push_back(private_node.advertiseService("pause", &BulletSimNode::onPause, this));
     services_.push_back(private_node.advertiseService("step", &BulletSimNode::onStep, this));
     services_.push_back(private_node.advertiseService("set_payload", &BulletSimNode::onSetPayload, this));
     services_.push_back(private_node.advertiseService("apply_wrench", &BulletSimNode::onApplyWrench, this));
     services_.push_back(private_node.advertiseService("grasp", &BulletSimNode::onGrasp, this));
-    ROS_INFO("bullet_sim: %d arms, step %.4f s, cloth %s, %s%s", simulation_->armCount(), simulation_->stepSize(),
-             simulation_->hasCloth() ? "on" : "off", lockstep_ ? "lockstep" : "free-running",
-             paused_ ? ", paused" : "");
+    diagnostics_timer_ = node_.createSteadyTimer(ros::WallDuration(1.0), &BulletSimNode::onDiagnostics, this);
+    std::string hosted_list, external_list;
+    for (const auto& arm : arms_) (arm->controller ? hosted_list : external_list) += " " + arm->name;
+    ROS_INFO("bullet_sim: %zu arms, step %.4f s, cloth %s, %s%s; hosted controllers:%s; external:%s", arms_.size(),
+             simulation_->stepSize(), simulation_->hasCloth() ? "on" : "off", lockstep_ ? "lockstep" : "free-running",
+             paused_ ? ", paused" : "", hosted_list.empty() ? " none" : hosted_list.c_str(),
+             external_list.empty() ? " none" : external_list.c_str());
   }
 
+  ~BulletSimNode() { sem_destroy(&publish_signal_); }
+
+  /// Runs the loop on the calling thread until shutdown; services and topics on other threads.
   void run() {
-    const auto wall_start = std::chrono::steady_clock::now();
-    const double sim_start = simulation_->time();
-    publishClock();
-    publishMarkers();
+    ros::AsyncSpinner services(3);  // services, the controllers' topics, actions and timers, diagnostics
+    ros::AsyncSpinner commands(1, &command_queue_);
+    services.start();
+    commands.start();
+    std::thread publisher([this] { publishLoop(); });
+    if (loop_priority_ > 0) {
+      const char* error = rt::requestRealtimeScheduling(loop_priority_);
+      if (*error == '\0') {
+        ROS_INFO("bullet_sim: loop thread at SCHED_FIFO priority %d", loop_priority_);
+      } else {
+        ROS_WARN("bullet_sim: ~loop_priority %d not granted (%s); the loop runs at normal priority", loop_priority_,
+                 error);
+      }
+    }
+    publishState(true);
+    loop();
+    running_ = false;
+    sem_post(&publish_signal_);
+    publisher.join();
+    for (auto& request : takeRequests()) finish(*request, "the simulation is shutting down");
+    interruptStepping("the simulation is shutting down");
+    if (!statistics_file_.empty()) writeStatistics();
+  }
+
+ private:
+  // ---------------------------------------------------------------- the loop thread
+  void loop() {
+    bool consecutive = false;  ///< The previous cycle was paced and not interrupted: its period counts.
+    double last_start = 0.0;
     while (ros::ok()) {
-      ros::getGlobalCallbackQueue()->callAvailable();
-      if (paused_ || diverged_) {
-        command_queue_.callAvailable(ros::WallDuration(0.01));
+      for (auto& request : takeRequests()) {
+        if (request->run(request)) request->done.set_value();
+      }
+      const bool stepping = stepping_ != nullptr;
+      if (diverged_ || (paused_ && !stepping)) {
+        if (diverged_ && wallNow() > next_diverged_publish_) {
+          next_diverged_publish_ = wallNow() + 0.1;
+          publishState(false);  // the last valid states keep coming, stamp frozen; /diagnostics says why
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
+        pacer_->reanchor();
+        consecutive = false;
         continue;
       }
-      stepOnce();
-      if (realtime_factor_ > 0.0) {
-        const double ahead = (simulation_->time() - sim_start) / realtime_factor_ -
-                             std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
-        if (ahead > 0.002) std::this_thread::sleep_for(std::chrono::duration<double>(ahead));
+      const bool paced = !stepping && realtime_factor_ > 0.0 && !lockstep_;
+      if (paced && !pacer_->waitUntilDue(0.005)) continue;  // short slices: requests are served meanwhile
+      const double start = wallNow();
+      if (paced && consecutive) periods_.record(start - last_start);
+      last_start = start;
+      cycle();
+      cycle_times_.record(wallNow() - start);
+      if (paced) {
+        const long slips = pacer_->slips();
+        pacer_->advance();
+        consecutive = pacer_->slips() == slips;
+      } else {
+        pacer_->reanchor();
+        consecutive = false;
+      }
+      if (stepping_ && (++stepping_->stepped == stepping_->steps || diverged_)) {
+        stepping_->success = !diverged_;
+        stepping_->message = "stepped " + std::to_string(stepping_->stepped) + " of " +
+                             std::to_string(stepping_->steps) + (diverged_ ? ": the simulation diverged" : "");
+        stepping_->time = simulation_->time();
+        stepping_->done.set_value();
+        stepping_.reset();
+        pacer_->reanchor();
       }
     }
   }
 
- private:
+  /// One cycle: read, publish, (lockstep: wait), control, write, step. The control part is allocation-free (counted
+  /// apart from the physics step, in which Bullet's soft body allocates).
+  void cycle() {
+    std::optional<bs::testing::AllocationCounter> allocations(std::in_place);
+    const double t = simulation_->time();
+    for (std::size_t a = 0; a < arms_.size(); ++a) {
+      Arm& arm = *arms_[a];
+      simulation_->readJointState(static_cast<int>(a), arm.state);
+      arm.commands_answered = arm.commands_received.load(std::memory_order_acquire);
+    }
+    publishState(false);
+    if (lockstep_) waitForExternalCommands();
+    for (std::size_t a = 0; a < arms_.size(); ++a) {
+      Arm& arm = *arms_[a];
+      if (arm.controller) {
+        const auto status = arm.controller->realtime().update(t, t, arm.state.position, arm.state.velocity,
+                                                              arm.state.effort, arm.torque);
+        if (status == bs::control::ControllerStatus::InvalidState ||
+            status == bs::control::ControllerStatus::StaleState) {
+          arm.torque.setZero();
+        }
+        if (arm.controller->realtime().commandsTaken() != arm.commands_taken) {
+          arm.commands_taken = arm.controller->realtime().commandsTaken();
+          command_times_.record(arm.controller->realtime().lastCommandTaken());
+        }
+      } else {
+        if (const ExternalCommand* command = arm.commands->readNew()) {
+          if (command->well_formed) {
+            if (arm.gate->accept(t, command->torque) != sim::RobotStatus::Ok) ++rejected_commands_;
+          } else {
+            ++rejected_commands_;
+          }
+        }
+        arm.braking = arm.gate->torque(t, arm.state.velocity, arm.torque);
+      }
+      simulation_->writeJointTorques(static_cast<int>(a), arm.torque);
+    }
+    const std::size_t control_allocations = allocations->allocations();
+    allocations.reset();
+    allocations.emplace();
+    const sim::SimStatus status = simulation_->step();
+    time_.store(simulation_->time(), std::memory_order_relaxed);
+    if (status == sim::SimStatus::ArmDiverged) {
+      divergence_time_ = simulation_->time();
+      diverged_ = true;
+    }
+    cloth_diverged_ = status == sim::SimStatus::ClothDiverged;
+    if (cloth_diverged_) cloth_divergence_.store(static_cast<int>(simulation_->cloth().divergence()));
+    const std::size_t physics_allocations = allocations->allocations();
+    if (control_allocations > 0) {
+      control_allocation_cycles_.fetch_add(1, std::memory_order_relaxed);
+      control_allocations_.fetch_add(static_cast<long>(control_allocations), std::memory_order_relaxed);
+    }
+    if (physics_allocations > 0) physics_allocation_cycles_.fetch_add(1, std::memory_order_relaxed);
+    cycles_.fetch_add(1, std::memory_order_relaxed);
+  }
+
+  /// Lockstep: waits (wall clock, bounded) until every external controller answered the published state.
+  void waitForExternalCommands() {
+    const double deadline = wallNow() + lockstep_timeout_;
+    for (;;) {
+      bool all = true;
+      for (const auto& arm : arms_) {
+        all =
+            all && (!arm->external || arm->commands_received.load(std::memory_order_acquire) > arm->commands_answered);
+      }
+      if (all || !ros::ok() || wallNow() > deadline) {
+        if (!all) ++lockstep_timeouts_;
+        return;
+      }
+      std::this_thread::sleep_for(std::chrono::microseconds(50));
+    }
+  }
+
+  /// Hands the joint states (and at marker_rate the cloth) to the publisher thread.
+  void publishState(bool force_cloth) {
+    Snapshot& s = snapshots_->writeSlot();
+    s.time = diverged_ ? divergence_time_ : simulation_->time();
+    if (!diverged_) {
+      Eigen::Index offset = 0;
+      for (const auto& arm : arms_) {
+        s.position.segment(offset, arm->n) = arm->state.position;
+        s.velocity.segment(offset, arm->n) = arm->state.velocity;
+        s.effort.segment(offset, arm->n) = arm->state.effort;
+        offset += arm->n;
+      }
+    }
+    s.with_cloth = simulation_->hasCloth() && (force_cloth || simulation_->time() >= next_marker_time_);
+    if (s.with_cloth) {
+      s.cloth = simulation_->cloth().vertices();
+      next_marker_time_ = simulation_->time() + 1.0 / marker_rate_;
+    }
+    snapshots_->publish();
+    sem_post(&publish_signal_);
+  }
+
   void resetSimulation() {
     std::vector<sim::ArmState> state;
-    for (const Arm& arm : arms_) state.push_back({arm.initial, Eigen::VectorXd::Zero(arm.initial.size())});
+    for (const auto& arm : arms_) state.push_back({arm->initial, Eigen::VectorXd::Zero(arm->initial.size())});
     const sim::SimStatus status = simulation_->reset(state);
     simulation_->setRandomGenerator(std::mt19937(simulation_->config().seed));
     if (status != sim::SimStatus::Ok) {
       throw std::invalid_argument(std::string("initial positions rejected: ") + sim::toString(status));
     }
-    for (Arm& arm : arms_) arm.gate->clear();
+    for (std::size_t a = 0; a < arms_.size(); ++a) {
+      arms_[a]->gate->clear();
+      simulation_->readJointState(static_cast<int>(a), arms_[a]->state);
+    }
     diverged_ = false;
+    cloth_diverged_ = false;
     next_marker_time_ = 0.0;
+    time_.store(0.0);
+    pacer_->reanchor();
   }
 
-  void onCommand(int a, const std_msgs::Float64MultiArray& message) {
-    Arm& arm = arms_[a];
-    if (static_cast<int>(message.data.size()) != arm.command.size()) {
-      ROS_WARN_THROTTLE(1.0, "bullet_sim: %s/effort_command rejected: %zu values for %d joints", arm.name.c_str(),
-                        message.data.size(), static_cast<int>(arm.command.size()));
-      ++arm.commands_seen;  // answered, though wrongly: a lockstep step need not wait for it
-      return;
-    }
-    arm.command = Eigen::Map<const Eigen::VectorXd>(message.data.data(), arm.command.size());
-    if (arm.gate->accept(simulation_->time(), arm.command) != sim::RobotStatus::Ok) {
-      ROS_WARN_THROTTLE(1.0, "bullet_sim: %s/effort_command rejected: not finite (NaN or Inf)", arm.name.c_str());
-    }
-    ++arm.commands_seen;
+  /// The loop's periods [s], the times [monotonic s] its controllers took commands, and its allocation counts.
+  void writeStatistics() const {
+    std::ofstream out(statistics_file_);
+    out << "series,value\n";
+    periods_.writeCsv(out, "period");
+    cycle_times_.writeCsv(out, "cycle_time");
+    command_times_.writeCsv(out, "command_taken");
+    out << "cycles," << cycles_.load() << "\ncontrol_allocations," << control_allocations_.load()
+        << "\ncontrol_cycles_that_allocated," << control_allocation_cycles_.load() << "\nphysics_steps_that_allocated,"
+        << physics_allocation_cycles_.load() << '\n';
+    if (!out) ROS_ERROR("bullet_sim: cannot write %s", statistics_file_.c_str());
   }
 
-  void publishJointStates() {
-    sensor_msgs::JointState message;
-    message.header.stamp = ros::Time(simulation_->time());
-    for (int a = 0; a < static_cast<int>(arms_.size()); ++a) {
-      Arm& arm = arms_[a];
-      simulation_->readJointState(a, arm.state);
-      message.name.insert(message.name.end(), arm.joint_names.begin(), arm.joint_names.end());
-      message.position.insert(message.position.end(), arm.state.position.data(),
-                              arm.state.position.data() + arm.state.position.size());
-      message.velocity.insert(message.velocity.end(), arm.state.velocity.data(),
-                              arm.state.velocity.data() + arm.state.velocity.size());
-      message.effort.insert(message.effort.end(), arm.state.effort.data(),
-                            arm.state.effort.data() + arm.state.effort.size());
-      arm.commands_seen = 0;
-    }
-    joint_state_publisher_.publish(message);
-  }
-
-  void publishClock() {
-    rosgraph_msgs::Clock clock;
-    clock.clock = ros::Time(simulation_->time());
-    clock_publisher_.publish(clock);
-  }
-
-  /// Waits (wall clock) until every expected arm answered the last joint states; false on timeout.
-  bool waitForCommands() {
-    const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(lockstep_timeout_);
-    for (;;) {
-      bool all = true;
-      for (const Arm& arm : arms_) all = all && (!arm.expected || arm.commands_seen > 0);
-      if (all) return true;
-      if (!ros::ok() || std::chrono::steady_clock::now() > deadline) return false;
-      command_queue_.callAvailable(ros::WallDuration(0.001));
-    }
-  }
-
-  bool stepOnce() {
-    publishJointStates();
-    if (lockstep_) {
-      if (!waitForCommands()) {
-        std::string missing;
-        for (const Arm& arm : arms_) {
-          if (arm.expected && arm.commands_seen == 0) missing += " " + arm.name;
-        }
-        ROS_WARN_THROTTLE(2.0, "bullet_sim: lockstep: no command within %.2f s from:%s (those arms brake)",
-                          lockstep_timeout_, missing.c_str());
-      }
+  // ---------------------------------------------------------------- other threads
+  void onCommand(Arm& arm, const std_msgs::Float64MultiArray& message) {
+    ExternalCommand& command = arm.commands->writeSlot();
+    command.well_formed = static_cast<int>(message.data.size()) == arm.n;
+    if (command.well_formed) {
+      command.torque = Eigen::Map<const Eigen::VectorXd>(message.data.data(), arm.n);
     } else {
-      command_queue_.callAvailable();
+      ROS_WARN_THROTTLE(1.0, "bullet_sim: %s/effort_command rejected: %zu values for %d joints", arm.name.c_str(),
+                        message.data.size(), arm.n);
     }
-    for (int a = 0; a < static_cast<int>(arms_.size()); ++a) {
-      Arm& arm = arms_[a];
-      const bool braking = arm.gate->torque(simulation_->time(), arm.state.velocity, arm.torque);
-      if (braking != arm.braking && arm.gate->hasCommand()) {
-        if (braking) {
-          ROS_WARN("bullet_sim: %s: commands stopped arriving; zero torque plus braking damping", arm.name.c_str());
-        } else {
-          ROS_INFO("bullet_sim: %s: commands arrive again", arm.name.c_str());
-        }
-      }
-      arm.braking = braking;
-      simulation_->writeJointTorques(a, arm.torque);
-    }
-    const sim::SimStatus status = simulation_->step();
-    if (status == sim::SimStatus::ArmDiverged) {
-      ROS_ERROR("bullet_sim: an arm diverged at t = %.3f s; paused until ~reset", simulation_->time());
-      diverged_ = true;
-    } else if (status == sim::SimStatus::ClothDiverged && !cloth_diverged_) {
-      ROS_ERROR("bullet_sim: the cloth diverged at t = %.3f s; it is frozen until ~reset", simulation_->time());
-    }
-    cloth_diverged_ = status == sim::SimStatus::ClothDiverged;
-    publishClock();
-    if (simulation_->time() >= next_marker_time_) {
-      publishMarkers();
-      next_marker_time_ = simulation_->time() + 1.0 / marker_rate_;
-    }
-    return status != sim::SimStatus::ArmDiverged;
+    arm.commands->publish();
+    arm.commands_received.fetch_add(1, std::memory_order_release);  // answered, even wrongly: lockstep goes on
   }
 
-  void publishMarkers() {
-    visualization_msgs::MarkerArray markers;
-    const ros::Time stamp(simulation_->time());
-    if (simulation_->config().has_table)
-      markers.markers.push_back(bs::nodes::tableMarker(simulation_->config().table, stamp));
-    if (simulation_->hasCloth()) {
-      markers.markers.push_back(
-          bs::nodes::clothMarker(simulation_->cloth().vertices(), simulation_->cloth().triangles(), stamp));
+  /// Publishes what the loop handed over: /clock first, so the controllers' clocks move before the states.
+  void publishLoop() {
+    sensor_msgs::JointState states;
+    states.name = names_;
+    while (running_ && ros::ok()) {
+      timespec deadline{};
+      clock_gettime(CLOCK_REALTIME, &deadline);
+      deadline.tv_nsec += 100000000;
+      if (deadline.tv_nsec >= 1000000000) deadline.tv_nsec -= 1000000000, ++deadline.tv_sec;
+      sem_timedwait(&publish_signal_, &deadline);
+      const Snapshot* s = snapshots_->readNew();
+      if (!s) continue;
+      const ros::Time stamp(s->time);
+      rosgraph_msgs::Clock clock;
+      clock.clock = stamp;
+      clock_publisher_.publish(clock);
+      states.header.stamp = stamp;
+      states.position.assign(s->position.data(), s->position.data() + s->position.size());
+      states.velocity.assign(s->velocity.data(), s->velocity.data() + s->velocity.size());
+      states.effort.assign(s->effort.data(), s->effort.data() + s->effort.size());
+      joint_state_publisher_.publish(states);
+      if (s->with_cloth || !markers_sent_) {
+        markers_sent_ = true;
+        visualization_msgs::MarkerArray markers;
+        if (simulation_->config().has_table) {
+          markers.markers.push_back(bs::nodes::tableMarker(simulation_->config().table, stamp));
+        }
+        if (simulation_->hasCloth())
+          markers.markers.push_back(bs::nodes::clothMarker(s->cloth, cloth_triangles_, stamp));
+        marker_publisher_.publish(markers);
+      }
     }
-    marker_publisher_.publish(markers);
+  }
+
+  std::vector<std::shared_ptr<Request>> takeRequests() {
+    std::vector<std::shared_ptr<Request>> taken;
+    std::unique_lock<std::mutex> lock(requests_mutex_, std::try_to_lock);
+    if (!lock.owns_lock() || requests_.empty()) return taken;
+    taken.assign(requests_.begin(), requests_.end());
+    requests_.clear();
+    return taken;
+  }
+
+  static void finish(Request& request, const std::string& why = "") {
+    if (!why.empty()) {
+      request.success = false;
+      request.message = why;
+    }
+    request.done.set_value();
+  }
+
+  /// Runs `run` on the loop thread between two cycles and waits for it: at most kServiceWait for the loop to take
+  /// it, then until the loop finishes it (a ~step: bounded by ~max_step_duration) or the node shuts down.
+  std::shared_ptr<Request> submit(std::function<bool(const std::shared_ptr<Request>&)> run) {
+    auto request = std::make_shared<Request>();
+    request->run = std::move(run);
+    std::future<void> done = request->done.get_future();
+    {
+      const std::lock_guard<std::mutex> lock(requests_mutex_);
+      requests_.push_back(request);
+    }
+    const auto taken = std::chrono::steady_clock::now() + std::chrono::duration<double>(kServiceWait);
+    while (done.wait_for(std::chrono::milliseconds(20)) != std::future_status::ready) {
+      bool queued = false;
+      {
+        const std::lock_guard<std::mutex> lock(requests_mutex_);
+        queued = std::find(requests_.begin(), requests_.end(), request) != requests_.end();
+        if (queued && (!ros::ok() || std::chrono::steady_clock::now() > taken)) {
+          requests_.erase(std::find(requests_.begin(), requests_.end(), request));
+          request->message =
+              ros::ok() ? "the simulation loop did not take the request within " + std::to_string(kServiceWait) + " s"
+                        : "the simulation is shutting down";
+          return request;
+        }
+      }
+    }
+    return request;
+  }
+
+  /// Ends a ~step in progress (loop thread) with `why`.
+  void interruptStepping(const std::string& why) {
+    if (!stepping_) return;
+    stepping_->success = false;
+    stepping_->message = "interrupted after " + std::to_string(stepping_->stepped) + " of " +
+                         std::to_string(stepping_->steps) + " steps: " + why;
+    stepping_->time = simulation_->time();
+    stepping_->done.set_value();
+    stepping_.reset();
+  }
+
+  bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
+    const auto r = submit([this](const std::shared_ptr<Request>& request) {
+      interruptStepping("~reset");
+      resetSimulation();
+      publishState(true);
+      request->success = true;
+      request->message = "reset to the initial positions at t = 0 (sensor noise reseeded)";
+      return true;
+    });
+    response.success = r->success;
+    response.message = r->message;
+    ROS_INFO("bullet_sim: %s", response.message.c_str());
+    return true;
+  }
+
+  bool onPause(std_srvs::SetBool::Request& request, std_srvs::SetBool::Response& response) {
+    const bool pause = request.data;
+    const auto r = submit([this, pause](const std::shared_ptr<Request>& req) {
+      if (!pause) interruptStepping("the simulation was resumed");
+      paused_ = pause;
+      pacer_->reanchor();
+      req->success = true;
+      std::ostringstream message;
+      message << (pause ? "paused" : "running") << " at t = " << simulation_->time() << " s";
+      req->message = message.str();
+      return true;
+    });
+    response.success = r->success;
+    response.message = r->message;
+    return true;
+  }
+
+  bool onStep(bimanual_skills::SimStep::Request& request, bimanual_skills::SimStep::Response& response) {
+    const double duration = request.steps * simulation_->stepSize();
+    if (duration > max_step_duration_ + 1e-9) {
+      std::ostringstream message;
+      message << "refused: " << request.steps << " steps are " << duration << " s of simulated time; ~max_step_duration"
+              << " allows " << max_step_duration_ << " s ("
+              << static_cast<long>(max_step_duration_ / simulation_->stepSize()) << " steps) per call";
+      response.message = message.str();
+      response.time = time_.load();
+      return true;
+    }
+    const std::uint32_t steps = request.steps;
+    const auto r = submit([this, steps](const std::shared_ptr<Request>& req) {
+      req->time = simulation_->time();
+      if (!paused_) {
+        req->message = "the simulation is running; pause it first (~pause true)";
+      } else if (diverged_) {
+        req->message = "the simulation diverged; call ~reset";
+      } else if (stepping_) {
+        req->message = "another ~step call is running";
+      } else if (steps == 0) {
+        req->success = true;
+        req->message = "stepped 0 of 0";
+      } else {
+        req->steps = steps;  // the loop steps it, one step per cycle, serving other requests in between
+        stepping_ = req;
+        return false;
+      }
+      return true;
+    });
+    response.success = r->success;
+    response.message = r->message;
+    response.time = r->time;
+    return true;
   }
 
   int armOf(const std::string& name, std::string& message) const {
     const int a = simulation_->armIndex(name);
     if (a < 0) {
       message = "unknown arm '" + name + "'; arms:";
-      for (const Arm& arm : arms_) message += " " + arm.name;
+      for (const auto& arm : arms_) message += " " + arm->name;
     }
     return a;
-  }
-
-  bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
-    resetSimulation();
-    publishClock();  // before the states, so the controllers' clocks go back first
-    publishJointStates();
-    publishMarkers();
-    response.success = true;
-    response.message = "reset to the initial positions at t = 0 (sensor noise reseeded)";
-    ROS_INFO("bullet_sim: %s", response.message.c_str());
-    return true;
-  }
-
-  bool onPause(std_srvs::SetBool::Request& request, std_srvs::SetBool::Response& response) {
-    paused_ = request.data;
-    response.success = true;
-    response.message = paused_ ? "paused" : "running";
-    return true;
-  }
-
-  bool onStep(bimanual_skills::SimStep::Request& request, bimanual_skills::SimStep::Response& response) {
-    if (!paused_) {
-      response.message = "the simulation is running; pause it first (~pause true)";
-    } else if (diverged_) {
-      response.message = "the simulation diverged; call ~reset";
-    } else {
-      uint32_t done = 0;
-      while (done < request.steps && ros::ok() && stepOnce()) ++done;
-      response.success = done == request.steps;
-      response.message = "stepped " + std::to_string(done) + " of " + std::to_string(request.steps);
-    }
-    response.time = simulation_->time();
-    return true;
   }
 
   bool onSetPayload(bimanual_skills::SetPayload::Request& request, bimanual_skills::SetPayload::Response& response) {
@@ -333,11 +691,26 @@ class BulletSimNode {
     bs::dynamics::Payload payload;
     payload.mass = request.mass;
     payload.com = Eigen::Vector3d(request.center_of_mass.x, request.center_of_mass.y, request.center_of_mass.z);
-    const sim::SimStatus status = simulation_->setPayload(a, payload);
-    response.success = status == sim::SimStatus::Ok;
-    response.message = response.success
-                           ? "payload of " + std::to_string(request.mass) + " kg on " + request.arm
-                           : std::string("rejected: ") + sim::toString(status) + " (mass must be finite and >= 0)";
+    if (!std::isfinite(payload.mass) || payload.mass < 0.0 || payload.mass > max_payload_) {
+      std::ostringstream message;
+      message << "rejected: mass " << payload.mass << " kg; it must lie in [0, " << max_payload_
+              << "] kg (~max_payload; the WAM's rated payload is 4 kg)";
+      response.message = message.str();
+      return true;
+    }
+    if (!payload.com.allFinite() || payload.com.norm() > 1.0) {
+      response.message = "rejected: the centre of mass must be finite and within 1 m of the tool";
+      return true;
+    }
+    const auto r = submit([this, a, payload](const std::shared_ptr<Request>& req) {
+      const sim::SimStatus status = simulation_->setPayload(a, payload);
+      req->success = status == sim::SimStatus::Ok;
+      req->message = req->success ? "payload of " + std::to_string(payload.mass) + " kg on " + arms_[a]->name
+                                  : std::string("rejected: ") + sim::toString(status);
+      return true;
+    });
+    response.success = r->success;
+    response.message = r->message;
     ROS_INFO("bullet_sim: %s", response.message.c_str());
     return true;
   }
@@ -351,37 +724,143 @@ class BulletSimNode {
       return true;
     }
     const auto& w = request.wrench;
-    const sim::SimStatus status = simulation_->setExternalWrench(
-        link, Eigen::Vector3d(w.force.x, w.force.y, w.force.z), Eigen::Vector3d(w.torque.x, w.torque.y, w.torque.z),
-        Eigen::Vector3d(request.point.x, request.point.y, request.point.z));
-    response.success = status == sim::SimStatus::Ok;
-    response.message =
-        response.success ? "wrench applied on " + request.link : std::string("rejected: ") + sim::toString(status);
+    const Eigen::Vector3d force(w.force.x, w.force.y, w.force.z), torque(w.torque.x, w.torque.y, w.torque.z);
+    const Eigen::Vector3d point(request.point.x, request.point.y, request.point.z);
+    if (!force.allFinite() || !torque.allFinite() || !point.allFinite() || force.norm() > max_force_ ||
+        torque.norm() > max_torque_ || point.norm() > 1.0) {
+      std::ostringstream message;
+      message << "rejected: |force| " << force.norm() << " N, |torque| " << torque.norm() << " N m, point "
+              << point.norm() << " m from the link; limits " << max_force_ << " N (~max_force), " << max_torque_
+              << " N m (~max_torque), 1 m";
+      response.message = message.str();
+      return true;
+    }
+    const std::string name = request.link;
+    const auto r = submit([this, link, force, torque, point, name](const std::shared_ptr<Request>& req) {
+      const sim::SimStatus status = simulation_->setExternalWrench(link, force, torque, point);
+      req->success = status == sim::SimStatus::Ok;
+      req->message = req->success ? "wrench applied on " + name : std::string("rejected: ") + sim::toString(status);
+      return true;
+    });
+    response.success = r->success;
+    response.message = r->message;
     return true;
   }
 
   bool onGrasp(bimanual_skills::ClothGrasp::Request& request, bimanual_skills::ClothGrasp::Response& response) {
     const int a = armOf(request.arm, response.message);
     if (a < 0) return true;
-    int attached = 0;
-    const sim::SimStatus status = request.grasp ? simulation_->grasp(a, &attached) : simulation_->release(a);
-    response.nodes = attached;
-    response.success = status == sim::SimStatus::Ok;
-    response.message = !response.success ? std::string("failed: ") + sim::toString(status)
-                       : request.grasp   ? request.arm + " grasped " + std::to_string(attached) + " cloth nodes"
-                                         : request.arm + " released the cloth";
+    const bool grasp = request.grasp;
+    const std::string arm = request.arm;
+    const auto r = submit([this, a, grasp, arm](const std::shared_ptr<Request>& req) {
+      int attached = 0;
+      const sim::SimStatus status = grasp ? simulation_->grasp(a, &attached) : simulation_->release(a);
+      req->nodes = attached;
+      if (status != sim::SimStatus::Ok) {
+        req->message = std::string("failed: ") + sim::toString(status);
+      } else if (grasp && attached == 0) {
+        std::ostringstream message;
+        message << arm << " grasped nothing: no free cloth node within " << simulation_->config().grasp_radius
+                << " m of its tool";
+        req->message = message.str();
+      } else {
+        req->success = true;
+        req->message =
+            grasp ? arm + " grasped " + std::to_string(attached) + " cloth nodes" : arm + " released the cloth";
+      }
+      return true;
+    });
+    response.success = r->success;
+    response.nodes = r->nodes;
+    response.message = r->message;
     ROS_INFO("bullet_sim: %s", response.message.c_str());
     return true;
   }
 
+  void onDiagnostics(const ros::SteadyTimerEvent&) {
+    diagnostic_msgs::DiagnosticArray array;
+    array.header.stamp = ros::Time::now();
+    diagnostic_msgs::DiagnosticStatus status;
+    status.name = "bullet_sim";
+    status.hardware_id = "bullet_sim";
+    const auto add = [&status](const std::string& key, const std::string& value) {
+      diagnostic_msgs::KeyValue kv;
+      kv.key = key;
+      kv.value = value;
+      status.values.push_back(kv);
+    };
+    const double now = wallNow(), t = time_.load(std::memory_order_relaxed);
+    const double factor =
+        last_diagnostics_wall_ > 0.0 ? (t - last_diagnostics_time_) / (now - last_diagnostics_wall_) : 0.0;
+    last_diagnostics_wall_ = now;
+    last_diagnostics_time_ = t;
+    std::ostringstream message;
+    if (diverged_) {
+      status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
+      message << "an arm diverged at t = " << divergence_time_
+              << " s (a state became non-finite or faster than 100 rad/s): stopped until ~reset";
+    } else if (cloth_diverged_) {
+      status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
+      message << "the cloth diverged (" << sim::toString(static_cast<sim::ClothDivergence>(cloth_divergence_.load()))
+              << "): it is frozen until ~reset";
+    } else {
+      status.level = diagnostic_msgs::DiagnosticStatus::OK;
+      message << (paused_ ? "paused" : lockstep_ ? "lockstep" : "free-running") << ", t = " << t << " s";
+    }
+    status.message = message.str();
+    std::vector<double> periods;
+    periods_.snapshot(periods);
+    const std::size_t recent = std::min<std::size_t>(periods.size(), 1000);
+    std::vector<double> last(periods.end() - static_cast<std::ptrdiff_t>(recent), periods.end());
+    const rt::PeriodSummary summary = rt::summarize(last);
+    add("simulated_time_s", std::to_string(t));
+    add("realtime_factor_target", std::to_string(realtime_factor_));
+    add("realtime_factor_last_second", std::to_string(factor));
+    add("loop_period_median_s", std::to_string(summary.median));
+    add("loop_period_p99_s", std::to_string(summary.p99));
+    add("loop_period_max_s", std::to_string(summary.max));
+    add("loop_schedule_restarts", std::to_string(pacer_->slips()));
+    add("cycles", std::to_string(cycles_.load()));
+    add("control_allocations", std::to_string(control_allocations_.load()));
+    add("control_cycles_that_allocated", std::to_string(control_allocation_cycles_.load()));
+    add("physics_steps_that_allocated", std::to_string(physics_allocation_cycles_.load()));
+    add("rejected_external_commands", std::to_string(rejected_commands_.load()));
+    add("lockstep_timeouts", std::to_string(lockstep_timeouts_.load()));
+    array.status.push_back(status);
+    diagnostics_publisher_.publish(array);
+  }
+
   ros::NodeHandle& node_;
   std::unique_ptr<sim::BimanualSimulation> simulation_;
-  std::vector<Arm> arms_;
+  std::vector<std::unique_ptr<Arm>> arms_;
+  std::vector<std::string> names_;
+  std::unique_ptr<rt::LoopPacer> pacer_;
+  std::unique_ptr<rt::TripleBuffer<Snapshot>> snapshots_;
+  sem_t publish_signal_{};
+  rt::PeriodRecorder periods_{200000}, cycle_times_{200000}, command_times_{10000};
+  std::string statistics_file_;
   ros::CallbackQueue command_queue_;
-  ros::Publisher joint_state_publisher_, clock_publisher_, marker_publisher_;
+  ros::Publisher joint_state_publisher_, clock_publisher_, marker_publisher_, diagnostics_publisher_;
   std::vector<ros::ServiceServer> services_;
-  bool lockstep_ = false, paused_ = false, diverged_ = false, cloth_diverged_ = false;
-  double lockstep_timeout_ = 0.2, realtime_factor_ = 1.0, marker_rate_ = 30.0, next_marker_time_ = 0.0;
+  ros::SteadyTimer diagnostics_timer_;
+  std::mutex requests_mutex_;
+  std::deque<std::shared_ptr<Request>> requests_;
+  std::shared_ptr<Request> stepping_;  ///< Loop thread only.
+  // Settings.
+  bool lockstep_ = false;
+  double lockstep_timeout_ = 0.2, realtime_factor_ = 1.0, marker_rate_ = 30.0;
+  double max_step_duration_ = 60.0, max_payload_ = 4.0, max_force_ = 200.0, max_torque_ = 50.0;
+  int loop_priority_ = 0;
+  // Loop state (written by the loop; flags read by diagnostics).
+  std::atomic<bool> paused_{false}, diverged_{false}, cloth_diverged_{false}, running_{true};
+  std::atomic<double> time_{0.0};
+  std::atomic<int> cloth_divergence_{0};
+  Eigen::Matrix3Xi cloth_triangles_;  ///< Constant; copied for the publisher thread.
+  double divergence_time_ = 0.0, next_marker_time_ = 0.0, next_diverged_publish_ = 0.0;
+  bool markers_sent_ = false;
+  std::atomic<long> cycles_{0}, control_allocation_cycles_{0}, control_allocations_{0}, physics_allocation_cycles_{0};
+  std::atomic<long> rejected_commands_{0}, lockstep_timeouts_{0};
+  double last_diagnostics_wall_ = 0.0, last_diagnostics_time_ = 0.0;
 };
 
 }  // namespace

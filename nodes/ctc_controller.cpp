@@ -1,23 +1,23 @@
-// ctc_controller: one arm's computed-torque controller (control::ArmController) as a ROS node. A thin shell: the
-// control step is ArmController::update (no allocation, no locks); this file moves messages in and out of it.
-#include "bimanual_skills/SetControlMode.h"
-#include "bimanual_skills/control/arm_controller.hpp"
-#include "bimanual_skills/dynamics/friction_yaml.hpp"
-#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+// ctc_controller: one arm's computed-torque controller as a separate process, driven by joint-state messages: for a
+// robot whose driver publishes joint states and takes torque commands over ROS. (A robot whose driver can host the
+// controller runs it in its own real-time loop instead, as bullet_sim does.) A thin shell around
+// ros_layer::ArmControllerInterface: the control step runs per message on a thread and callback queue of its own, so
+// trajectory parsing, actions, markers and diagnostics never delay it; it computes with the stamps' Δt, checks the
+// joint names of every message, drops duplicate and reordered states and follows one publisher.
+#include "bimanual_skills/realtime/loop_pacer.hpp"
+#include "bimanual_skills/realtime/period_recorder.hpp"
+#include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
 #include "node_cli.hpp"
-#include "scene_markers.hpp"
 
-#include <diagnostic_msgs/DiagnosticArray.h>
-#include <geometry_msgs/WrenchStamped.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
 #include <std_msgs/Float64MultiArray.h>
-#include <trajectory_msgs/JointTrajectory.h>
-#include <visualization_msgs/MarkerArray.h>
 
-#include <algorithm>
-#include <deque>
+#include <chrono>
+#include <fstream>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -26,351 +26,213 @@ namespace bc = bimanual_skills::control;
 
 namespace {
 
-const char* const kUsage =
-    "usage: rosrun bimanual_skills ctc_controller __ns:=ARM [_param:=value ...]\n"
-    "\n"
-    "Computed-torque controller of one arm (thesis eq. 4.17) with the identified friction model and the\n"
-    "disturbance observer (Sec. 4.1) estimating the external wrench at the tool. Runs one control step per\n"
-    "/joint_states message.\n"
-    "\n"
-    "Parameters (private; config/ctc_controller.yaml holds the defaults):\n"
-    "  ~arm                 arm name (default: the namespace), ~base_link, ~tip_link (default ARM_wam_base/_tool)\n"
-    "  ~kp, ~kv             gains per joint; ~torque_limit, ~velocity_limit (default: the URDF's limits)\n"
-    "  ~friction_file       friction model YAML (fit_friction's output); empty: no friction compensation\n"
-    "  ~observer/{k11,k12,k21,k22,sigma,rate,fir_taps,fir_cutoff}  observer gains (diagonal) and rate [Hz]\n"
-    "  ~state_timeout       joint states older than this [s] are stale: no torque, hold on recovery (0.05)\n"
-    "  ~initial_mode        gravity_compensation | hold (default hold)\n"
-    "  ~publish_rate        rate of the wrench, tracking-error and diagnostics topics [Hz] (default 100)\n"
-    "Reads robot_description. Topics (relative to the namespace): subscribes /joint_states and command\n"
-    "(trajectory_msgs/JointTrajectory: all the arm's joints, times from now; an empty trajectory holds);\n"
-    "publishes effort_command (std_msgs/Float64MultiArray), estimated_wrench (geometry_msgs/WrenchStamped, base\n"
-    "frame), tracking_error (sensor_msgs/JointState: position and velocity errors q_d - q), tool_paths\n"
-    "(visualization_msgs/MarkerArray: the last 10 s of actual and commanded tool positions), /diagnostics.\n"
-    "Service: set_mode (bimanual_skills/SetControlMode: gravity_compensation | hold | track).\n";
+const std::string kUsage =
+    std::string(
+        "usage: rosrun bimanual_skills ctc_controller __ns:=ARM [_param:=value ...] [joint_states:=/joint_states]\n"
+        "\n"
+        "Computed-torque controller of one arm (thesis eq. 4.17) with the identified friction model and the\n"
+        "disturbance observer (Sec. 4.1) estimating the external wrench at the tool, in a process of its own: one\n"
+        "control step per joint-state message (on its own thread), Δt from the message stamps. Messages that repeat\n"
+        "or precede the last stamp are dropped; states from a second publisher are ignored (the first one is\n"
+        "followed until it falls silent for 1 s); the joint names are matched in every message.\n"
+        "\n"
+        "Parameters (private; config/ctc_controller.yaml holds the defaults):\n"
+        "  ~arm                  arm name (default: the namespace)\n"
+        "  ~loop_priority        SCHED_FIFO priority of the control thread, 1-99 (0: unchanged, the default)\n"
+        "  ~statistics_file      at exit, write the control steps' wall periods and the times commands were taken\n"
+        "                        (CSV)\n") +
+    bs::ros_layer::kControllerParameterHelp +
+    "Reads robot_description. Topics (relative to the namespace; remap joint_states in a launch file): subscribes\n"
+    "joint_states (sensor_msgs/JointState; effort, when complete, is taken as the torque the robot applied) and\n"
+    "command (trajectory_msgs/JointTrajectory); serves follow_joint_trajectory (bimanual_skills/FollowJoint-\n"
+    "Trajectory action) and set_mode (bimanual_skills/SetControlMode); publishes effort_command\n"
+    "(std_msgs/Float64MultiArray), state (bimanual_skills/JointTrajectoryControllerState), estimated_wrench\n"
+    "(geometry_msgs/WrenchStamped, base frame), tool_paths (visualization_msgs/MarkerArray), /diagnostics.\n";
 
-template <typename T>
-T param(ros::NodeHandle& node, const std::string& name, const T& fallback) {
-  T value;
-  return node.getParam(name, value) ? value : fallback;
-}
-
-Eigen::VectorXd vectorParam(ros::NodeHandle& node, const std::string& name, int n, const Eigen::VectorXd& fallback) {
-  std::vector<double> values;
-  if (!node.getParam(name, values)) return fallback;
-  if (static_cast<int>(values.size()) != n) {
-    throw std::invalid_argument("~" + name + " needs " + std::to_string(n) + " values, got " +
-                                std::to_string(values.size()));
-  }
-  return Eigen::Map<const Eigen::VectorXd>(values.data(), n);
+double wallNow() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 class CtcControllerNode {
  public:
-  CtcControllerNode(ros::NodeHandle& node, ros::NodeHandle& private_node) {
+  CtcControllerNode(ros::NodeHandle& node, ros::NodeHandle& private_node) : node_(node) {
     std::string ns = node.getNamespace();
     ns = ns.substr(ns.find_last_of('/') + 1);
-    arm_ = param<std::string>(private_node, "arm", ns);
-    if (arm_.empty()) throw std::invalid_argument("no arm name: run in the arm's namespace (__ns:=left) or set ~arm");
+    bs::ros_layer::ParameterReader parameters(private_node, "ctc_controller");
+    const std::string arm = parameters.text("arm", ns);
+    loop_priority_ = parameters.integer("loop_priority", 0, 0, 99);
+    statistics_file_ = parameters.text("statistics_file", "");
+    if (arm.empty()) throw std::invalid_argument("no arm name: run in the arm's namespace (__ns:=left) or set ~arm");
     std::string description, key;
     if (!private_node.searchParam("robot_description", key) || !ros::param::get(key, description)) {
       throw std::invalid_argument("parameter 'robot_description' is not set");
     }
-    const std::string base = param<std::string>(private_node, "base_link", arm_ + "_wam_base");
-    const std::string tip = param<std::string>(private_node, "tip_link", arm_ + "_wam_tool");
-    const auto model = bs::kinematics::ChainModel::fromUrdfString(description, base, tip);
-    const int n = model.nq();
-    joint_names_ = model.jointNames();
-
-    bc::ArmControllerConfig config;
-    config.gains.kp = vectorParam(private_node, "kp", n, Eigen::VectorXd::Constant(n, 50.0));
-    config.gains.kv = vectorParam(private_node, "kv", n, Eigen::VectorXd::Constant(n, 5.0));
-    config.gains.torque_limit = vectorParam(private_node, "torque_limit", n, model.effortLimits());
-    config.velocity_limit = vectorParam(private_node, "velocity_limit", n, model.velocityLimits());
-    config.state_timeout = param(private_node, "state_timeout", 0.05);
-    const std::string friction_file = param<std::string>(private_node, "friction_file", "");
-    bs::dynamics::FrictionModel friction;
-    if (friction_file.empty()) {
-      friction.joints.assign(n, bs::dynamics::JointFriction{});
-      config.friction_compensation = false;
-    } else {
-      friction = bs::dynamics::loadFrictionModel(friction_file);
-    }
-    config.observer = bc::ObserverGains::diagonal(
-        n, param(private_node, "observer/k11", 10.0), param(private_node, "observer/k12", 0.0),
-        param(private_node, "observer/k21", 100.0), param(private_node, "observer/k22", 0.0),
-        param(private_node, "observer/sigma", 10.0));
-    config.observer.rate_hz = param(private_node, "observer/rate", 1000.0);
-    config.observer.fir_taps = param(private_node, "observer/fir_taps", 15);
-    config.observer.fir_cutoff_hz = param(private_node, "observer/fir_cutoff", 40.0);
-    controller_ = std::make_unique<bc::ArmController>(model, friction, config);
-    kinematics_ = std::make_unique<bs::kinematics::ChainData>(model);
-    base_frame_ = base;
-    q_ = qd_ = torque_ = Eigen::VectorXd::Zero(n);
-    command_.data.assign(n, 0.0);
-    error_message_.name = joint_names_;
-    error_message_.position.assign(n, 0.0);
-    error_message_.velocity.assign(n, 0.0);
-
-    const std::string initial = param<std::string>(private_node, "initial_mode", "hold");
-    bc::ControllerMode mode;
-    if (!bc::modeFromString(initial.c_str(), mode) || mode == bc::ControllerMode::Track) {
-      throw std::invalid_argument("~initial_mode must be gravity_compensation or hold, got '" + initial + "'");
-    }
-    controller_->setMode(mode);
-    publish_period_ = 1.0 / std::max(1e-3, param(private_node, "publish_rate", 100.0));
-
+    interface_ = std::make_unique<bs::ros_layer::ArmControllerInterface>(node, parameters, arm, description,
+                                                                         "ctc_controller " + arm);
+    parameters.warnUnknown();
+    const int n = static_cast<int>(interface_->jointNames().size());
+    q_ = qd_ = applied_ = torque_ = Eigen::VectorXd::Zero(n);
+    none_.resize(0);
+    command_.data.assign(static_cast<std::size_t>(n), 0.0);
+    nominal_period_ = 1.0 / interface_->settings().config.observer.rate_hz;
     effort_publisher_ = node.advertise<std_msgs::Float64MultiArray>("effort_command", 10);
-    wrench_publisher_ = node.advertise<geometry_msgs::WrenchStamped>("estimated_wrench", 10);
-    error_publisher_ = node.advertise<sensor_msgs::JointState>("tracking_error", 10);
-    path_publisher_ = node.advertise<visualization_msgs::MarkerArray>("tool_paths", 1);
-    diagnostics_publisher_ = node.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
-    state_subscriber_ =
-        node.subscribe("/joint_states", 10, &CtcControllerNode::onJointState, this, ros::TransportHints().tcpNoDelay());
-    trajectory_subscriber_ = node.subscribe("command", 10, &CtcControllerNode::onTrajectory, this);
-    mode_service_ = node.advertiseService("set_mode", &CtcControllerNode::onSetMode, this);
-    watchdog_ = node.createSteadyTimer(ros::WallDuration(0.02), &CtcControllerNode::onWatchdog, this);
+    ros::NodeHandle state_node(node);
+    state_node.setCallbackQueue(&state_queue_);
+    state_subscriber_ = state_node.subscribe("joint_states", 10, &CtcControllerNode::onJointState, this,
+                                             ros::TransportHints().tcpNoDelay());
     diagnostics_timer_ = node.createSteadyTimer(ros::WallDuration(1.0), &CtcControllerNode::onDiagnostics, this);
-    ROS_INFO("ctc_controller %s: %d joints %s -> %s, friction %s, mode %s", arm_.c_str(), n, base.c_str(), tip.c_str(),
-             friction_file.empty() ? "none" : friction_file.c_str(), initial.c_str());
+    ROS_INFO("ctc_controller %s: %d joints %s -> %s, friction %s, subscribed to %s", arm.c_str(), n,
+             interface_->settings().base_link.c_str(), interface_->settings().tip_link.c_str(),
+             interface_->settings().friction_file.empty() ? "none" : interface_->settings().friction_file.c_str(),
+             state_subscriber_.getTopic().c_str());
+  }
+
+  void spin() {
+    ros::AsyncSpinner control(1, &state_queue_);  // the control step, alone on its thread
+    control.start();
+    ros::AsyncSpinner others(2);  // commands, actions, services, publishers, diagnostics
+    others.start();
+    ros::waitForShutdown();
+    control.stop();
+    if (!statistics_file_.empty()) writeStatistics();
   }
 
  private:
-  void onJointState(const sensor_msgs::JointState::ConstPtr& message) {
-    if (index_.empty() || message->name.size() != names_seen_) {
-      index_.clear();
-      names_seen_ = message->name.size();
-      for (const std::string& name : joint_names_) {
-        const auto it = std::find(message->name.begin(), message->name.end(), name);
-        if (it == message->name.end()) {
-          index_.clear();
-          break;
-        }
-        index_.push_back(static_cast<int>(it - message->name.begin()));
+  /// Maps the arm's joints into the message (cached while the names are the same); false if one is missing.
+  bool mapNames(const std::vector<std::string>& names) {
+    if (names == mapped_names_ && !index_.empty()) return true;
+    const std::vector<std::string>& joints = interface_->jointNames();
+    index_.clear();
+    for (const std::string& joint : joints) {
+      const auto it = std::find(names.begin(), names.end(), joint);
+      if (it == names.end()) {
+        index_.clear();
+        mapped_names_.clear();
+        return false;
       }
+      index_.push_back(static_cast<std::size_t>(it - names.begin()));
     }
-    if (index_.empty()) {
-      ROS_ERROR_THROTTLE(2.0, "ctc_controller %s: /joint_states lacks this arm's joints (%s, ...)", arm_.c_str(),
-                         joint_names_.front().c_str());
-      return;
-    }
-    const int n = static_cast<int>(index_.size());
-    for (int i = 0; i < n; ++i) {
-      const auto j = static_cast<std::size_t>(index_[i]);
-      q_[i] = j < message->position.size() ? message->position[j] : std::nan("");
-      qd_[i] = j < message->velocity.size() ? message->velocity[j] : std::nan("");
-    }
-    const double now = ros::Time::now().toSec(), stamp = message->header.stamp.toSec();
-    const bc::ControllerStatus status = controller_->update(now, stamp, q_, qd_, torque_);
-    count(status);
-    if (status == bc::ControllerStatus::InvalidState || status == bc::ControllerStatus::StaleState) return;
-    std::copy(torque_.data(), torque_.data() + n, command_.data.begin());
-    effort_publisher_.publish(command_);
-    if (now >= next_publish_ || now < next_publish_ - 1.0) {
-      next_publish_ = now + publish_period_;
-      publishEstimates(message->header.stamp);
-    }
-  }
-
-  void count(bc::ControllerStatus status) {
-    ++counts_[static_cast<int>(status)];
-    if (status == bc::ControllerStatus::InvalidState) {
-      ROS_WARN_THROTTLE(1.0, "ctc_controller %s: joint state rejected (NaN/Inf or missing values); no torque sent",
-                        arm_.c_str());
-    } else if (status == bc::ControllerStatus::StaleState) {
-      ROS_WARN_THROTTLE(1.0, "ctc_controller %s: joint state older than the timeout; no torque sent, will hold",
-                        arm_.c_str());
-    } else if (status == bc::ControllerStatus::VelocityLimit) {
-      ROS_WARN_THROTTLE(1.0, "ctc_controller %s: velocity limit exceeded; holding position", arm_.c_str());
-    }
-  }
-
-  void publishEstimates(const ros::Time& stamp) {
-    geometry_msgs::WrenchStamped wrench;
-    wrench.header.stamp = stamp;
-    wrench.header.frame_id = base_frame_;
-    const auto& w = controller_->estimatedWrench();
-    wrench.wrench.force.x = w[0];
-    wrench.wrench.force.y = w[1];
-    wrench.wrench.force.z = w[2];
-    wrench.wrench.torque.x = w[3];
-    wrench.wrench.torque.y = w[4];
-    wrench.wrench.torque.z = w[5];
-    wrench_publisher_.publish(wrench);
-    error_message_.header.stamp = stamp;
-    const Eigen::VectorXd& e = controller_->trackingError();
-    for (int i = 0; i < e.size(); ++i) {
-      error_message_.position[i] = e[i];
-      error_message_.velocity[i] = controller_->desiredVelocity()[i] - qd_[i];
-    }
-    error_publisher_.publish(error_message_);
-    publishToolPaths(stamp);
-  }
-
-  /// Appends the actual and commanded tool positions; publishes both paths every tenth call.
-  void publishToolPaths(const ros::Time& stamp) {
-    const auto tool = [this](const Eigen::VectorXd& q) {
-      if (bs::kinematics::forwardKinematics(controller_->model(), *kinematics_, q) !=
-          bs::kinematics::KinematicsStatus::Success) {
-        return geometry_msgs::Point();
-      }
-      return bs::nodes::toPoint(kinematics_->tipPose().translation());
-    };
-    for (auto* path : {&actual_path_, &desired_path_}) {
-      if (path->size() >= kPathLength) path->pop_front();
-    }
-    actual_path_.push_back(tool(q_));
-    desired_path_.push_back(tool(controller_->desiredPosition()));
-    if (++path_calls_ % 10 != 0 || path_publisher_.getNumSubscribers() == 0) return;
-    visualization_msgs::MarkerArray markers;
-    for (int k = 0; k < 2; ++k) {
-      visualization_msgs::Marker m;
-      m.header.stamp = stamp;
-      m.header.frame_id = base_frame_;
-      m.ns = k == 0 ? "actual" : "commanded";
-      m.type = visualization_msgs::Marker::LINE_STRIP;
-      m.pose.orientation.w = 1.0;
-      m.scale.x = 0.006;
-      m.color.a = 1.0f;
-      (k == 0 ? m.color.g : m.color.r) = 0.9f;
-      const auto& path = k == 0 ? actual_path_ : desired_path_;
-      m.points.assign(path.begin(), path.end());
-      markers.markers.push_back(m);
-    }
-    path_publisher_.publish(markers);
-  }
-
-  void onTrajectory(const trajectory_msgs::JointTrajectory::ConstPtr& message) {
-    if (message->points.empty()) {
-      controller_->setMode(bc::ControllerMode::Hold);
-      ROS_INFO("ctc_controller %s: empty trajectory: holding", arm_.c_str());
-      return;
-    }
-    const int n = static_cast<int>(joint_names_.size()), k = static_cast<int>(message->points.size());
-    std::vector<int> column(n, -1);
-    for (int i = 0; i < n; ++i) {
-      const auto it = std::find(message->joint_names.begin(), message->joint_names.end(), joint_names_[i]);
-      if (it != message->joint_names.end()) column[i] = static_cast<int>(it - message->joint_names.begin());
-    }
-    if (message->joint_names.size() != static_cast<std::size_t>(n) ||
-        std::find(column.begin(), column.end(), -1) != column.end()) {
-      return reject("it must name each of the arm's " + std::to_string(n) + " joints once");
-    }
-    const double offset =
-        message->header.stamp.isZero() ? 0.0 : std::max(0.0, (message->header.stamp - ros::Time::now()).toSec());
-    const bool with_velocities = !message->points.front().velocities.empty();
-    const bool with_accelerations = !message->points.front().accelerations.empty();
-    bc::Waypoints w;
-    w.times.resize(k);
-    w.positions.resize(n, k);
-    if (with_velocities) w.velocities.resize(n, k);
-    if (with_accelerations) w.accelerations.resize(n, k);
-    for (int p = 0; p < k; ++p) {
-      const auto& point = message->points[p];
-      if (point.positions.size() != static_cast<std::size_t>(n) ||
-          point.velocities.size() != (with_velocities ? static_cast<std::size_t>(n) : 0u) ||
-          point.accelerations.size() != (with_accelerations ? static_cast<std::size_t>(n) : 0u)) {
-        return reject("point " + std::to_string(p) + " has the wrong number of positions, velocities or accelerations");
-      }
-      w.times[p] = offset + point.time_from_start.toSec();
-      for (int i = 0; i < n; ++i) {
-        w.positions(i, p) = point.positions[column[i]];
-        if (with_velocities) w.velocities(i, p) = point.velocities[column[i]];
-        if (with_accelerations) w.accelerations(i, p) = point.accelerations[column[i]];
-      }
-    }
-    const bc::TrajectoryStatus status = controller_->setTrajectory(w);
-    if (status != bc::TrajectoryStatus::Ok) {
-      return reject(std::string(bc::toString(status)) +
-                    (status == bc::TrajectoryStatus::NotIncreasing ? " (times from start must be > 0 and increase)"
-                     : status == bc::TrajectoryStatus::OutOfLimits ? " (a point is outside the joint limits)"
-                     : status == bc::TrajectoryStatus::NotFinite   ? " (NaN or Inf)"
-                                                                   : " (too many points or wrong sizes)"));
-    }
-    ++trajectories_;
-    ROS_INFO("ctc_controller %s: tracking %d points over %.2f s", arm_.c_str(), k, w.times[k - 1]);
-  }
-
-  void reject(const std::string& reason) {
-    ++rejected_trajectories_;
-    last_rejection_ = reason;
-    ROS_WARN("ctc_controller %s: trajectory rejected: %s; the current motion goes on", arm_.c_str(), reason.c_str());
-  }
-
-  bool onSetMode(bimanual_skills::SetControlMode::Request& request,
-                 bimanual_skills::SetControlMode::Response& response) {
-    bc::ControllerMode mode;
-    if (!bc::modeFromString(request.mode.c_str(), mode)) {
-      response.message = "unknown mode '" + request.mode + "' (gravity_compensation, hold, track)";
-      return true;
-    }
-    controller_->setMode(mode);
-    response.success = true;
-    response.message = "mode " + request.mode + " from the next control step";
-    ROS_INFO("ctc_controller %s: %s", arm_.c_str(), response.message.c_str());
+    mapped_names_ = names;
     return true;
   }
 
-  void onWatchdog(const ros::SteadyTimerEvent&) {
-    const bool stale = controller_->stale(ros::Time::now().toSec());
-    if (stale && !reported_stale_) {
-      ++stale_events_;
-      ROS_WARN("ctc_controller %s: no joint state for more than the timeout; no torque sent, will hold", arm_.c_str());
+  void onJointState(const ros::MessageEvent<sensor_msgs::JointState const>& event) {
+    const sensor_msgs::JointState& message = *event.getConstMessage();
+    const double wall = wallNow();
+    if (!priority_requested_ && loop_priority_ > 0) {
+      priority_requested_ = true;
+      const char* error = bs::realtime::requestRealtimeScheduling(loop_priority_);
+      if (*error != '\0') ROS_WARN("ctc_controller: ~loop_priority %d not granted (%s)", loop_priority_, error);
     }
-    reported_stale_ = stale;
+    const std::string& publisher = event.getPublisherName();
+    if (publisher != publisher_) {
+      if (!publisher_.empty() && wall - last_followed_ < 1.0) {
+        ++foreign_;
+        ROS_WARN_THROTTLE(5.0, "ctc_controller: ignoring joint states from %s while following %s", publisher.c_str(),
+                          publisher_.c_str());
+        return;
+      }
+      if (!publisher_.empty())
+        ROS_WARN("ctc_controller: %s fell silent; following %s", publisher_.c_str(), publisher.c_str());
+      publisher_ = publisher;
+    }
+    last_followed_ = wall;
+    if (!mapNames(message.name)) {
+      ++incomplete_;
+      ROS_ERROR_THROTTLE(2.0, "ctc_controller: joint states from %s lack this arm's joints (%s, ...)",
+                         publisher.c_str(), interface_->jointNames().front().c_str());
+      return;
+    }
+    const double stamp = message.header.stamp.toSec(), now = ros::Time::now().toSec();
+    // A stamp that does not advance is a duplicate or a reordered message, unless the clock went back too (a
+    // simulation reset), which the controller restarts on.
+    if (has_stamp_ && stamp <= last_stamp_ && now >= last_stamp_) {
+      ++(stamp == last_stamp_ ? duplicates_ : reordered_);
+      return;
+    }
+    for (std::size_t i = 0; i < index_.size(); ++i) {
+      const std::size_t j = index_[i];
+      const auto k = static_cast<Eigen::Index>(i);
+      q_[k] = j < message.position.size() ? message.position[j] : std::nan("");
+      qd_[k] = j < message.velocity.size() ? message.velocity[j] : std::nan("");
+    }
+    const bool with_effort = message.effort.size() == message.name.size();
+    if (with_effort) {
+      for (std::size_t i = 0; i < index_.size(); ++i)
+        applied_[static_cast<Eigen::Index>(i)] = message.effort[index_[i]];
+    }
+    const bc::ControllerStatus status =
+        interface_->realtime().update(now, stamp, q_, qd_, with_effort ? applied_ : none_, torque_);
+    if (status == bc::ControllerStatus::InvalidState || status == bc::ControllerStatus::StaleState) return;
+    if (last_step_wall_ > 0.0) wall_periods_.record(wall - last_step_wall_);
+    last_step_wall_ = wall;
+    if (interface_->realtime().commandsTaken() != commands_taken_) {
+      commands_taken_ = interface_->realtime().commandsTaken();
+      command_times_.record(interface_->realtime().lastCommandTaken());
+    }
+    if (has_stamp_) {
+      const double dt = stamp - last_stamp_;
+      if (dt > 0.0 && dt < 1.0) periods_.record(dt);
+    }
+    has_stamp_ = true;
+    last_stamp_ = stamp;
+    if (wall - last_period_check_ > 5.0 && periods_.recorded() >= 200) checkRate(wall);
+    std::copy(torque_.data(), torque_.data() + torque_.size(), command_.data.begin());
+    effort_publisher_.publish(command_);
+  }
+
+  /// Warns when the states' rate differs from the observer's nominal rate by more than 20 %.
+  void checkRate(double wall) {
+    last_period_check_ = wall;
+    std::vector<double> periods;
+    periods_.snapshot(periods);
+    const double median = bs::realtime::quantile(periods, 0.5);
+    if (std::abs(median - nominal_period_) > 0.2 * nominal_period_ && !rate_warned_) {
+      rate_warned_ = true;
+      ROS_WARN(
+          "ctc_controller: joint states arrive every %.4f s (median); the observer's nominal rate is %.0f Hz. "
+          "It integrates the measured dt, but set observer/rate to the robot's rate for its FIR's cut-off",
+          median, 1.0 / nominal_period_);
+    }
+  }
+
+  void writeStatistics() const {
+    std::ofstream out(statistics_file_);
+    out << "series,value\n";
+    wall_periods_.writeCsv(out, "period");
+    command_times_.writeCsv(out, "command_taken");
+    if (!out) ROS_ERROR("ctc_controller: cannot write %s", statistics_file_.c_str());
   }
 
   void onDiagnostics(const ros::SteadyTimerEvent&) {
-    diagnostic_msgs::DiagnosticArray array;
-    array.header.stamp = ros::Time::now();
-    diagnostic_msgs::DiagnosticStatus status;
-    status.name = "ctc_controller: " + arm_;
-    status.hardware_id = arm_;
-    const bool started = controller_->started();
-    status.level =
-        !started || reported_stale_ ? diagnostic_msgs::DiagnosticStatus::WARN : diagnostic_msgs::DiagnosticStatus::OK;
-    status.message = !started          ? "waiting for joint states"
-                     : reported_stale_ ? "joint states stale"
-                                       : std::string("running, mode ") + bc::toString(controller_->mode());
-    const auto add = [&status](const std::string& key, const std::string& value) {
-      diagnostic_msgs::KeyValue kv;
-      kv.key = key;
-      kv.value = value;
-      status.values.push_back(kv);
-    };
-    add("mode", bc::toString(controller_->mode()));
-    add("max_tracking_error_rad", std::to_string(controller_->trackingError().cwiseAbs().maxCoeff()));
-    add("control_steps", std::to_string(counts_[0] + counts_[1]));
-    add("saturated_steps", std::to_string(counts_[static_cast<int>(bc::ControllerStatus::Saturated)]));
-    add("invalid_states", std::to_string(counts_[static_cast<int>(bc::ControllerStatus::InvalidState)]));
-    add("stale_states", std::to_string(counts_[static_cast<int>(bc::ControllerStatus::StaleState)] + stale_events_));
-    add("velocity_limit_events", std::to_string(counts_[static_cast<int>(bc::ControllerStatus::VelocityLimit)]));
-    add("trajectories", std::to_string(trajectories_));
-    add("rejected_trajectories", std::to_string(rejected_trajectories_));
-    add("last_rejection", last_rejection_);
-    array.status.push_back(status);
-    diagnostics_publisher_.publish(array);
+    interface_->setDriverDiagnostics({{"joint_state_publisher", publisher_},
+                                      {"ignored_other_publishers", std::to_string(foreign_.load())},
+                                      {"dropped_duplicate_states", std::to_string(duplicates_.load())},
+                                      {"dropped_reordered_states", std::to_string(reordered_.load())},
+                                      {"states_without_the_arm", std::to_string(incomplete_.load())}});
   }
 
-  std::string arm_, base_frame_, last_rejection_;
-  std::vector<std::string> joint_names_;
-  std::vector<int> index_;
-  std::size_t names_seen_ = 0;
-  static constexpr std::size_t kPathLength = 1000;
-  std::unique_ptr<bc::ArmController> controller_;
-  std::unique_ptr<bs::kinematics::ChainData> kinematics_;
-  std::deque<geometry_msgs::Point> actual_path_, desired_path_;
-  long path_calls_ = 0;
-  Eigen::VectorXd q_, qd_, torque_;
+  ros::NodeHandle& node_;
+  std::unique_ptr<bs::ros_layer::ArmControllerInterface> interface_;
+  ros::CallbackQueue state_queue_;
+  ros::Subscriber state_subscriber_;
+  ros::Publisher effort_publisher_;
+  ros::SteadyTimer diagnostics_timer_;
+  // The control thread's.
+  std::vector<std::string> mapped_names_;
+  std::vector<std::size_t> index_;
+  std::string publisher_;
+  double last_followed_ = 0.0, last_stamp_ = 0.0, nominal_period_ = 0.001, last_period_check_ = 0.0;
+  bool has_stamp_ = false, rate_warned_ = false;
+  Eigen::VectorXd q_, qd_, applied_, torque_, none_;
   std_msgs::Float64MultiArray command_;
-  sensor_msgs::JointState error_message_;
-  ros::Publisher effort_publisher_, wrench_publisher_, error_publisher_, path_publisher_, diagnostics_publisher_;
-  ros::Subscriber state_subscriber_, trajectory_subscriber_;
-  ros::ServiceServer mode_service_;
-  ros::SteadyTimer watchdog_, diagnostics_timer_;
-  double publish_period_ = 0.01, next_publish_ = 0.0;
-  long counts_[5] = {0, 0, 0, 0, 0};
-  long stale_events_ = 0, trajectories_ = 0, rejected_trajectories_ = 0;
-  bool reported_stale_ = false;
+  bs::realtime::PeriodRecorder periods_{1000}, wall_periods_{200000}, command_times_{10000};
+  double last_step_wall_ = 0.0;
+  std::uint64_t commands_taken_ = 0;
+  int loop_priority_ = 0;
+  bool priority_requested_ = false;
+  std::string statistics_file_;
+  std::atomic<long> foreign_{0}, duplicates_{0}, reordered_{0}, incomplete_{0};
 };
 
 }  // namespace
@@ -381,7 +243,7 @@ int main(int argc, char** argv) {
   ros::NodeHandle node, private_node("~");
   try {
     CtcControllerNode controller(node, private_node);
-    ros::spin();
+    controller.spin();
   } catch (const std::exception& e) {
     ROS_FATAL("ctc_controller: %s", e.what());
     return 1;

@@ -5,6 +5,8 @@
 #include "bimanual_skills/kinematics/chain_model.hpp"
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "bimanual_skills/ros_layer/camera_messages.hpp"
+#include "bimanual_skills/ros_layer/parameters.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
 #include "summary_json.hpp"
@@ -13,8 +15,10 @@
 #include <ros/package.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
+#include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/JointState.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 #include <opencv2/imgcodecs.hpp>
 
@@ -32,6 +36,7 @@
 namespace bs = bimanual_skills;
 namespace br = bimanual_skills::rollout;
 namespace bt = bimanual_skills::tasks;
+namespace vision = bimanual_skills::vision;
 
 namespace {
 
@@ -68,9 +73,12 @@ const char* const kUsage =
     "  (visualization_msgs/Marker TRIANGLE_LIST: the last rollout's cloth), ~scene (the table), ~tool_paths\n"
     "  (visualization_msgs/MarkerArray: the tool paths of the last rollouts, also of those run on workers, red =\n"
     "  worst to green = best reward),\n"
-    "  ~camera/image_raw (sensor_msgs/Image bgr8) and ~camera/depth/image_raw (32FC1, metres).\n";
+    "  ~camera/image_raw (sensor_msgs/Image bgr8) and ~camera/depth/image_raw (32FC1, metres), each with its\n"
+    "  camera_info (sensor_msgs/CameraInfo of the orthographic top-down camera), in the frame top_down_camera\n"
+    "  (a static transform from world on /tf_static).\n";
 
 constexpr double kBagStart = 1.0;  ///< Bag time of the rollout's t = 0 [s] (ROS time 0 means "unset").
+constexpr const char* kCameraFrame = "top_down_camera";
 
 std::string formatSeconds(double s) {
   char text[32];
@@ -86,24 +94,24 @@ std::string formatSeconds(double s) {
 
 class FoldLearnerNode {
  public:
-  FoldLearnerNode() : private_node_("~") {
+  FoldLearnerNode() : private_node_("~"), parameters_(private_node_, "fold_learner") {
     const std::string package = ros::package::getPath("bimanual_skills");
-    private_node_.param<std::string>("config", config_path_, package + "/config/fold_demo.yaml");
-    private_node_.param<std::string>("out", out_, "fold_learning");
-    private_node_.param("replay_best", replay_best_, false);
+    config_path_ = parameters_.text("config", package + "/config/fold_demo.yaml");
+    out_ = parameters_.text("out", "fold_learning");
+    replay_best_ = parameters_.boolean("replay_best", false);
     config_ = br::FoldLearningConfig::fromYamlFile(config_path_);
-    int jobs = config_.jobs;
-    private_node_.param("jobs", jobs, jobs);
-    if (jobs < 0) throw std::invalid_argument("~jobs must be >= 0");
-    config_.jobs = jobs;
+    config_.jobs = parameters_.integer("jobs", config_.jobs, 0, 1024);
     std::unique_ptr<br::Evaluator> evaluator = makeDispatcher();
+    parameters_.warnUnknown();
 
     cloth_publisher_ = private_node_.advertise<visualization_msgs::Marker>("cloth", 1, true);
     scene_publisher_ = private_node_.advertise<visualization_msgs::Marker>("scene", 1, true);
     path_publisher_ = private_node_.advertise<visualization_msgs::MarkerArray>("tool_paths", 1, true);
     image_publisher_ = private_node_.advertise<sensor_msgs::Image>("camera/image_raw", 1, true);
     depth_publisher_ = private_node_.advertise<sensor_msgs::Image>("camera/depth/image_raw", 1, true);
-    joint_publisher_ = node_.advertise<sensor_msgs::JointState>("/joint_states", 10, true);
+    info_publisher_ = private_node_.advertise<sensor_msgs::CameraInfo>("camera/camera_info", 1, true);
+    depth_info_publisher_ = private_node_.advertise<sensor_msgs::CameraInfo>("camera/depth/camera_info", 1, true);
+    joint_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10, true);
 
     br::FoldLearningObserver observer;
     observer.rollout = [this](const br::FoldRolloutRecord& record, const bt::FoldRollout& rollout,
@@ -120,6 +128,8 @@ class FoldLearnerNode {
     }
     table_ = sim.table;
     scene_publisher_.publish(bs::nodes::tableMarker(table_, ros::Time::now()));
+    camera_frame_.sendTransform(bs::ros_layer::cameraTransform(learner_->config().reward.renderer.camera, "world",
+                                                               kCameraFrame, ros::Time::now()));
     total_ = config_.repetitions + static_cast<int>(config_.algorithms.size()) * config_.runs *
                                        ((config_.updates + 1) * config_.rollouts + 2);
   }
@@ -166,14 +176,15 @@ class FoldLearnerNode {
   /// A dispatcher to the rollout workers when ~worker_namespace or ~workers is set, else null (threads here).
   std::unique_ptr<br::Evaluator> makeDispatcher() {
     bs::nodes::WorkerSelection selection;
+    parameters_.accept("workers");
+    parameters_.accept("worker_namespace");
+    const double timeout = parameters_.number("worker_timeout", br::DispatchConfig{}.timeout, 1e-3, 1e6);
+    const int share = parameters_.integer("share", 0, 0, 1000000);
     if (!bs::nodes::readWorkerSelection(private_node_, selection)) return nullptr;
     selection.task = "fold";
     selection.config = std::filesystem::absolute(config_path_).string();
     br::DispatchConfig dispatch;
-    private_node_.param("worker_timeout", dispatch.timeout, dispatch.timeout);
-    int share = 0;
-    private_node_.param("share", share, share);
-    if (share < 0) throw std::invalid_argument("~share must be >= 0");
+    dispatch.timeout = timeout;
     dispatch.share = static_cast<std::size_t>(share);
     dispatch.log = [](const std::string& line, bool fault) {
       if (fault) {
@@ -203,6 +214,18 @@ class FoldLearnerNode {
     std::fflush(stdout);
   }
 
+  /// The colour and depth images with their camera_info, in the camera's frame.
+  void publishImages(const ros::Time& stamp, const cv::Mat& bgr, const cv::Mat& depth) {
+    std_msgs::Header header;
+    header.stamp = stamp;
+    header.frame_id = kCameraFrame;
+    const sensor_msgs::CameraInfo info = bs::ros_layer::cameraInfo(learner_->config().reward.renderer.camera, header);
+    image_publisher_.publish(cv_bridge::CvImage(header, "bgr8", bgr).toImageMsg());
+    info_publisher_.publish(info);
+    depth_publisher_.publish(cv_bridge::CvImage(header, "32FC1", depth).toImageMsg());
+    depth_info_publisher_.publish(info);
+  }
+
   void onRollout(const br::FoldRolloutRecord& record, const bt::FoldRollout& rollout, const bt::FoldReward& reward) {
     ++done_;
     if (record.resumed) ++resumed_;
@@ -222,11 +245,7 @@ class FoldLearnerNode {
     // The cloth, images and arms of a rollout simulated here; a rollout worker's answer has its tool paths only.
     if (rollout.cloth_vertices.cols() > 0) {
       cloth_publisher_.publish(bs::nodes::clothMarker(rollout.cloth_vertices, rollout.cloth_triangles, now));
-      std_msgs::Header header;
-      header.stamp = now;
-      header.frame_id = "top_down_camera";
-      image_publisher_.publish(cv_bridge::CvImage(header, "bgr8", reward.bgr()).toImageMsg());
-      depth_publisher_.publish(cv_bridge::CvImage(header, "32FC1", reward.depth()).toImageMsg());
+      publishImages(now, reward.bgr(), reward.depth());
       if (!rollout.joint_path.empty() && rollout.joint_path.front().cols() > 0) {
         joint_publisher_.publish(jointState(rollout, rollout.joint_path.front().cols() - 1, now));
       }
@@ -315,9 +334,12 @@ class FoldLearnerNode {
     learner_->score(rollout, best.seed, bgr, depth);
     std_msgs::Header header;
     header.stamp = end;
-    header.frame_id = "top_down_camera";
+    header.frame_id = kCameraFrame;
+    const vision::TopDownCamera& camera = learner_->config().reward.renderer.camera;
     bag.write(ns + "/camera/image_raw", end, cv_bridge::CvImage(header, "bgr8", bgr).toImageMsg());
+    bag.write(ns + "/camera/camera_info", end, bs::ros_layer::cameraInfo(camera, header));
     bag.write(ns + "/camera/depth/image_raw", end, cv_bridge::CvImage(header, "32FC1", depth).toImageMsg());
+    bag.write(ns + "/camera/depth/camera_info", end, bs::ros_layer::cameraInfo(camera, header));
     bag.close();
   }
 
@@ -428,9 +450,8 @@ class FoldLearnerNode {
     learner_->score(rollout, best.seed, bgr, depth);
     std_msgs::Header header;
     header.stamp = ros::Time::now();
-    header.frame_id = "top_down_camera";
-    image_publisher_.publish(cv_bridge::CvImage(header, "bgr8", bgr).toImageMsg());
-    depth_publisher_.publish(cv_bridge::CvImage(header, "32FC1", depth).toImageMsg());
+    header.frame_id = kCameraFrame;
+    publishImages(header.stamp, bgr, depth);
     visualization_msgs::MarkerArray paths;
     visualization_msgs::Marker clear;
     clear.action = visualization_msgs::Marker::DELETEALL;
@@ -465,12 +486,15 @@ class FoldLearnerNode {
   };
 
   ros::NodeHandle node_, private_node_;
+  bs::ros_layer::ParameterReader parameters_;
   std::string config_path_, out_;
   bool replay_best_ = false;
   br::FoldLearningConfig config_;
   std::unique_ptr<br::FoldLearner> learner_;
   std::vector<std::string> joint_names_;
   bs::sim::Table table_;
+  ros::Publisher info_publisher_, depth_info_publisher_;
+  tf2_ros::StaticTransformBroadcaster camera_frame_;
   ros::Publisher cloth_publisher_, scene_publisher_, path_publisher_, image_publisher_, depth_publisher_,
       joint_publisher_;
   std::deque<Paths> paths_;

@@ -7,8 +7,10 @@
 #include "bimanual_skills/SolveIk.h"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 
+#include "bimanual_skills/ros_layer/parameters.hpp"
 #include "node_cli.hpp"
 
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/transform_listener.h>
@@ -61,13 +63,15 @@ Eigen::Isometry3d checkedPose(const geometry_msgs::Pose& pose, int invalid_code)
 }
 
 /// Joint positions of `model` from a JointState: by name (others default to `fallback`), or positions only in chain
-/// order. Requires every joint when `need_all`.
+/// order. `strict` (forward kinematics): every joint of the chain and no other. Otherwise (a seed) names of other
+/// joints are skipped, so a whole /joint_states message of a two-arm robot seeds either arm, but at least one of the
+/// chain's joints must be named.
 Eigen::VectorXd jointVector(const bk::ChainModel& model, const sensor_msgs::JointState& state,
-                            const Eigen::VectorXd& fallback, bool need_all, int invalid_input) {
+                            const Eigen::VectorXd& fallback, bool strict, int invalid_input) {
   const int n = model.nq();
   Eigen::VectorXd q = fallback;
   const std::vector<std::string> names = model.jointNames();
-  if (!need_all && state.name.empty() && state.position.empty()) return q;
+  if (!strict && state.name.empty() && state.position.empty()) return q;
   if (state.name.empty()) {
     if (static_cast<int>(state.position.size()) != n) {
       throw RequestError{SolveIk::Response::INVALID_ROBOT_STATE, "joint state has " +
@@ -87,6 +91,7 @@ Eigen::VectorXd jointVector(const bk::ChainModel& model, const sensor_msgs::Join
     for (std::size_t k = 0; k < state.name.size(); ++k) {
       const auto it = std::find(names.begin(), names.end(), state.name[k]);
       if (it == names.end()) {
+        if (!strict) continue;
         throw RequestError{
             SolveIk::Response::INVALID_ROBOT_STATE,
             "joint '" + state.name[k] + "' is not in the chain " + model.baseLink() + " -> " + model.tipLink()};
@@ -94,7 +99,11 @@ Eigen::VectorXd jointVector(const bk::ChainModel& model, const sensor_msgs::Join
       q[it - names.begin()] = state.position[k];
       ++found;
     }
-    if (need_all && found != n) {
+    if (!strict && found == 0) {
+      throw RequestError{SolveIk::Response::INVALID_ROBOT_STATE,
+                         "the seed names none of the chain's joints (" + names.front() + ", ...)"};
+    }
+    if (strict && found != n) {
       throw RequestError{
           SolveIk::Response::INVALID_ROBOT_STATE,
           "joint state names " + std::to_string(found) + " of the chain's " + std::to_string(n) + " joints"};
@@ -104,19 +113,30 @@ Eigen::VectorXd jointVector(const bk::ChainModel& model, const sensor_msgs::Join
   return q;
 }
 
+/// One arm's services, on a callback queue and thread of their own: a long request on one arm never delays
+/// another arm's. Requests to the same arm are answered in turn.
 class ArmServices {
  public:
   ArmServices(std::string name, std::string base, std::string tip, const std::string& description,
-              const Settings& settings, tf2_ros::Buffer& tf, ros::NodeHandle& node)
+              const Settings& settings, tf2_ros::Buffer& tf, const ros::NodeHandle& node)
       : name_(std::move(name)),
         base_(std::move(base)),
         tip_(std::move(tip)),
         description_(description),
         settings_(settings),
-        tf_(tf) {
+        tf_(tf),
+        node_(node),
+        spinner_(1, &queue_) {
     solver(tip_, settings_.method);  // load the configured chain now: configuration errors surface at start-up
-    ik_ = node.advertiseService(name_ + "/solve_ik", &ArmServices::solveIk, this);
-    fk_ = node.advertiseService(name_ + "/solve_fk", &ArmServices::solveFk, this);
+    node_.setCallbackQueue(&queue_);
+    ik_ = node_.advertiseService(name_ + "/solve_ik", &ArmServices::solveIk, this);
+    fk_ = node_.advertiseService(name_ + "/solve_fk", &ArmServices::solveFk, this);
+    spinner_.start();
+  }
+  ~ArmServices() {
+    spinner_.stop();
+    ik_.shutdown();
+    fk_.shutdown();
   }
 
   std::string describe() const {
@@ -278,6 +298,9 @@ class ArmServices {
   const Settings& settings_;
   tf2_ros::Buffer& tf_;
   std::map<std::string, std::unique_ptr<bk::GlobalIkSolver>> solvers_;
+  ros::NodeHandle node_;
+  ros::CallbackQueue queue_;
+  ros::AsyncSpinner spinner_;
   ros::ServiceServer ik_, fk_;
 };
 
@@ -304,17 +327,21 @@ int main(int argc, char** argv) {
   bimanual_skills::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "ik_server");
   ros::NodeHandle node;
+  ros::AsyncSpinner global(1);  // the parameter and logging callbacks; each arm's services spin on their own
+  global.start();
   ros::NodeHandle private_node("~");
   Settings settings;
-  private_node.param("method", settings.method, settings.method);
-  private_node.param("default_timeout", settings.default_timeout, settings.default_timeout);
-  private_node.param("max_timeout", settings.max_timeout, settings.max_timeout);
-  private_node.param("max_attempts", settings.max_attempts, settings.max_attempts);
-  private_node.param("tf_timeout", settings.tf_timeout, settings.tf_timeout);
-  if (!(settings.default_timeout > 0.0) || !(settings.max_timeout >= settings.default_timeout) ||
-      settings.max_attempts < 1 || !(settings.tf_timeout >= 0.0)) {
-    ROS_FATAL(
-        "ik_server: need default_timeout > 0, max_timeout >= default_timeout, max_attempts >= 1, tf_timeout >= 0");
+  bimanual_skills::ros_layer::ParameterReader parameters(private_node, "ik_server");
+  try {
+    settings.method = parameters.text("method", settings.method, bk::methodNames());
+    settings.default_timeout = parameters.number("default_timeout", settings.default_timeout, 1e-6, 3600.0);
+    settings.max_timeout = parameters.number("max_timeout", settings.max_timeout, settings.default_timeout, 3600.0);
+    settings.max_attempts = parameters.integer("max_attempts", settings.max_attempts, 1);
+    settings.tf_timeout = parameters.number("tf_timeout", settings.tf_timeout, 0.0, 60.0);
+    parameters.accept("arms");
+    parameters.warnUnknown();
+  } catch (const std::invalid_argument& e) {
+    ROS_FATAL("ik_server: %s", e.what());
     return 2;
   }
   std::string description;
@@ -352,6 +379,6 @@ int main(int argc, char** argv) {
     return 2;
   }
   ROS_INFO("ik_server: ready (method %s, default timeout %.3f s)", settings.method.c_str(), settings.default_timeout);
-  ros::spin();
+  ros::waitForShutdown();
   return 0;
 }

@@ -1,6 +1,7 @@
 // rollout_worker: evaluates shares of rollout batches for a dispatching learner (rollout::Dispatcher through
 // nodes/action_workers.hpp), one rollout at a time, with one simulator. A thin shell around the task registry.
 #include "bimanual_skills/rollout/task_registry.hpp"
+#include "bimanual_skills/ros_layer/parameters.hpp"
 #include "node_cli.hpp"
 
 #include <bimanual_skills/EvaluateRolloutsAction.h>
@@ -53,7 +54,10 @@ class RolloutWorker {
       : private_node_("~"),
         server_(
             private_node_, "evaluate_rollouts", [this](const auto& goal) { execute(goal); }, false) {
-    private_node_.param<std::string>("task", only_task_, "");
+    bimanual_skills::ros_layer::ParameterReader parameters(private_node_, "rollout_worker");
+    only_task_ = parameters.text("task", "");
+    parameters.accept("pid");  // written below
+    parameters.warnUnknown();
     private_node_.setParam("pid", static_cast<int>(::getpid()));
     server_.start();
     ROS_INFO("rollout_worker %s: ready (%s)", ros::this_node::getName().c_str(),

@@ -1,5 +1,6 @@
 // workspace_markers: an arm's workspace map (workspace/workspace_map.hpp, thesis Sec. 3.2.1) in rviz. A thin shell:
 // the map is built by the library (or read from its cache file) and published once, latched.
+#include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/workspace/workspace_map.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
@@ -59,20 +60,18 @@ int main(int argc, char** argv) {
   ros::init(argc, argv, "workspace_markers");
   ros::NodeHandle private_node("~");
   try {
-    const std::string urdf =
-        private_node.param<std::string>("urdf", ros::package::getPath("bimanual_skills") + "/urdf/wam.urdf");
-    const std::string base = private_node.param<std::string>("base", "wam_base");
-    const std::string tip = private_node.param<std::string>("tip", "wam_tool");
-    const std::string cache = private_node.param<std::string>("cache", bw::WorkspaceMap::defaultCacheDirectory());
+    bs::ros_layer::ParameterReader p(private_node, "workspace_markers");
+    const std::string urdf = p.text("urdf", ros::package::getPath("bimanual_skills") + "/urdf/wam.urdf");
+    const std::string base = p.text("base", "wam_base");
+    const std::string tip = p.text("tip", "wam_tool");
+    const std::string cache = p.text("cache", bw::WorkspaceMap::defaultCacheDirectory());
     bw::WorkspaceMapSettings settings;
-    settings.resolution = private_node.param("resolution", 0.1);
-    settings.orientations = private_node.param("orientations", 50);
-    const int seed = private_node.param("seed", 1);
-    if (seed < 0) throw std::invalid_argument("~seed must be >= 0");
-    settings.seed = static_cast<std::uint32_t>(seed);
-    const double slice = private_node.param("slice_y", 0.0);
-    const bool cutaway = private_node.param("cutaway", true);
-    if (!std::isfinite(slice)) throw std::invalid_argument("~slice_y must be finite");
+    settings.resolution = p.number("resolution", 0.1, 1e-3, 10.0);
+    settings.orientations = p.integer("orientations", 50, 1, 100000);
+    settings.seed = static_cast<std::uint32_t>(p.integer("seed", 1, 0));
+    const double slice = p.number("slice_y", 0.0, -100.0, 100.0);
+    const bool cutaway = p.boolean("cutaway", true);
+    p.warnUnknown();
     const bs::kinematics::ChainModel model = bs::kinematics::ChainModel::fromUrdfFile(urdf, base, tip);
 
     ROS_INFO("workspace_markers: the map of %s (%s -> %s), %.3f m voxels, %d orientations, seed %u", urdf.c_str(),

@@ -1,12 +1,15 @@
 // rostest (test/fold_learner.test): fold_learner learning a tiny fold headless. Checks that every rollout's camera
 // images, cloth mesh and tool paths reach their topics, that the results directory gets summary.json, the top-down
 // images and rollouts.csv, and that best_rollout.bag holds a replay: joint states of both arms, cloth frames, the
-// camera image.
+// camera image. The images come with their CameraInfo, in a frame on tf.
+#include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
+#include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/JointState.h>
+#include <tf2_msgs/TFMessage.h>
 #include <visualization_msgs/Marker.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -36,6 +39,19 @@ TEST(FoldLearnerNode, PublishesEachRolloutAndWritesTheResults) {
                                                               ++images;
                                                               last_image = *m;
                                                             });
+  sensor_msgs::CameraInfo last_info;
+  int infos = 0;
+  const auto info_sub = node.subscribe<sensor_msgs::CameraInfo>("/fold_learner/camera/camera_info", 10,
+                                                                [&](const sensor_msgs::CameraInfoConstPtr& m) {
+                                                                  ++infos;
+                                                                  last_info = *m;
+                                                                });
+  geometry_msgs::TransformStamped camera_frame;
+  const auto tf_sub = node.subscribe<tf2_msgs::TFMessage>("/tf_static", 10, [&](const tf2_msgs::TFMessageConstPtr& m) {
+    for (const auto& t : m->transforms) {
+      if (t.child_frame_id == "top_down_camera") camera_frame = t;
+    }
+  });
   const auto depth_sub = node.subscribe<sensor_msgs::Image>("/fold_learner/camera/depth/image_raw", 10,
                                                             [&](const sensor_msgs::ImageConstPtr&) { ++depths; });
   const auto cloth_sub = node.subscribe<visualization_msgs::Marker>("/fold_learner/cloth", 10,
@@ -62,6 +78,15 @@ TEST(FoldLearnerNode, PublishesEachRolloutAndWritesTheResults) {
   EXPECT_EQ(last_image.encoding, "bgr8");
   EXPECT_EQ(last_image.width, 320u);
   EXPECT_EQ(last_image.height, 240u);
+  EXPECT_EQ(last_image.header.frame_id, "top_down_camera");
+  EXPECT_GT(infos, 0);
+  EXPECT_EQ(last_info.width, 320u);
+  EXPECT_EQ(last_info.height, 240u);
+  EXPECT_EQ(last_info.header.frame_id, "top_down_camera");
+  EXPECT_NEAR(last_info.P[0], 320.0, 1e-9);  // 1 / pixel size (3.125 mm)
+  EXPECT_EQ(last_info.P[11], 1.0);           // orthographic: the affine camera's last row
+  EXPECT_EQ(camera_frame.header.frame_id, "world");
+  EXPECT_NEAR(camera_frame.transform.translation.z, 1.65, 1e-9);  // 1.5 m above the table top (0.15 m)
   EXPECT_EQ(last_cloth.type, visualization_msgs::Marker::TRIANGLE_LIST);
   EXPECT_GT(last_cloth.points.size(), 300u);
   for (const char* file : {"summary.json", "epochs.csv", "rollouts.csv", "initial.png", "final.png"}) {

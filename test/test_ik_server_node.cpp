@@ -137,9 +137,9 @@ TEST(IkServer, BadInputGetsACodeNotACrash) {
   r.seed.position = {0.0, 0.1, 0.2};
   expectCode(r, SolveIk::Response::INVALID_ROBOT_STATE, "seed of the wrong size");
   r = valid;
-  r.seed.name = {"right_wam_joint1", "elbow"};
+  r.seed.name = {"left_wam_joint1", "elbow"};
   r.seed.position = {0.0, 0.1};
-  expectCode(r, SolveIk::Response::INVALID_ROBOT_STATE, "seed with an unknown joint");
+  expectCode(r, SolveIk::Response::INVALID_ROBOT_STATE, "seed naming none of the arm's joints");
   r = valid;
   r.seed.position = {0.0, 0.0, 0.0, 5.0, 0.0, 0.0, 0.0};
   expectCode(r, SolveIk::Response::INVALID_ROBOT_STATE, "seed outside the limits");
@@ -278,6 +278,73 @@ TEST(IkServer, ThousandRequestsFromFourConcurrentClients) {
   RecordProperty("requests_per_second", std::to_string(throughput));
   EXPECT_EQ(answered.load(), kClients * kPerClient);
   EXPECT_EQ(correct.load(), kClients * kPerClient);
+}
+
+// A whole /joint_states message of the two-arm robot seeds either arm: the other arm's joints are skipped by name.
+// solve_fk stays strict: a joint outside the chain is an error.
+TEST(IkServer, FourteenJointSeedIsTakenByName) {
+  ASSERT_TRUE(ros::service::waitForService("/left/solve_ik", ros::Duration(30.0)));
+  const Arm left = arm("left");
+  std::mt19937 rng(3);
+  Eigen::Isometry3d target;
+  SolveIk::Request request = validRequest(left.model, rng, target);
+  request.mode = "closest";
+  const Eigen::VectorXd q_left = bk::randomWithinLimits(left.model, rng);
+  for (const std::string side : {"right", "left"}) {
+    for (int i = 1; i <= 7; ++i) {
+      request.seed.name.push_back(side + "_wam_joint" + std::to_string(i));
+      request.seed.position.push_back(side == "left" ? q_left[i - 1] : 0.1 * i);
+    }
+  }
+  ros::NodeHandle node;
+  auto client = node.serviceClient<SolveIk>("/left/solve_ik");
+  const SolveIk::Response response = call(client, request);
+  EXPECT_EQ(response.error_code, SolveIk::Response::SUCCESS) << response.message;
+  EXPECT_LE(solutionError(left.model, response, target), 1e-5);
+
+  auto fk = node.serviceClient<SolveFk>("/left/solve_fk");
+  SolveFk srv;
+  srv.request.joint_state = request.seed;
+  ASSERT_TRUE(fk.call(srv));
+  EXPECT_EQ(srv.response.error_code, SolveFk::Response::INVALID_ROBOT_STATE) << srv.response.message;
+}
+
+// Each arm has its own callback queue and thread: a long request on the left arm (mode closest searches until its
+// 2 s budget or max_attempts) does not delay the right arm's.
+TEST(IkServer, ArmsAnswerInParallel) {
+  ASSERT_TRUE(ros::service::waitForService("/left/solve_ik", ros::Duration(30.0)));
+  ASSERT_TRUE(ros::service::waitForService("/right/solve_ik", ros::Duration(30.0)));
+  const Arm left = arm("left"), right = arm("right");
+  std::mt19937 rng(4);
+  Eigen::Isometry3d long_target, short_target;
+  SolveIk::Request long_request = validRequest(left.model, rng, long_target);
+  long_request.mode = "closest";  // searches for the whole time budget
+  long_request.timeout = 2.0;
+  const SolveIk::Request short_request = validRequest(right.model, rng, short_target);
+  std::atomic<double> long_end{0.0};
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto since = [t0] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
+  std::thread long_call([&] {
+    ros::NodeHandle node;
+    auto client = node.serviceClient<SolveIk>("/left/solve_ik");
+    const SolveIk::Response response = call(client, long_request);
+    long_end = since();
+    EXPECT_EQ(response.error_code, SolveIk::Response::SUCCESS) << response.message;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ros::NodeHandle node;
+  auto client = node.serviceClient<SolveIk>("/right/solve_ik");
+  const double short_start = since();
+  const SolveIk::Response response = call(client, short_request);
+  const double short_end = since();
+  long_call.join();
+  std::printf(
+      "ik_server: the right arm answered in %.3f s while the left arm's long request ran (it ended at %.3f s)\n",
+      short_end - short_start, long_end.load());
+  EXPECT_EQ(response.error_code, SolveIk::Response::SUCCESS) << response.message;
+  EXPECT_LT(short_end - short_start, 0.5);
+  EXPECT_LT(short_end, long_end.load()) << "the short request waited for the long one";
+  EXPECT_GT(long_end.load(), 0.5) << "the left request was not long (it ends at 2 s or max_attempts)";
 }
 
 int main(int argc, char** argv) {

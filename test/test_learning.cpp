@@ -5,6 +5,7 @@
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/learning/locally_weighted_regression.hpp"
+#include "bimanual_skills/learning/student_t.hpp"
 #include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
@@ -123,4 +124,25 @@ TEST(LocallyWeightedRegression, LearnedDynamicsTrackLikeTheAnalyticModel) {
   EXPECT_EQ(lwr.update(x, u), bl::LwrStatus::Success);
   EXPECT_EQ(lwr.predict(x, y), bl::LwrStatus::Success);
   EXPECT_NE(controller.update(q, qd, q_des, qd_des, qdd_des, u), bc::ControlStatus::InvalidInput);
+}
+
+// Student's t quantiles against tables (and scipy.stats.t.ppf(0.975, ν) beyond them), and the interval they give.
+TEST(StudentT, QuantilesAndIntervals) {
+  EXPECT_DOUBLE_EQ(bl::studentT975(1), 12.706);
+  EXPECT_DOUBLE_EQ(bl::studentT975(2), 4.303);
+  EXPECT_DOUBLE_EQ(bl::studentT975(4), 2.776);
+  EXPECT_DOUBLE_EQ(bl::studentT975(9), 2.262);
+  EXPECT_NEAR(bl::studentT975(40), 2.021075, 1e-4);
+  EXPECT_NEAR(bl::studentT975(60), 2.000298, 1e-4);
+  EXPECT_NEAR(bl::studentT975(120), 1.979930, 1e-4);
+  EXPECT_NEAR(bl::studentT975(100000), 1.959985, 1e-4);
+  EXPECT_THROW(bl::studentT975(0), std::invalid_argument);
+  // 1, 2, 3, 4, 5: mean 3, s = √2.5, t_{0.975,4} = 2.776: half-width 2.776 · √2.5 / √5 = 1.96292.
+  const bl::MeanInterval m = bl::meanInterval95({1, 2, 3, 4, 5});
+  EXPECT_EQ(m.n, 5);
+  EXPECT_DOUBLE_EQ(m.mean, 3.0);
+  EXPECT_NEAR(m.std_dev, std::sqrt(2.5), 1e-12);
+  EXPECT_NEAR(m.half_width, 2.776 * std::sqrt(2.5 / 5.0), 1e-12);
+  EXPECT_EQ(bl::meanInterval95({7.0}).half_width, 0.0);
+  EXPECT_THROW(bl::meanInterval95({}), std::invalid_argument);
 }

@@ -1,14 +1,23 @@
-// rostest (test/sim_control.test): bullet_sim and both ctc_controllers running headless. Commands a trajectory
-// to each arm and checks the tracking; puts a payload on the left tool and checks the estimated force; sends NaN
-// commands and stale joint states and checks the safe reactions.
+// rostests of the simulated robot over ROS, as a user drives it: bullet_sim hosting both arms' controllers (or
+// separate ctc_controller processes), commanded through the trajectory topic and action and the simulator's
+// services. One executable; each .test file runs the suite that fits its launch:
+//   sim_control.test   (hosted, lockstep, as fast as possible)  HostedControl.*
+//   sim_pacing.test    (hosted, free-running at real time)       Pacing.*
+//   sim_external.test  (ctc_controller processes, real time)     ExternalControllers.*
+//   sim_500hz.test     (hosted, a 2 ms step, lockstep)           Rate500.*
+#include "bimanual_skills/ApplyWrench.h"
+#include "bimanual_skills/ClothGrasp.h"
+#include "bimanual_skills/FollowJointTrajectoryAction.h"
+#include "bimanual_skills/JointTrajectoryControllerState.h"
 #include "bimanual_skills/SetPayload.h"
 #include "bimanual_skills/SimStep.h"
 
+#include <actionlib/client/simple_action_client.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <ros/ros.h>
+#include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/JointState.h>
-#include <std_msgs/Float64MultiArray.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
 #include <trajectory_msgs/JointTrajectory.h>
@@ -17,15 +26,27 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <functional>
+#include <future>
 #include <map>
+#include <memory>
+#include <mutex>
+#include <random>
 #include <string>
 #include <thread>
 #include <vector>
 
 namespace {
 
+using Action = bimanual_skills::FollowJointTrajectoryAction;
+using Client = actionlib::SimpleActionClient<Action>;
+using Result = bimanual_skills::FollowJointTrajectoryResult;
+using Goal = bimanual_skills::FollowJointTrajectoryGoal;
+using State = actionlib::SimpleClientGoalState;
+
 const std::vector<std::string> kArms = {"left", "right"};
+constexpr double kWeight = 1.5 * 9.81;  ///< Of the payload the tests hang on the left tool [N].
 
 std::vector<std::string> jointNames(const std::string& arm) {
   std::vector<std::string> names;
@@ -33,68 +54,99 @@ std::vector<std::string> jointNames(const std::string& arm) {
   return names;
 }
 
-class SimControl : public ::testing::Test {
+double wallNow() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+/// Everything a user of the simulated robot sees: joint states, /clock, each arm's controller state, estimated
+/// wrench and trajectory action, /diagnostics, the simulator's services.
+class SimFixture : public ::testing::Test {
  protected:
   void SetUp() override {
-    states_ = node_.subscribe("/joint_states", 10, &SimControl::onState, this);
+    spinner_.start();
+    states_ = node_.subscribe("/joint_states", 100, &SimFixture::onState, this);
+    clock_ = node_.subscribe("/clock", 100, &SimFixture::onClock, this);
+    diagnostics_ = node_.subscribe("/diagnostics", 100, &SimFixture::onDiagnostics, this);
     for (const std::string& arm : kArms) {
-      errors_[arm] = node_.subscribe<sensor_msgs::JointState>("/" + arm + "/tracking_error", 10,
-                                                              [this, arm](const sensor_msgs::JointState::ConstPtr& m) {
-                                                                double worst = 0.0;
-                                                                for (double e : m->position)
-                                                                  worst = std::max(worst, std::abs(e));
-                                                                if (recording_)
-                                                                  max_error_[arm] = std::max(max_error_[arm], worst);
-                                                              });
+      controller_states_[arm] = node_.subscribe<bimanual_skills::JointTrajectoryControllerState>(
+          "/" + arm + "/state", 100, [this, arm](const bimanual_skills::JointTrajectoryControllerState::ConstPtr& m) {
+            double worst = 0.0;
+            for (double e : m->error.positions) worst = std::max(worst, std::abs(e));
+            const std::lock_guard<std::mutex> lock(mutex_);
+            if (recording_) max_error_[arm] = std::max(max_error_[arm], worst);
+            ++controller_state_count_[arm];
+          });
       wrenches_[arm] = node_.subscribe<geometry_msgs::WrenchStamped>(
-          "/" + arm + "/estimated_wrench", 10,
-          [this, arm](const geometry_msgs::WrenchStamped::ConstPtr& m) { force_z_[arm].push_back(m->wrench.force.z); });
+          "/" + arm + "/estimated_wrench", 1000, [this, arm](const geometry_msgs::WrenchStamped::ConstPtr& m) {
+            const std::lock_guard<std::mutex> lock(mutex_);
+            force_z_[arm].push_back(m->wrench.force.z);
+          });
       commands_[arm] = node_.advertise<trajectory_msgs::JointTrajectory>("/" + arm + "/command", 1, true);
-      efforts_[arm] = node_.advertise<std_msgs::Float64MultiArray>("/" + arm + "/effort_command", 1);
+      clients_[arm] = std::make_unique<Client>(node_, "/" + arm + "/follow_joint_trajectory", false);
     }
-    diagnostics_ = node_.subscribe("/diagnostics", 10, &SimControl::onDiagnostics, this);
-    fake_states_ = node_.advertise<sensor_msgs::JointState>("/joint_states", 1);
-    ASSERT_TRUE(waitWall([this] { return positions_.size() == 14 && force_z_["left"].size() > 5; }, 60.0))
-        << "no joint states or estimates from the simulation";
+    pause_ = node_.serviceClient<std_srvs::SetBool>("/bullet_sim/pause");
+    reset_ = node_.serviceClient<std_srvs::Trigger>("/bullet_sim/reset");
+    step_ = node_.serviceClient<bimanual_skills::SimStep>("/bullet_sim/step");
+    payload_ = node_.serviceClient<bimanual_skills::SetPayload>("/bullet_sim/set_payload");
+    ASSERT_TRUE(step_.waitForExistence(ros::Duration(60.0))) << "bullet_sim did not come up";
+    ASSERT_TRUE(waitWall([this] { return positions().size() == 14; }, 60.0)) << "no joint states";
+    for (const std::string& arm : kArms) {
+      ASSERT_TRUE(clients_[arm]->waitForServer(ros::Duration(30.0))) << arm << ": no trajectory action";
+    }
   }
 
+  void TearDown() override { spinner_.stop(); }
+
   void onState(const sensor_msgs::JointState::ConstPtr& m) {
-    if (m->name.size() != 14) return;  // our own fake messages
+    if (m->name.size() != 14) return;
+    const std::lock_guard<std::mutex> lock(mutex_);
     last_stamp_ = m->header.stamp.toSec();
     for (std::size_t i = 0; i < m->name.size(); ++i) positions_[m->name[i]] = m->position[i];
   }
 
+  void onClock(const rosgraph_msgs::Clock::ConstPtr& m) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    clock_samples_.emplace_back(wallNow(), m->clock.toSec());
+    if (clock_samples_.size() > 200000) clock_samples_.erase(clock_samples_.begin(), clock_samples_.begin() + 100000);
+  }
+
   void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
+    const std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& status : m->status) {
-      for (const auto& kv : status.values) diagnostics_values_[status.hardware_id][kv.key] = kv.value;
+      for (const auto& kv : status.values) diagnostics_values_[status.name][kv.key] = kv.value;
     }
   }
 
-  /// Spins until `done` or `seconds` of wall time.
-  bool waitWall(const std::function<bool()>& done, double seconds) {
-    const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
-    while (ros::ok() && std::chrono::steady_clock::now() < end) {
-      ros::spinOnce();
+  std::map<std::string, double> positions() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return positions_;
+  }
+
+  /// Waits until `done` or `seconds` of wall time.
+  static bool waitWall(const std::function<bool()>& done, double seconds) {
+    const double end = wallNow() + seconds;
+    while (ros::ok() && wallNow() < end) {
       if (done()) return true;
       std::this_thread::sleep_for(std::chrono::milliseconds(2));
     }
-    return false;
+    return done();
   }
 
-  /// Spins for `seconds` of simulated time (at most 20× that in wall time).
-  void waitSim(double seconds) {
+  /// Waits for `seconds` of simulated time (at most 30× that in wall time).
+  static void waitSim(double seconds) {
     const ros::Time end = ros::Time::now() + ros::Duration(seconds);
-    waitWall([&] { return ros::Time::now() >= end; }, 20.0 * seconds + 5.0);
+    waitWall([&] { return ros::Time::now() >= end; }, 30.0 * seconds + 10.0);
   }
 
   std::vector<double> armPositions(const std::string& arm) {
+    const auto p = positions();
     std::vector<double> q;
-    for (const std::string& name : jointNames(arm)) q.push_back(positions_[name]);
+    for (const std::string& name : jointNames(arm)) q.push_back(p.at(name));
     return q;
   }
 
-  trajectory_msgs::JointTrajectory trajectory(const std::string& arm, const std::vector<std::vector<double>>& points,
-                                              double period) {
+  static trajectory_msgs::JointTrajectory trajectory(const std::string& arm,
+                                                     const std::vector<std::vector<double>>& points, double period) {
     trajectory_msgs::JointTrajectory t;
     t.joint_names = jointNames(arm);
     for (std::size_t p = 0; p < points.size(); ++p) {
@@ -106,38 +158,133 @@ class SimControl : public ::testing::Test {
     return t;
   }
 
-  double meanForceZ(const std::string& arm, double seconds) {
-    force_z_[arm].clear();
-    waitSim(seconds);
-    double sum = 0.0;
-    for (double f : force_z_[arm]) sum += f;
-    return force_z_[arm].empty() ? std::nan("") : sum / static_cast<double>(force_z_[arm].size());
+  /// Sends a goal and waits (bounded) for its end; the result and the final state.
+  std::pair<State, Result> follow(const std::string& arm, const Goal& goal, double wall_timeout = 60.0) {
+    clients_[arm]->sendGoal(goal);
+    const bool finished = clients_[arm]->waitForResult(ros::Duration(wall_timeout));
+    EXPECT_TRUE(finished) << arm << ": the goal did not end within " << wall_timeout << " s";
+    const auto result = clients_[arm]->getResult();
+    return {clients_[arm]->getState(), result ? *result : Result()};
   }
 
-  long diagnostic(const std::string& arm, const std::string& key) {
-    const auto it = diagnostics_values_[arm].find(key);
-    return it == diagnostics_values_[arm].end() ? -1 : std::stol(it->second);
+  /// A swing of the left arm's joints 1, 2 and 4 (a 4 s period) for 6 s from q0, as one trajectory.
+  static trajectory_msgs::JointTrajectory swing(const std::vector<double>& q0) {
+    std::vector<std::vector<double>> points;
+    for (int p = 1; p <= 60; ++p) {
+      std::vector<double> q = q0;
+      const double phase = std::sin(2.0 * M_PI * 0.1 * p / 4.0);
+      q[0] += 0.3 * phase;
+      q[1] += 0.15 * phase;
+      q[3] -= 0.2 * phase;
+      points.push_back(q);
+    }
+    return trajectory("left", points, 0.1);
+  }
+
+  /// Mean vertical force the left controller estimates over [2, 6] s of a swing.
+  double meanForceWhileSwinging() {
+    const std::vector<double> q0 = armPositions("left");
+    commands_["left"].publish(swing(q0));
+    waitSim(2.0);
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      force_z_["left"].clear();
+    }
+    waitSim(4.0);
+    std::vector<double> forces;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      forces = force_z_["left"];
+    }
+    waitSim(0.5);
+    EXPECT_GT(forces.size(), 20u);  // at publish_rate (100 Hz) of wall time
+    double sum = 0.0;
+    for (double f : forces) sum += f;
+    return forces.empty() ? std::nan("") : sum / static_cast<double>(forces.size());
+  }
+
+  bool setPayload(double mass) {
+    bimanual_skills::SetPayload set;
+    set.request.arm = "left";
+    set.request.mass = mass;
+    return payload_.call(set) && set.response.success;
+  }
+
+  /// The payload the left controller estimates: the difference of the mean vertical force over a swing without and
+  /// with 1.5 kg (the friction model's bias cancels), against the weight. Prints and records it.
+  double payloadError(const std::string& label) {
+    const double without = meanForceWhileSwinging();
+    EXPECT_TRUE(setPayload(1.5));
+    const double with = meanForceWhileSwinging();
+    EXPECT_TRUE(setPayload(0.0));
+    const double estimate = without - with;
+    std::printf(
+        "%s: estimated payload weight %.3f N (mean vertical force %.3f N without, %.3f N with 1.5 kg; "
+        "true %.3f N): error %.2f %%\n",
+        label.c_str(), estimate, without, with, kWeight, 100.0 * (estimate - kWeight) / kWeight);
+    RecordProperty(label + "_payload_error_percent", std::to_string(100.0 * (estimate - kWeight) / kWeight));
+    return (estimate - kWeight) / kWeight;
+  }
+
+  std::string diagnostic(const std::string& name, const std::string& key) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    const auto status = diagnostics_values_.find(name);
+    if (status == diagnostics_values_.end()) return "";
+    const auto it = status->second.find(key);
+    return it == status->second.end() ? "" : it->second;
+  }
+  long diagnosticCount(const std::string& name, const std::string& key) {
+    const std::string v = diagnostic(name, key);
+    return v.empty() ? -1 : std::stol(v);
+  }
+
+  /// Simulated seconds per wall second over the next `seconds` of wall time, from /clock.
+  double measuredRealtimeFactor(double seconds) {
+    std::size_t first;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      first = clock_samples_.size();
+    }
+    std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (clock_samples_.size() < first + 10) return 0.0;
+    const auto& a = clock_samples_[first];
+    const auto& b = clock_samples_.back();
+    return (b.second - a.second) / (b.first - a.first);
+  }
+
+  template <typename Service>
+  bool call(ros::ServiceClient& client, Service& service) {
+    return client.call(service);
   }
 
   ros::NodeHandle node_;
-  ros::Subscriber states_, diagnostics_;
-  std::map<std::string, ros::Subscriber> errors_, wrenches_;
-  std::map<std::string, ros::Publisher> commands_, efforts_;
-  ros::Publisher fake_states_;
-  std::map<std::string, double> positions_;
-  std::map<std::string, double> max_error_;
+  ros::AsyncSpinner spinner_{2};
+  ros::Subscriber states_, clock_, diagnostics_;
+  std::map<std::string, ros::Subscriber> controller_states_, wrenches_;
+  std::map<std::string, ros::Publisher> commands_;
+  std::map<std::string, std::unique_ptr<Client>> clients_;
+  ros::ServiceClient pause_, reset_, step_, payload_;
+  std::mutex mutex_;
+  std::map<std::string, double> positions_, max_error_;
+  std::map<std::string, long> controller_state_count_;
   std::map<std::string, std::vector<double>> force_z_;
   std::map<std::string, std::map<std::string, std::string>> diagnostics_values_;
-  double last_stamp_ = -1.0;  ///< Of the last joint states from the simulator [s].
+  std::vector<std::pair<double, double>> clock_samples_;  ///< (wall, simulated) seconds
+  double last_stamp_ = -1.0;
   bool recording_ = false;
 };
 
-TEST_F(SimControl, TracksTrajectoriesOnBothArms) {
-  std::map<std::string, std::vector<double>> start, goal;
+// ------------------------------------------------------------------------------------------- sim_control.test
+
+using HostedControl = SimFixture;
+
+TEST_F(HostedControl, TracksTrajectoriesOnBothArms) {
+  std::map<std::string, std::vector<double>> goal;
   for (const std::string& arm : kArms) {
-    start[arm] = armPositions(arm);
-    goal[arm] = start[arm];
-    std::vector<double> via = start[arm];
+    const std::vector<double> start = armPositions(arm);
+    goal[arm] = start;
+    std::vector<double> via = start;
     for (int i = 0; i < 7; ++i) via[i] += (i % 2 == 0 ? 0.3 : -0.2);
     goal[arm][0] += arm == "left" ? 0.2 : -0.2;
     goal[arm][3] -= 0.3;
@@ -150,108 +297,174 @@ TEST_F(SimControl, TracksTrajectoriesOnBothArms) {
   for (const std::string& arm : kArms) {
     const std::vector<double> q = armPositions(arm);
     for (int i = 0; i < 7; ++i) EXPECT_NEAR(q[i], goal[arm][i], 0.05) << arm << " joint " << i + 1;
-    EXPECT_GT(max_error_[arm], 0.0) << arm << ": no tracking error received";
+    EXPECT_GT(max_error_[arm], 0.0) << arm << ": no controller state received";
     EXPECT_LT(max_error_[arm], 0.1) << arm;
     RecordProperty(arm + "_max_tracking_error_rad", std::to_string(max_error_[arm]));
     std::printf("%s: max tracking error %.4f rad\n", arm.c_str(), max_error_[arm]);
   }
 }
 
-TEST_F(SimControl, EstimatesAnUnknownPayload) {
-  ros::ServiceClient payload = node_.serviceClient<bimanual_skills::SetPayload>("/bullet_sim/set_payload");
-  ASSERT_TRUE(payload.waitForExistence(ros::Duration(10.0)));
+TEST_F(HostedControl, TrajectoryActionAnswersWithControlMsgsCodes) {
+  const std::vector<double> start = armPositions("left");
+  std::vector<double> target = start;
+  target[0] += 0.3;
+  target[3] -= 0.2;
+  Goal goal;
+  goal.trajectory = trajectory("left", {target}, 1.0);
+  // A good goal: succeeded, with feedback on the way.
+  long feedback = 0;
+  clients_["left"]->sendGoal(
+      goal, Client::SimpleDoneCallback(), Client::SimpleActiveCallback(),
+      [&feedback](const bimanual_skills::FollowJointTrajectoryFeedbackConstPtr&) { ++feedback; });
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(60.0)));
+  EXPECT_EQ(clients_["left"]->getState(), State::SUCCEEDED) << clients_["left"]->getState().getText();
+  EXPECT_EQ(clients_["left"]->getResult()->error_code, Result::SUCCESSFUL);
+  EXPECT_GT(feedback, 5);
+  EXPECT_NEAR(armPositions("left")[0], target[0], 0.05);
+
+  // Wrong joints: rejected with INVALID_JOINTS.
+  Goal wrong = goal;
+  wrong.trajectory.joint_names[2] = "right_wam_joint3";
+  auto [state, result] = follow("left", wrong);
+  EXPECT_EQ(state, State::REJECTED);
+  EXPECT_EQ(result.error_code, Result::INVALID_JOINTS) << result.error_string;
+
+  // NaN, and more points than the controller holds: INVALID_GOAL, before anything is allocated for the points.
+  Goal nan = goal;
+  nan.trajectory.points[0].positions[1] = std::nan("");
+  std::tie(state, result) = follow("left", nan);
+  EXPECT_EQ(result.error_code, Result::INVALID_GOAL) << result.error_string;
+  Goal huge = goal;
+  huge.trajectory = trajectory("left", std::vector<std::vector<double>>(2001, start), 0.01);
+  std::tie(state, result) = follow("left", huge);
+  EXPECT_EQ(result.error_code, Result::INVALID_GOAL);
+  EXPECT_NE(result.error_string.find("capacity"), std::string::npos) << result.error_string;
+  Goal outside = goal;
+  outside.trajectory.points[0].positions[1] = 5.0;
+  std::tie(state, result) = follow("left", outside);
+  EXPECT_EQ(result.error_code, Result::INVALID_GOAL) << result.error_string;
+
+  // Every point in the past: OLD_HEADER_TIMESTAMP.
+  Goal old = goal;
+  old.trajectory.header.stamp = ros::Time::now() - ros::Duration(5.0);
+  std::tie(state, result) = follow("left", old);
+  EXPECT_EQ(result.error_code, Result::OLD_HEADER_TIMESTAMP) << result.error_string;
+
+  // A path tolerance no arm keeps: aborted with PATH_TOLERANCE_VIOLATED, the arm stops where it is.
+  Goal tight;
+  tight.trajectory = trajectory("left", {start}, 1.0);
+  bimanual_skills::JointTolerance tolerance;
+  tolerance.name = "left_wam_joint1";
+  tolerance.position = 1e-4;
+  tight.path_tolerance.push_back(tolerance);
+  std::tie(state, result) = follow("left", tight);
+  EXPECT_EQ(state, State::ABORTED);
+  EXPECT_EQ(result.error_code, Result::PATH_TOLERANCE_VIOLATED) << result.error_string;
+  const double stopped = armPositions("left")[0];
+  waitSim(1.0);
+  EXPECT_NEAR(armPositions("left")[0], stopped, 0.02) << "the arm went on after a path violation";
+  EXPECT_GT(std::abs(stopped - start[0]), 0.05);
+
+  // A goal tolerance not met within the goal time: GOAL_TOLERANCE_VIOLATED.
+  Goal precise;
+  precise.trajectory = trajectory("left", {start}, 1.0);
+  tolerance.position = 1e-7;
+  precise.goal_tolerance.push_back(tolerance);
+  precise.goal_time_tolerance = ros::Duration(0.2);
+  std::tie(state, result) = follow("left", precise);
+  EXPECT_EQ(state, State::ABORTED);
+  EXPECT_EQ(result.error_code, Result::GOAL_TOLERANCE_VIOLATED) << result.error_string;
+
+  // A new goal preempts the running one; an empty trajectory stops the arm and succeeds.
+  Goal slow;
+  slow.trajectory = trajectory("left", {target}, 5.0);
+  clients_["left"]->sendGoal(slow);
   waitSim(0.5);
-  const double before = meanForceZ("left", 1.0);
-  bimanual_skills::SetPayload set;
-  set.request.arm = "left";
-  set.request.mass = 1.5;
-  ASSERT_TRUE(payload.call(set));
-  ASSERT_TRUE(set.response.success) << set.response.message;
-  waitSim(2.0);
-  const double after = meanForceZ("left", 1.0);
-  const double weight = 1.5 * 9.81;
-  std::printf("left: estimated vertical force %.3f N without, %.3f N with a 1.5 kg payload (weight %.3f N)\n", before,
-              after, weight);
-  EXPECT_NEAR(after - before, -weight, 0.1 * weight);
-  set.request.mass = -1.0;
-  ASSERT_TRUE(payload.call(set));
-  EXPECT_FALSE(set.response.success);
-  set.request.arm = "middle";
-  set.request.mass = 0.0;
-  ASSERT_TRUE(payload.call(set));
-  EXPECT_FALSE(set.response.success);
-  EXPECT_NE(set.response.message.find("unknown arm"), std::string::npos);
-  set.request.arm = "left";
-  ASSERT_TRUE(payload.call(set));
-  EXPECT_TRUE(set.response.success);
+  Client other(node_, "/left/follow_joint_trajectory", false);
+  ASSERT_TRUE(other.waitForServer(ros::Duration(10.0)));
+  Goal stop;
+  stop.trajectory.joint_names = jointNames("left");
+  other.sendGoal(stop);
+  ASSERT_TRUE(other.waitForResult(ros::Duration(30.0)));
+  EXPECT_EQ(other.getState(), State::SUCCEEDED);
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(30.0)));
+  EXPECT_EQ(clients_["left"]->getState(), State::PREEMPTED);
 }
 
-TEST_F(SimControl, RejectsNanCommandsAndHoldsOnStaleStates) {
+TEST_F(HostedControl, EstimatesAPayloadWhileMoving) {
+  waitSim(0.5);
+  EXPECT_LT(std::abs(payloadError("1kHz")), 0.03);
+}
+
+TEST_F(HostedControl, ServicesRefuseAbsurdInputWithTheReason) {
+  bimanual_skills::SetPayload set;
+  set.request.arm = "left";
+  for (const double mass : {1e12, -1.0, std::nan("")}) {
+    set.request.mass = mass;
+    ASSERT_TRUE(payload_.call(set));
+    EXPECT_FALSE(set.response.success) << mass;
+    EXPECT_NE(set.response.message.find("max_payload"), std::string::npos) << set.response.message;
+  }
+  set.request.arm = "middle";
+  set.request.mass = 0.0;
+  ASSERT_TRUE(payload_.call(set));
+  EXPECT_FALSE(set.response.success);
+  EXPECT_NE(set.response.message.find("unknown arm"), std::string::npos);
+
+  ros::ServiceClient wrench = node_.serviceClient<bimanual_skills::ApplyWrench>("/bullet_sim/apply_wrench");
+  bimanual_skills::ApplyWrench w;
+  w.request.link = "left_wam_tool";
+  w.request.wrench.force.x = 1e9;
+  ASSERT_TRUE(wrench.call(w));
+  EXPECT_FALSE(w.response.success);
+  EXPECT_NE(w.response.message.find("max_force"), std::string::npos) << w.response.message;
+  w.request.link = "nowhere";
+  w.request.wrench.force.x = 1.0;
+  ASSERT_TRUE(wrench.call(w));
+  EXPECT_FALSE(w.response.success);
+
+  // The tools start 0.25 m above the table: a grasp there catches no cloth node and says so.
+  ros::ServiceClient grasp = node_.serviceClient<bimanual_skills::ClothGrasp>("/bullet_sim/grasp");
+  bimanual_skills::ClothGrasp g;
+  g.request.arm = "left";
+  g.request.grasp = true;
+  ASSERT_TRUE(grasp.call(g));
+  EXPECT_FALSE(g.response.success);
+  EXPECT_EQ(g.response.nodes, 0);
+  EXPECT_NE(g.response.message.find("grasped nothing"), std::string::npos) << g.response.message;
+
+  bimanual_skills::SimStep steps;
+  steps.request.steps = 4000000000u;
+  ASSERT_TRUE(step_.call(steps));
+  EXPECT_FALSE(steps.response.success);
+  EXPECT_NE(steps.response.message.find("max_step_duration"), std::string::npos) << steps.response.message;
+
+  // A NaN trajectory on the command topic is rejected; the arm stays where it is.
   const std::vector<double> hold = armPositions("left");
-  // A NaN trajectory is rejected by the controller, a NaN torque by the simulator: the arm stays where it is.
-  ASSERT_TRUE(waitWall([this] { return diagnostic("left", "rejected_trajectories") >= 0; }, 10.0));
-  const long rejected = diagnostic("left", "rejected_trajectories");
+  ASSERT_TRUE(
+      waitWall([&] { return diagnosticCount("bullet_sim: left controller", "rejected_trajectories") >= 0; }, 15.0));
+  const long rejected = diagnosticCount("bullet_sim: left controller", "rejected_trajectories");
   std::vector<double> bad = hold;
   bad[2] = std::nan("");
   commands_["left"].publish(trajectory("left", {bad}, 1.0));
-  std_msgs::Float64MultiArray nan_torque;
-  nan_torque.data.assign(7, std::nan(""));
-  ASSERT_TRUE(waitWall([this] { return efforts_["left"].getNumSubscribers() >= 1; }, 10.0));
-  for (int k = 0; k < 20; ++k) {
-    efforts_["left"].publish(nan_torque);
-    waitSim(0.01);
-  }
   waitSim(0.5);
   for (int i = 0; i < 7; ++i) EXPECT_NEAR(armPositions("left")[i], hold[i], 0.01) << "joint " << i + 1;
-  EXPECT_TRUE(waitWall([&] { return diagnostic("left", "rejected_trajectories") == rejected + 1; }, 15.0));
-
-  // While a slow trajectory runs, a joint state 1 s old arrives: the controller sends no torque for it and, from
-  // the next fresh state on, holds where the arm is instead of going on with the trajectory.
-  std::vector<double> far = hold;
-  far[0] += 0.5;
-  commands_["left"].publish(trajectory("left", {far}, 4.0));
-  waitSim(1.0);
-  const long stale_before = diagnostic("left", "stale_states");
-  sensor_msgs::JointState old;
-  old.header.stamp = ros::Time::now() - ros::Duration(1.0);
-  old.name = jointNames("left");
-  old.position = armPositions("left");
-  old.velocity.assign(7, 0.0);
-  // robot_state_publisher, both controllers and this node subscribe; a new connection may still be settling, so the
-  // old state goes out a few times.
-  ASSERT_TRUE(waitWall([this] { return fake_states_.getNumSubscribers() >= 4; }, 10.0));
-  for (int k = 0; k < 3; ++k) {
-    fake_states_.publish(old);
-    waitWall([] { return false; }, 0.02);
-  }
-  waitSim(0.2);
-  const double q_at_stale = armPositions("left")[0];
-  waitSim(3.5);
-  const double q_end = armPositions("left")[0];
-  EXPECT_LT(std::abs(q_end - q_at_stale), 0.05) << "the arm went on with the trajectory after stale states";
-  EXPECT_GT(std::abs(q_end - far[0]), 0.1);
-  EXPECT_TRUE(waitWall([&] { return diagnostic("left", "stale_states") > stale_before; }, 15.0));
-  EXPECT_TRUE(waitWall([&] { return diagnostics_values_["left"]["mode"] == "hold"; }, 15.0));
+  EXPECT_TRUE(waitWall(
+      [&] { return diagnosticCount("bullet_sim: left controller", "rejected_trajectories") == rejected + 1; }, 15.0));
 }
 
-TEST_F(SimControl, LockstepRunsAreRepeatableBitForBit) {
-  ros::ServiceClient pause = node_.serviceClient<std_srvs::SetBool>("/bullet_sim/pause");
-  ros::ServiceClient reset = node_.serviceClient<std_srvs::Trigger>("/bullet_sim/reset");
-  ros::ServiceClient step = node_.serviceClient<bimanual_skills::SimStep>("/bullet_sim/step");
-  ASSERT_TRUE(step.waitForExistence(ros::Duration(10.0)));
+TEST_F(HostedControl, LockstepRunsAreRepeatableBitForBit) {
   std_srvs::SetBool paused;
   paused.request.data = true;
-  ASSERT_TRUE(pause.call(paused));
-  // Each run: reset (the controllers restart when time goes back), a trajectory per arm, 1500 steps.
+  ASSERT_TRUE(pause_.call(paused));
   std::vector<double> start;
   const auto run = [&]() {
     std_srvs::Trigger trigger;
-    last_stamp_ = -1.0;
-    EXPECT_TRUE(reset.call(trigger) && trigger.response.success);
+    EXPECT_TRUE(reset_.call(trigger) && trigger.response.success);
     EXPECT_TRUE(waitWall([this] { return last_stamp_ == 0.0; }, 5.0));
     bimanual_skills::SimStep steps;
     steps.request.steps = 1;  // the controllers restart on the first state of the new timeline
-    EXPECT_TRUE(step.call(steps) && steps.response.success) << steps.response.message;
+    EXPECT_TRUE(step_.call(steps) && steps.response.success) << steps.response.message;
     start = armPositions("left");
     for (const std::string& arm : kArms) {
       std::vector<double> target = armPositions(arm);
@@ -259,9 +472,9 @@ TEST_F(SimControl, LockstepRunsAreRepeatableBitForBit) {
       target[3] -= 0.3;
       commands_[arm].publish(trajectory(arm, {target}, 1.0));
     }
-    waitWall([] { return false; }, 1.0);  // the paused controllers take the trajectories
+    waitWall([] { return false; }, 1.0);  // the controllers take the trajectories at the next step
     steps.request.steps = 1499;
-    EXPECT_TRUE(step.call(steps) && steps.response.success) << steps.response.message;
+    EXPECT_TRUE(step_.call(steps) && steps.response.success) << steps.response.message;
     EXPECT_TRUE(waitWall([&] { return last_stamp_ > 1.499 - 1e-9; }, 5.0));
     std::vector<double> q = armPositions("left"), right = armPositions("right");
     q.insert(q.end(), right.begin(), right.end());
@@ -269,7 +482,7 @@ TEST_F(SimControl, LockstepRunsAreRepeatableBitForBit) {
   };
   const std::vector<double> first = run(), second = run();
   paused.request.data = false;
-  ASSERT_TRUE(pause.call(paused));
+  ASSERT_TRUE(pause_.call(paused));
   ASSERT_EQ(first.size(), 14u);
   double moved = 0.0;
   for (int i = 0; i < 14; ++i) {
@@ -277,6 +490,175 @@ TEST_F(SimControl, LockstepRunsAreRepeatableBitForBit) {
     if (i < 7) moved = std::max(moved, std::abs(first[i] - start[i]));
   }
   EXPECT_GT(moved, 0.1) << "the arms did not move: the trajectories were not taken";
+}
+
+// -------------------------------------------------------------------------------------------- sim_pacing.test
+
+using Pacing = SimFixture;
+
+TEST_F(Pacing, KeepsTheRealtimeFactorAfterPauseResetAndStep) {
+  std_srvs::SetBool pause;
+  std_srvs::Trigger reset;
+  bimanual_skills::SimStep steps;
+  const auto within = [this](const std::string& when) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    const double factor = measuredRealtimeFactor(2.0);
+    std::printf("real-time factor %s: %.4f\n", when.c_str(), factor);
+    RecordProperty("realtime_factor_" + when, std::to_string(factor));
+    EXPECT_NEAR(factor, 1.0, 0.1) << when;
+  };
+  within("at_start");
+  pause.request.data = true;
+  ASSERT_TRUE(pause_.call(pause) && pause.response.success);
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  pause.request.data = false;
+  ASSERT_TRUE(pause_.call(pause) && pause.response.success);
+  within("after_pause");
+  ASSERT_TRUE(reset_.call(reset) && reset.response.success);
+  within("after_reset");
+  pause.request.data = true;
+  ASSERT_TRUE(pause_.call(pause));
+  steps.request.steps = 5000;  // 5 s of simulated time, as fast as the loop goes
+  ASSERT_TRUE(step_.call(steps) && steps.response.success) << steps.response.message;
+  pause.request.data = false;
+  ASSERT_TRUE(pause_.call(pause));
+  within("after_step");
+}
+
+TEST_F(Pacing, ServicesAnswerWhileALongStepRuns) {
+  std_srvs::SetBool pause;
+  pause.request.data = true;
+  ASSERT_TRUE(pause_.call(pause));
+  bimanual_skills::SimStep too_long;
+  too_long.request.steps = 1000000;  // 1000 s
+  ASSERT_TRUE(step_.call(too_long));
+  EXPECT_FALSE(too_long.response.success);
+  EXPECT_NE(too_long.response.message.find("max_step_duration allows 60 s"), std::string::npos)
+      << too_long.response.message;
+  // 60 s of simulated time, the most one call may ask for, takes several wall seconds: pause and reset answer
+  // meanwhile, and the reset ends the step.
+  auto stepping = std::async(std::launch::async, [this] {
+    bimanual_skills::SimStep s;
+    s.request.steps = 60000;
+    ros::ServiceClient client = node_.serviceClient<bimanual_skills::SimStep>("/bullet_sim/step");
+    EXPECT_TRUE(client.call(s));
+    return s.response;
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  double start = wallNow();
+  ASSERT_TRUE(pause_.call(pause) && pause.response.success);
+  const double pause_answer = wallNow() - start;
+  start = wallNow();
+  std_srvs::Trigger reset;
+  ASSERT_TRUE(reset_.call(reset) && reset.response.success);
+  const double reset_answer = wallNow() - start;
+  std::printf("during a 60 s step: ~pause answered in %.3f s, ~reset in %.3f s\n", pause_answer, reset_answer);
+  EXPECT_LT(pause_answer, 1.0);
+  EXPECT_LT(reset_answer, 1.0);
+  ASSERT_EQ(stepping.wait_for(std::chrono::seconds(10)), std::future_status::ready);
+  const auto response = stepping.get();
+  EXPECT_FALSE(response.success);
+  EXPECT_NE(response.message.find("interrupted"), std::string::npos) << response.message;
+  pause.request.data = false;
+  ASSERT_TRUE(pause_.call(pause));
+}
+
+// ------------------------------------------------------------------------------------------ sim_external.test
+
+/// The left ctc_controller process reads /relay/joint_states, which this test feeds from /joint_states: dropping a
+/// tenth of them (seeded), or adding a reordered copy, a duplicate, or letting a second publisher in.
+class ExternalControllers : public SimFixture {
+ protected:
+  void SetUp() override {
+    relay_ = node_.advertise<sensor_msgs::JointState>("/relay/joint_states", 100);
+    relay_in_ =
+        node_.subscribe("/joint_states", 100, &ExternalControllers::onRelay, this, ros::TransportHints().tcpNoDelay());
+    SimFixture::SetUp();
+    // Until the relay ran, the left arm had no controller (the simulator brakes it): start again from the initial
+    // pose, which the controllers take as a new start.
+    std_srvs::Trigger reset;
+    ASSERT_TRUE(reset_.call(reset) && reset.response.success);
+    waitSim(1.0);
+  }
+
+  void onRelay(const sensor_msgs::JointState::ConstPtr& m) {
+    const std::lock_guard<std::mutex> lock(relay_mutex_);
+    if (drop_ > 0.0 && lost_(rng_)) return;
+    relay_.publish(m);
+    if (reorder_ && previous_) {
+      reorder_ = false;
+      relay_.publish(previous_);  // an older state after a newer one
+    }
+    if (duplicate_) {
+      duplicate_ = false;
+      relay_.publish(m);
+    }
+    previous_ = m;
+  }
+
+  void dropFraction(double p) {
+    const std::lock_guard<std::mutex> lock(relay_mutex_);
+    drop_ = p;
+    lost_ = std::bernoulli_distribution(p);
+  }
+
+  ros::Publisher relay_;
+  ros::Subscriber relay_in_;
+  std::mutex relay_mutex_;
+  std::mt19937 rng_{5};
+  std::bernoulli_distribution lost_{0.0};
+  double drop_ = 0.0;
+  bool reorder_ = false, duplicate_ = false;
+  sensor_msgs::JointState::ConstPtr previous_;
+};
+
+TEST_F(ExternalControllers, DropsReorderedAndDuplicateStatesAndIgnoresASecondPublisher) {
+  const std::string name = "ctc_controller left";
+  ASSERT_TRUE(waitWall([&] { return diagnosticCount(name, "dropped_reordered_states") >= 0; }, 30.0));
+  {
+    const std::lock_guard<std::mutex> lock(relay_mutex_);
+    reorder_ = duplicate_ = true;
+  }
+  EXPECT_TRUE(waitWall([&] { return diagnosticCount(name, "dropped_reordered_states") >= 1; }, 10.0));
+  EXPECT_TRUE(waitWall([&] { return diagnosticCount(name, "dropped_duplicate_states") >= 1; }, 10.0));
+  EXPECT_EQ(diagnosticCount(name, "stale_states"), 0) << "a reordered state was taken";
+
+  // A second node publishes the left arm at zero on the same topic: ignored; the arm follows its goal.
+  const std::vector<double> start = armPositions("left");
+  std::vector<double> target = start;
+  target[0] += 0.3;
+  ASSERT_EQ(std::system("rostopic pub -r 200 /relay/joint_states sensor_msgs/JointState "
+                        "'{name: [left_wam_joint1, left_wam_joint2, left_wam_joint3, left_wam_joint4, left_wam_joint5, "
+                        "left_wam_joint6, left_wam_joint7], position: [0, 0, 0, 0, 0, 0, 0], "
+                        "velocity: [0, 0, 0, 0, 0, 0, 0]}' __name:=intruder > /dev/null 2>&1 &"),
+            0);
+  EXPECT_TRUE(waitWall([&] { return diagnosticCount(name, "ignored_other_publishers") > 0; }, 20.0));
+  Goal goal;
+  goal.trajectory = trajectory("left", {target}, 1.5);
+  const auto [state, result] = follow("left", goal);
+  EXPECT_EQ(state, State::SUCCEEDED) << result.error_string;
+  EXPECT_NEAR(armPositions("left")[0], target[0], 0.05);
+  std::system("rosnode kill /intruder > /dev/null 2>&1");
+}
+
+TEST_F(ExternalControllers, EstimatesAPayloadWithStatesLost) {
+  dropFraction(0.1);
+  waitSim(1.0);
+  const long irregular_before = diagnosticCount("ctc_controller left", "observer_irregular_steps");
+  EXPECT_LT(std::abs(payloadError("external_1kHz_10pct_lost")), 0.03);
+  EXPECT_GT(diagnosticCount("ctc_controller left", "observer_irregular_steps"), irregular_before + 100)
+      << "the relay lost no states";
+  dropFraction(0.0);
+}
+
+// -------------------------------------------------------------------------------------------- sim_500hz.test
+
+using Rate500 = SimFixture;
+
+TEST_F(Rate500, EstimatesAPayloadAt500Hz) {
+  ASSERT_TRUE(waitWall([&] { return !diagnostic("bullet_sim: left controller", "control_period_s").empty(); }, 30.0));
+  EXPECT_NEAR(std::stod(diagnostic("bullet_sim: left controller", "control_period_s")), 0.002, 1e-9);
+  EXPECT_LT(std::abs(payloadError("500Hz")), 0.03);
 }
 
 }  // namespace

@@ -89,6 +89,13 @@ TrajectoryStatus ArmController::setTrajectory(const Waypoints& waypoints) noexce
 ControllerStatus ArmController::update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
                                        const Eigen::Ref<const Eigen::VectorXd>& qd,
                                        Eigen::Ref<Eigen::VectorXd> torque) noexcept {
+  return update(now, stamp, q, qd, applied_, torque);
+}
+
+ControllerStatus ArmController::update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
+                                       const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                       const Eigen::Ref<const Eigen::VectorXd>& applied,
+                                       Eigen::Ref<Eigen::VectorXd> torque) noexcept {
   const Eigen::Index n = q_d_.size();
   if (q.size() != n || qd.size() != n || torque.size() != n || !q.allFinite() || !qd.allFinite() ||
       !std::isfinite(now) || !std::isfinite(stamp)) {
@@ -103,9 +110,10 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
     was_stale_ = started_;
     return ControllerStatus::StaleState;
   }
+  last_period_ = started_ && !was_stale_ ? stamp - last_stamp_ : 0.0;
   last_stamp_ = stamp;
   if (!started_ || was_stale_) {
-    if (!started_) observer_.reset(q, qd);
+    observer_.reset(q, qd);  // a start, or states again after a gap: the estimate restarts here
     started_ = true;
     was_stale_ = false;
     trajectory_request_ = false;
@@ -164,8 +172,15 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
   }
   error_ = q_d_ - q;
   signal::signWithDeadBand(qdd_d_, kAccelerationDeadBand, accel_sign_);
-  // The measured state results from the torque applied over the last period.
-  (void)observer_.update(q, qd, applied_, accel_sign_);
+  // The measured state results from the torque applied over the last period Δt (none at a start: the observer
+  // was reset at this state; a repeated stamp: nothing new to integrate).
+  if (last_period_ > 0.0) {
+    if (applied.size() == n && applied.allFinite()) {
+      (void)observer_.update(q, qd, applied, accel_sign_, last_period_);
+    } else {
+      (void)observer_.update(q, qd, applied_, accel_sign_, last_period_);
+    }
+  }
   applied_ = torque;
   return status;
 }

@@ -3,6 +3,8 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
+#include <algorithm>
+#include <cmath>
 #include <sstream>
 #include <stdexcept>
 
@@ -16,6 +18,10 @@ const char* toString(ObserverStatus status) noexcept {
       return "an input has the wrong size";
     case ObserverStatus::NotFinite:
       return "an input contains NaN or Inf";
+    case ObserverStatus::InvalidTimeStep:
+      return "the time step is not finite and > 0";
+    case ObserverStatus::Restarted:
+      return "a gap longer than the observer integrates: restarted at this state";
   }
   return "unknown status";
 }
@@ -46,6 +52,7 @@ DisturbanceObserver::DisturbanceObserver(const kinematics::ChainModel& model, co
       x2_(Eigen::VectorXd::Zero(model.nq())),
       x2_previous_(Eigen::VectorXd::Zero(model.nq())),
       e1_(Eigen::VectorXd::Zero(model.nq())),
+      e1_dt_(Eigen::VectorXd::Zero(model.nq())),
       accel_(Eigen::VectorXd::Zero(model.nq())),
       velocity_error_(Eigen::VectorXd::Zero(model.nq())),
       tau_model_(Eigen::VectorXd::Zero(model.nq())),
@@ -72,7 +79,6 @@ DisturbanceObserver::DisturbanceObserver(const kinematics::ChainModel& model, co
   Sigma_ = gains.Sigma;
   G_ = lu.solve(gains.K21);
   P_ = gains.K11 + (Eigen::MatrixXd::Identity(n, n) - gains.K12) * G_;
-  P_period_ = period_ * P_;
   const Eigen::VectorXd symmetric =
       Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(0.5 * (P_ + P_.transpose())).eigenvalues();
   if (symmetric.minCoeff() <= 0.0) {
@@ -88,6 +94,8 @@ DisturbanceObserver::DisturbanceObserver(const kinematics::ChainModel& model, co
             << " Hz; rate_hz is " << gains.rate_hz;
     throw std::invalid_argument(message.str());
   }
+  // x̂1's explicit Euler step converges while Δt |λ(P)| < 1; a gap of half that (or 20 periods) restarts the estimate.
+  max_step_ = std::min(20.0 * period_, 0.5 / fastest);
 }
 
 void DisturbanceObserver::reset(const Eigen::Ref<const Eigen::VectorXd>& q,
@@ -96,6 +104,7 @@ void DisturbanceObserver::reset(const Eigen::Ref<const Eigen::VectorXd>& q,
   x1_ = q;
   x2_ = qd;
   x2_previous_ = qd;
+  velocity_clock_ = 0.0;
   velocity_filter_.reset();
   static_cast<void>(velocity_filter_.filter(qd));  // sizes and values checked above
   external_torque_.setZero();
@@ -107,6 +116,13 @@ ObserverStatus DisturbanceObserver::update(const Eigen::Ref<const Eigen::VectorX
                                            const Eigen::Ref<const Eigen::VectorXd>& qd,
                                            const Eigen::Ref<const Eigen::VectorXd>& u,
                                            const Eigen::Ref<const Eigen::VectorXd>& accel_sign) noexcept {
+  return update(q, qd, u, accel_sign, period_);
+}
+
+ObserverStatus DisturbanceObserver::update(const Eigen::Ref<const Eigen::VectorXd>& q,
+                                           const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                           const Eigen::Ref<const Eigen::VectorXd>& u,
+                                           const Eigen::Ref<const Eigen::VectorXd>& accel_sign, double dt) noexcept {
   const auto n = x1_.size();
   for (const auto* v : {&q, &qd, &u, &accel_sign}) {
     if (v->size() != n) return ObserverStatus::WrongSize;
@@ -114,17 +130,35 @@ ObserverStatus DisturbanceObserver::update(const Eigen::Ref<const Eigen::VectorX
   for (const auto* v : {&q, &qd, &u, &accel_sign}) {
     if (!v->allFinite()) return ObserverStatus::NotFinite;
   }
+  if (!std::isfinite(dt) || !(dt > 0.0)) return ObserverStatus::InvalidTimeStep;
   if (!started_) reset(q, qd);
-  static_cast<void>(velocity_filter_.filter(qd));  // sizes and values checked above
+  if (dt > max_step_) {
+    ++restarts_;
+    reset(q, qd);
+    return ObserverStatus::Restarted;
+  }
+  if (std::abs(dt - period_) > 0.2 * period_) ++irregular_steps_;
+  // The FIR runs at the nominal rate on the measured velocity held over dt: one sample per elapsed nominal period
+  // (rounded), at most a whole window.
+  velocity_clock_ += dt;
+  for (int pushed = 0; velocity_clock_ >= 0.5 * period_; ++pushed) {
+    if (pushed == velocity_filter_.length()) {
+      velocity_clock_ = 0.0;
+      break;
+    }
+    static_cast<void>(velocity_filter_.filter(qd));  // sizes and values checked above
+    velocity_clock_ -= period_;
+  }
   const Eigen::VectorXd& v = velocity_filter_.output();
   e1_ = q - x1_;
   x2_previous_ = x2_;
   x2_.noalias() = G_ * e1_;
   x2_ += v;
-  x1_.noalias() += P_period_ * e1_;
-  x1_ += period_ * v;
+  e1_dt_ = dt * e1_;
+  x1_.noalias() += P_ * e1_dt_;
+  x1_ += dt * v;
   // (4.15): d̂ = M(x̂1)(ẋ̂2 + Σ (v − x̂2)) + C(x̂1, x̂2) x̂2 + G(x̂1) + F_f − u_c, the first three in one RNEA pass.
-  accel_ = (x2_ - x2_previous_) / period_;
+  accel_ = (x2_ - x2_previous_) / dt;
   velocity_error_ = v - x2_;  // a plain vector: a product with an expression would allocate its temporary
   accel_.noalias() += Sigma_ * velocity_error_;
   bool learned = false;

@@ -53,8 +53,15 @@ class ArmController {
   /// same torques whenever they are computed. Writes `torque` unless the status is InvalidState or StaleState. The
   /// first valid state starts the controller in hold at that state, and so does a stamp earlier than the last one
   /// when `now` went back too (a simulation was reset); an earlier stamp alone is a delayed, stale state.
+  /// The observer integrates over the measured Δt between stamps and is given the torque this controller
+  /// commanded for the last period.
   ControllerStatus update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
                           const Eigen::Ref<const Eigen::VectorXd>& qd, Eigen::Ref<Eigen::VectorXd> torque) noexcept;
+  /// As above, for a robot that reports the torque `applied` over the last period (after its own saturation or
+  /// braking): the observer is given that instead of the command (a wrong size or NaN/Inf there: the command).
+  ControllerStatus update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
+                          const Eigen::Ref<const Eigen::VectorXd>& qd, const Eigen::Ref<const Eigen::VectorXd>& applied,
+                          Eigen::Ref<Eigen::VectorXd> torque) noexcept;
 
   /// True (and the controller will hold at the next fresh state) if no state newer than now − timeout arrived.
   bool stale(double now) noexcept;
@@ -72,6 +79,7 @@ class ArmController {
   /// Desired state and tracking error q_d − q of the last update.
   const Eigen::VectorXd& desiredPosition() const noexcept { return q_d_; }
   const Eigen::VectorXd& desiredVelocity() const noexcept { return qd_d_; }
+  const Eigen::VectorXd& desiredAcceleration() const noexcept { return qdd_d_; }
   const Eigen::VectorXd& trackingError() const noexcept { return error_; }
   /// Estimated wrench [f; m] the environment exerts on the tool (base frame, at the tool origin).
   const Eigen::Matrix<double, 6, 1>& estimatedWrench() const noexcept { return observer_.wrench(); }
@@ -80,6 +88,13 @@ class ArmController {
   bool trajectoryFinished(double now) const noexcept {
     return mode_ != ControllerMode::Track || trajectory_.finished(now);
   }
+  /// Time of the running trajectory's last waypoint (stamp clock).
+  double trajectoryEndTime() const noexcept { return trajectory_.endTime(); }
+  /// Stamp of the last accepted state and the Δt before it (0 at a start) [s].
+  double lastStamp() const noexcept { return last_stamp_; }
+  double lastPeriod() const noexcept { return last_period_; }
+  /// The disturbance observer (its counters of irregular steps and restarts).
+  const DisturbanceObserver& observer() const noexcept { return observer_; }
   const kinematics::ChainModel& model() const noexcept { return ctc_.model(); }
 
  private:
@@ -95,7 +110,7 @@ class ArmController {
   ControllerMode requested_mode_ = ControllerMode::Hold;
   bool mode_request_ = false, trajectory_request_ = false;
   bool started_ = false, was_stale_ = false;
-  double last_stamp_ = 0.0;
+  double last_stamp_ = 0.0, last_period_ = 0.0;
   Eigen::VectorXd q_d_, qd_d_, qdd_d_, error_, applied_, accel_sign_;
 };
 

@@ -12,13 +12,19 @@
 
 namespace bimanual_skills::control {
 
-/// Outcome of an observer update. On anything but Success the estimates are unchanged.
-enum class ObserverStatus { Success, WrongSize, NotFinite };
+/// Outcome of an observer update. On WrongSize, NotFinite and InvalidTimeStep the estimates are unchanged.
+enum class ObserverStatus {
+  Success,
+  WrongSize,
+  NotFinite,
+  InvalidTimeStep,  ///< Δt not finite or not > 0.
+  Restarted,        ///< Δt longer than the observer can integrate (a gap): the estimate restarted at this state.
+};
 const char* toString(ObserverStatus status) noexcept;
 
 struct ObserverGains {
   Eigen::MatrixXd K11, K12, K21, K22, Sigma;  ///< n × n each.
-  double rate_hz = 500.0;                     ///< Update rate.
+  double rate_hz = 500.0;                     ///< Nominal update rate (the FIR's sample rate; Δt may differ).
   int fir_taps = 15;                          ///< Velocity FIR length (odd).
   double fir_cutoff_hz = 40.0;                ///< Velocity FIR cut-off.
   double wrench_damping = 1e-3;               ///< λ of F = (J Jᵀ + λ² I)⁻¹ J τ (near singularities).
@@ -44,12 +50,29 @@ class DisturbanceObserver {
   /// Starts the estimate at a measured state.
   void reset(const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd) noexcept;
 
-  /// One observer step with the measured q, q̇, the applied command u_c and sign(q̈) for the friction term.
-  /// WrongSize or NotFinite (estimates unchanged) on bad input. Real-time safe: no allocation, no exceptions.
+  /// One observer step at the nominal period 1/rate_hz with the measured q, q̇, the torque u_c applied over the
+  /// last period and sign(q̈) for the friction term. WrongSize or NotFinite (estimates unchanged) on bad input.
+  /// Real-time safe: no allocation, no exceptions.
   [[nodiscard]] ObserverStatus update(const Eigen::Ref<const Eigen::VectorXd>& q,
                                       const Eigen::Ref<const Eigen::VectorXd>& qd,
                                       const Eigen::Ref<const Eigen::VectorXd>& u,
                                       const Eigen::Ref<const Eigen::VectorXd>& accel_sign) noexcept;
+  /// One observer step `dt` [s] after the previous one, as measured (a robot at another rate, a dropped or late
+  /// sample): x̂1 is integrated and ẋ̂2 differentiated over dt, and the velocity FIR, designed for the nominal
+  /// rate, is fed the measured velocity held over dt (zero-order hold resampled to the nominal rate: one sample per
+  /// nominal period that elapsed, rounded). A step whose dt differs from the nominal period by more than 20 % is
+  /// counted (irregularSteps()); a dt beyond what the discretisation integrates stably (or 20 periods) restarts
+  /// the estimate at this state (Restarted, counted in restarts()); dt ≤ 0 or not finite is InvalidTimeStep.
+  /// Real-time safe: no allocation, no exceptions.
+  [[nodiscard]] ObserverStatus update(const Eigen::Ref<const Eigen::VectorXd>& q,
+                                      const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                      const Eigen::Ref<const Eigen::VectorXd>& u,
+                                      const Eigen::Ref<const Eigen::VectorXd>& accel_sign, double dt) noexcept;
+  /// Nominal period 1/rate_hz [s].
+  double period() const noexcept { return period_; }
+  /// Steps whose Δt differed from the nominal period by more than 20 %, and restarts after gaps.
+  long irregularSteps() const noexcept { return irregular_steps_; }
+  long restarts() const noexcept { return restarts_; }
 
   void setPayload(const dynamics::Payload& payload) noexcept { payload_ = payload; }
   /// Learned n̂(q, q̇) = C q̇ + G + F_f (inputs [q; q̇]) in place of the analytic terms of (4.15), as in the
@@ -68,13 +91,17 @@ class DisturbanceObserver {
   dynamics::FrictionModel friction_;
   LearnedDynamics learned_;
   double period_, wrench_damping_;
-  Eigen::MatrixXd P_, P_period_, G_, Sigma_;
+  double max_step_;              ///< Longest Δt integrated; a longer one restarts the estimate.
+  double velocity_clock_ = 0.0;  ///< Time not yet fed to the FIR (resampling to the nominal rate).
+  long irregular_steps_ = 0, restarts_ = 0;
+  Eigen::MatrixXd P_, G_, Sigma_;
   signal::FirFilter velocity_filter_;
   dynamics::DynamicsData dynamics_;
   dynamics::FrictionState friction_state_;
   kinematics::ChainData kinematics_;
   dynamics::Payload payload_;
-  Eigen::VectorXd x1_, x2_, x2_previous_, e1_, accel_, velocity_error_, tau_model_, friction_torque_, external_torque_;
+  Eigen::VectorXd x1_, x2_, x2_previous_, e1_, e1_dt_, accel_, velocity_error_, tau_model_, friction_torque_,
+      external_torque_;
   Eigen::VectorXd state_, learned_n_, zeros_;
   Eigen::Matrix<double, 6, 6> gram_;
   Eigen::LLT<Eigen::Matrix<double, 6, 6>> gram_llt_;

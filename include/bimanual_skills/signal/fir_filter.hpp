@@ -30,6 +30,8 @@ class FirFilter {
   /// exceptions; a wrongly sized or non-finite sample is rejected (WrongSize, NotFinite) and changes nothing.
   [[nodiscard]] SignalStatus filter(const Eigen::Ref<const Eigen::VectorXd>& sample) noexcept;
   const Eigen::VectorXd& output() const noexcept { return output_; }
+  /// Number of taps N.
+  int length() const noexcept { return static_cast<int>(coefficients_.size()); }
   /// Group delay in samples, (N − 1) / 2.
   double delay() const noexcept { return 0.5 * static_cast<double>(coefficients_.size() - 1); }
   void reset() noexcept;

@@ -1,0 +1,143 @@
+/// \file
+/// An ArmController driven by a real-time loop and commanded from other threads (ros_control's split without
+/// ros_control): commands (a trajectory with its goal's tolerances, or a mode) come in through a lock-free
+/// latest-wins mailbox, and after every update the loop hands out a snapshot of the controller's state through
+/// another. The loop thread never waits for a command, a publisher or a lock; the other threads never touch the
+/// controller. The goal of the running trajectory is monitored in the loop as control_msgs' FollowJointTrajectory
+/// defines it: path tolerances while it runs, goal tolerances at its end, within a goal time tolerance.
+#pragma once
+
+#include "bimanual_skills/control/arm_controller.hpp"
+#include "bimanual_skills/realtime/triple_buffer.hpp"
+
+#include <cstdint>
+#include <mutex>
+
+namespace bimanual_skills::control {
+
+/// Tolerances of one trajectory goal [rad, rad/s] per joint; a value ≤ 0 is not checked.
+struct TrajectoryTolerances {
+  Eigen::VectorXd path_position, path_velocity;  ///< |q_d − q|, |q̇_d − q̇| while the trajectory runs.
+  Eigen::VectorXd goal_position, goal_velocity;  ///< The same at its end (goal_velocity: how still the arm must be).
+  double goal_time = 0.0;  ///< [s] after the last waypoint's time in which the goal tolerances must be met.
+
+  /// Every tolerance unchecked, for n joints.
+  static TrajectoryTolerances none(int n);
+};
+
+/// Where the goal of the last trajectory stands.
+enum class GoalState {
+  None,                   ///< No goal yet.
+  Active,                 ///< Running, or past its end and waiting for the goal tolerances.
+  Succeeded,              ///< Ended within the goal tolerances.
+  Rejected,               ///< The controller refused the waypoints (see ArmControllerState::rejection).
+  PathToleranceViolated,  ///< A joint left its path tolerance: the arm holds where it is.
+  GoalToleranceViolated,  ///< Not within the goal tolerances goal_time after the end: the arm holds the end point.
+  Aborted,                ///< The controller left tracking on its own (velocity limit, stale or restarted states).
+  Preempted,              ///< A mode command replaced it.
+};
+const char* toString(GoalState state) noexcept;
+
+/// A command handed to the loop.
+struct ControllerCommand {
+  enum class Kind { Mode, Trajectory };
+  Kind kind = Kind::Mode;
+  ControllerMode mode = ControllerMode::Hold;  ///< Kind::Mode.
+  Waypoints waypoints;                         ///< Kind::Trajectory: times relative to the next update's stamp.
+  TrajectoryTolerances tolerances;             ///< Kind::Trajectory.
+  std::uint64_t goal_id = 0;                   ///< Kind::Trajectory: reported back in ArmControllerState.
+  double sent = 0.0;                           ///< Monotonic wall clock [s] when it was handed over (set by command()).
+};
+
+/// The controller after one update, as the loop hands it out.
+struct ArmControllerState {
+  explicit ArmControllerState(int n = 0);
+
+  std::uint64_t sequence = 0;  ///< Updates that produced a torque so far.
+  double stamp = 0.0;          ///< Of the state it was computed from [s].
+  double period = 0.0;         ///< Δt to the previous state's stamp [s] (0 at a start).
+  ControllerMode mode = ControllerMode::Hold;
+  ControllerStatus status = ControllerStatus::Ok;
+  Eigen::VectorXd position, velocity, torque;  ///< Measured q, q̇; commanded torque [N m].
+  Eigen::VectorXd desired_position, desired_velocity, desired_acceleration;
+  Eigen::VectorXd position_error, velocity_error;                            ///< q_d − q, q̇_d − q̇.
+  Eigen::Matrix<double, 6, 1> wrench = Eigen::Matrix<double, 6, 1>::Zero();  ///< Estimated tool wrench, base frame.
+  std::uint64_t goal_id = 0;
+  GoalState goal = GoalState::None;
+  int goal_joint = -1;      ///< The joint that violated a tolerance.
+  double goal_error = 0.0;  ///< Its error then [rad, or rad/s when goal_error_is_velocity].
+  bool goal_error_is_velocity = false;
+  TrajectoryStatus rejection = TrajectoryStatus::Ok;     ///< Why a trajectory was Rejected.
+  ControllerStatus abort_reason = ControllerStatus::Ok;  ///< Why a goal was Aborted.
+  long status_counts[5] = {0, 0, 0, 0, 0};               ///< Updates per ControllerStatus value.
+  long observer_irregular_steps = 0, observer_restarts = 0;
+  std::uint64_t commands_taken = 0;  ///< Commands the loop took so far.
+  double command_latency = 0.0;      ///< Wall time [s] from the last command's hand-over to its first torque.
+};
+
+/// One arm's controller between a real-time loop and the threads that command and watch it. Construction
+/// allocates and throws like ArmController's. update() is real-time safe (no allocation, locks, exceptions or
+/// logging) and must be called from one thread; command() may be called from any other threads; latestState()
+/// from one reader thread.
+class RealtimeArmController {
+ public:
+  RealtimeArmController(const kinematics::ChainModel& model, const dynamics::FrictionModel& friction,
+                        ArmControllerConfig config);
+
+  // ---- Non-real-time side ----
+  /// Hands a command to the loop, replacing one it has not taken yet (latest wins); stamps its `sent` time. Its
+  /// waypoints are validated
+  /// by the loop; validate them with validate() first to answer a caller at once. Thread-safe among writers.
+  void command(ControllerCommand command);
+  /// Checks waypoints as the loop's controller will (sizes, capacity, NaN/Inf, times, joint limits), without
+  /// touching it. Thread-safe.
+  TrajectoryStatus validate(const Waypoints& waypoints) const noexcept;
+  /// The newest state if the loop produced one since the last call, else nullptr; valid until the next call.
+  /// One reader thread.
+  const ArmControllerState* latestState() noexcept { return states_.readNew(); }
+
+  // ---- Real-time side ----
+  /// One control step (ArmController::update with the robot's applied torque) after taking the newest command,
+  /// then the goal's tolerances are checked and the state is handed out. Real-time safe.
+  ControllerStatus update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
+                          const Eigen::Ref<const Eigen::VectorXd>& qd, const Eigen::Ref<const Eigen::VectorXd>& applied,
+                          Eigen::Ref<Eigen::VectorXd> torque) noexcept;
+  /// Loop side: commands taken so far, and when the last one was (monotonic wall clock [s], just before its first
+  /// torque), for the loop's own statistics.
+  std::uint64_t commandsTaken() const noexcept { return commands_taken_; }
+  double lastCommandTaken() const noexcept { return command_taken_at_; }
+  /// Whether the states stopped (ArmController::stale); call from the loop thread.
+  bool stale(double now) noexcept { return controller_.stale(now); }
+
+  const kinematics::ChainModel& model() const noexcept { return controller_.model(); }
+  int joints() const noexcept { return controller_.model().nq(); }
+  int trajectoryCapacity() const noexcept { return capacity_; }
+
+ private:
+  void take(const ControllerCommand& command) noexcept;
+  void monitorGoal(double stamp, ControllerStatus status) noexcept;
+  void publishState(double stamp, ControllerStatus status, const Eigen::Ref<const Eigen::VectorXd>& q,
+                    const Eigen::Ref<const Eigen::VectorXd>& qd,
+                    const Eigen::Ref<const Eigen::VectorXd>& torque) noexcept;
+
+  ArmController controller_;
+  mutable JointTrajectory checker_;  ///< Validates waypoints off the loop (guarded by command_mutex_).
+  int capacity_;
+  mutable std::mutex command_mutex_;  ///< Serialises the writers and the checker; never taken by the loop.
+  realtime::TripleBuffer<ControllerCommand> commands_;
+  realtime::TripleBuffer<ArmControllerState> states_;
+  // Loop-side goal bookkeeping.
+  TrajectoryTolerances tolerances_;
+  std::uint64_t goal_id_ = 0, sequence_ = 0;
+  GoalState goal_ = GoalState::None;
+  int goal_joint_ = -1;
+  double goal_error_ = 0.0;
+  bool goal_error_is_velocity_ = false;
+  TrajectoryStatus rejection_ = TrajectoryStatus::Ok;
+  ControllerStatus abort_reason_ = ControllerStatus::Ok;
+  long counts_[5] = {0, 0, 0, 0, 0};
+  std::uint64_t commands_taken_ = 0;
+  double command_latency_ = 0.0, command_taken_at_ = 0.0;
+};
+
+}  // namespace bimanual_skills::control

@@ -1,0 +1,116 @@
+/// \file
+/// The ROS side of one arm's controller, whoever runs its real-time loop (a simulator's or a hardware driver's
+/// loop thread, or a node driven by joint-state messages): the `command` topic and the `follow_joint_trajectory`
+/// action (trajectory_msgs in, joint_trajectory_controller's semantics), the `set_mode` service, and the `state`,
+/// `estimated_wrench`, `tool_paths` and /diagnostics outputs, all served from non-real-time threads and joined to
+/// the loop only through control::RealtimeArmController's lock-free handoffs.
+#pragma once
+
+#include "bimanual_skills/FollowJointTrajectoryAction.h"
+#include "bimanual_skills/SetControlMode.h"
+#include "bimanual_skills/control/realtime_arm_controller.hpp"
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/ros_layer/parameters.hpp"
+
+#include <actionlib/server/action_server.h>
+#include <geometry_msgs/Point.h>
+#include <ros/ros.h>
+#include <trajectory_msgs/JointTrajectory.h>
+
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::ros_layer {
+
+/// What the controller parameters say (see ArmControllerInterface's parameters).
+struct ControllerSettings {
+  std::shared_ptr<const kinematics::ChainModel> model;  ///< The chain base_link -> tip_link.
+  std::string base_link, tip_link, friction_file;
+  control::ArmControllerConfig config;
+  dynamics::FrictionModel friction;
+  control::ControllerMode initial_mode = control::ControllerMode::Hold;
+  double publish_rate = 100.0;                       ///< [Hz] of state, estimated_wrench and action feedback.
+  control::TrajectoryTolerances default_tolerances;  ///< When a goal does not set them.
+};
+
+/// The parameters a controller reads (under its parameter namespace), with their meaning, for --help texts.
+extern const char* const kControllerParameterHelp;
+
+/// Reads and checks the controller parameters of arm `arm` (base/tip links default to ARM_wam_base and
+/// ARM_wam_tool) for the chain that `robot_description` gives. \throws std::invalid_argument with the parameter's
+/// name and the reason for a mistyped or out-of-range value, an unknown link or an unreadable friction file.
+ControllerSettings readControllerSettings(ParameterReader& parameters, const std::string& arm,
+                                          const std::string& robot_description);
+
+/// One arm's controller as ROS sees it. The loop that drives it calls realtime().update(...) on its own thread;
+/// everything here runs on the callback queue of `node` (whatever spins it). Topics, the action and the service
+/// are relative to `node` (the arm's namespace).
+class ArmControllerInterface {
+ public:
+  /// Reads the controller parameters through `parameters` (the caller warns about unknown keys when it has read
+  /// its own). \throws std::invalid_argument (see readControllerSettings).
+  ArmControllerInterface(ros::NodeHandle node, ParameterReader& parameters, const std::string& arm,
+                         const std::string& robot_description, const std::string& owner);
+  ~ArmControllerInterface();
+  ArmControllerInterface(const ArmControllerInterface&) = delete;
+  ArmControllerInterface& operator=(const ArmControllerInterface&) = delete;
+
+  /// The real-time side, for the loop.
+  control::RealtimeArmController& realtime() noexcept { return *controller_; }
+  const std::vector<std::string>& jointNames() const noexcept { return joint_names_; }
+  const std::string& arm() const noexcept { return arm_; }
+  const ControllerSettings& settings() const noexcept { return settings_; }
+  /// Counted outside the loop by the node that drives it (e.g. joint-state messages dropped), for /diagnostics.
+  void setDriverDiagnostics(std::vector<std::pair<std::string, std::string>> values);
+
+ private:
+  using Server = actionlib::ActionServer<bimanual_skills::FollowJointTrajectoryAction>;
+  using GoalHandle = Server::GoalHandle;
+
+  void onCommand(const trajectory_msgs::JointTrajectory::ConstPtr& message);
+  void onGoal(GoalHandle goal);
+  void onCancel(GoalHandle goal);
+  bool onSetMode(bimanual_skills::SetControlMode::Request& request,
+                 bimanual_skills::SetControlMode::Response& response);
+  void onPublish(const ros::SteadyTimerEvent&);
+  void onDiagnostics(const ros::SteadyTimerEvent&);
+  /// Hands a trajectory (already converted) to the loop; `goal_id` 0 for a topic command.
+  void sendTrajectory(control::Waypoints&& waypoints, const control::TrajectoryTolerances& tolerances,
+                      std::uint64_t goal_id);
+  void sendMode(control::ControllerMode mode);
+  /// Ends the active goal (if any) as canceled, with `why`. Caller holds mutex_.
+  void cancelActive(const std::string& why);
+  void finishGoal(const control::ArmControllerState& state);
+  void publishToolPaths(const control::ArmControllerState& state, const ros::Time& stamp);
+
+  std::string arm_, owner_;
+  ros::NodeHandle node_;
+  ControllerSettings settings_;
+  std::unique_ptr<control::RealtimeArmController> controller_;
+  std::vector<std::string> joint_names_;
+
+  std::mutex mutex_;  ///< The non-real-time state below (callbacks may run on several threads).
+  std::optional<control::ArmControllerState> last_;
+  std::optional<GoalHandle> active_;
+  std::uint64_t active_id_ = 0, next_goal_id_ = 0;
+  long trajectories_ = 0, rejected_ = 0;
+  std::string last_rejection_;
+  std::vector<std::pair<std::string, std::string>> driver_diagnostics_;
+  std::unique_ptr<kinematics::ChainData> kinematics_;
+  std::deque<geometry_msgs::Point> actual_path_, desired_path_;
+  long publish_count_ = 0;
+  double last_state_wall_ = 0.0;
+  double last_published_ = -1e300;  ///< Stamp of the last state published [s].
+
+  ros::Publisher state_publisher_, wrench_publisher_, path_publisher_, diagnostics_publisher_;
+  ros::Subscriber command_subscriber_;
+  ros::ServiceServer mode_service_;
+  std::unique_ptr<Server> server_;
+  ros::SteadyTimer publish_timer_, diagnostics_timer_;
+};
+
+}  // namespace bimanual_skills::ros_layer

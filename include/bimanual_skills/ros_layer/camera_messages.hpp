@@ -1,0 +1,48 @@
+/// \file
+/// The top-down camera (vision::TopDownCamera) as ROS describes a camera: its sensor_msgs/CameraInfo and its
+/// optical frame on tf. The camera is orthographic, which CameraInfo's pinhole model holds as an affine camera:
+/// P = [1/s 0 0 W/2; 0 1/s 0 H/2; 0 0 0 1] maps a point (x, y, z) of the optical frame to the pixel (x/s + W/2,
+/// y/s + H/2) whatever its depth z (image_geometry's PinholeCameraModel::project3dToPixel divides by P's third row,
+/// here 1); K holds the same pixel scale. The optical frame sits above the image centre at the camera height with
+/// x_c = world x, y_c = world −y, z_c = world −z (looking down).
+#pragma once
+
+#include "bimanual_skills/vision/top_down_camera.hpp"
+
+#include <geometry_msgs/TransformStamped.h>
+#include <sensor_msgs/CameraInfo.h>
+
+#include <string>
+
+namespace bimanual_skills::ros_layer {
+
+inline sensor_msgs::CameraInfo cameraInfo(const vision::TopDownCamera& camera, const std_msgs::Header& header) {
+  sensor_msgs::CameraInfo info;
+  info.header = header;
+  info.width = static_cast<std::uint32_t>(camera.columns);
+  info.height = static_cast<std::uint32_t>(camera.rows);
+  info.distortion_model = "plumb_bob";
+  info.D.assign(5, 0.0);
+  const double f = 1.0 / camera.pixel_size, cx = 0.5 * camera.columns, cy = 0.5 * camera.rows;
+  info.K = {f, 0.0, cx, 0.0, f, cy, 0.0, 0.0, 1.0};
+  info.R = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
+  info.P = {f, 0.0, 0.0, cx, 0.0, f, 0.0, cy, 0.0, 0.0, 0.0, 1.0};
+  return info;
+}
+
+/// The optical frame `frame` in `parent` (the world): above the image centre, rotated by π about x.
+inline geometry_msgs::TransformStamped cameraTransform(const vision::TopDownCamera& camera, const std::string& parent,
+                                                       const std::string& frame, const ros::Time& stamp) {
+  geometry_msgs::TransformStamped t;
+  t.header.stamp = stamp;
+  t.header.frame_id = parent;
+  t.child_frame_id = frame;
+  t.transform.translation.x = camera.centre.x();
+  t.transform.translation.y = camera.centre.y();
+  t.transform.translation.z = camera.height;
+  t.transform.rotation.x = 1.0;  // π about x: y_c = −y, z_c = −z
+  t.transform.rotation.w = 0.0;
+  return t;
+}
+
+}  // namespace bimanual_skills::ros_layer

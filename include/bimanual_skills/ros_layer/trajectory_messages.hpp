@@ -1,0 +1,42 @@
+/// \file
+/// From trajectory messages to the controller's waypoints and tolerances, with the semantics of ROS's
+/// joint_trajectory_controller and control_msgs' FollowJointTrajectory: joints matched by name, header.stamp as the
+/// start (0: now), points in the past dropped, tolerances of 0 keeping the defaults and of -1 removing the check.
+/// Errors come back as FollowJointTrajectory result codes with a message.
+#pragma once
+
+#include "bimanual_skills/JointTolerance.h"
+#include "bimanual_skills/control/realtime_arm_controller.hpp"
+
+#include <ros/time.h>
+#include <trajectory_msgs/JointTrajectory.h>
+
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::ros_layer {
+
+/// A refused trajectory or goal: a FollowJointTrajectoryResult error code and why.
+struct TrajectoryError {
+  int code = 0;  ///< 0 (SUCCESSFUL) when there is no error.
+  std::string message;
+  explicit operator bool() const { return code != 0; }
+};
+
+/// Converts `message` for an arm whose joints are `joints` into waypoints with times relative to `now` (the clock
+/// of the controller's stamps). Refuses (before allocating for the points) a trajectory of more than `capacity`
+/// points; names that are not exactly the arm's joints (INVALID_JOINTS); points of the wrong size, NaN/Inf values,
+/// times that do not increase (INVALID_GOAL); a trajectory whose points all lie at or before `now`
+/// (OLD_HEADER_TIMESTAMP). An empty trajectory is not an error: `out` gets no waypoints (the caller holds).
+TrajectoryError toWaypoints(const trajectory_msgs::JointTrajectory& message, const std::vector<std::string>& joints,
+                            const ros::Time& now, int capacity, control::Waypoints& out);
+
+/// The tolerances of a goal: `defaults` for every joint, replaced where `path` or `goal` name a joint with a
+/// non-zero value (-1: unchecked), and the goal time tolerance (0: the default's). INVALID_GOAL for an unknown
+/// joint, NaN/Inf or a negative value other than -1.
+TrajectoryError resolveTolerances(const std::vector<bimanual_skills::JointTolerance>& path,
+                                  const std::vector<bimanual_skills::JointTolerance>& goal,
+                                  const ros::Duration& goal_time, const std::vector<std::string>& joints,
+                                  const control::TrajectoryTolerances& defaults, control::TrajectoryTolerances& out);
+
+}  // namespace bimanual_skills::ros_layer

@@ -1,0 +1,207 @@
+#include "bimanual_skills/control/realtime_arm_controller.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <utility>
+
+namespace bimanual_skills::control {
+
+const char* toString(GoalState state) noexcept {
+  switch (state) {
+    case GoalState::None:
+      return "none";
+    case GoalState::Active:
+      return "active";
+    case GoalState::Succeeded:
+      return "succeeded";
+    case GoalState::Rejected:
+      return "rejected";
+    case GoalState::PathToleranceViolated:
+      return "path tolerance violated";
+    case GoalState::GoalToleranceViolated:
+      return "goal tolerance violated";
+    case GoalState::Aborted:
+      return "aborted";
+    case GoalState::Preempted:
+      return "preempted";
+  }
+  return "unknown";
+}
+
+TrajectoryTolerances TrajectoryTolerances::none(int n) {
+  TrajectoryTolerances t;
+  t.path_position = t.path_velocity = t.goal_position = t.goal_velocity = Eigen::VectorXd::Zero(n);
+  return t;
+}
+
+ArmControllerState::ArmControllerState(int n)
+    : position(Eigen::VectorXd::Zero(n)),
+      velocity(Eigen::VectorXd::Zero(n)),
+      torque(Eigen::VectorXd::Zero(n)),
+      desired_position(Eigen::VectorXd::Zero(n)),
+      desired_velocity(Eigen::VectorXd::Zero(n)),
+      desired_acceleration(Eigen::VectorXd::Zero(n)),
+      position_error(Eigen::VectorXd::Zero(n)),
+      velocity_error(Eigen::VectorXd::Zero(n)) {}
+
+namespace {
+
+ControllerCommand initialCommand(int n) {
+  ControllerCommand c;
+  c.tolerances = TrajectoryTolerances::none(n);
+  return c;
+}
+
+/// The first joint whose |error| exceeds a positive tolerance, −1 if none.
+int violation(const Eigen::VectorXd& error, const Eigen::VectorXd& tolerance) noexcept {
+  for (Eigen::Index i = 0; i < error.size(); ++i) {
+    if (tolerance[i] > 0.0 && std::abs(error[i]) > tolerance[i]) return static_cast<int>(i);
+  }
+  return -1;
+}
+
+}  // namespace
+
+RealtimeArmController::RealtimeArmController(const kinematics::ChainModel& model,
+                                             const dynamics::FrictionModel& friction, ArmControllerConfig config)
+    : controller_(model, friction, config),
+      checker_(model.nq(), config.trajectory_capacity, model.lowerLimits(), model.upperLimits()),
+      capacity_(config.trajectory_capacity),
+      commands_(initialCommand(model.nq())),
+      states_(ArmControllerState(model.nq())),
+      tolerances_(TrajectoryTolerances::none(model.nq())) {}
+
+namespace {
+
+double monotonicSeconds() noexcept {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
+
+void RealtimeArmController::command(ControllerCommand command) {
+  const std::lock_guard<std::mutex> lock(command_mutex_);
+  command.sent = monotonicSeconds();
+  commands_.writeSlot() = std::move(command);
+  commands_.publish();
+}
+
+TrajectoryStatus RealtimeArmController::validate(const Waypoints& waypoints) const noexcept {
+  const std::lock_guard<std::mutex> lock(command_mutex_);
+  return checker_.load(waypoints);
+}
+
+void RealtimeArmController::take(const ControllerCommand& command) noexcept {
+  ++commands_taken_;
+  command_taken_at_ = monotonicSeconds();
+  command_latency_ = command_taken_at_ - command.sent;
+  if (goal_ == GoalState::Active && command.kind == ControllerCommand::Kind::Mode) goal_ = GoalState::Preempted;
+  if (command.kind == ControllerCommand::Kind::Mode) {
+    controller_.setMode(command.mode);
+    return;
+  }
+  goal_id_ = command.goal_id;
+  goal_joint_ = -1;
+  goal_error_ = 0.0;
+  abort_reason_ = ControllerStatus::Ok;
+  rejection_ = controller_.setTrajectory(command.waypoints);
+  const int n = joints();
+  const TrajectoryTolerances& t = command.tolerances;
+  const bool sized = t.path_position.size() == n && t.path_velocity.size() == n && t.goal_position.size() == n &&
+                     t.goal_velocity.size() == n;
+  if (rejection_ == TrajectoryStatus::Ok && !sized) rejection_ = TrajectoryStatus::WrongSize;
+  if (rejection_ != TrajectoryStatus::Ok) {
+    goal_ = GoalState::Rejected;
+    return;
+  }
+  tolerances_.path_position = t.path_position;
+  tolerances_.path_velocity = t.path_velocity;
+  tolerances_.goal_position = t.goal_position;
+  tolerances_.goal_velocity = t.goal_velocity;
+  tolerances_.goal_time = t.goal_time;
+  goal_ = GoalState::Active;
+}
+
+void RealtimeArmController::monitorGoal(double stamp, ControllerStatus status) noexcept {
+  if (goal_ != GoalState::Active) return;
+  if (controller_.mode() != ControllerMode::Track) {
+    // Restarted, stale, velocity limit or a trajectory dropped at a restart: the controller holds on its own.
+    goal_ = GoalState::Aborted;
+    abort_reason_ = status;
+    return;
+  }
+  const ArmControllerState& s = states_.writeSlot();
+  const bool running = !controller_.trajectoryFinished(stamp);
+  const Eigen::VectorXd& velocity = running ? s.velocity_error : s.velocity;
+  int joint = violation(s.position_error, running ? tolerances_.path_position : tolerances_.goal_position);
+  goal_error_is_velocity_ = joint < 0;
+  if (joint < 0) joint = violation(velocity, running ? tolerances_.path_velocity : tolerances_.goal_velocity);
+  if (running && joint >= 0) {
+    goal_ = GoalState::PathToleranceViolated;
+    controller_.setMode(ControllerMode::Hold);
+  } else if (!running && joint < 0) {
+    goal_ = GoalState::Succeeded;
+  } else if (!running && stamp > controller_.trajectoryEndTime() + tolerances_.goal_time) {
+    goal_ = GoalState::GoalToleranceViolated;
+  } else {
+    return;
+  }
+  goal_joint_ = joint;
+  if (joint >= 0) goal_error_ = goal_error_is_velocity_ ? velocity[joint] : s.position_error[joint];
+}
+
+void RealtimeArmController::publishState(double stamp, ControllerStatus status,
+                                         const Eigen::Ref<const Eigen::VectorXd>& q,
+                                         const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                         const Eigen::Ref<const Eigen::VectorXd>& torque) noexcept {
+  ArmControllerState& s = states_.writeSlot();
+  s.sequence = ++sequence_;
+  s.stamp = stamp;
+  s.period = controller_.lastPeriod();
+  s.mode = controller_.mode();
+  s.status = status;
+  s.position = q;
+  s.velocity = qd;
+  s.torque = torque;
+  s.desired_position = controller_.desiredPosition();
+  s.desired_velocity = controller_.desiredVelocity();
+  s.desired_acceleration = controller_.desiredAcceleration();
+  s.position_error = controller_.trackingError();
+  s.velocity_error = s.desired_velocity - qd;
+  s.wrench = controller_.estimatedWrench();
+  monitorGoal(stamp, status);
+  s.mode = controller_.mode();
+  s.goal_id = goal_id_;
+  s.goal = goal_;
+  s.goal_joint = goal_joint_;
+  s.goal_error = goal_error_;
+  s.goal_error_is_velocity = goal_error_is_velocity_;
+  s.rejection = rejection_;
+  s.abort_reason = abort_reason_;
+  for (int k = 0; k < 5; ++k) s.status_counts[k] = counts_[k];
+  s.observer_irregular_steps = controller_.observer().irregularSteps();
+  s.observer_restarts = controller_.observer().restarts();
+  s.commands_taken = commands_taken_;
+  s.command_latency = command_latency_;
+  states_.publish();
+}
+
+ControllerStatus RealtimeArmController::update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
+                                               const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                               const Eigen::Ref<const Eigen::VectorXd>& applied,
+                                               Eigen::Ref<Eigen::VectorXd> torque) noexcept {
+  if (const ControllerCommand* command = commands_.readNew()) take(*command);
+  const ControllerStatus status = controller_.update(now, stamp, q, qd, applied, torque);
+  ++counts_[static_cast<int>(status)];
+  if (status == ControllerStatus::InvalidState || status == ControllerStatus::StaleState) {
+    if (goal_ == GoalState::Active && status == ControllerStatus::StaleState) {
+      goal_ = GoalState::Aborted;
+      abort_reason_ = status;
+    }
+    return status;
+  }
+  publishState(stamp, status, q, qd, torque);
+  return status;
+}
+
+}  // namespace bimanual_skills::control

@@ -1,0 +1,449 @@
+#include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
+
+#include "bimanual_skills/JointTrajectoryControllerState.h"
+#include "bimanual_skills/dynamics/friction_yaml.hpp"
+#include "bimanual_skills/ros_layer/trajectory_messages.hpp"
+
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <geometry_msgs/WrenchStamped.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <chrono>
+#include <cstdio>
+#include <sstream>
+
+namespace bimanual_skills::ros_layer {
+
+namespace bc = bimanual_skills::control;
+using Result = bimanual_skills::FollowJointTrajectoryResult;
+
+const char* const kControllerParameterHelp =
+    "  base_link, tip_link   the arm's chain in robot_description (default ARM_wam_base, ARM_wam_tool)\n"
+    "  kp, kv                PD gains per joint [N m/rad, N m s/rad] (default 50, 5)\n"
+    "  torque_limit, velocity_limit  per joint (default: the URDF's limits)\n"
+    "  friction_file         friction model YAML (fit_friction's output); empty: no friction compensation\n"
+    "  observer/{k11,k12,k21,k22,sigma}  disturbance observer gains (diagonal; thesis eq. 4.14)\n"
+    "  observer/{rate,fir_taps,fir_cutoff}  its nominal rate [Hz] and velocity FIR (the robot's rate may differ:\n"
+    "                        the observer integrates the measured dt; a mismatch is warned about)\n"
+    "  state_timeout         joint states older than this [s] are stale: no torque, hold on recovery (0.05)\n"
+    "  initial_mode          gravity_compensation | hold (default hold)\n"
+    "  publish_rate          state, estimated_wrench and action feedback rate [Hz] (default 100)\n"
+    "  trajectory_capacity   most points of one trajectory (default 2000)\n"
+    "  path_tolerance, goal_tolerance  default position tolerances per joint [rad] (0: unchecked; 0, 0.05)\n"
+    "  stopped_velocity_tolerance  default goal velocity tolerance [rad/s] (0.05)\n"
+    "  goal_time_tolerance   default time after a trajectory's end to meet the goal tolerances [s] (1.0)\n";
+
+namespace {
+
+Eigen::VectorXd vector(const std::vector<double>& v) {
+  return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
+}
+
+std::vector<double> stdVector(const Eigen::VectorXd& v) {
+  return std::vector<double>(v.data(), v.data() + v.size());
+}
+
+void assign(std::vector<double>& out, const Eigen::VectorXd& v) {
+  out.assign(v.data(), v.data() + v.size());
+}
+
+double wallSeconds() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+}  // namespace
+
+ControllerSettings readControllerSettings(ParameterReader& p, const std::string& arm,
+                                          const std::string& robot_description) {
+  ControllerSettings s;
+  s.base_link = p.text("base_link", arm + "_wam_base");
+  s.tip_link = p.text("tip_link", arm + "_wam_tool");
+  try {
+    s.model = std::make_shared<const kinematics::ChainModel>(
+        kinematics::ChainModel::fromUrdfString(robot_description, s.base_link, s.tip_link));
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("the chain " + s.base_link + " -> " + s.tip_link + " (parameters " +
+                                p.name("base_link") + ", " + p.name("tip_link") + "): " + e.what());
+  }
+  const kinematics::ChainModel& model = *s.model;
+  const auto n = static_cast<std::size_t>(model.nq());
+  bc::ArmControllerConfig& c = s.config;
+  c.gains.kp = vector(p.numbers("kp", std::vector<double>(n, 50.0), n, 0.0, 1e5));
+  c.gains.kv = vector(p.numbers("kv", std::vector<double>(n, 5.0), n, 0.0, 1e4));
+  c.gains.torque_limit = vector(p.numbers("torque_limit", stdVector(model.effortLimits()), n, 1e-6, 1e4));
+  c.velocity_limit = vector(p.numbers("velocity_limit", stdVector(model.velocityLimits()), n, 1e-6, 100.0));
+  c.state_timeout = p.number("state_timeout", 0.05, 1e-3, 10.0);
+  c.trajectory_capacity = p.integer("trajectory_capacity", 2000, 2, 100000);
+  s.friction_file = p.text("friction_file", "");
+  if (s.friction_file.empty()) {
+    s.friction.joints.assign(n, dynamics::JointFriction{});
+    c.friction_compensation = false;
+  } else {
+    try {
+      s.friction = dynamics::loadFrictionModel(s.friction_file);
+    } catch (const std::exception& e) {
+      throw std::invalid_argument("parameter " + p.name("friction_file") + ": " + e.what());
+    }
+  }
+  c.observer =
+      bc::ObserverGains::diagonal(static_cast<int>(n), p.number("observer/k11", 10.0, 0.0, 1e4),
+                                  p.number("observer/k12", 0.0, -1e4, 1e4), p.number("observer/k21", 100.0, 0.0, 1e6),
+                                  p.number("observer/k22", 0.0, -1e4, 1e4), p.number("observer/sigma", 10.0, 0.0, 1e4));
+  c.observer.rate_hz = p.number("observer/rate", 1000.0, 1.0, 1e5);
+  c.observer.fir_taps = p.integer("observer/fir_taps", 15, 3, 1001);
+  c.observer.fir_cutoff_hz = p.number("observer/fir_cutoff", 40.0, 1e-3, 0.5 * c.observer.rate_hz - 1e-9);
+  if (c.observer.fir_taps % 2 == 0) {
+    throw std::invalid_argument("parameter " + p.name("observer/fir_taps") + " must be odd");
+  }
+  const std::string mode = p.text("initial_mode", "hold", {"gravity_compensation", "hold"});
+  bc::modeFromString(mode.c_str(), s.initial_mode);
+  s.publish_rate = p.number("publish_rate", 100.0, 0.1, 1000.0);
+  bc::TrajectoryTolerances& t = s.default_tolerances;
+  t = bc::TrajectoryTolerances::none(static_cast<int>(n));
+  t.path_position = vector(p.numbers("path_tolerance", std::vector<double>(n, 0.0), n, 0.0, 10.0));
+  t.goal_position = vector(p.numbers("goal_tolerance", std::vector<double>(n, 0.05), n, 0.0, 10.0));
+  t.goal_velocity =
+      Eigen::VectorXd::Constant(static_cast<Eigen::Index>(n), p.number("stopped_velocity_tolerance", 0.05, 0.0, 100.0));
+  t.goal_time = p.number("goal_time_tolerance", 1.0, 0.0, 3600.0);
+  return s;
+}
+
+ArmControllerInterface::ArmControllerInterface(ros::NodeHandle node, ParameterReader& parameters,
+                                               const std::string& arm, const std::string& robot_description,
+                                               const std::string& owner)
+    : arm_(arm), owner_(owner), node_(node) {
+  settings_ = readControllerSettings(parameters, arm, robot_description);
+  controller_ = std::make_unique<bc::RealtimeArmController>(*settings_.model, settings_.friction, settings_.config);
+  joint_names_ = settings_.model->jointNames();
+  kinematics_ = std::make_unique<kinematics::ChainData>(*settings_.model);
+  sendMode(settings_.initial_mode);
+
+  state_publisher_ = node_.advertise<bimanual_skills::JointTrajectoryControllerState>("state", 10);
+  wrench_publisher_ = node_.advertise<geometry_msgs::WrenchStamped>("estimated_wrench", 10);
+  path_publisher_ = node_.advertise<visualization_msgs::MarkerArray>("tool_paths", 1);
+  diagnostics_publisher_ = node_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
+  command_subscriber_ = node_.subscribe("command", 10, &ArmControllerInterface::onCommand, this);
+  mode_service_ = node_.advertiseService("set_mode", &ArmControllerInterface::onSetMode, this);
+  server_ = std::make_unique<Server>(
+      node_, "follow_joint_trajectory", [this](GoalHandle goal) { onGoal(goal); },
+      [this](GoalHandle goal) { onCancel(goal); }, false);
+  server_->start();
+  // Polled at 1 kHz of wall time; published at publish_rate of the states' time (simulated time for a simulation
+  // that runs faster or slower than real time).
+  publish_timer_ = node_.createSteadyTimer(ros::WallDuration(0.001), &ArmControllerInterface::onPublish, this);
+  diagnostics_timer_ = node_.createSteadyTimer(ros::WallDuration(1.0), &ArmControllerInterface::onDiagnostics, this);
+}
+
+ArmControllerInterface::~ArmControllerInterface() {
+  publish_timer_.stop();
+  diagnostics_timer_.stop();
+  const std::lock_guard<std::mutex> lock(mutex_);
+  cancelActive("the controller shut down");
+}
+
+void ArmControllerInterface::setDriverDiagnostics(std::vector<std::pair<std::string, std::string>> values) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  driver_diagnostics_ = std::move(values);
+}
+
+void ArmControllerInterface::sendTrajectory(bc::Waypoints&& waypoints, const bc::TrajectoryTolerances& tolerances,
+                                            std::uint64_t goal_id) {
+  bc::ControllerCommand command;
+  command.kind = bc::ControllerCommand::Kind::Trajectory;
+  command.waypoints = std::move(waypoints);
+  command.tolerances = tolerances;
+  command.goal_id = goal_id;
+  controller_->command(command);
+  ++trajectories_;
+}
+
+void ArmControllerInterface::sendMode(bc::ControllerMode mode) {
+  bc::ControllerCommand command;
+  command.kind = bc::ControllerCommand::Kind::Mode;
+  command.mode = mode;
+  command.tolerances = bc::TrajectoryTolerances::none(static_cast<int>(joint_names_.size()));
+  controller_->command(command);
+}
+
+void ArmControllerInterface::cancelActive(const std::string& why) {
+  if (!active_) return;
+  Result result;
+  result.error_code = Result::SUCCESSFUL;
+  result.error_string = why;
+  active_->setCanceled(result, why);
+  active_.reset();
+  active_id_ = 0;
+}
+
+void ArmControllerInterface::onCommand(const trajectory_msgs::JointTrajectory::ConstPtr& message) {
+  bc::Waypoints waypoints;
+  const TrajectoryError error =
+      toWaypoints(*message, joint_names_, ros::Time::now(), controller_->trajectoryCapacity(), waypoints);
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (!error && waypoints.times.size() > 0 && controller_->validate(waypoints) != bc::TrajectoryStatus::Ok) {
+    ++rejected_;
+    last_rejection_ = std::string(bc::toString(controller_->validate(waypoints))) +
+                      " (a point outside the joint limits, or times that do not increase)";
+    ROS_WARN("%s: trajectory rejected: %s; the current motion goes on", owner_.c_str(), last_rejection_.c_str());
+    return;
+  }
+  if (error) {
+    ++rejected_;
+    last_rejection_ = error.message;
+    ROS_WARN("%s: trajectory rejected: %s; the current motion goes on", owner_.c_str(), error.message.c_str());
+    return;
+  }
+  cancelActive("preempted by a trajectory on the command topic");
+  if (waypoints.times.size() == 0) {
+    sendMode(bc::ControllerMode::Hold);
+    ROS_INFO("%s: empty trajectory: holding", owner_.c_str());
+    return;
+  }
+  const double duration = waypoints.times[waypoints.times.size() - 1];
+  const auto points = waypoints.times.size();
+  sendTrajectory(std::move(waypoints), settings_.default_tolerances, 0);
+  ROS_INFO("%s: tracking %ld points over %.2f s", owner_.c_str(), static_cast<long>(points), duration);
+}
+
+void ArmControllerInterface::onGoal(GoalHandle goal) {
+  const auto request = goal.getGoal();
+  Result result;
+  bc::Waypoints waypoints;
+  bc::TrajectoryTolerances tolerances;
+  TrajectoryError error =
+      toWaypoints(request->trajectory, joint_names_, ros::Time::now(), controller_->trajectoryCapacity(), waypoints);
+  if (!error) {
+    error = resolveTolerances(request->path_tolerance, request->goal_tolerance, request->goal_time_tolerance,
+                              joint_names_, settings_.default_tolerances, tolerances);
+  }
+  if (!error && waypoints.times.size() > 0) {
+    const bc::TrajectoryStatus status = controller_->validate(waypoints);
+    if (status != bc::TrajectoryStatus::Ok) {
+      error = {Result::INVALID_GOAL,
+               std::string("the controller refuses the waypoints: ") + bc::toString(status) +
+                   (status == bc::TrajectoryStatus::OutOfLimits ? " (a point lies outside the joint limits)" : "")};
+    }
+  }
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (error) {
+    ++rejected_;
+    last_rejection_ = error.message;
+    result.error_code = error.code;
+    result.error_string = error.message;
+    goal.setRejected(result, error.message);
+    ROS_WARN("%s: goal rejected: %s", owner_.c_str(), error.message.c_str());
+    return;
+  }
+  cancelActive("preempted by a new goal");
+  goal.setAccepted();
+  if (waypoints.times.size() == 0) {
+    sendMode(bc::ControllerMode::Hold);
+    result.error_code = Result::SUCCESSFUL;
+    result.error_string = "empty trajectory: holding";
+    goal.setSucceeded(result, result.error_string);
+    return;
+  }
+  active_ = goal;
+  active_id_ = ++next_goal_id_;
+  sendTrajectory(std::move(waypoints), tolerances, active_id_);
+}
+
+void ArmControllerInterface::onCancel(GoalHandle goal) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (active_ && *active_ == goal) {
+    sendMode(bc::ControllerMode::Hold);
+    cancelActive("canceled: holding where the arm is");
+  }
+}
+
+bool ArmControllerInterface::onSetMode(bimanual_skills::SetControlMode::Request& request,
+                                       bimanual_skills::SetControlMode::Response& response) {
+  bc::ControllerMode mode;
+  if (!bc::modeFromString(request.mode.c_str(), mode)) {
+    response.message = "unknown mode '" + request.mode + "' (gravity_compensation, hold, track)";
+    return true;
+  }
+  const std::lock_guard<std::mutex> lock(mutex_);
+  cancelActive("preempted by set_mode " + request.mode);
+  sendMode(mode);
+  response.success = true;
+  response.message = "mode " + request.mode + " from the next control step";
+  ROS_INFO("%s: %s", owner_.c_str(), response.message.c_str());
+  return true;
+}
+
+void ArmControllerInterface::finishGoal(const bc::ArmControllerState& state) {
+  if (!active_ || state.goal_id != active_id_ || state.goal == bc::GoalState::Active) return;
+  Result result;
+  const std::string joint =
+      state.goal_joint >= 0 ? joint_names_[static_cast<std::size_t>(state.goal_joint)] : std::string();
+  std::ostringstream why;
+  switch (state.goal) {
+    case bc::GoalState::Succeeded:
+      result.error_code = Result::SUCCESSFUL;
+      why << "reached the goal";
+      break;
+    case bc::GoalState::PathToleranceViolated:
+      result.error_code = Result::PATH_TOLERANCE_VIOLATED;
+      why << "joint " << joint << " left its path tolerance: " << (state.goal_error_is_velocity ? "velocity " : "")
+          << "error " << state.goal_error << (state.goal_error_is_velocity ? " rad/s" : " rad")
+          << "; holding where the arm is";
+      break;
+    case bc::GoalState::GoalToleranceViolated:
+      result.error_code = Result::GOAL_TOLERANCE_VIOLATED;
+      why << "joint " << joint << " not within its goal tolerance " << state.period
+          << " s after the end: " << (state.goal_error_is_velocity ? "velocity " : "error ") << state.goal_error
+          << (state.goal_error_is_velocity ? " rad/s" : " rad");
+      break;
+    case bc::GoalState::Rejected:
+      result.error_code = Result::INVALID_GOAL;
+      why << "the controller refused the waypoints: " << bc::toString(state.rejection);
+      break;
+    case bc::GoalState::Aborted:
+      result.error_code = Result::PATH_TOLERANCE_VIOLATED;
+      why << "the controller stopped tracking: " << bc::toString(state.abort_reason)
+          << " (velocity limit, stale or restarted joint states); holding";
+      break;
+    default:
+      result.error_code = Result::SUCCESSFUL;
+      why << "preempted";
+      break;
+  }
+  result.error_string = why.str();
+  if (state.goal == bc::GoalState::Succeeded) {
+    active_->setSucceeded(result, result.error_string);
+  } else if (state.goal == bc::GoalState::Preempted) {
+    active_->setCanceled(result, result.error_string);
+  } else {
+    active_->setAborted(result, result.error_string);
+    ROS_WARN("%s: goal aborted: %s", owner_.c_str(), result.error_string.c_str());
+  }
+  active_.reset();
+  active_id_ = 0;
+}
+
+void ArmControllerInterface::onPublish(const ros::SteadyTimerEvent&) {
+  const bc::ArmControllerState* fresh = controller_->latestState();
+  if (!fresh) return;
+  const std::lock_guard<std::mutex> lock(mutex_);
+  last_ = *fresh;
+  last_state_wall_ = wallSeconds();
+  const bc::ArmControllerState& s = *last_;
+  const bool due = s.stamp < last_published_ || s.stamp - last_published_ >= 1.0 / settings_.publish_rate - 1e-9;
+  if (!due && !(active_ && s.goal_id == active_id_ && s.goal != bc::GoalState::Active)) return;
+  last_published_ = s.stamp;
+  const ros::Time stamp(s.stamp);
+  bimanual_skills::JointTrajectoryControllerState message;
+  message.header.stamp = stamp;
+  message.joint_names = joint_names_;
+  assign(message.desired.positions, s.desired_position);
+  assign(message.desired.velocities, s.desired_velocity);
+  assign(message.desired.accelerations, s.desired_acceleration);
+  assign(message.actual.positions, s.position);
+  assign(message.actual.velocities, s.velocity);
+  assign(message.actual.effort, s.torque);
+  assign(message.error.positions, s.position_error);
+  assign(message.error.velocities, s.velocity_error);
+  state_publisher_.publish(message);
+  if (active_ && s.goal_id == active_id_) {
+    bimanual_skills::FollowJointTrajectoryFeedback feedback;
+    feedback.header = message.header;
+    feedback.joint_names = joint_names_;
+    feedback.desired = message.desired;
+    feedback.actual = message.actual;
+    feedback.error = message.error;
+    active_->publishFeedback(feedback);
+  }
+  finishGoal(s);
+  geometry_msgs::WrenchStamped wrench;
+  wrench.header.stamp = stamp;
+  wrench.header.frame_id = settings_.base_link;
+  wrench.wrench.force.x = s.wrench[0];
+  wrench.wrench.force.y = s.wrench[1];
+  wrench.wrench.force.z = s.wrench[2];
+  wrench.wrench.torque.x = s.wrench[3];
+  wrench.wrench.torque.y = s.wrench[4];
+  wrench.wrench.torque.z = s.wrench[5];
+  wrench_publisher_.publish(wrench);
+  publishToolPaths(s, stamp);
+}
+
+void ArmControllerInterface::publishToolPaths(const bc::ArmControllerState& state, const ros::Time& stamp) {
+  static constexpr std::size_t kPathLength = 1000;
+  const auto tool = [this](const Eigen::VectorXd& q) {
+    geometry_msgs::Point p;
+    if (kinematics::forwardKinematics(*settings_.model, *kinematics_, q) == kinematics::KinematicsStatus::Success) {
+      const Eigen::Vector3d t = kinematics_->tipPose().translation();
+      p.x = t.x();
+      p.y = t.y();
+      p.z = t.z();
+    }
+    return p;
+  };
+  for (auto* path : {&actual_path_, &desired_path_}) {
+    if (path->size() >= kPathLength) path->pop_front();
+  }
+  actual_path_.push_back(tool(state.position));
+  desired_path_.push_back(tool(state.desired_position));
+  if (++publish_count_ % 10 != 0 || path_publisher_.getNumSubscribers() == 0) return;
+  visualization_msgs::MarkerArray markers;
+  for (int k = 0; k < 2; ++k) {
+    visualization_msgs::Marker m;
+    m.header.stamp = stamp;
+    m.header.frame_id = settings_.base_link;
+    m.ns = k == 0 ? "actual" : "commanded";
+    m.type = visualization_msgs::Marker::LINE_STRIP;
+    m.pose.orientation.w = 1.0;
+    m.scale.x = 0.006;
+    m.color.a = 1.0f;
+    (k == 0 ? m.color.g : m.color.r) = 0.9f;
+    const auto& path = k == 0 ? actual_path_ : desired_path_;
+    m.points.assign(path.begin(), path.end());
+    markers.markers.push_back(m);
+  }
+  path_publisher_.publish(markers);
+}
+
+void ArmControllerInterface::onDiagnostics(const ros::SteadyTimerEvent&) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  diagnostic_msgs::DiagnosticArray array;
+  array.header.stamp = ros::Time::now();
+  diagnostic_msgs::DiagnosticStatus status;
+  status.name = owner_;
+  status.hardware_id = arm_;
+  const double silent = last_ ? wallSeconds() - last_state_wall_ : 0.0;
+  const bool stale = last_ && silent > std::max(1.0, 2.0 * settings_.config.state_timeout);
+  status.level = !last_ || stale ? diagnostic_msgs::DiagnosticStatus::WARN : diagnostic_msgs::DiagnosticStatus::OK;
+  status.message = !last_  ? "waiting for joint states"
+                   : stale ? "no control step for " + std::to_string(silent) + " s (robot paused or states stale)"
+                           : std::string("running, mode ") + bc::toString(last_->mode);
+  const auto add = [&status](const std::string& key, const std::string& value) {
+    diagnostic_msgs::KeyValue kv;
+    kv.key = key;
+    kv.value = value;
+    status.values.push_back(kv);
+  };
+  if (last_) {
+    const bc::ArmControllerState& s = *last_;
+    const auto count = [&s](bc::ControllerStatus c) { return std::to_string(s.status_counts[static_cast<int>(c)]); };
+    add("mode", bc::toString(s.mode));
+    add("max_tracking_error_rad", std::to_string(s.position_error.cwiseAbs().maxCoeff()));
+    add("control_steps", std::to_string(s.sequence));
+    add("control_period_s", std::to_string(s.period));
+    add("saturated_steps", count(bc::ControllerStatus::Saturated));
+    add("invalid_states", count(bc::ControllerStatus::InvalidState));
+    add("stale_states", count(bc::ControllerStatus::StaleState));
+    add("velocity_limit_events", count(bc::ControllerStatus::VelocityLimit));
+    add("observer_irregular_steps", std::to_string(s.observer_irregular_steps));
+    add("observer_restarts", std::to_string(s.observer_restarts));
+    add("goal", bc::toString(s.goal));
+  }
+  add("trajectories", std::to_string(trajectories_));
+  add("rejected_trajectories", std::to_string(rejected_));
+  add("last_rejection", last_rejection_);
+  for (const auto& [key, value] : driver_diagnostics_) add(key, value);
+  array.status.push_back(status);
+  diagnostics_publisher_.publish(array);
+}
+
+}  // namespace bimanual_skills::ros_layer

@@ -1,0 +1,122 @@
+#include "bimanual_skills/ros_layer/trajectory_messages.hpp"
+
+#include "bimanual_skills/FollowJointTrajectoryResult.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+namespace bimanual_skills::ros_layer {
+
+namespace {
+
+using Result = bimanual_skills::FollowJointTrajectoryResult;
+
+bool finite(const std::vector<double>& values) {
+  return std::all_of(values.begin(), values.end(), [](double v) { return std::isfinite(v); });
+}
+
+}  // namespace
+
+TrajectoryError toWaypoints(const trajectory_msgs::JointTrajectory& message, const std::vector<std::string>& joints,
+                            const ros::Time& now, int capacity, control::Waypoints& out) {
+  const std::size_t n = joints.size();
+  const std::size_t points = message.points.size();
+  out = control::Waypoints{};
+  std::vector<int> column(n, -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto it = std::find(message.joint_names.begin(), message.joint_names.end(), joints[i]);
+    if (it != message.joint_names.end()) column[i] = static_cast<int>(it - message.joint_names.begin());
+  }
+  if (message.joint_names.size() != n || std::find(column.begin(), column.end(), -1) != column.end()) {
+    std::string expected;
+    for (const std::string& j : joints) expected += (expected.empty() ? "" : ", ") + j;
+    return {Result::INVALID_JOINTS, "the trajectory must name each of the arm's " + std::to_string(n) +
+                                        " joints once (" + expected + "); it names " +
+                                        std::to_string(message.joint_names.size())};
+  }
+  if (points == 0) return {};
+  if (points > static_cast<std::size_t>(capacity)) {
+    return {Result::INVALID_GOAL, std::to_string(points) + " points exceed the controller's capacity of " +
+                                      std::to_string(capacity) + " (trajectory_capacity)"};
+  }
+  const bool with_velocities = !message.points.front().velocities.empty();
+  const bool with_accelerations = !message.points.front().accelerations.empty();
+  const ros::Time start = message.header.stamp.isZero() ? now : message.header.stamp;
+  double previous = -1.0;
+  std::size_t first = points;  // the first point after now
+  for (std::size_t p = 0; p < points; ++p) {
+    const auto& point = message.points[p];
+    if (point.positions.size() != n || point.velocities.size() != (with_velocities ? n : 0) ||
+        point.accelerations.size() != (with_accelerations ? n : 0)) {
+      return {Result::INVALID_GOAL,
+              "point " + std::to_string(p) + " has the wrong number of positions, velocities or accelerations"};
+    }
+    if (!finite(point.positions) || !finite(point.velocities) || !finite(point.accelerations)) {
+      return {Result::INVALID_GOAL, "point " + std::to_string(p) + " contains NaN or Inf"};
+    }
+    const double t = point.time_from_start.toSec();
+    if (!(t > previous) || t < 0.0) {
+      return {Result::INVALID_GOAL, "time_from_start must be >= 0 and increase (point " + std::to_string(p) + ")"};
+    }
+    previous = t;
+    if (first == points && (start + point.time_from_start) > now) first = p;
+  }
+  if (first == points) {
+    std::ostringstream s;
+    s << "every point lies in the past: the last at " << (start + message.points.back().time_from_start).toSec()
+      << " s, now " << now.toSec() << " s";
+    return {Result::OLD_HEADER_TIMESTAMP, s.str()};
+  }
+  const int k = static_cast<int>(points - first);
+  out.times.resize(k);
+  out.positions.resize(static_cast<Eigen::Index>(n), k);
+  if (with_velocities) out.velocities.resize(static_cast<Eigen::Index>(n), k);
+  if (with_accelerations) out.accelerations.resize(static_cast<Eigen::Index>(n), k);
+  for (int c = 0; c < k; ++c) {
+    const auto& point = message.points[first + static_cast<std::size_t>(c)];
+    out.times[c] = (start + point.time_from_start - now).toSec();
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto j = static_cast<std::size_t>(column[i]);
+      const auto r = static_cast<Eigen::Index>(i);
+      out.positions(r, c) = point.positions[j];
+      if (with_velocities) out.velocities(r, c) = point.velocities[j];
+      if (with_accelerations) out.accelerations(r, c) = point.accelerations[j];
+    }
+  }
+  return {};
+}
+
+TrajectoryError resolveTolerances(const std::vector<bimanual_skills::JointTolerance>& path,
+                                  const std::vector<bimanual_skills::JointTolerance>& goal,
+                                  const ros::Duration& goal_time, const std::vector<std::string>& joints,
+                                  const control::TrajectoryTolerances& defaults, control::TrajectoryTolerances& out) {
+  out = defaults;
+  const auto apply = [&joints](const std::vector<bimanual_skills::JointTolerance>& list, Eigen::VectorXd& position,
+                               Eigen::VectorXd& velocity, const char* which) -> TrajectoryError {
+    for (const auto& t : list) {
+      const auto it = std::find(joints.begin(), joints.end(), t.name);
+      if (it == joints.end()) {
+        return {Result::INVALID_GOAL, std::string(which) + " tolerance for '" + t.name + "', not a joint of the arm"};
+      }
+      const auto i = static_cast<Eigen::Index>(it - joints.begin());
+      for (const auto& [value, target] : {std::pair<double, Eigen::VectorXd*>{t.position, &position},
+                                          std::pair<double, Eigen::VectorXd*>{t.velocity, &velocity}}) {
+        if (!std::isfinite(value) || (value < 0.0 && value != -1.0)) {
+          return {Result::INVALID_GOAL,
+                  std::string(which) + " tolerance of '" + t.name + "' must be > 0, 0 (default) or -1 (unchecked)"};
+        }
+        if (value != 0.0) (*target)[i] = value > 0.0 ? value : 0.0;
+      }
+    }
+    return {};
+  };
+  if (TrajectoryError e = apply(path, out.path_position, out.path_velocity, "path")) return e;
+  if (TrajectoryError e = apply(goal, out.goal_position, out.goal_velocity, "goal")) return e;
+  const double g = goal_time.toSec();
+  if (g < 0.0) return {Result::INVALID_GOAL, "goal_time_tolerance must be >= 0"};
+  if (g > 0.0) out.goal_time = g;
+  return {};
+}
+
+}  // namespace bimanual_skills::ros_layer

@@ -1,0 +1,308 @@
+// The pieces of a real-time loop: the lock-free triple buffer (latest wins, whole values across threads), the period
+// recorder, the loop pacer (absolute deadlines, re-anchoring instead of catch-up bursts, sleeps in slices), and the
+// arm controller run by a loop and commanded from other threads (goals and their tolerances as control_msgs'
+// FollowJointTrajectory defines them, no allocation in the loop).
+#include "bimanual_skills/control/realtime_arm_controller.hpp"
+#include "bimanual_skills/realtime/loop_pacer.hpp"
+#include "bimanual_skills/realtime/period_recorder.hpp"
+#include "bimanual_skills/realtime/triple_buffer.hpp"
+#include "test_support.hpp"
+#include "testing/no_alloc_guard.hpp"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <thread>
+
+namespace bc = bimanual_skills::control;
+namespace bd = bimanual_skills::dynamics;
+namespace bk = bimanual_skills::kinematics;
+namespace rt = bimanual_skills::realtime;
+using bimanual_skills::testing::NoAllocGuard;
+
+namespace {
+
+TEST(TripleBuffer, LatestWinsAndNothingIsReadTwice) {
+  rt::TripleBuffer<int> buffer(-1);
+  EXPECT_EQ(buffer.readNew(), nullptr);
+  EXPECT_EQ(buffer.current(), -1);
+  buffer.write(1);
+  buffer.write(2);
+  buffer.write(3);
+  const int* value = buffer.readNew();
+  ASSERT_NE(value, nullptr);
+  EXPECT_EQ(*value, 3);
+  EXPECT_EQ(buffer.readNew(), nullptr);
+  EXPECT_EQ(buffer.current(), 3);
+  buffer.writeSlot() = 4;
+  EXPECT_EQ(buffer.readNew(), nullptr);  // not published yet
+  buffer.publish();
+  ASSERT_NE(buffer.readNew(), nullptr);
+  EXPECT_EQ(buffer.current(), 4);
+}
+
+TEST(TripleBuffer, ReaderSeesWholeValuesInOrderAcrossThreads) {
+  using Value = std::array<long, 64>;
+  Value zero{};
+  rt::TripleBuffer<Value> buffer(zero);
+  constexpr long kWrites = 200000;
+  std::thread writer([&buffer] {
+    for (long i = 1; i <= kWrites; ++i) {
+      Value& slot = buffer.writeSlot();
+      for (std::size_t k = 0; k < slot.size(); ++k) slot[k] = i * static_cast<long>(k + 1);
+      buffer.publish();
+    }
+  });
+  long last = 0, reads = 0, torn = 0, backwards = 0;
+  while (last < kWrites) {
+    const Value* v = buffer.readNew();
+    if (!v) continue;
+    ++reads;
+    const long i = (*v)[0];
+    for (std::size_t k = 0; k < v->size(); ++k) torn += (*v)[k] != i * static_cast<long>(k + 1);
+    backwards += i <= last;
+    last = i;
+  }
+  writer.join();
+  EXPECT_EQ(torn, 0);
+  EXPECT_EQ(backwards, 0);
+  EXPECT_GT(reads, 1);
+  EXPECT_EQ(last, kWrites);  // the last value written always arrives
+}
+
+TEST(PeriodRecorder, KeepsTheLastSamplesAndSummarises) {
+  rt::PeriodRecorder recorder(4);
+  std::vector<double> out;
+  recorder.snapshot(out);
+  EXPECT_TRUE(out.empty());
+  for (int i = 1; i <= 6; ++i) recorder.record(i);
+  recorder.snapshot(out);
+  EXPECT_EQ(out, (std::vector<double>{3, 4, 5, 6}));
+  EXPECT_EQ(recorder.recorded(), 6u);
+  std::vector<double> samples;
+  for (int i = 1; i <= 1000; ++i) samples.push_back(i);
+  const rt::PeriodSummary s = rt::summarize(samples);
+  EXPECT_EQ(s.count, 1000u);
+  EXPECT_EQ(s.median, 500);
+  EXPECT_EQ(s.p99, 990);
+  EXPECT_EQ(s.p999, 999);
+  EXPECT_EQ(s.max, 1000);
+  EXPECT_DOUBLE_EQ(s.mean, 500.5);
+  EXPECT_THROW(rt::PeriodRecorder(0), std::invalid_argument);
+}
+
+TEST(LoopPacer, ReanchorsInsteadOfCatchingUpAndSleepsInSlices) {
+  EXPECT_THROW(rt::LoopPacer(0.0), std::invalid_argument);
+  rt::LoopPacer pacer(0.002, 0.05);
+  EXPECT_TRUE(pacer.waitUntilDue(0.01));  // due at once after construction
+  pacer.advance();
+  EXPECT_GT(pacer.untilDeadline(), 0.0);
+  // Ten cycles keep the schedule: the deadlines are absolute.
+  const auto start = std::chrono::steady_clock::now();
+  for (int k = 0; k < 10; ++k) {
+    while (!pacer.waitUntilDue(0.01)) {
+    }
+    pacer.advance();
+  }
+  const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GT(elapsed, 0.017);
+  EXPECT_EQ(pacer.slips(), 0);
+  // A stall of 0.2 s (more than the 0.05 s tolerated): the next deadline is not 100 periods in the past; the
+  // schedule restarts now and the slip is counted.
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  EXPECT_TRUE(pacer.waitUntilDue(0.01));
+  pacer.advance();
+  EXPECT_EQ(pacer.slips(), 1);
+  EXPECT_GT(pacer.untilDeadline(), -0.001);
+  // A long period is waited for in slices: a 5 ms slice returns before the 0.5 s deadline.
+  ASSERT_TRUE(pacer.setPeriod(0.5));
+  EXPECT_TRUE(pacer.waitUntilDue(0.005));
+  pacer.advance();
+  const auto slice_start = std::chrono::steady_clock::now();
+  EXPECT_FALSE(pacer.waitUntilDue(0.005));
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - slice_start).count(), 0.25);
+  EXPECT_FALSE(pacer.setPeriod(-1.0));
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+
+/// The WAM model (with rotors, no friction) driven by a RealtimeArmController at 1 kHz through its own forward
+/// dynamics.
+struct Loop {
+  bk::ChainModel model = bimanual_skills::test_support::wamWithRotors();
+  bd::DynamicsData data{model};
+  Eigen::VectorXd q = (Eigen::VectorXd(7) << 0.0, 0.6, 0.0, 1.6, 0.0, 0.4, 0.0).finished();
+  Eigen::VectorXd qd = Eigen::VectorXd::Zero(7), qdd = Eigen::VectorXd::Zero(7), tau = Eigen::VectorXd::Zero(7);
+  Eigen::VectorXd none;
+  double t = 0.0;
+
+  static bc::ArmControllerConfig config() {
+    bc::ArmControllerConfig c;
+    c.gains = bimanual_skills::test_support::lowGains();
+    c.observer = bc::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0);
+    c.observer.rate_hz = 1000.0;
+    c.friction_compensation = false;
+    c.trajectory_capacity = 10;
+    return c;
+  }
+  static bd::FrictionModel friction() {
+    bd::FrictionModel f;
+    f.joints.assign(7, bd::JointFriction{});
+    return f;
+  }
+
+  bc::ControllerStatus step(bc::RealtimeArmController& controller) {
+    const bc::ControllerStatus status = controller.update(t, t, q, qd, none, tau);
+    (void)bd::forwardDynamics(model, data, q, qd, tau, qdd);
+    qd += 0.001 * qdd;
+    q += 0.001 * qd;
+    t += 0.001;
+    return status;
+  }
+};
+
+bc::ControllerCommand trajectoryTo(const Eigen::VectorXd& target, double duration, std::uint64_t id) {
+  bc::ControllerCommand c;
+  c.kind = bc::ControllerCommand::Kind::Trajectory;
+  c.waypoints.times = Eigen::VectorXd::Constant(1, duration);
+  c.waypoints.positions = target;
+  c.tolerances = bc::TrajectoryTolerances::none(7);
+  c.goal_id = id;
+  return c;
+}
+
+/// Runs `steps` steps and returns the newest state handed out.
+bc::ArmControllerState run(Loop& loop, bc::RealtimeArmController& controller, int steps) {
+  for (int k = 0; k < steps; ++k) loop.step(controller);
+  const bc::ArmControllerState* state = controller.latestState();
+  EXPECT_NE(state, nullptr);
+  return state ? *state : bc::ArmControllerState(7);
+}
+
+TEST(RealtimeArmController, GoalsSucceedOrReportTheViolatedTolerance) {
+  Loop loop;
+  bc::RealtimeArmController controller(loop.model, Loop::friction(), Loop::config());
+  run(loop, controller, 50);
+  const Eigen::VectorXd start = loop.q;
+  Eigen::VectorXd target = start;
+  target[0] += 0.4;
+
+  // Within its tolerances: succeeded once the end is reached and the arm has stopped.
+  bc::ControllerCommand good = trajectoryTo(target, 1.0, 1);
+  good.tolerances.path_position.setConstant(0.05);
+  good.tolerances.goal_position.setConstant(0.01);
+  good.tolerances.goal_velocity.setConstant(0.05);
+  controller.command(good);
+  bc::ArmControllerState s = run(loop, controller, 500);
+  EXPECT_EQ(s.goal_id, 1u);
+  EXPECT_EQ(s.goal, bc::GoalState::Active);
+  EXPECT_EQ(s.mode, bc::ControllerMode::Track);
+  EXPECT_EQ(s.commands_taken, 1u);
+  s = run(loop, controller, 1000);
+  EXPECT_EQ(s.goal, bc::GoalState::Succeeded);
+  EXPECT_LT(std::abs(loop.q[0] - target[0]), 0.01);
+
+  // A path tolerance no real arm keeps: violated while running, the arm holds where it is.
+  bc::ControllerCommand tight = trajectoryTo(start, 0.5, 2);
+  tight.tolerances.path_position.setConstant(1e-6);
+  controller.command(tight);
+  s = run(loop, controller, 100);
+  EXPECT_EQ(s.goal_id, 2u);
+  EXPECT_EQ(s.goal, bc::GoalState::PathToleranceViolated);
+  EXPECT_GE(s.goal_joint, 0);
+  EXPECT_GT(std::abs(s.goal_error), 1e-6);
+  EXPECT_EQ(s.mode, bc::ControllerMode::Hold);
+  const double held = loop.q[0];
+  run(loop, controller, 500);
+  EXPECT_LT(std::abs(loop.q[0] - held), 0.02);
+
+  // A goal tolerance not met within the goal time: violated after end + goal_time.
+  bc::ControllerCommand precise = trajectoryTo(start, 1.0, 3);
+  precise.tolerances.goal_position.setConstant(1e-12);
+  precise.tolerances.goal_time = 0.2;
+  controller.command(precise);
+  s = run(loop, controller, 1150);
+  EXPECT_EQ(s.goal, bc::GoalState::Active);  // past the end, within the goal time
+  s = run(loop, controller, 100);
+  EXPECT_EQ(s.goal, bc::GoalState::GoalToleranceViolated);
+  EXPECT_GE(s.goal_joint, 0);
+
+  // Waypoints outside the limits: rejected by the loop, nothing changes; validate() says so beforehand.
+  bc::ControllerCommand outside = trajectoryTo(start, 1.0, 4);
+  outside.waypoints.positions(1, 0) = 5.0;
+  EXPECT_EQ(controller.validate(outside.waypoints), bc::TrajectoryStatus::OutOfLimits);
+  controller.command(outside);
+  s = run(loop, controller, 10);
+  EXPECT_EQ(s.goal_id, 4u);
+  EXPECT_EQ(s.goal, bc::GoalState::Rejected);
+  EXPECT_EQ(s.rejection, bc::TrajectoryStatus::OutOfLimits);
+
+  // Too many points for the capacity: refused by validate() and the loop alike.
+  bc::ControllerCommand long_one = trajectoryTo(start, 1.0, 5);
+  long_one.waypoints.times = Eigen::VectorXd::LinSpaced(11, 0.1, 1.1);
+  long_one.waypoints.positions = start.replicate(1, 11);
+  EXPECT_EQ(controller.validate(long_one.waypoints), bc::TrajectoryStatus::WrongSize);
+
+  // A mode command preempts a running goal.
+  controller.command(trajectoryTo(target, 2.0, 6));
+  run(loop, controller, 100);
+  bc::ControllerCommand hold;
+  hold.kind = bc::ControllerCommand::Kind::Mode;
+  hold.mode = bc::ControllerMode::Hold;
+  controller.command(hold);
+  s = run(loop, controller, 2);
+  EXPECT_EQ(s.goal_id, 6u);
+  EXPECT_EQ(s.goal, bc::GoalState::Preempted);
+  EXPECT_EQ(s.mode, bc::ControllerMode::Hold);
+
+  // States that stop arriving abort a running goal.
+  controller.command(trajectoryTo(target, 2.0, 7));
+  run(loop, controller, 100);
+  Eigen::VectorXd torque(7);
+  EXPECT_EQ(controller.update(loop.t + 1.0, loop.t, loop.q, loop.qd, loop.none, torque),
+            bc::ControllerStatus::StaleState);
+  s = run(loop, controller, 2);
+  EXPECT_EQ(s.goal_id, 7u);
+  EXPECT_EQ(s.goal, bc::GoalState::Aborted);
+  EXPECT_EQ(s.abort_reason, bc::ControllerStatus::StaleState);
+  EXPECT_EQ(s.mode, bc::ControllerMode::Hold);
+  EXPECT_GT(s.status_counts[static_cast<int>(bc::ControllerStatus::StaleState)], 0);
+}
+
+TEST(RealtimeArmController, TheLoopNeverAllocatesWhileCommandsArriveFromAnotherThread) {
+  Loop loop;
+  bc::RealtimeArmController controller(loop.model, Loop::friction(), Loop::config());
+  run(loop, controller, 10);
+  std::atomic<bool> stop{false};
+  std::atomic<long> sent{0};
+  std::thread commander([&] {
+    Eigen::VectorXd target = loop.q;  // read once before the loop moves on
+    for (std::uint64_t id = 1; !stop; ++id) {
+      target[0] = 0.2 * std::sin(0.01 * static_cast<double>(id));
+      controller.command(trajectoryTo(target, 0.5, id));
+      ++sent;
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+  });
+  std::uint64_t last_sequence = 0, taken = 0;
+  {
+    NoAllocGuard guard;
+    for (int k = 0; k < 3000; ++k) {
+      loop.step(controller);
+      if (const bc::ArmControllerState* s = controller.latestState()) {
+        EXPECT_GT(s->sequence, last_sequence);
+        last_sequence = s->sequence;
+        taken = s->commands_taken;
+      }
+    }
+  }
+  stop = true;
+  commander.join();
+  EXPECT_GT(taken, 10u);
+  EXPECT_GT(sent.load(), 10);
+  EXPECT_TRUE(loop.q.allFinite());
+}
+
+}  // namespace
