@@ -181,8 +181,8 @@ class BulletSimNode {
     loop_priority_ = p.integer("loop_priority", 0, 0, 99);
     max_step_duration_ = p.number("max_step_duration", 60.0, simulation_->stepSize(), 86400.0);
     max_payload_ = p.number("max_payload", 4.0, 0.0, 1000.0);
-    max_force_ = p.number("max_force", 200.0, 0.0, 1e5);
-    max_torque_ = p.number("max_torque", 50.0, 0.0, 1e5);
+    max_force_ = p.number("max_force", 200.0, 0.0, 1e9);
+    max_torque_ = p.number("max_torque", 50.0, 0.0, 1e9);
     marker_rate_ = p.number("marker_rate", 30.0, 0.1, 1000.0);
     paused_ = p.boolean("paused", false);
     statistics_file_ = p.text("statistics_file", "");

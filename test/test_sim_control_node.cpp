@@ -100,6 +100,7 @@ class SimFixture : public ::testing::Test {
   void onState(const sensor_msgs::JointState::ConstPtr& m) {
     if (m->name.size() != 14) return;
     const std::lock_guard<std::mutex> lock(mutex_);
+    ++joint_state_count_;
     last_stamp_ = m->header.stamp.toSec();
     for (std::size_t i = 0; i < m->name.size(); ++i) positions_[m->name[i]] = m->position[i];
   }
@@ -114,7 +115,18 @@ class SimFixture : public ::testing::Test {
     const std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& status : m->status) {
       for (const auto& kv : status.values) diagnostics_values_[status.name][kv.key] = kv.value;
+      diagnostics_values_[status.name]["(message)"] = status.message;
+      diagnostics_values_[status.name]["(level)"] = std::to_string(static_cast<int>(status.level));
     }
+  }
+
+  long jointStateCount() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return joint_state_count_;
+  }
+  double lastStamp() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return last_stamp_;
   }
 
   std::map<std::string, double> positions() {
@@ -272,6 +284,7 @@ class SimFixture : public ::testing::Test {
   std::map<std::string, std::map<std::string, std::string>> diagnostics_values_;
   std::vector<std::pair<double, double>> clock_samples_;  ///< (wall, simulated) seconds
   double last_stamp_ = -1.0;
+  long joint_state_count_ = 0;
   bool recording_ = false;
 };
 
@@ -451,6 +464,29 @@ TEST_F(HostedControl, ServicesRefuseAbsurdInputWithTheReason) {
   for (int i = 0; i < 7; ++i) EXPECT_NEAR(armPositions("left")[i], hold[i], 0.01) << "joint " << i + 1;
   EXPECT_TRUE(waitWall(
       [&] { return diagnosticCount("bullet_sim: left controller", "rejected_trajectories") == rejected + 1; }, 15.0));
+}
+
+// sim_control.test raises ~max_force so that a wrench can make the arms diverge: the states keep coming with their
+// stamp frozen, /diagnostics says why, and ~reset brings the simulation back.
+TEST_F(HostedControl, ADivergenceIsReportedAndResetRecovers) {
+  ros::ServiceClient wrench = node_.serviceClient<bimanual_skills::ApplyWrench>("/bullet_sim/apply_wrench");
+  bimanual_skills::ApplyWrench w;
+  w.request.link = "left_wam_tool";
+  w.request.wrench.force.z = 5e6;
+  ASSERT_TRUE(wrench.call(w));
+  ASSERT_TRUE(w.response.success) << w.response.message;
+  ASSERT_TRUE(waitWall([&] { return diagnostic("bullet_sim", "(level)") == "2"; }, 20.0))
+      << "no divergence reported: " << diagnostic("bullet_sim", "(message)");
+  EXPECT_NE(diagnostic("bullet_sim", "(message)").find("diverged"), std::string::npos);
+  const long before = jointStateCount();
+  const double frozen = lastStamp();
+  waitWall([] { return false; }, 1.0);
+  EXPECT_GE(jointStateCount(), before + 5) << "the joint states stopped after the divergence";
+  EXPECT_EQ(lastStamp(), frozen);
+  std_srvs::Trigger reset;
+  ASSERT_TRUE(reset_.call(reset) && reset.response.success) << reset.response.message;
+  EXPECT_TRUE(waitWall([&] { return lastStamp() > 0.5; }, 30.0)) << "the simulation did not run again";
+  EXPECT_TRUE(waitWall([&] { return diagnostic("bullet_sim", "(level)") == "0"; }, 10.0));
 }
 
 TEST_F(HostedControl, LockstepRunsAreRepeatableBitForBit) {
