@@ -14,6 +14,7 @@
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/signal/acceleration_sign.hpp"
+#include "cli/package_share.hpp"
 
 #include <benchmark/benchmark.h>
 #include <kdl/chaindynparam.hpp>
@@ -43,18 +44,21 @@ namespace {
 
 constexpr unsigned kSeed = 42;
 constexpr int kStates = 1024;
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
+/// The WAM of urdf/wam.urdf.
+std::string wamUrdf() {
+  return bimanual_skills::cli::packageFile("urdf/wam.urdf");
+}
 
 struct Fixture {
-  bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+  bk::ChainModel model = bk::ChainModel::fromUrdfFile(wamUrdf(), "wam_base", "wam_tool");
   KDL::Chain chain;
   std::vector<Eigen::VectorXd> q, qd, qdd;
   std::vector<KDL::JntArray> q_kdl, qd_kdl, qdd_kdl;
 
   Fixture() {
     KDL::Tree tree;
-    if (!kdl_parser::treeFromFile(kWamUrdf, tree) || !tree.getChain("wam_base", "wam_tool", chain)) {
-      throw std::runtime_error("KDL cannot load " + kWamUrdf);
+    if (!kdl_parser::treeFromFile(wamUrdf(), tree) || !tree.getChain("wam_base", "wam_tool", chain)) {
+      throw std::runtime_error("KDL cannot load " + wamUrdf());
     }
     std::mt19937 rng(kSeed);
     std::uniform_real_distribution<double> rate(-2.0, 2.0);
@@ -266,7 +270,7 @@ int main(int argc, char** argv) {
     scheduling = std::string(fifo ? "SCHED_FIFO 80" : "SCHED_FIFO refused") + (locked ? ", memory locked" : "");
   }
   benchmark::AddCustomContext("seed", std::to_string(kSeed));
-  benchmark::AddCustomContext("model", kWamUrdf + " (wam_base -> wam_tool)");
+  benchmark::AddCustomContext("model", wamUrdf() + " (wam_base -> wam_tool)");
   benchmark::AddCustomContext("scheduling", scheduling);
 #ifdef BIMANUAL_SKILLS_WITH_PINOCCHIO
   const double difference = pinocchioDifference();

@@ -15,9 +15,9 @@
 #include "bimanual_skills/learning/student_t.hpp"
 #include "bimanual_skills/realtime/loop_pacer.hpp"
 #include "bimanual_skills/realtime/period_recorder.hpp"
+#include "cli/package_share.hpp"
 #include "experiment_cli.hpp"
 #include "ros_processes.hpp"
-#include "summary_json.hpp"
 
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
@@ -47,7 +47,6 @@ namespace rt = bimanual_skills::realtime;
 
 namespace {
 
-const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
 constexpr double kPeriod = 0.001;  ///< The loop's period [s].
 
 double monotonic() {
@@ -153,11 +152,11 @@ LoopFigures runDesign(const std::string& design, int priority, double seconds, c
   std::filesystem::create_directories(dir);
   std::vector<double> sent;
   {
-    bs::bench::Child launch(
-        {"roslaunch", "bimanual_skills", "sim.launch", "sim_config:=" + kSourceDir + "/config/sim_arms.yaml",
-         "external_controllers:=" + std::string(design == "per_message" ? "true" : "false"),
-         "loop_priority:=" + std::to_string(priority), "statistics_dir:=" + dir},
-        log);
+    bs::bench::Child launch({"roslaunch", "bimanual_skills", "sim.launch",
+                             "sim_config:=" + bimanual_skills::cli::packageFile("config/sim_arms.yaml"),
+                             "external_controllers:=" + std::string(design == "per_message" ? "true" : "false"),
+                             "loop_priority:=" + std::to_string(priority), "statistics_dir:=" + dir},
+                            log);
     ros::NodeHandle node;
     ros::Publisher command = node.advertise<trajectory_msgs::JointTrajectory>("/left/command", 10);
     const auto state = ros::topic::waitForMessage<sensor_msgs::JointState>("/joint_states", node, ros::Duration(60.0));
@@ -406,7 +405,7 @@ int main(int argc, char** argv) {
       measure("after_step");
     }
     bs::bench::writeSummaryJson(options, program.name, rows);
-    bs::bench::runPlotScript(program.name, kSourceDir + "/scripts/plot_control_loop_benchmark.py", options.out);
+    bs::bench::runPlotScript(program.name, "plot_control_loop_benchmark.py", options.out);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "control_loop_benchmark: %s\n", e.what());
     return 1;

@@ -14,11 +14,11 @@
 #include "bimanual_skills/learning/latent_trajectory_em.hpp"
 #include "bimanual_skills/primitives/dr_dmp.hpp"
 #include "bimanual_skills/primitives/dr_promp.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/tasks/dr_tasks.hpp"
+#include "cli/package_share.hpp"
 #include "experiment_cli.hpp"
 #include "parallel_runs.hpp"
-#include "summary_json.hpp"
-#include "tools/clock.hpp"
 
 #include <Eigen/QR>
 #include <nlopt.hpp>
@@ -45,7 +45,6 @@ namespace bt = bimanual_skills::tasks;
 
 namespace {
 
-const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 using Options = bb::ExperimentOptions;
@@ -70,8 +69,8 @@ struct DrDmpOverrides {
   /// --circle: the circle wam_circle's reward measures distances from.
   bt::CircleTarget circle = bt::CircleTarget::Fitted;
 } overrides;
-using bimanual_skills::tools::Clock;
-using bimanual_skills::tools::secondsSince;
+using bimanual_skills::realtime::Clock;
+using bimanual_skills::realtime::secondsSince;
 
 // ---- the learning loop shared by planar15, planar10 and wam_circle ----
 
@@ -758,7 +757,7 @@ DrDmpTask planar10Task(std::uint32_t seed) {
 /// Table 7.4's task (the WAM circle) with the settings of wam_circle.
 DrDmpTask wamCircleTask(std::uint32_t seed) {
   auto circle = std::make_shared<const bt::WamCircleTask>(
-      bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool"), seed,
+      bk::ChainModel::fromUrdfFile(bimanual_skills::cli::packageFile("urdf/wam.urdf"), "wam_base", "wam_tool"), seed,
       overrides.demonstration, overrides.circle);
   DrDmpTask task;
   task.demonstrations = {circle->demonstration()};
@@ -1232,7 +1231,7 @@ int main(int argc, char** argv) {
     timed("wam_circle", wamCircle);
     timed("optima", optima);
     writeSummary(options, rows);
-    if (!bb::runPlotScript("dr_benchmark", kSourceDir + "/scripts/plot_dr_benchmark.py", options.out)) return 1;
+    if (!bb::runPlotScript("dr_benchmark", "plot_dr_benchmark.py", options.out)) return 1;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dr_benchmark: %s\n", e.what());
     return 1;

@@ -3,7 +3,12 @@
 ///   PROGRAM --experiment NAME --seed S --out DIR [--runs R] [--jobs N] [--quick] [program options]
 #pragma once
 
-#include "tools/command_line.hpp"
+#include "cli/command_line.hpp"
+#include "cli/package_share.hpp"
+#include "io/summary_json.hpp"
+
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdint>
@@ -67,12 +72,35 @@ inline ExperimentOptions parseExperimentOptions(int argc, char** argv, const Exp
   return options;
 }
 
-/// Runs `/usr/bin/python3 SCRIPT DIR` (the program's plots and tables); false, with a message, if it fails.
+using io::JsonRow;
+
+/// Writes DIR/summary.json of an experiment program (io::writeSummaryJson). \throws std::runtime_error.
+inline void writeSummaryJson(const ExperimentOptions& options, const std::string& program,
+                             const std::vector<JsonRow>& rows) {
+  io::writeSummaryJson(options.out + "/summary.json", {program, options.experiment, options.seed, options.quick}, rows);
+}
+
+/// Runs the package's plot script `scripts/SCRIPT` as `/usr/bin/python3 SCRIPT DIR` (an argument vector, no shell:
+/// any DIR works), for the program's plots and tables; false, with a message, if it cannot run or fails.
 inline bool runPlotScript(const std::string& program, const std::string& script, const std::string& out) {
-  const std::string command = "/usr/bin/python3 " + script + " " + out;
-  if (std::system(command.c_str()) != 0) {
-    std::fprintf(stderr, "%s: plotting failed (%s); CSV and summary.json are written\n", program.c_str(),
-                 command.c_str());
+  std::string path;
+  try {
+    path = cli::packageFile("scripts/" + script);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: plotting skipped: %s; CSV and summary.json are written\n", program.c_str(), e.what());
+    return false;
+  }
+  std::fflush(stdout);
+  const pid_t child = ::fork();
+  if (child == 0) {
+    const char* argv[] = {"/usr/bin/python3", path.c_str(), out.c_str(), nullptr};
+    ::execv(argv[0], const_cast<char* const*>(argv));
+    std::_Exit(127);
+  }
+  int status = -1;
+  if (child < 0 || ::waitpid(child, &status, 0) != child || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+    std::fprintf(stderr, "%s: plotting failed (/usr/bin/python3 %s '%s'); CSV and summary.json are written\n",
+                 program.c_str(), path.c_str(), out.c_str());
     return false;
   }
   std::printf("%s: wrote %s/summary.json, CSV, PNG and tables.md\n", program.c_str(), out.c_str());

@@ -8,8 +8,8 @@
 // samples complete), then runs scripts/plot_ik_benchmark.py for the PNG plots and DIR/tables.md.
 #include "bimanual_skills/kinematics/chain_model.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
+#include "cli/package_share.hpp"
 #include "experiment_cli.hpp"
-#include "summary_json.hpp"
 
 #include <kdl/chainfksolverpos_recursive.hpp>
 #include <kdl/chainiksolverpos_lma.hpp>
@@ -38,14 +38,16 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
-const std::string kWamUrdf = kSourceDir + "/urdf/wam.urdf";
+/// The WAM of urdf/wam.urdf.
+std::string wamUrdf() {
+  return bimanual_skills::cli::packageFile("urdf/wam.urdf");
+}
 
 using Options = bimanual_skills::bench::ExperimentOptions;
 
 /// The chain of the tracik and closest experiments (--urdf, --base, --tip).
 struct Arm {
-  std::string urdf = kWamUrdf, base = "wam_base", tip = "wam_tool";
+  std::string urdf, base = "wam_base", tip = "wam_tool";  ///< urdf: empty until resolved (urdf/wam.urdf)
   /// The URDF file's name without directory and extension ("wam").
   std::string name() const { return std::filesystem::path(urdf).stem().string(); }
 };
@@ -201,7 +203,7 @@ std::ofstream openCsv(const Options& options, const std::string& name, const std
 const char* kSampleHeader = "solver,setting,sample,success,within_limits,time_us,iterations,residual";
 
 void table34(const Options& options, std::vector<Summary>& out) {
-  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(wamUrdf(), "wam_base", "wam_tool");
   const int samples = options.quick ? 100 : 1000;
   std::mt19937 rng(options.seed);
   std::vector<Eigen::VectorXd> starts, goals;
@@ -217,7 +219,7 @@ void table34(const Options& options, std::vector<Summary>& out) {
 
 void limitExperiment(const Options& options, const std::string& name, const std::vector<double>& amplitudes,
                      std::vector<Summary>& out) {
-  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+  const bk::ChainModel model = bk::ChainModel::fromUrdfFile(wamUrdf(), "wam_base", "wam_tool");
   const int samples = options.quick ? 100 : 1000;
   std::ofstream csv = openCsv(options, name, kSampleHeader);
   for (double A : amplitudes) {
@@ -562,6 +564,7 @@ int main(int argc, char** argv) {
   };
   const Options options = bimanual_skills::bench::parseExperimentOptions(argc, argv, program);
   try {
+    if (arm.urdf.empty()) arm.urdf = wamUrdf();
     std::filesystem::create_directories(options.out);
     std::printf("ik_benchmark: experiment %s, seed %u%s, output %s\n", options.experiment.c_str(), options.seed,
                 options.quick ? " (quick)" : "", options.out.c_str());
@@ -579,8 +582,7 @@ int main(int argc, char** argv) {
     if (wants("tracik")) tracik(options, arm, rows);
     if (wants("closest")) closest(options, arm, rows);
     writeSummary(options, rows);
-    if (!bimanual_skills::bench::runPlotScript("ik_benchmark", kSourceDir + "/scripts/plot_ik_benchmark.py",
-                                               options.out)) {
+    if (!bimanual_skills::bench::runPlotScript("ik_benchmark", "plot_ik_benchmark.py", options.out)) {
       return 1;
     }
   } catch (const std::exception& e) {

@@ -9,6 +9,7 @@
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/kinematics/chain_model.hpp"
 #include "bimanual_skills/kinematics/clik.hpp"
+#include "cli/package_share.hpp"
 
 #include "bench_timing.hpp"
 #include "benchmark_main.hpp"
@@ -32,18 +33,21 @@ namespace {
 
 constexpr unsigned kSeed = 42;
 constexpr int kConfigurations = 1024;
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
+/// The WAM of urdf/wam.urdf.
+std::string wamUrdf() {
+  return bimanual_skills::cli::packageFile("urdf/wam.urdf");
+}
 
 struct Fixture {
-  bk::ChainModel model = bk::ChainModel::fromUrdfFile(kWamUrdf, "wam_base", "wam_tool");
+  bk::ChainModel model = bk::ChainModel::fromUrdfFile(wamUrdf(), "wam_base", "wam_tool");
   KDL::Chain chain;
   std::vector<Eigen::VectorXd> q;
   std::vector<KDL::JntArray> q_kdl;
 
   Fixture() {
     KDL::Tree tree;
-    if (!kdl_parser::treeFromFile(kWamUrdf, tree) || !tree.getChain("wam_base", "wam_tool", chain)) {
-      throw std::runtime_error("KDL cannot load " + kWamUrdf);
+    if (!kdl_parser::treeFromFile(wamUrdf(), tree) || !tree.getChain("wam_base", "wam_tool", chain)) {
+      throw std::runtime_error("KDL cannot load " + wamUrdf());
     }
     std::mt19937 rng(kSeed);
     for (int k = 0; k < kConfigurations; ++k) {
@@ -159,7 +163,7 @@ int main(int argc, char** argv) {
       argc, argv, "kinematics_bench",
       "Forward kinematics, Jacobians and CLIK steps of the WAM per call, against KDL in the same run.");
   benchmark::AddCustomContext("seed", std::to_string(kSeed));
-  benchmark::AddCustomContext("model", kWamUrdf + " (wam_base -> wam_tool)");
+  benchmark::AddCustomContext("model", wamUrdf() + " (wam_base -> wam_tool)");
   benchmark::AddCustomContext("batch", std::to_string(kBatch));
   benchmark::RunSpecifiedBenchmarks();
   benchmark::Shutdown();

@@ -3,17 +3,15 @@
 /// not depend on the number of threads (every run draws only from its own generator and writes only its own slot).
 #pragma once
 
+#include "bimanual_skills/parallel/parallel_for.hpp"
 #include "experiment_cli.hpp"
 
 #include <algorithm>
-#include <atomic>
 #include <cstdint>
-#include <exception>
 #include <functional>
 #include <mutex>
 #include <random>
 #include <string>
-#include <thread>
 #include <vector>
 
 namespace bimanual_skills::bench {
@@ -30,31 +28,15 @@ inline std::mt19937 runGenerator(const ExperimentOptions& options, const std::st
 /// rethrown after every thread has stopped.
 inline void parallelRuns(int count, int threads, const std::function<void(int)>& job,
                          const std::function<void(int)>& done) {
-  std::atomic<int> next{0};
   std::mutex mutex;
   std::vector<bool> finished(static_cast<std::size_t>(std::max(count, 0)), false);
   int reported = 0;
-  std::exception_ptr failure;
-  const auto worker = [&]() {
-    for (int i = next++; i < count; i = next++) {
-      try {
-        job(i);
-      } catch (...) {
-        const std::lock_guard<std::mutex> lock(mutex);
-        if (!failure) failure = std::current_exception();
-        next = count;
-        return;
-      }
-      const std::lock_guard<std::mutex> lock(mutex);
-      finished[static_cast<std::size_t>(i)] = true;
-      while (reported < count && finished[static_cast<std::size_t>(reported)] && !failure) done(reported++);
-    }
-  };
-  std::vector<std::thread> pool;
-  for (int t = 1; t < std::min(threads, count); ++t) pool.emplace_back(worker);
-  worker();
-  for (std::thread& thread : pool) thread.join();
-  if (failure) std::rethrow_exception(failure);
+  parallel::parallelFor(static_cast<std::size_t>(std::max(count, 0)), threads, [&](int, std::size_t i) {
+    job(static_cast<int>(i));
+    const std::lock_guard<std::mutex> lock(mutex);
+    finished[i] = true;
+    while (reported < count && finished[static_cast<std::size_t>(reported)]) done(reported++);
+  });
 }
 
 }  // namespace bimanual_skills::bench

@@ -10,16 +10,16 @@
 // With --worker-namespace or --workers, each update's rollouts run on rollout_worker nodes (nodes/rollout_worker.cpp,
 // over the ROS master at ROS_MASTER_URI) as the registry's task of the experiment (rollout/task_registry.hpp), which
 // computes the same rewards bit for bit: the CSVs are those of the run in this process.
-#include "action_workers.hpp"
 #include "bimanual_skills/learning/dual_reps.hpp"
 #include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/learning/pi2.hpp"
 #include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
+#include "bimanual_skills/ros_layer/workers/action_workers.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
+#include "cli/package_share.hpp"
 #include "experiment_cli.hpp"
 #include "parallel_runs.hpp"
-#include "summary_json.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -45,8 +45,6 @@ namespace bt = bimanual_skills::tasks;
 
 namespace {
 
-const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
-
 using Options = bimanual_skills::bench::ExperimentOptions;
 
 /// An episodic task: the reward of a parameter vector (higher is better).
@@ -66,13 +64,13 @@ class WorkerRollouts {
  public:
   WorkerRollouts(const WorkerOptions& options, const std::string& task, const std::string& config)
       : terms_(br::makeRolloutTask(task, config)->termNames().size()) {
-    bimanual_skills::nodes::WorkerSelection selection;
+    bimanual_skills::ros_layer::WorkerSelection selection;
     selection.task = task;
     selection.config = config;
     if (options.names.empty()) {
       selection.space = options.space;
     } else {
-      selection.names = bimanual_skills::nodes::splitWorkerNames(options.names);
+      selection.names = bimanual_skills::ros_layer::splitWorkerNames(options.names);
     }
     br::DispatchConfig dispatch;
     dispatch.timeout = options.timeout;
@@ -88,7 +86,7 @@ class WorkerRollouts {
       workers_ = std::max(workers_, s.workers);
     };
     dispatcher_ = std::make_unique<br::Dispatcher>(
-        std::make_unique<bimanual_skills::nodes::ActionWorkerDirectory>(selection), terms_, dispatch);
+        std::make_unique<bimanual_skills::ros_layer::ActionWorkerDirectory>(selection), terms_, dispatch);
   }
 
   /// The rewards of the rows of `samples`, and their step costs when `costs` is given.
@@ -436,18 +434,19 @@ void bottles(const Options& options, const WorkerOptions& worker_options, std::v
 // ---- circle: a unimodal 7-DoF task with the WAM's kinematics (Fig. 6.14) ----
 
 void circle(const Options& options, const WorkerOptions& worker_options, std::vector<Summary>& out) {
-  bt::CircleTask task(bk::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool"),
-                      options.seed);
+  bt::CircleTask task(
+      bk::ChainModel::fromUrdfFile(bimanual_skills::cli::packageFile("urdf/wam.urdf"), "wam_base", "wam_tool"),
+      options.seed);
   const Reward reward = [&](const Eigen::VectorXd& theta) { return task.reward(theta); };
   const Protocol protocol = makeProtocol(options, 20, 2, 50, 5, 50, task.policy().parameters(), 2.0);
   // The workers' task: this circle (its demonstration drawn with --seed), as config/circle_task.yaml describes it.
   const std::unique_ptr<WorkerRollouts> workers = onWorkers(
       worker_options, "circle",
       worker_options.selected()
-          ? workerTaskConfig(
-                options, "circle",
-                "# ps_benchmark circle, seed " + std::to_string(options.seed) + "\nurdf: " + kSourceDir +
-                    "/urdf/wam.urdf\nbase: wam_base\ntip: wam_tool\nseed: " + std::to_string(options.seed) + "\n")
+          ? workerTaskConfig(options, "circle",
+                             "# ps_benchmark circle, seed " + std::to_string(options.seed) +
+                                 "\nurdf: " + bimanual_skills::cli::packageFile("urdf/wam.urdf") +
+                                 "\nbase: wam_base\ntip: wam_tool\nseed: " + std::to_string(options.seed) + "\n")
           : "");
   Writer writer(options, "circle");
   for (const Algorithm& algorithm : repsFamily(0.5, 100, false)) {
@@ -538,7 +537,7 @@ int main(int argc, char** argv) {
   };
   const Options options = bimanual_skills::bench::parseExperimentOptions(argc, argv, program);
   if (!(workers.timeout > 0.0) || !std::isfinite(workers.timeout) ||
-      (!workers.names.empty() && bimanual_skills::nodes::splitWorkerNames(workers.names).empty())) {
+      (!workers.names.empty() && bimanual_skills::ros_layer::splitWorkerNames(workers.names).empty())) {
     std::fprintf(stderr,
                  "ps_benchmark: --worker-timeout must be a positive number of seconds and --workers must "
                  "name workers (see --help)\n");
@@ -565,8 +564,7 @@ int main(int argc, char** argv) {
     if (wants("circle")) circle(options, workers, rows);
     if (wants("pi2viapoint")) pi2viapoint(options, workers, rows);
     writeSummary(options, rows);
-    if (!bimanual_skills::bench::runPlotScript("ps_benchmark", kSourceDir + "/scripts/plot_ps_benchmark.py",
-                                               options.out)) {
+    if (!bimanual_skills::bench::runPlotScript("ps_benchmark", "plot_ps_benchmark.py", options.out)) {
       return 1;
     }
   } catch (const std::exception& e) {

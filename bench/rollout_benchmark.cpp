@@ -10,13 +10,13 @@
 //               minus the rollouts' own (as the worker timed them).
 // Writes DIR/summary.json, DIR/rollout_benchmark.csv, and (scripts/plot_rollout_benchmark.py) DIR/throughput.png
 // and DIR/tables.md.
-#include "action_workers.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
+#include "bimanual_skills/ros_layer/workers/action_workers.hpp"
+#include "cli/package_share.hpp"
 #include "experiment_cli.hpp"
 #include "ros_processes.hpp"
-#include "summary_json.hpp"
-#include "tools/clock.hpp"
 
 #include <ros/ros.h>
 
@@ -36,9 +36,8 @@ namespace br = bimanual_skills::rollout;
 
 namespace {
 
-const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
-using bimanual_skills::tools::Clock;
-using bimanual_skills::tools::secondsSince;
+using bimanual_skills::realtime::Clock;
+using bimanual_skills::realtime::secondsSince;
 
 struct Batch {
   std::string task, config;
@@ -87,15 +86,15 @@ class WorkerSet {
             std::vector<std::string>{binary, "__name:=worker_" + std::to_string(i), "__ns:=" + space}, log));
       }
     }
-    bs::nodes::WorkerSelection selection;
+    bs::ros_layer::WorkerSelection selection;
     selection.space = space;
     selection.task = task;
     selection.config = config;
     br::DispatchConfig dispatch;
     dispatch.share = share;
     dispatch.timeout = 120.0;
-    dispatcher_ = std::make_unique<br::Dispatcher>(std::make_unique<bs::nodes::ActionWorkerDirectory>(selection), terms,
-                                                   dispatch);
+    dispatcher_ = std::make_unique<br::Dispatcher>(std::make_unique<bs::ros_layer::ActionWorkerDirectory>(selection),
+                                                   terms, dispatch);
     // Until every worker is up (started ones), or until no new one came for 3 s (running ones).
     const auto start = Clock::now();
     auto last_change = start;
@@ -157,7 +156,7 @@ std::vector<int> parseCounts(const std::string& text) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string config = kSourceDir + "/config/fold_demo.yaml", workers_text = "1,2,4", external;
+  std::string config, workers_text = "1,2,4", external;  // config: empty until resolved (config/fold_demo.yaml)
   long rollouts = 0;
   bs::bench::ExperimentProgram program;
   program.name = "rollout_benchmark";
@@ -185,6 +184,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   try {
+    if (config.empty()) config = bimanual_skills::cli::packageFile("config/fold_demo.yaml");
     const int n = rollouts > 0 ? static_cast<int>(rollouts) : (options.quick ? 4 : 16);
     std::filesystem::create_directories(options.out);
     const std::string log = options.out + "/ros.log";
@@ -287,7 +287,7 @@ int main(int argc, char** argv) {
           .add("extra_ms_per_rollout_vs_thread", 1000.0 * (t.seconds - one_thread.seconds) / n);
     }
     bs::bench::writeSummaryJson(options, "rollout_benchmark", rows);
-    bs::bench::runPlotScript("rollout_benchmark", kSourceDir + "/scripts/plot_rollout_benchmark.py", options.out);
+    bs::bench::runPlotScript("rollout_benchmark", "plot_rollout_benchmark.py", options.out);
     if (!all_identical) {
       std::fprintf(stderr, "rollout_benchmark: results differ between threads and workers\n");
       return 1;

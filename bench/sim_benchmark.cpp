@@ -18,12 +18,12 @@
 // write PNG plots and DIR/tables.md (scripts/plot_sim_benchmark.py).
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/tasks/cloth_fold.hpp"
+#include "cli/package_share.hpp"
 #include "experiment_cli.hpp"
 #include "sim_experiments.hpp"
-#include "summary_json.hpp"
-#include "tools/clock.hpp"
 
 #include <sched.h>
 
@@ -45,10 +45,9 @@ namespace sim = bimanual_skills::sim;
 
 namespace {
 
-const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
 using Options = bs::bench::ExperimentOptions;
-using bs::tools::Clock;
-using bs::tools::seconds;
+using bs::realtime::Clock;
+using bs::realtime::seconds;
 
 /// One row of summary.json and speed.csv: a simulation setting.
 struct Row {
@@ -150,7 +149,7 @@ void run(sim::BimanualSimulation& simulation, int steps, const std::function<voi
 }
 
 sim::SimConfig baseConfig(const Options& options) {
-  sim::SimConfig config = sim::SimConfig::fromYamlFile(kSourceDir + "/config/sim.yaml");
+  sim::SimConfig config = sim::SimConfig::fromYamlFile(bimanual_skills::cli::packageFile("config/sim.yaml"));
   config.seed = options.seed;
   return config;
 }
@@ -376,7 +375,7 @@ void foldRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows) 
          "acceleration_cost\n";
   for (const char* method : {"ED", "CTP+SD+SVF"}) {
     bs::tasks::ClothFoldConfig config;
-    config.sim_config = kSourceDir + "/config/sim.yaml";
+    config.sim_config = bimanual_skills::cli::packageFile("config/sim.yaml");
     config.duration = options.quick ? 1.5 : 8.5;
     config.settle = options.quick ? 0.2 : 1.0;
     config.ik_method = method;
@@ -463,7 +462,7 @@ int main(int argc, char** argv) {
     }
     std::printf("sim_benchmark: wrote %s/summary.json\n", options.out.c_str());
     if (options.experiment != "speed" &&
-        !bs::bench::runPlotScript("sim_benchmark", kSourceDir + "/scripts/plot_sim_benchmark.py", options.out)) {
+        !bs::bench::runPlotScript("sim_benchmark", "plot_sim_benchmark.py", options.out)) {
       return 1;
     }
   } catch (const std::exception& e) {

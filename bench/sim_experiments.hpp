@@ -9,7 +9,6 @@
 #include "bimanual_skills/dynamics/friction_identification.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "experiment_cli.hpp"
-#include "summary_json.hpp"
 
 #include <Eigen/Core>
 

@@ -2,6 +2,7 @@
 // excitation trajectories, their logging and the friction identification (see sim_experiments.hpp).
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 #include "bimanual_skills/signal/fir_filter.hpp"
+#include "cli/package_share.hpp"
 #include "sim_experiments.hpp"
 
 #include <algorithm>
@@ -14,8 +15,6 @@
 
 namespace bimanual_skills::bench::sim_experiments {
 namespace {
-
-const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
 
 /// Ranges of the excitation (within the thesis' joint limits, away from self-collisions): centre interval and
 /// largest amplitude per joint [rad].
@@ -68,7 +67,7 @@ void useArm(const std::string& name) {
 }
 
 sim::SimConfig oneArmConfig(const ExperimentOptions& options) {
-  sim::SimConfig config = sim::SimConfig::fromYamlFile(kSourceDir + "/config/sim.yaml");
+  sim::SimConfig config = sim::SimConfig::fromYamlFile(bimanual_skills::cli::packageFile("config/sim.yaml"));
   if (!plantFile().empty()) {
     config.plant = sim::PlantModel::fromYamlFile(plantFile());
     config.plant_path = plantFile();

@@ -92,6 +92,28 @@ void BM_NoiseWithStdNormal(benchmark::State& state) {
       1);
 }
 
+/// The other peer: the same noise from OpenCV's cv::RNG (Ziggurat normals) into preallocated noise images, added with
+/// saturation by cv::add.
+void BM_NoiseWithOpenCv(benchmark::State& state) {
+  const bv::ClothRendererParameters p = scene(columnsOf(state), rowsOf(state));
+  cv::Mat depth(p.camera.rows, p.camera.columns, CV_32FC1, cv::Scalar(1.35));
+  cv::Mat bgr(p.camera.rows, p.camera.columns, CV_8UC3, cv::Scalar(100, 150, 200));
+  cv::Mat depth_noise(depth.size(), CV_32FC1), colour_noise(bgr.size(), CV_32FC3);
+  cv::RNG rng(kSeed);
+  const double depth_sigma = p.noise.depth_stddev, colour_sigma = p.noise.colour_stddev;
+  timeBatches(
+      state, 1,
+      [&](int) {
+        rng.fill(depth_noise, cv::RNG::NORMAL, 0.0, depth_sigma);
+        depth += depth_noise;
+        rng.fill(colour_noise, cv::RNG::NORMAL, 0.0, colour_sigma);
+        cv::add(bgr, colour_noise, bgr, cv::noArray(), CV_8UC3);
+        benchmark::DoNotOptimize(depth.data);
+        benchmark::DoNotOptimize(bgr.data);
+      },
+      1);
+}
+
 /// ImageReward::evaluate() on a noisy rendered frame: args {columns, folded}.
 void BM_ImageReward(benchmark::State& state) {
   const bv::ClothRendererParameters p = scene(columnsOf(state), rowsOf(state));
@@ -159,6 +181,7 @@ BENCHMARK(BM_Render)
     ->ArgNames({"columns", "folded", "noise"})
     ->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_NoiseWithStdNormal)->Arg(320)->Arg(640)->ArgName("columns")->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_NoiseWithOpenCv)->Arg(320)->Arg(640)->ArgName("columns")->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ImageReward)
     ->ArgsProduct({{320, 640}, {0, 1}})
     ->ArgNames({"columns", "folded"})
@@ -168,7 +191,7 @@ int main(int argc, char** argv) {
   const std::vector<bool> given = bimanual_skills::bench::initialiseBenchmarks(
       argc, argv, "vision_bench",
       "Rendering of the 20 x 24-node cloth (flat, folded) at 320 x 240 and 640 x 480, with and without noise, its "
-      "std::normal_distribution peer, and the reward's image terms, per call.",
+      "std::normal_distribution and cv::RNG peers of its noise, and the reward's image terms, per call.",
       {{"--figures", "write the flat and folded cloth's colour and depth images (PNG) into the current directory"}});
   if (given[0]) return writeFigures();
   benchmark::AddCustomContext("cloth", "0.5 x 0.6 m, 20 x 24 nodes, 874 triangles; noise seed 7");

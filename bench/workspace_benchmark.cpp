@@ -20,12 +20,12 @@
 // Writes DIR/summary.json (rows with experiment, resolution_m, orientations, seconds, ...; best_dx, best_dz,
 // quality for the placements), DIR/map.csv (one row per voxel), DIR/<fig>.csv (one row per placement) and, with
 // scripts/plot_workspace_benchmark.py, DIR/map_slices.png, DIR/<fig>.png heat maps and tables.md.
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/workspace/pair_quality.hpp"
 #include "bimanual_skills/workspace/placement_search.hpp"
 #include "bimanual_skills/workspace/workspace_map.hpp"
+#include "cli/package_share.hpp"
 #include "experiment_cli.hpp"
-#include "summary_json.hpp"
-#include "tools/clock.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -44,9 +44,8 @@ namespace bw = bimanual_skills::workspace;
 
 namespace {
 
-const std::string kSourceDir = BIMANUAL_SKILLS_SOURCE_DIR;
-using bimanual_skills::tools::Clock;
-using bimanual_skills::tools::secondsSince;
+using bimanual_skills::realtime::Clock;
+using bimanual_skills::realtime::secondsSince;
 
 /// The WAM's map with progress lines: built (and saved into `cache` unless it is empty) when `rebuild` or when the
 /// cache does not hold it, else loaded from the cache; `seconds` gets the time it took.
@@ -432,8 +431,8 @@ int main(int argc, char** argv) {
   if (no_cache) cache.clear();
   try {
     std::filesystem::create_directories(options.out);
-    const bs::kinematics::ChainModel model =
-        bs::kinematics::ChainModel::fromUrdfFile(kSourceDir + "/urdf/wam.urdf", "wam_base", "wam_tool");
+    const bs::kinematics::ChainModel model = bs::kinematics::ChainModel::fromUrdfFile(
+        bimanual_skills::cli::packageFile("urdf/wam.urdf"), "wam_base", "wam_tool");
     bw::WorkspaceMapSettings settings;
     settings.orientations = orientations > 0 ? static_cast<int>(orientations) : (options.quick ? 10 : 50);
     settings.ik_attempts = static_cast<int>(attempts);
@@ -477,7 +476,7 @@ int main(int argc, char** argv) {
       }
     }
     bs::bench::writeSummaryJson(options, "workspace_benchmark", rows);
-    bs::bench::runPlotScript("workspace_benchmark", kSourceDir + "/scripts/plot_workspace_benchmark.py", options.out);
+    bs::bench::runPlotScript("workspace_benchmark", "plot_workspace_benchmark.py", options.out);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "workspace_benchmark: %s\n", e.what());
     return 1;

@@ -4,6 +4,7 @@
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "joint_state_publishing.hpp"
 #include "node_cli.hpp"
 
 #include <ros/ros.h>
@@ -185,17 +186,8 @@ int main(int argc, char** argv) {
 
     // The same frame as robot_state_publisher computes it from /joint_states.
     const std::string tip_frame = arm.name + "_" + tip;
-    const ros::Time deadline = ros::Time::now() + ros::Duration(tf_timeout);
-    bool found = false;
-    while (ros::ok() && ros::Time::now() < deadline) {
-      msg.header.stamp = ros::Time::now();
-      publisher.publish(msg);
-      if (buffer.canTransform(world, tip_frame, ros::Time(0))) {
-        found = true;
-        break;
-      }
-      rate.sleep();
-    }
+    const bool found = bimanual_skills::nodes::publishUntil(
+        publisher, msg, rate, tf_timeout, [&] { return buffer.canTransform(world, tip_frame, ros::Time(0)); });
     if (!found) {
       std::printf("        tf %s -> %s: not received within %.1f s (is robot_state_publisher running?)\n",
                   world.c_str(), tip_frame.c_str(), tf_timeout);
@@ -211,12 +203,6 @@ int main(int argc, char** argv) {
   }
   std::fflush(stdout);
 
-  if (hold) {
-    while (ros::ok()) {
-      msg.header.stamp = ros::Time::now();
-      publisher.publish(msg);
-      rate.sleep();
-    }
-  }
+  if (hold) bimanual_skills::nodes::publishUntilShutdown(publisher, msg, rate);
   return all_agree ? 0 : 1;
 }

@@ -4,6 +4,7 @@
 #include "bimanual_skills/SolveIk.h"
 
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "joint_state_publishing.hpp"
 #include "node_cli.hpp"
 
 #include <ros/ros.h>
@@ -147,25 +148,18 @@ int main(int argc, char** argv) {
       continue;
     }
     const std::string tool = arm.name + "_wam_tool";
-    const ros::Time deadline = ros::Time::now() + ros::Duration(tf_timeout);
     geometry_msgs::TransformStamped tf;
-    bool received = false;
-    while (ros::ok() && ros::Time::now() < deadline) {
-      command.header.stamp = ros::Time::now();
-      publisher.publish(command);
+    const bool received = bimanual_skills::nodes::publishUntil(publisher, command, rate, tf_timeout, [&] {
       try {
         tf = buffer.lookupTransform(world, tool, ros::Time(0));
-        // Wait until the transform reflects the commanded joints (a stale one still shows the zero pose).
-        if (std::abs(tf.transform.translation.x - arm.target.pose.position.x) < 1e-4 &&
-            std::abs(tf.transform.translation.y - arm.target.pose.position.y) < 1e-4 &&
-            std::abs(tf.transform.translation.z - arm.target.pose.position.z) < 1e-4) {
-          received = true;
-          break;
-        }
       } catch (const tf2::TransformException&) {
+        return false;
       }
-      rate.sleep();
-    }
+      // Until the transform reflects the commanded joints (a stale one still shows the zero pose).
+      return std::abs(tf.transform.translation.x - arm.target.pose.position.x) < 1e-4 &&
+             std::abs(tf.transform.translation.y - arm.target.pose.position.y) < 1e-4 &&
+             std::abs(tf.transform.translation.z - arm.target.pose.position.z) < 1e-4;
+    });
     const auto& o = arm.target.pose.orientation;
     const Eigen::Quaterniond want(o.w, o.x, o.y, o.z);
     const Eigen::Quaterniond got(tf.transform.rotation.w, tf.transform.rotation.x, tf.transform.rotation.y,
@@ -178,12 +172,6 @@ int main(int argc, char** argv) {
                 tf.transform.translation.z, angle, reached ? "target reached" : "TARGET NOT REACHED");
   }
   std::fflush(stdout);
-  if (hold) {
-    while (ros::ok()) {
-      command.header.stamp = ros::Time::now();
-      publisher.publish(command);
-      rate.sleep();
-    }
-  }
+  if (hold) bimanual_skills::nodes::publishUntilShutdown(publisher, command, rate);
   return all_reached ? 0 : 1;
 }

@@ -1,15 +1,15 @@
 // fold_learner: the two simulated WAMs learn to fold the cloth (rollout::FoldLearner) while rviz watches. A thin
 // shell: it runs the library's learning, publishes each rollout (cloth, tool paths, camera images, robot), prints
 // the progress, and writes the results, the top-down images and a rosbag of the best rollout.
-#include "action_workers.hpp"
 #include "bimanual_skills/kinematics/chain_model.hpp"
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/ros_layer/camera_messages.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/ros_layer/workers/action_workers.hpp"
+#include "io/summary_json.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
-#include "summary_json.hpp"
 
 #include <cv_bridge/cv_bridge.h>
 #include <ros/package.h>
@@ -175,12 +175,12 @@ class FoldLearnerNode {
  private:
   /// A dispatcher to the rollout workers when ~worker_namespace or ~workers is set, else null (threads here).
   std::unique_ptr<br::Evaluator> makeDispatcher() {
-    bs::nodes::WorkerSelection selection;
+    bs::ros_layer::WorkerSelection selection;
     parameters_.accept("workers");
     parameters_.accept("worker_namespace");
     const double timeout = parameters_.number("worker_timeout", br::DispatchConfig{}.timeout, 1e-3, 1e6);
     const int share = parameters_.integer("share", 0, 0, 1000000);
-    if (!bs::nodes::readWorkerSelection(private_node_, selection)) return nullptr;
+    if (!bs::ros_layer::readWorkerSelection(private_node_, selection)) return nullptr;
     selection.task = "fold";
     selection.config = std::filesystem::absolute(config_path_).string();
     br::DispatchConfig dispatch;
@@ -196,7 +196,7 @@ class FoldLearnerNode {
     dispatch.batch = [this](const br::DispatchStats& s) { onBatch(s); };
     dispatching_ = true;
     workers_where_ = selection.names.empty() ? selection.space : "~workers";
-    return std::make_unique<br::Dispatcher>(std::make_unique<bs::nodes::ActionWorkerDirectory>(selection),
+    return std::make_unique<br::Dispatcher>(std::make_unique<bs::ros_layer::ActionWorkerDirectory>(selection),
                                             br::FoldRolloutTask::kTerms, dispatch);
   }
 
@@ -344,7 +344,7 @@ class FoldLearnerNode {
   }
 
   void writeSummary(const br::FoldLearningResult& result) const {
-    std::vector<bs::bench::JsonRow> rows;
+    std::vector<bs::io::JsonRow> rows;
     std::map<std::string, std::vector<const br::FoldRunResult*>> by_algorithm;
     for (const br::FoldRunResult& r : result.runs) by_algorithm[r.algorithm].push_back(&r);
     for (const std::string& algorithm : config_.algorithms) {
@@ -371,7 +371,7 @@ class FoldLearnerNode {
           const double d = r->epochs[static_cast<std::size_t>(e)].mean_reward - mean;
           spread += runs.size() > 1 ? d * d / (n - 1) : 0.0;
         }
-        bs::bench::JsonRow& row = rows.emplace_back();
+        bs::io::JsonRow& row = rows.emplace_back();
         row.add("experiment", "fold")
             .add("algorithm", algorithm)
             .add("epoch", e)
@@ -435,11 +435,7 @@ class FoldLearnerNode {
           .add("workers_lost", static_cast<int>(workers_lost_))
           .add("redispatched", static_cast<int>(redispatched_));
     }
-    bs::bench::ExperimentOptions options;
-    options.experiment = "fold";
-    options.out = out_;
-    options.seed = config_.seed;
-    bs::bench::writeSummaryJson(options, "fold_learner", rows);
+    bs::io::writeSummaryJson(out_ + "/summary.json", {"fold_learner", "fold", config_.seed, false}, rows);
   }
 
   /// Publishes the best rollout on the live topics in real time, in a loop: its camera images and tool paths once,

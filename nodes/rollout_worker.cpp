@@ -1,5 +1,6 @@
 // rollout_worker: evaluates shares of rollout batches for a dispatching learner (rollout::Dispatcher through
-// nodes/action_workers.hpp), one rollout at a time, with one simulator. A thin shell around the task registry.
+// ros_layer/workers/action_workers.hpp), one rollout at a time, with one simulator. A thin shell around the task
+// registry.
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "node_cli.hpp"

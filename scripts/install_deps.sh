@@ -17,7 +17,7 @@ PACKAGES=(
   # rviz, and headless snapshots of it (scripts/rviz_snapshot.sh)
   rviz xvfb xauth imagemagick
   # numerics
-  libeigen3-dev libnlopt-cxx-dev libyaml-cpp-dev
+  libeigen3-dev libnlopt-cxx-dev libyaml-cpp-dev nlohmann-json3-dev
   # physics simulator (sim/): Bullet, with its double-precision build and pkg-config files
   libbullet-dev libbullet-extras-dev pkg-config
   # vision (vision/): rendered camera images and the image terms of the folding reward

@@ -5,6 +5,9 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 export PATH="/usr/bin:/bin:$PATH"
 
+# The modules' floors (docs/ARCHITECTURE.md): no include from a lower floor to a higher one, none sideways.
+/usr/bin/python3 scripts/check_floors.py
+
 results=build/bimanual_skills/test_results
 rm -rf "$results"
 # colcon's setup scripts read unset variables

@@ -1,5 +1,6 @@
 // Loading chains from URDF: the WAM models' contents and clear errors for every bad description.
 #include "bimanual_skills/kinematics/chain_model.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -12,7 +13,7 @@ using bimanual_skills::kinematics::JointType;
 
 namespace {
 
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
+using bimanual_skills::test_support::kWamUrdf;
 const std::string kBimanualUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/bimanual_wam.urdf";
 
 /// Expects loading to throw std::invalid_argument whose message contains `needle`.

@@ -1,8 +1,8 @@
 // Every program of the project answers --help and -h with its usage on stdout and exit status 0, and an unknown
 // argument with the error and the usage on stderr and exit status 2. The programs' paths come from CMake
 // (PROGRAMS: a comma-separated list). CommandLine's options that take one of a set of values accept only those.
+#include "cli/command_line.hpp"
 #include "testing/program_output.hpp"
-#include "tools/command_line.hpp"
 
 #include <gtest/gtest.h>
 

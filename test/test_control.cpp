@@ -140,8 +140,14 @@ LoopResult runLoop(bool friction_compensation) {
 
 }  // namespace
 
+/// The loop with friction compensation, run once for the three tests that look at it.
+const LoopResult& compensatedLoop() {
+  static const LoopResult result = runLoop(true);
+  return result;
+}
+
 TEST(ComputedTorqueControl, TracksWithLowGainsAndFrictionCompensationMatters) {
-  const LoopResult with = runLoop(true);
+  const LoopResult& with = compensatedLoop();
   const LoopResult without = runLoop(false);
   std::printf("tracking: max error %.4f rad with friction compensation, %.4f rad without\n",
               with.max_tracking_error_free, without.max_tracking_error_free);
@@ -150,7 +156,7 @@ TEST(ComputedTorqueControl, TracksWithLowGainsAndFrictionCompensationMatters) {
 }
 
 TEST(DisturbanceObserver, WrenchEstimateConvergesToTheAppliedWrench) {
-  const LoopResult result = runLoop(true);
+  const LoopResult& result = compensatedLoop();
   std::printf("observer: force error median %.3f N 0.2-0.5 s after the step, %.3f N afterwards; moment %.3f N m\n",
               result.force_error_median_early, result.force_error_median, result.moment_error_median);
   // Applied: |f| = 11.6 N, |m| = 0.54 N m, while the arm tracks a 0.3 rad sinusoid on every joint.
@@ -160,7 +166,7 @@ TEST(DisturbanceObserver, WrenchEstimateConvergesToTheAppliedWrench) {
 }
 
 TEST(DisturbanceObserver, AgreesWithKdlsMomentumObserver) {
-  const LoopResult result = runLoop(true);
+  const LoopResult& result = compensatedLoop();
   std::printf("KDL ChainExternalWrenchEstimator: force error median %.3f N; ours vs KDL %.3f N\n",
               result.kdl_force_error_median, result.ours_vs_kdl_force_median);
   EXPECT_LE(result.kdl_force_error_median, 1.0);

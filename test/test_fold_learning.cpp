@@ -7,6 +7,11 @@
 
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -207,6 +212,48 @@ TEST(FoldLearning, SameOnAnyThreadsAndResumes) {
   // Another seed in the same directory is refused, not mixed in.
   config.seed = 6;
   EXPECT_THROW(br::FoldLearner(config, resumed_dir).learn(), std::invalid_argument);
+}
+
+// A run killed with SIGKILL resumes. The kill comes when three rollouts are on disk, and the files then get a partial
+// last line each, as a kill in the middle of a write leaves them: the partial lines are cut off, the whole records
+// read back, the rest simulated, and the result is that of a run never interrupted.
+TEST(FoldLearning, ResumesAfterSigkillMidWrite) {
+  br::FoldLearningConfig config = smallConfig();
+  config.jobs = 1;
+  const br::FoldLearningResult whole = br::FoldLearner(config, freshDirectory("whole")).learn();
+  const std::string dir = freshDirectory("killed");
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    try {
+      br::FoldLearner(config, dir).learn();
+    } catch (...) {
+    }
+    std::_Exit(0);
+  }
+  const auto records = [&dir] {
+    std::ifstream in(dir + "/rollout_parameters.csv");
+    int lines = 0;
+    for (std::string line; std::getline(in, line);) ++lines;
+    return lines - 1;
+  };
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (records() < 3 && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ::kill(child, SIGKILL);
+  int status = 0;
+  ::waitpid(child, &status, 0);
+  ASSERT_TRUE(WIFSIGNALED(status)) << "the run ended before it was killed";
+  for (const char* file : {"/rollouts.csv", "/rollout_parameters.csv"}) {
+    std::ofstream(dir + file, std::ios::app) << "\"IDR-DMP_CMU\",0,1,sample,2,";  // no newline: cut mid-write
+  }
+  const br::FoldLearningResult resumed = br::FoldLearner(config, dir).learn();
+  EXPECT_GE(resumed.resumed, 3);
+  EXPECT_EQ(resumed.resumed + resumed.simulated, 8);
+  EXPECT_EQ(resumed.runs[0].final_policy.terms.reward, whole.runs[0].final_policy.terms.reward);
+  const auto rows = bimanual_skills::testing::readCsv(dir + "/rollouts.csv");
+  EXPECT_EQ(rows.size(), 8u);  // every rollout once, every line whole
 }
 
 TEST(FoldLearning, FailedRolloutsGetTheFailureRewardAndTheLearningGoesOn) {

@@ -4,6 +4,7 @@
 #include "bimanual_skills/dynamics/friction_identification.hpp"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
+#include "test_support.hpp"
 
 #include "testing/program_output.hpp"
 
@@ -23,7 +24,7 @@ using bd::FrictionModelType;
 
 namespace {
 
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
+using bimanual_skills::test_support::kWamUrdf;
 constexpr double kNoise = 0.02;  // N m, on the logged torques
 
 bd::JointFriction truthJoint(FrictionModelType type, int joint, double scale) {

@@ -90,7 +90,7 @@ TEST(SimBenchmarkSmoke, QuickPayloadRunEstimatesTheWeights) {
   ASSERT_EQ(runQuietly(std::string(SIM_BENCHMARK) + " --experiment payload --seed 3 --quick --out " + out.string()), 0);
   const std::string summary = readTextFile(out / "summary.json");
   for (const char* field : {"\"experiment\": \"payload\"", "\"observer\": \"ours\"", "\"observer\": \"kdl\"",
-                            "\"load_kg\": 0,", "\"load_kg\": 2,", "\"steady_error_pct\"", "\"transient_peak_n\""}) {
+                            "\"load_kg\": 0.0", "\"load_kg\": 2.0", "\"steady_error_pct\"", "\"transient_peak_n\""}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field << "\n" << summary;
   }
   EXPECT_EQ(summary.find("null"), std::string::npos) << summary;

@@ -2,6 +2,7 @@
 // each link's mass, centre of mass and inertia expressed in the base frame must agree whether computed from the URDF
 // (link frames by FK) or straight from the DH table (frames by the standard DH product).
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 #include <urdf/model.h>
@@ -15,7 +16,7 @@ namespace bk = bimanual_skills::kinematics;
 
 namespace {
 
-const std::string kWamUrdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf";
+using bimanual_skills::test_support::kWamUrdf;
 
 struct DhRow {
   double a, alpha, d;

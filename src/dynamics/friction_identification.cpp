@@ -153,7 +153,7 @@ Eigen::MatrixXd observedFriction(const kinematics::ChainModel& model, const Fric
 Eigen::MatrixXd accelerationSigns(const FrictionLog& log, SignSource source) {
   Eigen::MatrixXd signs(log.samples(), log.joints());
   if (source == SignSource::LoggedAcceleration) {
-    signs = log.qdd.unaryExpr([](double a) { return a > 0.0 ? 1.0 : a < 0.0 ? -1.0 : 0.0; });
+    signs = log.qdd.unaryExpr([](double a) { return signal::sign(a); });
     return signs;
   }
   const double period = (log.t[log.samples() - 1] - log.t[0]) / (log.samples() - 1);

@@ -1,18 +1,14 @@
 #include "bimanual_skills/dynamics/friction_model.hpp"
 
+#include "bimanual_skills/signal/acceleration_sign.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <tuple>
 
 namespace bimanual_skills::dynamics {
-namespace {
-
-double sign(double x) noexcept {
-  return x > 0.0 ? 1.0 : x < 0.0 ? -1.0 : 0.0;
-}
-
-}  // namespace
+using signal::sign;
 
 const char* toString(FrictionModelType type) noexcept {
   switch (type) {

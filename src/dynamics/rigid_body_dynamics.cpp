@@ -24,12 +24,7 @@ void jointFrames(const ChainModel& model, DynamicsData& data, const Eigen::Ref<c
       data.rotation[k] = step.rotation;
       data.translation[k] = step.translation + q[i] * step.rotation.col(2);
     } else {
-      const double c = std::cos(q[i]);
-      const double s = std::sin(q[i]);
-      Eigen::Matrix3d& R = data.rotation[k];
-      R.col(0) = c * step.rotation.col(0) + s * step.rotation.col(1);
-      R.col(1) = c * step.rotation.col(1) - s * step.rotation.col(0);
-      R.col(2) = step.rotation.col(2);
+      kinematics::ChainModel::turnAboutZ(step.rotation, q[i], data.rotation[k]);
       data.translation[k] = step.translation;
     }
   }

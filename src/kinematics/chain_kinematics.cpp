@@ -7,14 +7,9 @@
 namespace bimanual_skills::kinematics {
 namespace {
 
-/// Singular values of data.jacobian, decomposing its tall orientation (see ChainData::svd_input).
+/// Singular values of data.jacobian.
 const Eigen::VectorXd& jacobianSingularValues(ChainData& data) noexcept {
-  if (data.jacobian.cols() >= 6) {
-    data.svd_input = data.jacobian.transpose();
-  } else {
-    data.svd_input = data.jacobian;
-  }
-  data.svd.compute(data.svd_input);
+  static_cast<void>(data.svd.compute(data.jacobian));  // the shape is the data's own; a NaN Jacobian keeps the last
   return data.svd.singularValues();
 }
 
@@ -42,8 +37,7 @@ ChainData::ChainData(const ChainModel& model)
     : frame_poses(static_cast<std::size_t>(model.nq()) + 1, Eigen::Isometry3d::Identity()),
       jacobian(Matrix6Xd::Zero(6, model.nq())),
       axis_frames(static_cast<std::size_t>(model.nq()), Eigen::Isometry3d::Identity()),
-      svd_input(std::max(6, model.nq()), std::min(6, model.nq())),
-      svd(svd_input.rows(), svd_input.cols()) {}
+      svd(6, model.nq(), false) {}
 
 KinematicsStatus forwardKinematics(const ChainModel& model, ChainData& data,
                                    const Eigen::Ref<const Eigen::VectorXd>& q) noexcept {
@@ -63,12 +57,7 @@ KinematicsStatus forwardKinematics(const ChainModel& model, ChainData& data,
       p.noalias() += q[i] * R_joint.col(2);
       R = R_joint;
     } else {
-      // R_joint Rz(q_i): only the x and y columns turn.
-      const double c = std::cos(q[i]);
-      const double s = std::sin(q[i]);
-      R.col(0) = c * R_joint.col(0) + s * R_joint.col(1);
-      R.col(1) = c * R_joint.col(1) - s * R_joint.col(0);
-      R.col(2) = R_joint.col(2);
+      ChainModel::turnAboutZ(R_joint, q[i], R);
     }
     Eigen::Isometry3d& F = data.axis_frames[static_cast<std::size_t>(i)];
     F.linear() = R;

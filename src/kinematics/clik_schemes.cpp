@@ -6,31 +6,32 @@
 namespace bimanual_skills::kinematics::clik_detail {
 namespace {
 
-/// Gradient of the joint-centring function H (thesis eq. 3.19), which grows towards the range centre:
-/// ∂H/∂q_i = (q_max − q_min)² (q_max + q_min − 2 q_i) / (2n f_i²), f_i = (q_max − q_i)(q_i − q_min).
-/// Taken literally beyond the limits too (it still points to the centre there, decaying with distance); only f = 0
-/// is kept away from. Clamping q inside the range instead makes steps of hundreds of radians near the limits
-/// (measured: GP then solved 19 % of Table 3.5 problems instead of 100 %).
+/// ∂H_i/∂q_i of one joint's limit criterion H_i = (q_max − q_min)² / (4 (q_max − q_i)(q_i − q_min)) (thesis eqs. 3.16,
+/// 3.19): (q_max − q_min)² (2 q_i − q_max − q_min) / (4 f²), f = (q_max − q_i)(q_i − q_min), with |f| kept above
+/// 1e-12. It points away from the range centre, also beyond the limits (decaying with the distance there).
+double limitCriterionGradient(double lo, double hi, double q) noexcept {
+  double f = (hi - q) * (q - lo);
+  if (std::abs(f) < 1e-12) f = 1e-12;
+  return (hi - lo) * (hi - lo) * (2.0 * q - hi - lo) / (4.0 * f * f);
+}
+
+/// Gradient of the joint-centring function of thesis eq. 3.19, which grows towards the range centre:
+/// ∂H/∂q_i = −(2/n) ∂H_i/∂q_i = (q_max − q_min)² (q_max + q_min − 2 q_i) / (2n f_i²). Taken literally
+/// beyond the limits too (it still points to the centre there); only f = 0 is kept away from. Clamping q inside the
+/// range instead makes steps of hundreds of radians near the limits (measured: GP then solved 19 % of Table 3.5
+/// problems instead of 100 %).
 void centringGradient(const ChainModel& model, const Eigen::Ref<const Eigen::VectorXd>& q,
                       Eigen::Ref<Eigen::VectorXd> out) noexcept {
   const int n = model.nq();
   for (int i = 0; i < n; ++i) {
     const double lo = model.lowerLimits()[i];
     const double hi = model.upperLimits()[i];
-    if (!std::isfinite(lo) || !std::isfinite(hi) || hi <= lo) {
-      out[i] = 0.0;
-      continue;
-    }
-    const double range = hi - lo;
-    const double qi = q[i];
-    double f = (hi - qi) * (qi - lo);
-    if (std::abs(f) < 1e-12) f = 1e-12;
-    out[i] = range * range * (hi + lo - 2.0 * qi) / (2.0 * n * f * f);
+    out[i] = std::isfinite(lo) && std::isfinite(hi) && hi > lo ? -2.0 / n * limitCriterionGradient(lo, hi, q[i]) : 0.0;
   }
 }
 
-/// Chan & Dubey's joint weights (3.16): w_i = 1 + |∂H/∂q_i| while |∂H/∂q_i| grows (moving towards a limit), else 1,
-/// with H = Σ (q_max − q_min)² / (4 (q_max − q_i)(q_i − q_min)); writes W^{-1/2} into data.scale.
+/// Chan & Dubey's joint weights (3.16): w_i = 1 + |∂H_i/∂q_i| while |∂H_i/∂q_i| grows (moving towards a limit),
+/// else 1; writes W^{-1/2} into data.scale.
 void jointWeights(const ChainModel& model, const Eigen::Ref<const Eigen::VectorXd>& q, ClikData& data) noexcept {
   for (int i = 0; i < model.nq(); ++i) {
     const double lo = model.lowerLimits()[i];
@@ -40,12 +41,7 @@ void jointWeights(const ChainModel& model, const Eigen::Ref<const Eigen::VectorX
       continue;
     }
     // Beyond a limit the criterion is undefined: no weighting there (JW does not enforce limits, Table 3.5).
-    double gradient = 0.0;
-    if (q[i] > lo && q[i] < hi) {
-      const double a = hi - q[i];
-      const double b = q[i] - lo;
-      gradient = std::abs((hi - lo) * (hi - lo) * (2.0 * q[i] - hi - lo) / (4.0 * a * a * b * b));
-    }
+    const double gradient = q[i] > lo && q[i] < hi ? std::abs(limitCriterionGradient(lo, hi, q[i])) : 0.0;
     const double weight = gradient >= data.previous_gradient[i] ? 1.0 + gradient : 1.0;
     data.previous_gradient[i] = gradient;
     data.scale[i] = 1.0 / std::sqrt(weight);

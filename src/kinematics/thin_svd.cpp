@@ -6,12 +6,12 @@
 
 namespace bimanual_skills::kinematics {
 
-ThinSvd::ThinSvd(int rows, int cols)
+ThinSvd::ThinSvd(int rows, int cols, bool vectors)
     : rows_(rows),
       cols_(cols),
       transposed_(cols > rows),
       tall_(std::max(rows, cols), std::min(rows, cols)),
-      svd_(tall_.rows(), tall_.cols(), Eigen::ComputeThinU | Eigen::ComputeThinV) {
+      svd_(tall_.rows(), tall_.cols(), vectors ? Eigen::ComputeThinU | Eigen::ComputeThinV : 0) {
   if (rows < 1 || cols < 1) {
     throw std::invalid_argument("ThinSvd: shape must be positive, got " + std::to_string(rows) + " x " +
                                 std::to_string(cols));

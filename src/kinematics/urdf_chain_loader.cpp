@@ -1,5 +1,6 @@
 // Loading a ChainModel from a URDF robot description with urdfdom.
 #include "bimanual_skills/kinematics/chain_model.hpp"
+#include "urdf_pose.hpp"
 
 #include <urdf_parser/urdf_parser.h>
 
@@ -10,15 +11,6 @@
 
 namespace bimanual_skills::kinematics {
 namespace {
-
-Eigen::Isometry3d toIsometry(const urdf::Pose& pose) {
-  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.translation() << pose.position.x, pose.position.y, pose.position.z;
-  out.linear() = Eigen::Quaterniond(pose.rotation.w, pose.rotation.x, pose.rotation.y, pose.rotation.z)
-                     .normalized()
-                     .toRotationMatrix();
-  return out;
-}
 
 /// Mass properties of a URDF link in the link's frame (none when it has no <inertial>).
 BodyInertia linkInertia(const urdf::LinkConstSharedPtr& link) {

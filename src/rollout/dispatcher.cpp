@@ -1,5 +1,5 @@
 #include "bimanual_skills/rollout/dispatcher.hpp"
-#include "tools/clock.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -14,8 +14,8 @@ namespace bimanual_skills::rollout {
 
 namespace {
 
-using bimanual_skills::tools::Clock;
-using bimanual_skills::tools::secondsSince;
+using bimanual_skills::realtime::Clock;
+using bimanual_skills::realtime::secondsSince;
 
 /// Why `results` cannot be the answer to a share of `size` rollouts of a task with `terms` terms; empty if it can.
 std::string garbage(const std::vector<RolloutResult>& results, std::size_t size, std::size_t terms) {

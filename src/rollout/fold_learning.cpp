@@ -2,9 +2,10 @@
 
 #include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/primitives/dr_dmp.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "io/csv_records.hpp"
 #include "io/yaml_io.hpp"
-#include "tools/clock.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -21,8 +22,8 @@ namespace bimanual_skills::rollout {
 
 namespace {
 
-using tools::Clock;
-using tools::secondsSince;
+using realtime::Clock;
+using realtime::secondsSince;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
 std::string key(const std::string& algorithm, int run, int epoch, RolloutKind kind, int index) {
@@ -262,11 +263,14 @@ struct FoldLearner::Impl {
   ParallelEvaluator* threads = nullptr;             ///< The evaluator when the rollouts run on threads here.
   std::unique_ptr<FoldRolloutTask> helper;          ///< For the demonstration and the images when they run elsewhere.
   std::map<std::string, FoldRolloutRecord> stored;  ///< Rollouts found in the directory.
-  std::ofstream rollouts_csv, parameters_csv;
+  io::CsvAppender rollouts_csv, parameters_csv;
   int simulated = 0, resumed = 0;
 
   void readStored() {
     const std::string rollouts = dir + "/rollouts.csv", parameters = dir + "/rollout_parameters.csv";
+    // A run killed while it wrote a record leaves a partial last line: it is dropped (and its rollout run again).
+    io::dropPartialRecord(rollouts);
+    io::dropPartialRecord(parameters);
     std::map<std::string, Eigen::VectorXd> weights;
     std::ifstream p(parameters);
     std::string line;
@@ -317,32 +321,32 @@ struct FoldLearner::Impl {
   }
 
   void openFiles() {
-    const auto open = [&](std::ofstream& file, const std::string& name, const std::string& header) {
-      const std::string path = dir + "/" + name;
-      const bool fresh = !std::filesystem::exists(path) || std::filesystem::file_size(path) == 0;
-      file.open(path, std::ios::app);
-      if (!file) throw std::invalid_argument("fold learning: cannot write '" + path + "'");
-      if (fresh) file << header << '\n' << std::flush;
-    };
-    open(rollouts_csv, "rollouts.csv", kRolloutColumns);
-    open(parameters_csv, "rollout_parameters.csv", "algorithm,run,epoch,kind,index,size,weights...");
+    try {
+      rollouts_csv = io::CsvAppender(dir + "/rollouts.csv", kRolloutColumns);
+      parameters_csv =
+          io::CsvAppender(dir + "/rollout_parameters.csv", "algorithm,run,epoch,kind,index,size,weights...");
+    } catch (const std::runtime_error& e) {
+      throw std::invalid_argument(std::string("fold learning: ") + e.what());
+    }
   }
 
   /// Under the lock.
   void write(const FoldRolloutRecord& rec) {
     const tasks::FoldRewardTerms& t = rec.terms;
-    rollouts_csv << quoted(rec.algorithm) << ',' << rec.run << ',' << rec.epoch << ',' << toString(rec.kind) << ','
-                 << rec.index << ',' << rec.seed << ',' << tasks::toString(t.outcome) << ',' << number(t.reward) << ','
-                 << number(t.r_acceleration) << ',' << number(t.r_color) << ',' << number(t.r_depth) << ','
-                 << number(t.fill_ratio) << ',' << number(t.mean_gradient) << ',' << number(t.area_ratio) << ','
-                 << number(t.aspect) << ',' << (rec.coordination.empty() ? 0 : rec.coordination.front().cols()) << ','
-                 << number(rec.wall_seconds) << ',' << quoted(rec.reason) << '\n';
-    // The parameters last: a rollout counts as stored once both lines are complete.
-    rollouts_csv.flush();
-    parameters_csv << quoted(rec.algorithm) << ',' << rec.run << ',' << rec.epoch << ',' << toString(rec.kind) << ','
-                   << rec.index << ',' << rec.weights.size();
-    for (Eigen::Index i = 0; i < rec.weights.size(); ++i) parameters_csv << ',' << number(rec.weights[i]);
-    parameters_csv << '\n' << std::flush;
+    std::ostringstream line;
+    line << quoted(rec.algorithm) << ',' << rec.run << ',' << rec.epoch << ',' << toString(rec.kind) << ',' << rec.index
+         << ',' << rec.seed << ',' << tasks::toString(t.outcome) << ',' << number(t.reward) << ','
+         << number(t.r_acceleration) << ',' << number(t.r_color) << ',' << number(t.r_depth) << ','
+         << number(t.fill_ratio) << ',' << number(t.mean_gradient) << ',' << number(t.area_ratio) << ','
+         << number(t.aspect) << ',' << (rec.coordination.empty() ? 0 : rec.coordination.front().cols()) << ','
+         << number(rec.wall_seconds) << ',' << quoted(rec.reason);
+    rollouts_csv.append(line.str());
+    // The parameters last: a rollout counts as stored once both records are whole.
+    line.str("");
+    line << quoted(rec.algorithm) << ',' << rec.run << ',' << rec.epoch << ',' << toString(rec.kind) << ',' << rec.index
+         << ',' << rec.weights.size();
+    for (Eigen::Index i = 0; i < rec.weights.size(); ++i) line << ',' << number(rec.weights[i]);
+    parameters_csv.append(line.str());
   }
 
   /// Evaluates a batch (records with coordination, weights and seed set): stored ones from disk, the others on

@@ -1,18 +1,17 @@
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
 
+#include "bimanual_skills/parallel/parallel_for.hpp"
+
 #include <algorithm>
-#include <atomic>
 #include <chrono>
-#include <exception>
 #include <mutex>
 #include <stdexcept>
-#include <thread>
 
 namespace bimanual_skills::rollout {
 
 ParallelEvaluator::ParallelEvaluator(const Factory& factory, int threads) {
   if (threads < 0) throw std::invalid_argument("parallel evaluator: threads must be >= 0 (0: one per core)");
-  const int count = threads > 0 ? threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
+  const int count = parallel::threadCount(threads);
   for (int i = 0; i < count; ++i) {
     tasks_.push_back(factory());
     if (!tasks_.back()) throw std::invalid_argument("parallel evaluator: the task factory returned no task");
@@ -24,43 +23,20 @@ ParallelEvaluator::~ParallelEvaluator() = default;
 std::vector<RolloutResult> ParallelEvaluator::evaluate(const std::vector<RolloutRequest>& batch, const Done& done,
                                                        const std::function<bool()>& stop) {
   std::vector<RolloutResult> results(batch.size());
-  std::atomic<std::size_t> next{0};
-  std::mutex mutex;
-  std::exception_ptr error;
-  bool stopped = false;
-  const auto work = [&](RolloutTask& task) {
-    for (;;) {
-      {
-        const std::lock_guard<std::mutex> lock(mutex);
-        if (error || stopped) return;
-        if (stop && stop()) {
-          stopped = true;
-          return;
-        }
-      }
-      const std::size_t i = next++;
-      if (i >= batch.size()) return;
-      try {
+  std::mutex mutex;  // results and done()
+  const bool finished = parallel::parallelFor(
+      batch.size(), static_cast<int>(tasks_.size()),
+      [&](int worker, std::size_t i) {
+        RolloutTask& task = *tasks_[static_cast<std::size_t>(worker)];
         const auto start = std::chrono::steady_clock::now();
         RolloutResult result = task.run(batch[i].parameters, batch[i].seed);
         result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         const std::lock_guard<std::mutex> lock(mutex);
         results[i] = std::move(result);
         if (done) done(i, results[i], &task);
-      } catch (...) {
-        const std::lock_guard<std::mutex> lock(mutex);
-        if (!error) error = std::current_exception();
-        return;
-      }
-    }
-  };
-  std::vector<std::thread> pool;
-  const std::size_t threads = std::min(tasks_.size(), std::max<std::size_t>(batch.size(), 1));
-  for (std::size_t t = 1; t < threads; ++t) pool.emplace_back(work, std::ref(*tasks_[t]));
-  work(*tasks_.front());
-  for (std::thread& thread : pool) thread.join();
-  if (error) std::rethrow_exception(error);
-  if (stopped) throw std::runtime_error("stopped");
+      },
+      stop);
+  if (!finished) throw std::runtime_error("stopped");
   return results;
 }
 

@@ -1,5 +1,7 @@
 #include "bimanual_skills/sim/arm_plant.hpp"
 
+#include "bimanual_skills/signal/acceleration_sign.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -14,10 +16,6 @@ constexpr double kLimitMargin = 1e-9;         ///< [rad or m] a joint this close
 
 Eigen::VectorXd orZeros(const Eigen::VectorXd& v, int n) {
   return v.size() == 0 ? Eigen::VectorXd::Zero(n) : v;
-}
-
-double signOf(double x) noexcept {
-  return x > 0.0 ? 1.0 : (x < 0.0 ? -1.0 : 0.0);
 }
 
 }  // namespace
@@ -102,7 +100,7 @@ double ArmPlant::slidingLevel(int k, double position, double velocity) const noe
   const double ratio = velocity / law.stribeck_velocity;
   const double level =
       law.coulomb * (1.0 + law.hysteresis * sigma_[k]) + (law.static_friction - law.coulomb) * std::exp(-ratio * ratio);
-  return ripple(k, position, signOf(velocity)) * level;
+  return ripple(k, position, signal::sign(velocity)) * level;
 }
 
 SimStatus ArmPlant::step(const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd,
@@ -183,10 +181,10 @@ SimStatus ArmPlant::step(const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen
       const double u = channelValue(k, qd);
       // Hysteresis direction: +1 while |u| grows, −1 while it shrinks (held when undecided).
       const double du = u - u_previous_[k];
-      if (u != 0.0 && du != 0.0) sigma_[k] = signOf(u) * signOf(du);
+      if (u != 0.0 && du != 0.0) sigma_[k] = signal::sign(u) * signal::sign(du);
       u_previous_[k] = u;
       const double level = stuck_[static_cast<std::size_t>(k)]
-                               ? ripple(k, position_[k], signOf(u_free_[k])) * law.static_friction
+                               ? ripple(k, position_[k], signal::sign(u_free_[k])) * law.static_friction
                                : slidingLevel(k, position_[k], u);
       hi_[k] = dt * level;
       lo_[k] = -hi_[k];
@@ -208,7 +206,7 @@ SimStatus ArmPlant::step(const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen
           active_rhs_[k] = -u_free_[k];
         } else {
           const double u = channelValue(k, qd);
-          const double direction = u != 0.0 ? signOf(u) : signOf(u_free_[k]);
+          const double direction = u != 0.0 ? signal::sign(u) : signal::sign(u_free_[k]);
           active_(k, k) = 1.0;
           active_rhs_[k] = -direction * hi_[k];
         }

@@ -1,9 +1,9 @@
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bullet_arm.hpp"
 #include "bullet_conversions.hpp"
-#include "tools/clock.hpp"
 
 #include <BulletDynamics/Featherstone/btMultiBodyConstraintSolver.h>
 
@@ -14,8 +14,8 @@
 namespace bimanual_skills::sim {
 namespace {
 
-using tools::Clock;
-using tools::seconds;
+using realtime::Clock;
+using realtime::seconds;
 
 /// Joint speed beyond which an arm counts as diverged [rad/s or m/s] (the WAM's joints stay below 3 rad/s).
 constexpr double kDivergedSpeed = 100.0;

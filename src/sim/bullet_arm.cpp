@@ -1,4 +1,5 @@
 #include "bullet_arm.hpp"
+#include "kinematics/urdf_pose.hpp"
 
 #include "bullet_conversions.hpp"
 
@@ -12,18 +13,11 @@
 namespace bimanual_skills::sim {
 namespace {
 
+using kinematics::toIsometry;
+
 /// Principal moments of inertia below this are raised to it [kg m²]: a link that is a point mass (zero moments)
 /// would make Bullet's articulated inertias singular. 1e-10 kg m² is far below any real link's.
 constexpr double kMinimumPrincipalMoment = 1e-10;
-
-Eigen::Isometry3d toIsometry(const urdf::Pose& pose) {
-  Eigen::Isometry3d out = Eigen::Isometry3d::Identity();
-  out.translation() << pose.position.x, pose.position.y, pose.position.z;
-  out.linear() = Eigen::Quaterniond(pose.rotation.w, pose.rotation.x, pose.rotation.y, pose.rotation.z)
-                     .normalized()
-                     .toRotationMatrix();
-  return out;
-}
 
 /// The primitive <collision> shapes of `link`, in the frame `in_frame` · link frame.
 void appendShapes(const urdf::Link& link, const Eigen::Isometry3d& in_frame, std::vector<ShapeSpec>& out,

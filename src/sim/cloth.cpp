@@ -1,7 +1,7 @@
 #include "bimanual_skills/sim/cloth.hpp"
 
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bullet_conversions.hpp"
-#include "tools/clock.hpp"
 
 #include <BulletSoftBody/btSoftBodyHelpers.h>
 #include <BulletSoftBody/btSoftBodyInternals.h>
@@ -18,8 +18,8 @@
 namespace bimanual_skills::sim {
 namespace {
 
-using tools::Clock;
-using tools::seconds;
+using realtime::Clock;
+using realtime::seconds;
 
 /// Gripper bodies: heavy, unaffected by gravity and colliding with nothing, so the anchor impulses Bullet applies to
 /// them barely move them and can be read back as the cloth's pull (momentum change over the step).

@@ -9,7 +9,8 @@
 // the errors (MAE, MSE, maximum, as in Table 4.1) are printed for the held-out rest.
 #include "bimanual_skills/dynamics/friction_identification.hpp"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
-#include "tools/command_line.hpp"
+#include "cli/command_line.hpp"
+#include "cli/package_share.hpp"
 
 #include <cstdio>
 #include <cstdlib>
@@ -45,7 +46,7 @@ bool parsePairs(const std::string& text, std::vector<std::pair<int, int>>& pairs
 
 int main(int argc, char** argv) {
   std::string model_name, in, out, sign = "logged", pairs_text;
-  std::string urdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/wam.urdf", base = "wam_base", tip = "wam_tool";
+  std::string urdf, base = "wam_base", tip = "wam_tool";
   bd::FrictionFitOptions options;
   long restarts = options.restarts, seed = options.seed;
   bimanual_skills::cli::CommandLine line(
@@ -75,6 +76,7 @@ int main(int argc, char** argv) {
   if (!bd::parseFrictionModelType(model_name, options.type)) line.fail("--model is required");
   if (in.empty() || out.empty()) line.fail("--in and --out are required");
   try {
+    if (urdf.empty()) urdf = bimanual_skills::cli::packageFile("urdf/wam.urdf");
     const bk::ChainModel model = bk::ChainModel::fromUrdfFile(urdf, base, tip);
     const bd::FrictionLog log = bd::readFrictionLog(in);
     if (!parsePairs(pairs_text.empty() ? (log.joints() == 7 ? "2-3,5-6" : "none") : pairs_text, options.pairs)) {

@@ -1,16 +1,15 @@
 #include "bimanual_skills/workspace/pair_quality.hpp"
 
-#include "tools/clock.hpp"
+#include "bimanual_skills/parallel/parallel_for.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <stdexcept>
 #include <string>
-#include <thread>
 #include <unordered_set>
 
 namespace bimanual_skills::workspace {
@@ -278,7 +277,7 @@ PlacementQuality placementQuality(const WorkspacePoints& first, const Eigen::Iso
                                   const WorkspacePoints& second, const Eigen::Isometry3d& second_base,
                                   const PairQualitySettings& settings) {
   checkInputs(first, second, settings);
-  const auto start = tools::Clock::now();
+  const auto start = realtime::Clock::now();
   const std::vector<Prepared> a = inWorld(first, first_base), b = inWorld(second, second_base);
   const double lo = settings.length - settings.tolerance, hi = settings.length + settings.tolerance;
   PlacementQuality out;
@@ -327,68 +326,59 @@ PlacementQuality placementQuality(const WorkspacePoints& first, const Eigen::Iso
   };
   const double outer2 = (hi + kCellMargin) * (hi + kCellMargin), inner2 = (lo - kCellMargin) * (lo - kCellMargin);
   std::vector<Partial> partials(blocks);
-  std::atomic<std::size_t> next{0};
-  const auto work = [&] {
-    for (std::size_t block = next++; block < blocks; block = next++) {
-      Partial& part = partials[block];
-      std::array<std::vector<double>, 3> near2, far2;
-      for (int axis = 0; axis < 3; ++axis) {
-        near2[axis].resize(static_cast<std::size_t>(cells[axis]));
-        far2[axis].resize(static_cast<std::size_t>(cells[axis]));
-      }
-      for (std::size_t i = block * kBlock; i < std::min(a.size(), (block + 1) * kBlock); ++i) {
-        const Prepared& p1 = a[i];
-        int from[3], to[3];
-        for (int axis = 0; axis < 3; ++axis) {
-          from[axis] = cellAlong(axis, p1.position[axis] - hi);
-          to[axis] = cellAlong(axis, p1.position[axis] + hi);
-        }
-        // The points of a run of neighbouring cells of one row are contiguous: each run is summed in one call.
-        std::size_t run_from = 0, run_to = 0;
-        const auto flush = [&] {
-          if (run_to == run_from) return;
-          const RunSum r = sumRun(p1, columns, run_from, run_to, settings);
-          part.sum += r.sum;
-          part.pairs += r.pairs;
-          part.distance_pairs += r.distance_pairs;
-          part.visited += run_to - run_from;
-          run_from = run_to = 0;
-        };
-        // Per axis, the squared distances from P1 to the nearest and the farthest coordinate of each cell: a cell's
-        // squared distances to P1 are their sums over the axes.
-        for (int axis = 0; axis < 3; ++axis) {
-          for (int cell = from[axis]; cell <= to[axis]; ++cell) {
-            const double cell_low = low[axis] + h * cell, v = p1.position[axis];
-            const double nearest = std::clamp(v, cell_low, cell_low + h) - v;
-            const double farthest = std::max(std::abs(v - cell_low), std::abs(v - cell_low - h));
-            near2[axis][cell - from[axis]] = nearest * nearest;
-            far2[axis][cell - from[axis]] = farthest * farthest;
-          }
-        }
-        for (int z = from[2]; z <= to[2]; ++z) {
-          for (int y = from[1]; y <= to[1]; ++y) {
-            const double near_yz = near2[1][y - from[1]] + near2[2][z - from[2]];
-            const double far_yz = far2[1][y - from[1]] + far2[2][z - from[2]];
-            for (int x = from[0]; x <= to[0]; ++x) {
-              // Skip a cell that lies wholly outside the shell L ± δ around P1.
-              if (near_yz + near2[0][x - from[0]] > outer2 || far_yz + far2[0][x - from[0]] < inner2) continue;
-              const std::size_t c = flat(x, y, z);
-              if (begin[c] != run_to) flush();
-              if (run_to == run_from) run_from = begin[c];
-              run_to = begin[c + 1];
-            }
-          }
-        }
-        flush();
-      }
+  parallel::parallelFor(blocks, settings.threads, [&](int, std::size_t block) {
+    Partial& part = partials[block];
+    std::array<std::vector<double>, 3> near2, far2;
+    for (int axis = 0; axis < 3; ++axis) {
+      near2[axis].resize(static_cast<std::size_t>(cells[axis]));
+      far2[axis].resize(static_cast<std::size_t>(cells[axis]));
     }
-  };
-  const int threads =
-      settings.threads > 0 ? settings.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  std::vector<std::thread> pool;
-  for (int t = 1; t < threads; ++t) pool.emplace_back(work);
-  work();
-  for (std::thread& t : pool) t.join();
+    for (std::size_t i = block * kBlock; i < std::min(a.size(), (block + 1) * kBlock); ++i) {
+      const Prepared& p1 = a[i];
+      int from[3], to[3];
+      for (int axis = 0; axis < 3; ++axis) {
+        from[axis] = cellAlong(axis, p1.position[axis] - hi);
+        to[axis] = cellAlong(axis, p1.position[axis] + hi);
+      }
+      // The points of a run of neighbouring cells of one row are contiguous: each run is summed in one call.
+      std::size_t run_from = 0, run_to = 0;
+      const auto flush = [&] {
+        if (run_to == run_from) return;
+        const RunSum r = sumRun(p1, columns, run_from, run_to, settings);
+        part.sum += r.sum;
+        part.pairs += r.pairs;
+        part.distance_pairs += r.distance_pairs;
+        part.visited += run_to - run_from;
+        run_from = run_to = 0;
+      };
+      // Per axis, the squared distances from P1 to the nearest and the farthest coordinate of each cell: a cell's
+      // squared distances to P1 are their sums over the axes.
+      for (int axis = 0; axis < 3; ++axis) {
+        for (int cell = from[axis]; cell <= to[axis]; ++cell) {
+          const double cell_low = low[axis] + h * cell, v = p1.position[axis];
+          const double nearest = std::clamp(v, cell_low, cell_low + h) - v;
+          const double farthest = std::max(std::abs(v - cell_low), std::abs(v - cell_low - h));
+          near2[axis][cell - from[axis]] = nearest * nearest;
+          far2[axis][cell - from[axis]] = farthest * farthest;
+        }
+      }
+      for (int z = from[2]; z <= to[2]; ++z) {
+        for (int y = from[1]; y <= to[1]; ++y) {
+          const double near_yz = near2[1][y - from[1]] + near2[2][z - from[2]];
+          const double far_yz = far2[1][y - from[1]] + far2[2][z - from[2]];
+          for (int x = from[0]; x <= to[0]; ++x) {
+            // Skip a cell that lies wholly outside the shell L ± δ around P1.
+            if (near_yz + near2[0][x - from[0]] > outer2 || far_yz + far2[0][x - from[0]] < inner2) continue;
+            const std::size_t c = flat(x, y, z);
+            if (begin[c] != run_to) flush();
+            if (run_to == run_from) run_from = begin[c];
+            run_to = begin[c + 1];
+          }
+        }
+      }
+      flush();
+    }
+  });
   for (const Partial& part : partials) {
     out.pair_sum += part.sum;
     out.pairs += part.pairs;
@@ -396,7 +386,7 @@ PlacementQuality placementQuality(const WorkspacePoints& first, const Eigen::Iso
     out.visited += part.visited;
   }
   out.quality = out.volume * out.pair_sum;
-  out.seconds = tools::secondsSince(start);
+  out.seconds = realtime::secondsSince(start);
   return out;
 }
 
@@ -404,7 +394,7 @@ PlacementQuality bruteForcePlacementQuality(const WorkspacePoints& first, const 
                                             const WorkspacePoints& second, const Eigen::Isometry3d& second_base,
                                             const PairQualitySettings& settings) {
   checkInputs(first, second, settings);
-  const auto start = tools::Clock::now();
+  const auto start = realtime::Clock::now();
   PlacementQuality out;
   out.volume = unionVolume(first, first_base, second, second_base);
   for (const WorkspacePoint& p : first.points) {
@@ -423,7 +413,7 @@ PlacementQuality bruteForcePlacementQuality(const WorkspacePoints& first, const 
     }
   }
   out.quality = out.volume * out.pair_sum;
-  out.seconds = tools::secondsSince(start);
+  out.seconds = realtime::secondsSince(start);
   return out;
 }
 

@@ -1,6 +1,6 @@
 #include "bimanual_skills/workspace/placement_search.hpp"
 
-#include "tools/clock.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 
 #include <nlopt.hpp>
 
@@ -33,8 +33,8 @@ class Recorder {
     return value;
   }
 
-  SearchResult finish(tools::Clock::time_point start) {
-    result_.seconds = tools::secondsSince(start);
+  SearchResult finish(realtime::Clock::time_point start) {
+    result_.seconds = realtime::secondsSince(start);
     return result_;
   }
 
@@ -74,7 +74,7 @@ SearchResult geneticSearch(const SearchBounds& bounds, const PlacementObjective&
                            const GeneticSettings& settings) {
   bounds.validate();
   settings.validate();
-  const auto start = tools::Clock::now();
+  const auto start = realtime::Clock::now();
   Recorder record("GA", objective);
   std::mt19937 rng(settings.seed);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
@@ -144,7 +144,7 @@ SearchResult nloptSearch(const std::string& algorithm, const SearchBounds& bound
     throw std::invalid_argument("placement search: unknown NLopt algorithm '" + algorithm +
                                 "' (ESCH, CRS2, ISRES, DIRECT)");
   }
-  const auto start = tools::Clock::now();
+  const auto start = realtime::Clock::now();
   Recorder record(algorithm, objective);
   const auto n = static_cast<unsigned>(bounds.lower.size());
   nlopt::opt optimiser(which, n);

@@ -2,6 +2,7 @@
 
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/parallel/parallel_for.hpp"
 
 #include <Eigen/Geometry>
 
@@ -255,72 +256,71 @@ WorkspaceMap WorkspaceMap::build(const ChainModel& model, const WorkspaceMapSett
 
   const double wrist_limit =
       std::max(std::abs(model.lowerLimits()[forearm + 1]), std::abs(model.upperLimits()[forearm + 1]));
-  const int threads =
-      settings.threads > 0 ? settings.threads : std::max(1, static_cast<int>(std::thread::hardware_concurrency()));
-  std::atomic<std::size_t> next{0}, done{0};
-  std::mutex mutex;
-  std::exception_ptr error;
-  const auto work = [&] {
-    try {
-      kinematics::GlobalIkParameters ik;
-      ik.max_attempts = settings.ik_attempts;
-      ik.timeout = kNoTimeBudget;
-      ik.seed = settings.seed;
-      kinematics::GlobalIkSolver solver(model, ik);
-      ChainData data(model);
-      Eigen::VectorXd q(n), start = midLimits(model);
-      std::vector<Eigen::Vector3d> axes;
-      for (std::size_t i = next++; i < map.voxels_.size(); i = next++) {
-        WorkspaceVoxel& v = map.voxels_[i];
-        std::seed_seq sequence{settings.seed, static_cast<std::uint32_t>(i), 0x3a9u};
-        std::mt19937 rng(sequence);
-        Eigen::VectorXd seed = start;
-        axes.clear();
-        for (int m = 0; m < settings.orientations; ++m) {
-          Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
-          target.linear() = uniformRotation(rng);
-          target.translation() = v.centre;
-          if (settings.wrist_test && !map.mayReach(target)) {
-            ++v.pruned;
-            continue;
-          }
-          const kinematics::GlobalIkResult r = solver.solve(target, seed, q);
-          if (r.status != kinematics::IkStatus::Converged) continue;
-          seed = q;
-          ++v.solved;
-          if (kinematics::computeJacobian(model, data, q) != kinematics::KinematicsStatus::Success) continue;
-          v.manipulability += kinematics::manipulability(data);
-          v.condition += kinematics::conditionNumber(data);
-          Eigen::Vector3d axis = axisDirection(data, forearm);
-          const Eigen::Vector3d along = axisOrigin(data, forearm + 1) - axisOrigin(data, forearm - 1);
-          if (axis.dot(along) < 0.0) axis = -axis;
-          axes.push_back(axis);
-        }
-        v.solution_ratio = static_cast<double>(v.solved) / settings.orientations;
-        if (v.solved > 0) {
-          v.manipulability /= v.solved;
-          v.condition /= v.solved;
-          v.forearm = minimalBoundingCone(axes, settings.seed);
-          v.tool = v.forearm;
-          v.tool.angle = std::min(M_PI, v.forearm.angle + wrist_limit);
-        }
-        ++done;
-      }
-    } catch (...) {
-      const std::lock_guard<std::mutex> lock(mutex);
-      if (!error) error = std::current_exception();
-      next = map.voxels_.size();
-    }
+  // Per thread: a solver, kinematic scratch and the axes found; voxels are handed out one at a time, each with its
+  // own generator, so the map does not depend on the number of threads.
+  struct Worker {
+    kinematics::GlobalIkSolver solver;
+    ChainData data;
+    Eigen::VectorXd q;
+    std::vector<Eigen::Vector3d> axes;
   };
-  std::vector<std::thread> pool;
-  for (int t = 0; t < threads; ++t) pool.emplace_back(work);
-  while (progress && done < map.voxels_.size() && next < map.voxels_.size() + static_cast<std::size_t>(threads)) {
-    progress(done, map.voxels_.size());
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
-    if (error) break;
+  kinematics::GlobalIkParameters ik;
+  ik.max_attempts = settings.ik_attempts;
+  ik.timeout = kNoTimeBudget;
+  ik.seed = settings.seed;
+  const int threads = parallel::threadCount(settings.threads);
+  std::vector<std::unique_ptr<Worker>> workers;
+  for (int t = 0; t < threads; ++t) {
+    workers.push_back(std::make_unique<Worker>(
+        Worker{kinematics::GlobalIkSolver(model, ik), ChainData(model), Eigen::VectorXd(n), {}}));
   }
-  for (std::thread& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
+  const Eigen::VectorXd start = midLimits(model);
+  std::atomic<std::size_t> done{0};
+  auto last_progress = std::chrono::steady_clock::now();
+  parallel::parallelFor(map.voxels_.size(), threads, [&](int worker, std::size_t i) {
+    kinematics::GlobalIkSolver& solver = workers[static_cast<std::size_t>(worker)]->solver;
+    ChainData& data = workers[static_cast<std::size_t>(worker)]->data;
+    Eigen::VectorXd& q = workers[static_cast<std::size_t>(worker)]->q;
+    std::vector<Eigen::Vector3d>& axes = workers[static_cast<std::size_t>(worker)]->axes;
+    WorkspaceVoxel& v = map.voxels_[i];
+    std::seed_seq sequence{settings.seed, static_cast<std::uint32_t>(i), 0x3a9u};
+    std::mt19937 rng(sequence);
+    Eigen::VectorXd seed = start;
+    axes.clear();
+    for (int m = 0; m < settings.orientations; ++m) {
+      Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+      target.linear() = uniformRotation(rng);
+      target.translation() = v.centre;
+      if (settings.wrist_test && !map.mayReach(target)) {
+        ++v.pruned;
+        continue;
+      }
+      const kinematics::GlobalIkResult r = solver.solve(target, seed, q);
+      if (r.status != kinematics::IkStatus::Converged) continue;
+      seed = q;
+      ++v.solved;
+      if (kinematics::computeJacobian(model, data, q) != kinematics::KinematicsStatus::Success) continue;
+      v.manipulability += kinematics::manipulability(data);
+      v.condition += kinematics::conditionNumber(data);
+      Eigen::Vector3d axis = axisDirection(data, forearm);
+      const Eigen::Vector3d along = axisOrigin(data, forearm + 1) - axisOrigin(data, forearm - 1);
+      if (axis.dot(along) < 0.0) axis = -axis;
+      axes.push_back(axis);
+    }
+    v.solution_ratio = static_cast<double>(v.solved) / settings.orientations;
+    if (v.solved > 0) {
+      v.manipulability /= v.solved;
+      v.condition /= v.solved;
+      v.forearm = minimalBoundingCone(axes, settings.seed);
+      v.tool = v.forearm;
+      v.tool.angle = std::min(M_PI, v.forearm.angle + wrist_limit);
+    }
+    ++done;
+    if (worker == 0 && progress && std::chrono::steady_clock::now() - last_progress > std::chrono::milliseconds(500)) {
+      last_progress = std::chrono::steady_clock::now();
+      progress(done, map.voxels_.size());
+    }
+  });
   if (progress) progress(done, map.voxels_.size());
   return map;
 }

@@ -3,8 +3,7 @@
 #pragma once
 
 #include "bimanual_skills/kinematics/chain_model.hpp"
-
-#include <Eigen/SVD>
+#include "bimanual_skills/kinematics/thin_svd.hpp"
 
 #include <vector>
 
@@ -36,11 +35,8 @@ struct ChainData {
 
   /// Internal joint frames F_i in the base frame (see ChainModel); frame_poses is derived from them.
   std::vector<Eigen::Isometry3d> axis_frames;
-  /// J or Jᵀ, whichever has at least as many rows as columns: Eigen's JacobiSVD allocates when it preconditions a
-  /// wide matrix, not a tall one.
-  Eigen::MatrixXd svd_input;
-  /// Singular value decomposition of svd_input (singular values only), allocated once here.
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd;
+  /// Singular values of the Jacobian (ThinSvd: allocation-free for the wide Jacobians of redundant arms).
+  ThinSvd svd;
 
   const Eigen::Isometry3d& tipPose() const noexcept { return frame_poses.back(); }
 };

@@ -12,7 +12,8 @@ namespace bimanual_skills::kinematics {
 /// accessors hide the swap. All memory is taken at construction for exactly one shape.
 class ThinSvd {
  public:
-  ThinSvd(int rows, int cols);
+  /// For rows × cols matrices; `vectors` false: singular values only (U() and V() are then empty).
+  ThinSvd(int rows, int cols, bool vectors = true);
 
   int rows() const noexcept { return rows_; }
   int cols() const noexcept { return cols_; }

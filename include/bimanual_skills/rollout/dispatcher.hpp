@@ -6,8 +6,8 @@
 /// depends on its parameters and seed only, the results do not depend on which worker ran what, on the number of
 /// workers or on the faults. Workers are looked up again at every batch, so workers can join between batches.
 ///
-/// The transport is behind WorkerLink and WorkerDirectory (ROS actionlib in nodes/action_workers.hpp; in-process
-/// links in the tests). Target bimanual_skills_rollout. Offline: allocates; errors are exceptions.
+/// The transport is behind WorkerLink and WorkerDirectory (ROS actionlib in ros_layer/workers/action_workers.hpp;
+/// in-process links in the tests). Target bimanual_skills_rollout. Offline: allocates; errors are exceptions.
 #pragma once
 
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"

@@ -35,6 +35,11 @@ class AccelerationSign {
   Eigen::VectorXd previous_, stage_, filtered_, sign_;
 };
 
+/// sign(x): 1, −1, or 0 for x = 0 (and NaN).
+inline double sign(double x) noexcept {
+  return x > 0.0 ? 1.0 : x < 0.0 ? -1.0 : 0.0;
+}
+
 /// sign[i] = sign(values[i]), 0 where |values[i]| ≤ dead_band (e.g. sign(q̈_d) of a desired trajectory for the
 /// friction models). Real-time safe: no allocation, no exceptions; `sign` must have the size of `values`.
 void signWithDeadBand(const Eigen::Ref<const Eigen::VectorXd>& values, double dead_band,

@@ -19,7 +19,7 @@
 #include <string>
 #include <vector>
 
-namespace bimanual_skills::nodes {
+namespace bimanual_skills::ros_layer {
 
 /// Where the dispatcher finds its workers and what it asks of them (the `~workers`, `~worker_namespace`,
 /// `~worker_timeout` and `~share` parameters of the nodes that dispatch).
@@ -62,4 +62,4 @@ class ActionWorkerDirectory : public rollout::WorkerDirectory {
   std::map<std::string, ros::WallTime> last_status_;
 };
 
-}  // namespace bimanual_skills::nodes
+}  // namespace bimanual_skills::ros_layer

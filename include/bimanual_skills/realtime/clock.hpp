@@ -5,7 +5,7 @@
 
 #include <chrono>
 
-namespace bimanual_skills::tools {
+namespace bimanual_skills::realtime {
 
 using Clock = std::chrono::steady_clock;
 
@@ -19,4 +19,4 @@ inline double secondsSince(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-}  // namespace bimanual_skills::tools
+}  // namespace bimanual_skills::realtime

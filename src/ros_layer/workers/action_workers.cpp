@@ -1,4 +1,4 @@
-#include "action_workers.hpp"
+#include "bimanual_skills/ros_layer/workers/action_workers.hpp"
 
 #include <bimanual_skills/EvaluateRolloutsAction.h>
 
@@ -8,7 +8,7 @@
 #include <atomic>
 #include <utility>
 
-namespace bimanual_skills::nodes {
+namespace bimanual_skills::ros_layer {
 
 namespace {
 
@@ -233,4 +233,4 @@ std::unique_ptr<rollout::WorkerLink> ActionWorkerDirectory::connect(const std::s
   return link;
 }
 
-}  // namespace bimanual_skills::nodes
+}  // namespace bimanual_skills::ros_layer

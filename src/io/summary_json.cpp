@@ -1,0 +1,26 @@
+#include "io/summary_json.hpp"
+
+#include <cstdio>
+#include <fstream>
+#include <stdexcept>
+
+namespace bimanual_skills::io {
+
+void writeSummaryJson(const std::string& path, const SummaryHeader& header, const std::vector<JsonRow>& rows) {
+  nlohmann::ordered_json summary;
+  summary["program"] = header.program;
+  summary["experiment"] = header.experiment;
+  summary["seed"] = header.seed;
+  summary["quick"] = header.quick;
+  summary["results"] = nlohmann::ordered_json::array();
+  for (const JsonRow& row : rows) summary["results"].push_back(row.json());
+  const std::string temporary = path + ".part";
+  {
+    std::ofstream out(temporary);
+    out << summary.dump(2) << '\n';
+    if (!out) throw std::runtime_error("cannot write " + temporary);
+  }
+  if (std::rename(temporary.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot write " + path);
+}
+
+}  // namespace bimanual_skills::io
