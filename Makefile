@@ -27,15 +27,17 @@ FOLD_DEMO := $(CURDIR)/build/fold_demo
 demo: build
 	@echo "make demo: two simulated WAMs learn to fold a cloth: IDR-DMP_CMU with REPS, 1 run x 8 updates x 12 rollouts"
 	@echo "           on the Bullet simulation (config/fold_demo.yaml), results in $(FOLD_DEMO)"
-	set -o pipefail; source install/setup.bash && roslaunch bimanual_skills fold.launch \
-	  config:=$(CURDIR)/config/fold_demo.yaml out:=$(FOLD_DEMO) 2>&1 | tee build/fold_demo.log
+	set -o pipefail; source install/setup.bash && bash scripts/fold_demo.sh $(CURDIR)/config/fold_demo.yaml \
+	  $(FOLD_DEMO) 2>&1 | tee build/fold_demo.log
 	/usr/bin/python3 scripts/plot_fold_learning.py $(FOLD_DEMO)
-	@for f in summary.json epochs.csv rollouts.csv learning_curve.png coordination.png initial.png final.png best_rollout.bag; do \
+	@for f in summary.json epochs.csv rollouts.csv learning_curve.png coordination.png initial.png final.png \
+	  filmstrip_initial.png filmstrip_final.png initial.gif final.gif best_rollout.bag; do \
 	  if [ ! -s "$(FOLD_DEMO)/$$f" ]; then echo "make demo: FAILED: $(FOLD_DEMO)/$$f is missing (see build/fold_demo.log)"; exit 1; fi; done
 	@if grep -q FATAL build/fold_demo.log; then echo "make demo: FAILED (see build/fold_demo.log)"; exit 1; fi
-	@echo "make demo: done. In $(FOLD_DEMO): summary.json (one row per epoch), learning_curve.png, coordination.png,"
-	@echo "           initial.png and final.png (top-down camera), table75.md, rollouts.csv, best_rollout.bag"
-	@echo "           Replay the best rollout in rviz:"
+	@grep "fold quality .* →" build/fold_demo.log | sed 's/^fold_learner: /make demo: /'
+	@echo "make demo: done. In $(FOLD_DEMO): learning_curve.png (reward and fold quality per epoch), filmstrip_initial.png"
+	@echo "           and filmstrip_final.png, initial.gif and final.gif (the initial and the learned fold), coordination.png,"
+	@echo "           summary.json, epochs.csv, rollouts.csv, table75.md, best_rollout.bag. Replay the best rollout in rviz:"
 	@echo "             source install/setup.bash && roslaunch bimanual_skills fold.launch replay:=$(FOLD_DEMO)/best_rollout.bag"
 
 test: build

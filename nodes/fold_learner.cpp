@@ -7,6 +7,7 @@
 #include "bimanual_skills/ros_layer/camera_messages.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/ros_layer/workers/action_workers.hpp"
+#include "bimanual_skills/tasks/fold_quality.hpp"
 #include "io/summary_json.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
@@ -29,6 +30,7 @@
 #include <cstdio>
 #include <deque>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <string>
 #include <vector>
@@ -127,6 +129,7 @@ class FoldLearnerNode {
       joint_names_.insert(joint_names_.end(), names.begin(), names.end());
     }
     table_ = sim.table;
+    cloth_ = sim.cloth;
     scene_publisher_.publish(bs::nodes::tableMarker(table_, ros::Time::now()));
     camera_frame_.sendTransform(bs::ros_layer::cameraTransform(learner_->config().reward.renderer.camera, "world",
                                                                kCameraFrame, ros::Time::now()));
@@ -155,6 +158,8 @@ class FoldLearnerNode {
     }
     writeImage(result.runs.front().initial_policy, "initial");
     writeImage(best_run->final_policy, "final");
+    writeFilmstrip(result.runs.front().initial_policy, "initial");
+    writeFilmstrip(best_run->final_policy, "final");
     const br::FoldRolloutRecord* best = &result.runs.front().best;
     for (const br::FoldRunResult& r : result.runs) {
       if (r.best.terms.reward > best->terms.reward) best = &r.best;
@@ -163,11 +168,24 @@ class FoldLearnerNode {
     writeBag(*best, replay);
     std::printf(
         "fold_learner: results in %s: summary.json, epochs.csv, rollouts.csv, initial.png, final.png, "
-        "best_rollout.bag\n"
+        "initial_frames.csv, final_frames.csv (the filmstrips' data), best_rollout.bag\n"
         "fold_learner: best rollout: %s run %d epoch %d (%s %d), R = %.4f; replay it in rviz with\n"
         "  roslaunch bimanual_skills fold.launch replay:=%s/best_rollout.bag\n",
         out_.c_str(), best->algorithm.c_str(), best->run + 1, best->epoch, br::toString(best->kind), best->index,
         best->terms.reward, out_.c_str());
+    // The fold's ground truth (the cloth mesh, not the camera): each run's first and last epoch, mean ± standard
+    // error over the epoch's rollouts, and its mean policy before and after.
+    for (const br::FoldRunResult& r : result.runs) {
+      if (r.epochs.empty()) continue;
+      const br::FoldEpochStats &first = r.epochs.front(), &last = r.epochs.back();
+      const double root = std::sqrt(static_cast<double>(config_.rollouts));
+      std::printf(
+          "fold_learner: %s run %d: fold quality %.3f ± %.3f → %.3f ± %.3f (epoch %d → %d, mean ± "
+          "standard error of its rollouts); mean policy %.3f → %.3f\n",
+          r.algorithm.c_str(), r.run + 1, first.fold_quality, first.fold_quality_std / root, last.fold_quality,
+          last.fold_quality_std / root, first.epoch, last.epoch, r.initial_policy.terms.fold_quality,
+          r.final_policy.terms.fold_quality);
+    }
     std::fflush(stdout);
     if (replay_best_) replayLoop(*best, replay);
   }
@@ -233,12 +251,12 @@ class FoldLearnerNode {
     const int simulated = done_ - resumed_;
     const double eta = simulated > 0 ? elapsed / simulated * (total_ - done_) : 0.0;
     std::printf(
-        "[%s run %d] epoch %d/%d %s %d: R = %.4f (acc %.3f, color %.3f, depth %.3f, area %.2f) %s%s%s | "
-        "%d/%d rollouts, ETA %s\n",
+        "[%s run %d] epoch %d/%d %s %d: R = %.4f (acc %.3f, color %.3f, depth %.3f, area %.2f), fold quality %.2f "
+        "%s%s%s | %d/%d rollouts, ETA %s\n",
         record.algorithm.c_str(), record.run + 1, record.epoch, config_.updates, br::toString(record.kind),
         record.index + 1, record.terms.reward, record.terms.r_acceleration, record.terms.r_color, record.terms.r_depth,
-        record.terms.area_ratio, bt::toString(record.terms.outcome), record.reason.empty() ? "" : ": ",
-        record.reason.c_str(), done_, total_, formatSeconds(eta).c_str());
+        record.terms.area_ratio, record.terms.fold_quality, bt::toString(record.terms.outcome),
+        record.reason.empty() ? "" : ": ", record.reason.c_str(), done_, total_, formatSeconds(eta).c_str());
     std::fflush(stdout);
     if (record.resumed) return;
     const ros::Time now = ros::Time::now();
@@ -308,6 +326,39 @@ class FoldLearnerNode {
     cv::imwrite(out_ + "/depth_" + name + ".png", shown);
   }
 
+  /// What scripts/plot_fold_learning.py turns into DIR/filmstrip_NAME.png and DIR/NAME.gif: the rollout's cloth
+  /// at 20 Hz with its fold quality (NAME_frames.csv: t, q, then x y z of every node; NAME_triangles.csv) and the
+  /// top-down camera image at six moments evenly spread over it (NAME_top_K.png, K = 0 … 5).
+  void writeFilmstrip(const br::FoldRolloutRecord& record, const std::string& name) {
+    bt::FoldRollout rollout = learner_->replay(record, 20.0);
+    if (rollout.cloth_frames.empty()) return;
+    const bs::sim::ClothParameters& cloth = cloth_;
+    std::ofstream frames(out_ + "/" + name + "_frames.csv");
+    frames.precision(6);
+    frames << "t,q,xyz...\n";
+    for (std::size_t k = 0; k < rollout.cloth_frames.size(); ++k) {
+      const Eigen::Matrix3Xd& mesh = rollout.cloth_frames[k];
+      frames << rollout.cloth_times[static_cast<Eigen::Index>(k)] << ','
+             << bt::foldQuality(mesh, rollout.cloth_rest_vertices, cloth.nodes_x, cloth.nodes_y, cloth.thickness).q;
+      for (Eigen::Index c = 0; c < mesh.cols(); ++c)
+        frames << ',' << mesh(0, c) << ',' << mesh(1, c) << ',' << mesh(2, c);
+      frames << '\n';
+    }
+    std::ofstream triangles(out_ + "/" + name + "_triangles.csv");
+    triangles << "a,b,c\n";
+    for (Eigen::Index t = 0; t < rollout.cloth_triangles.cols(); ++t) {
+      triangles << rollout.cloth_triangles(0, t) << ',' << rollout.cloth_triangles(1, t) << ','
+                << rollout.cloth_triangles(2, t) << '\n';
+    }
+    const std::size_t last = rollout.cloth_frames.size() - 1;
+    for (int moment = 0; moment < 6; ++moment) {
+      rollout.cloth_vertices = rollout.cloth_frames[last * static_cast<std::size_t>(moment) / 5];
+      cv::Mat bgr, depth;
+      learner_->score(rollout, record.seed, bgr, depth);
+      cv::imwrite(out_ + "/" + name + "_top_" + std::to_string(moment) + ".png", bgr);
+    }
+  }
+
   void writeBag(const br::FoldRolloutRecord& best, const bt::FoldRollout& rollout) {
     rosbag::Bag bag(out_ + "/best_rollout.bag", rosbag::bagmode::Write);
     const std::string ns = private_node_.getNamespace();
@@ -353,7 +404,7 @@ class FoldLearnerNode {
         // Over the runs: the mean of the epoch's rollout rewards, its std across runs and the rollouts' std.
         const auto n = static_cast<double>(runs.size());
         double mean = 0.0, spread = 0.0, within = 0.0, acc = 0.0, color = 0.0, depth = 0.0, rho = 0.0, g = 0.0,
-               area = 0.0, dims = 0.0, failures = 0.0;
+               area = 0.0, dims = 0.0, failures = 0.0, quality = 0.0, quality_within = 0.0;
         for (const br::FoldRunResult* r : runs) {
           const br::FoldEpochStats& s = r->epochs[static_cast<std::size_t>(e)];
           mean += s.mean_reward / n;
@@ -364,6 +415,8 @@ class FoldLearnerNode {
           rho += s.fill_ratio / n;
           g += s.mean_gradient / n;
           area += s.area_ratio / n;
+          quality += s.fold_quality / n;
+          quality_within += s.fold_quality_std / n;
           dims += s.latent_dims / n;
           failures += s.failures;
         }
@@ -385,13 +438,17 @@ class FoldLearnerNode {
             .add("fill_ratio", rho)
             .add("mean_gradient", g)
             .add("area_ratio", area)
+            .add("fold_quality", quality)
+            .add("fold_quality_std_within_runs", quality_within)
             .add("latent_dims", dims)
             .add("failures", failures);
       }
-      double initial = 0.0, final_reward = 0.0, final_dims = 0.0;
+      double initial = 0.0, final_reward = 0.0, final_dims = 0.0, initial_quality = 0.0, final_quality = 0.0;
       for (const br::FoldRunResult* r : runs) {
         initial += r->initial_policy.terms.reward / runs.size();
         final_reward += r->final_policy.terms.reward / runs.size();
+        initial_quality += r->initial_policy.terms.fold_quality / runs.size();
+        final_quality += r->final_policy.terms.fold_quality / runs.size();
         final_dims += static_cast<double>(r->final.latentDims()) / runs.size();
       }
       rows.emplace_back()
@@ -399,6 +456,8 @@ class FoldLearnerNode {
           .add("algorithm", algorithm)
           .add("initial_policy_reward", initial)
           .add("final_policy_reward", final_reward)
+          .add("initial_policy_fold_quality", initial_quality)
+          .add("final_policy_fold_quality", final_quality)
           .add("final_latent_dims", final_dims);
     }
     if (!result.repetitions.empty()) {
@@ -489,6 +548,7 @@ class FoldLearnerNode {
   std::unique_ptr<br::FoldLearner> learner_;
   std::vector<std::string> joint_names_;
   bs::sim::Table table_;
+  bs::sim::ClothParameters cloth_;
   ros::Publisher info_publisher_, depth_info_publisher_;
   tf2_ros::StaticTransformBroadcaster camera_frame_;
   ros::Publisher cloth_publisher_, scene_publisher_, path_publisher_, image_publisher_, depth_publisher_,

@@ -28,7 +28,7 @@ PACKAGES=(
   cmake g++ make colcon python3-colcon-ros python3-colcon-cmake python3-colcon-test-result python3-colcon-bash
   libgtest-dev googletest libbenchmark-dev
   # plots and formatting
-  python3-matplotlib python3-numpy python3-yaml clang-format
+  python3-matplotlib python3-numpy python3-pil python3-scipy python3-yaml clang-format
 )
 
 missing=()

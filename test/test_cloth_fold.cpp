@@ -46,9 +46,11 @@ TEST(ClothFold, TheDemonstrationFoldsTheClothRepeatably) {
   const double fraction = foldedFraction(first, 0.5, 0.15);
   std::printf(
       "demonstration: %.2f s simulated in %.2f s (%.1fx), IK error %.4f m, tracking %.4f rad, "
-      "acceleration cost %.1f, folded %.0f %%\n",
+      "acceleration cost %.1f, folded %.0f %%, fold quality %.3f (distance %.4f m, displacement %.4f m)\n",
       first.simulated_seconds, first.wall_seconds, first.simulated_seconds / first.wall_seconds, first.max_ik_error,
-      first.max_tracking_error, first.acceleration_cost, 100.0 * fraction);
+      first.max_tracking_error, first.acceleration_cost, 100.0 * fraction, first.fold.q, first.fold.distance,
+      first.fold.displacement);
+  EXPECT_GT(first.fold.q, 0.3);  // the demonstration folds, imperfectly
   EXPECT_GT(fraction, 0.5);
   ASSERT_EQ(first.commanded_path.size(), 2u);
   EXPECT_GT(first.commanded_path[0].cols(), 100);
@@ -97,4 +99,55 @@ TEST(ClothFold, BadConfiguration) {
   c = config();
   c.sim_config = "/nonexistent.yaml";
   EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
+}
+
+namespace {
+
+/// A flat nodes_x × nodes_y patch of `length` × `width` at z = 0, node (i, j) at column j·nodes_x + i.
+Eigen::Matrix3Xd flatPatch(int nodes_x, int nodes_y, double length, double width) {
+  Eigen::Matrix3Xd p(3, nodes_x * nodes_y);
+  for (int j = 0; j < nodes_y; ++j) {
+    for (int i = 0; i < nodes_x; ++i) {
+      p.col(j * nodes_x + i) << length * (i / (nodes_x - 1.0) - 0.5), width * (j / (nodes_y - 1.0) - 0.5), 0.0;
+    }
+  }
+  return p;
+}
+
+}  // namespace
+
+// The fold quality is 1 for the ideal fold (the far half laid onto the near half, one thickness above it), 0 for the
+// flat cloth at rest, in between for a half fold (the far half standing up), and it is lowered by moving the half
+// that should stay.
+TEST(FoldQuality, IdealFoldFlatClothAndInBetween) {
+  const int nx = 20, ny = 24;
+  const double thickness = 0.004;
+  const Eigen::Matrix3Xd rest = flatPatch(nx, ny, 0.5, 0.6);
+  const bt::FoldQuality flat = bt::foldQuality(rest, rest, nx, ny, thickness);
+  EXPECT_NEAR(flat.q, 0.0, 1e-12);
+  EXPECT_NEAR(flat.displacement, 0.0, 1e-12);
+  EXPECT_NEAR(flat.distance, 0.5 * 10.0 / 19.0, 1e-12);  // mirror pairs 1, 3, …, 19 node spacings of 0.5/19 m
+
+  Eigen::Matrix3Xd ideal = rest, standing = rest, dragged = rest;
+  for (int j = 0; j < ny; ++j) {
+    for (int i = nx / 2; i < nx; ++i) {
+      const Eigen::Vector3d mirror = rest.col(j * nx + (nx - 1 - i));
+      ideal.col(j * nx + i) = mirror + Eigen::Vector3d(0.0, 0.0, thickness);
+      const double x = rest(0, j * nx + i);
+      standing.col(j * nx + i) << 0.0, rest(1, j * nx + i), x;  // turned up about the fold line
+    }
+    for (int i = 0; i < nx / 2; ++i) dragged.col(j * nx + i) += Eigen::Vector3d(0.05, 0.0, 0.0);
+  }
+  const bt::FoldQuality folded = bt::foldQuality(ideal, rest, nx, ny, thickness);
+  EXPECT_NEAR(folded.q, 1.0, 1e-12);
+  EXPECT_NEAR(folded.distance, thickness, 1e-12);
+  const bt::FoldQuality half = bt::foldQuality(standing, rest, nx, ny, thickness);
+  EXPECT_GT(half.q, 0.2);
+  EXPECT_LT(half.q, 0.8);
+  const bt::FoldQuality moved = bt::foldQuality(dragged, rest, nx, ny, thickness);
+  EXPECT_LT(moved.q, flat.q);
+  EXPECT_NEAR(moved.displacement, 0.05, 1e-12);
+
+  EXPECT_THROW(bt::foldQuality(rest, rest, 19, ny, thickness), std::invalid_argument);  // sizes
+  EXPECT_THROW(bt::foldQuality(rest, rest, nx, ny, 0.0), std::invalid_argument);
 }

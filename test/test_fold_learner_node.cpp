@@ -15,8 +15,10 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 namespace {
@@ -89,9 +91,22 @@ TEST(FoldLearnerNode, PublishesEachRolloutAndWritesTheResults) {
   EXPECT_NEAR(camera_frame.transform.translation.z, 1.65, 1e-9);  // 1.5 m above the table top (0.15 m)
   EXPECT_EQ(last_cloth.type, visualization_msgs::Marker::TRIANGLE_LIST);
   EXPECT_GT(last_cloth.points.size(), 300u);
-  for (const char* file : {"summary.json", "epochs.csv", "rollouts.csv", "initial.png", "final.png"}) {
+  for (const char* file : {"summary.json", "epochs.csv", "rollouts.csv", "initial.png", "final.png",
+                           "initial_frames.csv", "final_frames.csv", "final_top_5.png"}) {
     EXPECT_TRUE(std::filesystem::exists(outDir() + "/" + file)) << file;
   }
+  // make demo's pictures: the filmstrips and animations of the initial and the final policy.
+  ASSERT_EQ(
+      std::system(("/usr/bin/python3 " + std::string(PLOT_FOLD_LEARNING) + " " + outDir() + " > /dev/null").c_str()),
+      0);
+  for (const char* file :
+       {"learning_curve.png", "filmstrip_initial.png", "filmstrip_final.png", "initial.gif", "final.gif"}) {
+    EXPECT_TRUE(std::filesystem::exists(outDir() + "/" + file)) << file;
+  }
+  std::ifstream summary_file(outDir() + "/summary.json");
+  const std::string summary((std::istreambuf_iterator<char>(summary_file)), std::istreambuf_iterator<char>());
+  EXPECT_NE(summary.find("\"fold_quality\""), std::string::npos);
+  EXPECT_NE(summary.find("\"final_policy_fold_quality\""), std::string::npos);
   std::ifstream rollouts(outDir() + "/rollouts.csv");
   int lines = 0;
   for (std::string line; std::getline(rollouts, line);) ++lines;

@@ -81,7 +81,7 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_TRUE(std::filesystem::exists(demo.task.sim_config));
   const br::FoldLearningConfig table = br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_table75.yaml");
   EXPECT_EQ(table.algorithms.size(), 3u);
-  EXPECT_EQ(table.runs, 3);
+  EXPECT_EQ(table.runs, 5);
   EXPECT_EQ(table.updates, 15);
   EXPECT_EQ(table.rollouts, 12);
   EXPECT_DOUBLE_EQ(table.covariance_memory, 0.8);

@@ -85,8 +85,8 @@ RolloutKind kindFromString(const std::string& text, const std::string& where) {
 
 const char* const kRolloutColumns =
     "algorithm,run,epoch,kind,index,seed,outcome,reward,r_acceleration,r_color,r_depth,fill_ratio,mean_gradient,"
-    "area_ratio,aspect,latent_dims,wall_seconds,reason";
-constexpr std::size_t kRolloutFields = 18;
+    "area_ratio,aspect,fold_quality,fold_distance,fold_displacement,latent_dims,wall_seconds,reason";
+constexpr std::size_t kRolloutFields = 21;
 
 double toDouble(const std::string& text, const std::string& where) {
   std::size_t used = 0;
@@ -309,8 +309,11 @@ struct FoldLearner::Impl {
       rec.terms.mean_gradient = toDouble(f[12], where);
       rec.terms.area_ratio = toDouble(f[13], where);
       rec.terms.aspect = toDouble(f[14], where);
-      rec.wall_seconds = toDouble(f[16], where);
-      rec.reason = f[17];
+      rec.terms.fold_quality = toDouble(f[15], where);
+      rec.terms.fold_distance = toDouble(f[16], where);
+      rec.terms.fold_displacement = toDouble(f[17], where);
+      rec.wall_seconds = toDouble(f[19], where);
+      rec.reason = f[20];
       rec.resumed = true;
       const std::string k = key(rec.algorithm, rec.run, rec.epoch, rec.kind, rec.index);
       const auto w = weights.find(k);
@@ -338,8 +341,9 @@ struct FoldLearner::Impl {
          << ',' << rec.seed << ',' << tasks::toString(t.outcome) << ',' << number(t.reward) << ','
          << number(t.r_acceleration) << ',' << number(t.r_color) << ',' << number(t.r_depth) << ','
          << number(t.fill_ratio) << ',' << number(t.mean_gradient) << ',' << number(t.area_ratio) << ','
-         << number(t.aspect) << ',' << (rec.coordination.empty() ? 0 : rec.coordination.front().cols()) << ','
-         << number(rec.wall_seconds) << ',' << quoted(rec.reason);
+         << number(t.aspect) << ',' << number(t.fold_quality) << ',' << number(t.fold_distance) << ','
+         << number(t.fold_displacement) << ',' << (rec.coordination.empty() ? 0 : rec.coordination.front().cols())
+         << ',' << number(rec.wall_seconds) << ',' << quoted(rec.reason);
     rollouts_csv.append(line.str());
     // The parameters last: a rollout counts as stored once both records are whole.
     line.str("");
@@ -432,10 +436,17 @@ struct FoldLearner::Impl {
       s.fill_ratio += rec.terms.fill_ratio;
       s.mean_gradient += rec.terms.mean_gradient;
       s.area_ratio += rec.terms.area_ratio;
+      s.fold_quality += rec.terms.fold_quality;
+      s.fold_quality_std += rec.terms.fold_quality * rec.terms.fold_quality;
     }
-    for (double* v : {&s.r_acceleration, &s.r_color, &s.r_depth, &s.fill_ratio, &s.mean_gradient, &s.area_ratio}) {
+    for (double* v : {&s.r_acceleration, &s.r_color, &s.r_depth, &s.fill_ratio, &s.mean_gradient, &s.area_ratio,
+                      &s.fold_quality, &s.fold_quality_std}) {
       *v /= finished;
     }
+    // Sample standard deviation of q over the rollouts averaged (the second moment is in fold_quality_std so far).
+    s.fold_quality_std = finished > 1 ? std::sqrt(std::max(0.0, (s.fold_quality_std - s.fold_quality * s.fold_quality) *
+                                                                    finished / (finished - 1.0)))
+                                      : 0.0;
     return s;
   }
 
@@ -443,7 +454,7 @@ struct FoldLearner::Impl {
   void writeEpochs(const std::vector<FoldRunResult>& finished, const FoldRunResult& current) const {
     std::ofstream csv(dir + "/epochs.csv");
     csv << "algorithm,run,epoch,latent_dims,failures,mean_reward,std_reward,r_acceleration,r_color,r_depth,"
-           "fill_ratio,mean_gradient,area_ratio\n";
+           "fill_ratio,mean_gradient,area_ratio,fold_quality,fold_quality_std\n";
     std::vector<const FoldRunResult*> runs;
     for (const FoldRunResult& run : finished) runs.push_back(&run);
     runs.push_back(&current);
@@ -452,7 +463,8 @@ struct FoldLearner::Impl {
         csv << quoted(s.algorithm) << ',' << s.run << ',' << s.epoch << ',' << s.latent_dims << ',' << s.failures << ','
             << number(s.mean_reward) << ',' << number(s.std_reward) << ',' << number(s.r_acceleration) << ','
             << number(s.r_color) << ',' << number(s.r_depth) << ',' << number(s.fill_ratio) << ','
-            << number(s.mean_gradient) << ',' << number(s.area_ratio) << '\n';
+            << number(s.mean_gradient) << ',' << number(s.area_ratio) << ',' << number(s.fold_quality) << ','
+            << number(s.fold_quality_std) << '\n';
       }
     }
   }

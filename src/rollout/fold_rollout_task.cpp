@@ -44,7 +44,8 @@ bool FoldRolloutTask::decode(const Eigen::VectorXd& parameters, int dofs, int ke
 }
 
 std::vector<std::string> FoldRolloutTask::termNames() const {
-  return {"r_acceleration", "r_color", "r_depth", "fill_ratio", "mean_gradient", "area_ratio", "aspect"};
+  return {"r_acceleration", "r_color", "r_depth",      "fill_ratio",    "mean_gradient",
+          "area_ratio",     "aspect",  "fold_quality", "fold_distance", "fold_displacement"};
 }
 
 Eigen::VectorXd FoldRolloutTask::initialParameters() const {
@@ -67,6 +68,9 @@ tasks::FoldRewardTerms FoldRolloutTask::termsOf(const RolloutResult& result) {
   t.mean_gradient = result.terms[4];
   t.area_ratio = result.terms[5];
   t.aspect = result.terms[6];
+  t.fold_quality = result.terms[7];
+  t.fold_distance = result.terms[8];
+  t.fold_displacement = result.terms[9];
   return t;
 }
 
@@ -92,7 +96,8 @@ RolloutResult FoldRolloutTask::run(const Eigen::VectorXd& parameters, std::uint3
   RolloutResult result;
   result.reward = t.reward;
   result.terms.resize(kTerms);
-  result.terms << t.r_acceleration, t.r_color, t.r_depth, t.fill_ratio, t.mean_gradient, t.area_ratio, t.aspect;
+  result.terms << t.r_acceleration, t.r_color, t.r_depth, t.fill_ratio, t.mean_gradient, t.area_ratio, t.aspect,
+      t.fold_quality, t.fold_distance, t.fold_displacement;
   result.ok = last_.outcome == tasks::FoldOutcome::Ok;
   result.outcome = tasks::toString(last_.outcome);
   result.reason = last_.reason;

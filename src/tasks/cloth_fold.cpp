@@ -480,6 +480,8 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   out.cloth_vertices = simulation.cloth().vertices();
   out.cloth_triangles = simulation.cloth().triangles();
   out.cloth_rest_vertices = simulation.cloth().restVertices();
+  const sim::ClothParameters& cloth = simulation.cloth().parameters();
+  out.fold = foldQuality(out.cloth_vertices, out.cloth_rest_vertices, cloth.nodes_x, cloth.nodes_y, cloth.thickness);
   out.simulated_seconds = simulation.time();
   out.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   return out;

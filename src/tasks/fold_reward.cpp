@@ -54,6 +54,9 @@ FoldRewardTerms FoldReward::evaluate(const FoldRollout& rollout, std::mt19937& r
   t.area_ratio = facts.area_ratio;
   t.aspect = facts.aspect;
   t.r_acceleration = config_.acceleration_weight * rollout.acceleration_cost;
+  t.fold_quality = rollout.fold.q;
+  t.fold_distance = rollout.fold.distance;
+  t.fold_displacement = rollout.fold.displacement;
   t.reward = rollout.outcome == FoldOutcome::Ok ? -t.r_acceleration + image.reward() : config_.failure_reward;
   if (!std::isfinite(t.reward)) t.reward = config_.failure_reward;
   return t;

@@ -3,12 +3,13 @@
 /// positions and the 3-D quaternion-vector orientation relative to the start; 20 weights per DoF, 240 parameters)
 /// is turned on line into joint references by CLIK and tracked by the computed-torque controllers (friction model,
 /// observer) on the simulated plant, which folds the cloth. One rollout = reset, grasp, move, release, settle.
-/// Target bimanual_skills_fold (tasks floor: uses sim, control, primitives, kinematics).
+/// Target bimanual_skills_tasks (tasks floor: uses sim, control, primitives, kinematics).
 #pragma once
 
 #include "bimanual_skills/kinematics/clik.hpp"
 #include "bimanual_skills/primitives/cartesian_dmp.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
+#include "bimanual_skills/tasks/fold_quality.hpp"
 
 #include <Eigen/Core>
 
@@ -69,6 +70,7 @@ struct FoldRollout {
   Eigen::Matrix3Xd cloth_vertices;                            ///< Final cloth mesh (world frame).
   Eigen::Matrix3Xi cloth_triangles;
   Eigen::Matrix3Xd cloth_rest_vertices;
+  FoldQuality fold;  ///< The final cloth's fold quality (ground truth, fold_quality.hpp).
   double simulated_seconds = 0.0, wall_seconds = 0.0;
 };
 

@@ -7,7 +7,7 @@
 /// image terms of vision::ImageReward on the final cloth rendered by a top-down camera over the table
 /// (vision::ClothRenderer, with sensor noise). A rollout that failed (IK, controller, divergence, invalid policy)
 /// gets `failure_reward`, below any reward a finished fold can reach with the default weights. Target
-/// bimanual_skills_fold. Runs once per rollout, off the control loop: allocates (OpenCV), never throws after
+/// bimanual_skills_tasks. Runs once per rollout, off the control loop: allocates (OpenCV), never throws after
 /// construction.
 #pragma once
 
@@ -45,6 +45,9 @@ struct FoldRewardTerms {
   double area_ratio = 0.0;      ///< Visible cloth area over the flat cloth's (½ when folded in half).
   double aspect = 0.0;          ///< Long over short side of the cloth's minimum-area rectangle.
   double reward = 0.0;          ///< (7.52), or failure_reward.
+  /// The fold's ground truth from the cloth mesh (not part of the reward; fold_quality.hpp): q, its distance and
+  /// displacement terms [m].
+  double fold_quality = 0.0, fold_distance = 0.0, fold_displacement = 0.0;
 };
 
 /// Renders and scores rollouts. One object per thread (it holds the images).

@@ -1,0 +1,43 @@
+#include "bimanual_skills/tasks/fold_quality.hpp"
+
+#include <stdexcept>
+
+namespace bimanual_skills::tasks {
+
+namespace {
+
+/// The mean distance of the nodes i ≥ nodes_x / 2 of `mesh` to their mirror nodes of `mirror_of`.
+double mirrorDistance(const Eigen::Matrix3Xd& mesh, int nodes_x, int nodes_y) {
+  double sum = 0.0;
+  for (int j = 0; j < nodes_y; ++j) {
+    for (int i = nodes_x / 2; i < nodes_x; ++i) {
+      sum += (mesh.col(j * nodes_x + i) - mesh.col(j * nodes_x + (nodes_x - 1 - i))).norm();
+    }
+  }
+  return sum / (0.5 * nodes_x * nodes_y);
+}
+
+}  // namespace
+
+FoldQuality foldQuality(const Eigen::Matrix3Xd& vertices, const Eigen::Matrix3Xd& rest, int nodes_x, int nodes_y,
+                        double thickness) {
+  if (nodes_x < 2 || nodes_x % 2 != 0 || nodes_y < 1 || vertices.cols() != nodes_x * nodes_y ||
+      rest.cols() != vertices.cols() || !(thickness > 0.0) || !vertices.allFinite() || !rest.allFinite()) {
+    throw std::invalid_argument(
+        "foldQuality: meshes of nodes_x x nodes_y nodes (nodes_x even), finite, and a "
+        "positive thickness are needed");
+  }
+  FoldQuality f;
+  f.distance = mirrorDistance(vertices, nodes_x, nodes_y);
+  double moved = 0.0;
+  for (int j = 0; j < nodes_y; ++j) {
+    for (int i = 0; i < nodes_x / 2; ++i) moved += (vertices.col(j * nodes_x + i) - rest.col(j * nodes_x + i)).norm();
+  }
+  f.displacement = moved / (0.5 * nodes_x * nodes_y);
+  const double flat = mirrorDistance(rest, nodes_x, nodes_y);
+  if (!(flat > thickness)) throw std::invalid_argument("foldQuality: the flat cloth's halves are not apart");
+  f.q = (flat - (f.distance + 1.2 * f.displacement)) / (flat - thickness);
+  return f;
+}
+
+}  // namespace bimanual_skills::tasks
