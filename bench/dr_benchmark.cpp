@@ -12,6 +12,7 @@
 #include "bimanual_skills/learning/coordinated_reps.hpp"
 #include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/learning/latent_trajectory_em.hpp"
+#include "bimanual_skills/learning/student_t.hpp"
 #include "bimanual_skills/primitives/dr_dmp.hpp"
 #include "bimanual_skills/primitives/dr_promp.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
@@ -237,19 +238,20 @@ void runLearning(const Options& options, const std::string& experiment, const Pr
           std::printf("  %s %-22s %d runs: final policy reward %.4g ± %.2g, latent dims %.1f (%.1f s per run)\n",
                       experiment.c_str(), algorithm.name.c_str(), runs, mean, std, dims / runs, time / runs);
           std::fflush(stdout);
-          out.push_back(
-              {experiment,
-               algorithm.name,
-               {{"runs", runs},
-                {"updates", protocol.updates},
-                {"rollouts_per_update", protocol.rollouts},
-                {"final_reward", mean},
-                {"final_reward_std", std},
-                {"final_reward_ci95", runs > 1 ? 1.96 * std * std::sqrt(runs / (runs - 1.0)) / std::sqrt(runs) : 0.0},
-                {"initial_reward", curves[static_cast<std::size_t>(i)].policy_reward.front()},
-                {"final_latent_dims", dims / runs},
-                {"seconds_per_update", time / (runs * std::max(protocol.updates, 1))}},
-               {}});
+          out.push_back({experiment,
+                         algorithm.name,
+                         {{"runs", runs},
+                          {"updates", protocol.updates},
+                          {"rollouts_per_update", protocol.rollouts},
+                          {"final_reward", mean},
+                          {"final_reward_std", std},
+                          {"final_reward_ci95", runs > 1 ? bimanual_skills::learning::studentT975(runs - 1) * std *
+                                                               std::sqrt(runs / (runs - 1.0)) / std::sqrt(runs)
+                                                         : 0.0},
+                          {"initial_reward", curves[static_cast<std::size_t>(i)].policy_reward.front()},
+                          {"final_latent_dims", dims / runs},
+                          {"seconds_per_update", time / (runs * std::max(protocol.updates, 1))}},
+                         {}});
         }
       });
   std::printf("  %s: %d runs of %zu algorithms in %.1f s on %d threads\n", experiment.c_str(), runs, algorithms.size(),

@@ -19,7 +19,7 @@ import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from plot_common import output_directory, read_summary  # noqa: E402
+from plot_common import mean_ci, output_directory, read_summary  # noqa: E402
 
 CHECKPOINTS = [1, 10, 25, 50, 100, 200]
 # Table 7.3: -log10(-R) after 1, 10, 25, 50, 100, 200 updates (mean, 95 % interval over 20 runs).
@@ -87,16 +87,6 @@ def curves(path):
             rewards[row["algorithm"]][int(row["run"])][int(row["update"])] = float(row["policy_reward"])
             dims[row["algorithm"]][int(row["run"])][int(row["update"])] = int(row["latent_dims"])
     return rewards, dims
-
-
-def mean_ci(values):
-    """Mean and half-width of its 95 % interval (1.96 standard errors; 0 for one value)."""
-    n = len(values)
-    m = sum(values) / n
-    if n < 2:
-        return m, 0.0
-    s = math.sqrt(sum((v - m) ** 2 for v in values) / (n - 1))
-    return m, 1.96 * s / math.sqrt(n)
 
 
 def neglog(r):
