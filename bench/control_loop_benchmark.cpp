@@ -104,10 +104,11 @@ std::vector<double> noiseFloor(double seconds, int priority) {
   return periods;
 }
 
-/// The series of a statistics file (series,value).
+/// The series of a statistics file (series,value). \throws std::runtime_error when the node wrote none.
 std::map<std::string, std::vector<double>> readStatistics(const std::string& path) {
   std::map<std::string, std::vector<double>> series;
   std::ifstream in(path);
+  if (!in) throw std::runtime_error("the node wrote no statistics to " + path + " (see its log)");
   std::string line;
   std::getline(in, line);
   while (std::getline(in, line)) {

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <functional>
 #include <string>
 #include <thread>
@@ -66,6 +67,8 @@ inline ExperimentOptions parseExperimentOptions(int argc, char** argv, const Exp
   line.parse(argc, argv);
   if (options.experiment.empty()) line.fail("--experiment " + names + " is required");
   if (options.out.empty()) line.fail("--out DIR is required");
+  // Absolute, so that the nodes an experiment launches (which run in ~/.ros) write where the program reads.
+  options.out = std::filesystem::absolute(options.out).lexically_normal().string();
   options.seed = static_cast<std::uint32_t>(seed);
   options.runs = static_cast<int>(runs);
   options.jobs = static_cast<int>(jobs);

@@ -59,7 +59,7 @@ const char* const kUsage = R"(usage: rosrun bimanual_skills bimanual_ik_demo [_p
 
 Asks ik_server for a pose of each arm's tool (<arm>/solve_ik), commands the solutions on /joint_states and
 checks the tool poses robot_state_publisher then publishes against the targets. Exits 0 when every arm reached its
-target within 1e-4 m and rad (unless ~hold is true). What `make demo` runs, through launch/demo.launch.
+target within 1e-4 m and rad (unless ~hold is true). launch/demo.launch runs it with robot_state_publisher.
 
 parameters (private, config/ik_demo.yaml): world_frame, arms, target_<arm> {position, orientation}, method
   (empty: the server's default), timeout, tf_timeout, publish_rate, hold

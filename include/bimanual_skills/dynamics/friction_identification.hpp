@@ -1,7 +1,7 @@
 /// \file
 /// Offline identification of the friction models (thesis Sec. 2.3.2 and 4.2.2) from logged joint data (the logs'
 /// CSV files are in friction_log.hpp, the models' YAML files in friction_yaml.hpp). Allocates and throws freely:
-/// never call from a real-time loop. Target bimanual_skills_identification (NLopt, yaml-cpp).
+/// never call from a real-time loop. Target bimanual_skills_dynamics (NLopt, yaml-cpp).
 #pragma once
 
 #include "bimanual_skills/dynamics/friction_log.hpp"

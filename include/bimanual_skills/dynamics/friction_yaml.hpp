@@ -1,6 +1,6 @@
 /// \file
 /// YAML files of friction models (what the controllers load), written with 17 significant digits.
-/// Target bimanual_skills_identification. Offline: allocates and throws.
+/// Target bimanual_skills_dynamics. Offline: allocates and throws.
 #pragma once
 
 #include "bimanual_skills/dynamics/friction_model.hpp"

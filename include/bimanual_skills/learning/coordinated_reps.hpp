@@ -3,7 +3,7 @@
 /// of the thesis' Table 7.2 selectable by configuration: REPS with a fixed coordination (DR-DMP⁰, ProMP+REPS,
 /// DMP+REPS with Ω = I), REPS followed by the coordination matrix update (CMU / MCMU, Alg. 7.2; IDR with a finite η),
 /// and REPS weights followed by the weighted EM of the latent model (EM DR-DMP, 7.43–7.49, and EM-REPS with
-/// DR-ProMP, Alg. 7.1). Target bimanual_skills_policy_search (NLopt). Runs off the control loop: allocates, throws.
+/// DR-ProMP, Alg. 7.1). Target bimanual_skills_learning (NLopt). Runs off the control loop: allocates, throws.
 #pragma once
 
 #include "bimanual_skills/learning/coordination_matrix.hpp"

@@ -1,7 +1,7 @@
 /// \file
 /// Dual REPS (thesis Ch. 6): REPS with repulsive Gaussians fitted to clusters of bad rollouts and attractive ones
 /// fitted to clusters of good rollouts (6.2), clustered by Alg. 6.1, solved through the dual (6.12) and the weights
-/// (6.13), with the KL repair of Sec. 6.1.2. Target bimanual_skills_policy_search. Off the control loop.
+/// (6.13), with the KL repair of Sec. 6.1.2. Target bimanual_skills_learning. Off the control loop.
 #pragma once
 
 #include "bimanual_skills/learning/reps.hpp"

@@ -1,7 +1,7 @@
 /// \file
 /// Policy improvement with path integrals (thesis eqs. 5.8–5.13; Theodorou, Buchli and Schaal 2010) for policies
 /// linear in basis functions, such as DMP weights, and PI2-CMA (Stulp and Sigaud 2012), which adapts the exploration
-/// covariance from the same probabilities. Target bimanual_skills_policy_search. Off the control loop.
+/// covariance from the same probabilities. Target bimanual_skills_learning. Off the control loop.
 #pragma once
 
 #include <Eigen/Core>

@@ -1,6 +1,6 @@
 /// \file
 /// Episodic relative entropy policy search (thesis eqs. 5.6–5.7, dual 6.15) over a Gaussian policy N(μ, Σ), and the
-/// dual of Dual REPS (6.12) it is the special case of. Target bimanual_skills_policy_search (NLopt). Runs off the
+/// dual of Dual REPS (6.12) it is the special case of. Target bimanual_skills_learning (NLopt). Runs off the
 /// control loop: it allocates and may throw.
 #pragma once
 

@@ -1,6 +1,6 @@
 /// \file
 /// YAML files of DMPs and their running states (joint-space Dmp, CartesianDmp): "train anywhere, execute in C++".
-/// Target bimanual_skills_primitives_yaml (yaml-cpp), apart from the core library. Allocates and throws: never call
+/// Target bimanual_skills_primitives (yaml-cpp). Allocates and throws: never call
 /// from a real-time loop.
 ///
 /// Doubles are written with 17 significant digits, so save → load gives back every double bit for bit. Layout of a
