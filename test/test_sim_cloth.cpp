@@ -244,6 +244,35 @@ TEST(SimCloth, DivergenceIsAStatusNotACrash) {
   EXPECT_TRUE(nan.vertices().allFinite());
 }
 
+TEST(SimCloth, EdgeStretchIsTheLargestOfTheMeshNeighbours) {
+  // A corner lifted 0.3 m: the cloth hangs from it and its edges stretch. The reference: the length ratio of every
+  // pair of grid neighbours, computed from the mesh the cloth exposes.
+  const ClothParameters parameters = patch();
+  Cloth cloth(parameters, table(), 1);
+  EXPECT_DOUBLE_EQ(cloth.maxEdgeStretch(), 1.0);
+  const Eigen::Vector3d corner(0.75, -0.3, kTop + 0.01);
+  ASSERT_EQ(cloth.setGripperMotion(0, at(corner), Vector6d::Zero()), SimStatus::Ok);
+  ASSERT_EQ(cloth.grasp(0, 0.03), SimStatus::Ok);
+  follow(
+      cloth, [&](int, double t) { return Eigen::Vector3d(corner + Eigen::Vector3d(0.0, 0.0, std::min(t, 0.3))); }, 0.0,
+      0.5);
+  const int nx = parameters.nodes_x, ny = parameters.nodes_y;
+  const Eigen::Matrix3Xd &x = cloth.vertices(), &rest = cloth.restVertices();
+  double reference = 0.0;
+  for (int iy = 0; iy < ny; ++iy) {
+    for (int ix = 0; ix < nx; ++ix) {
+      const int a = iy * nx + ix;
+      for (const int b : {ix + 1 < nx ? a + 1 : -1, iy + 1 < ny ? a + nx : -1}) {
+        if (b < 0) continue;
+        reference = std::max(reference, (x.col(a) - x.col(b)).norm() / (rest.col(a) - rest.col(b)).norm());
+      }
+    }
+  }
+  EXPECT_GT(reference, 1.001);
+  EXPECT_NEAR(cloth.maxEdgeStretch(), reference, 1e-6);
+  EXPECT_LE(cloth.maxEdgeStretch(), cloth.maxStretch());
+}
+
 TEST(SimCloth, BadArgumentsAreRejected) {
   Cloth cloth(patch(), table(), 1);
   EXPECT_EQ(cloth.setGripperMotion(1, at(Eigen::Vector3d::Zero()), Vector6d::Zero()), SimStatus::InvalidArgument);

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -171,6 +172,7 @@ struct Cloth::Impl {
   SimStatus status = SimStatus::Ok;
   ClothDivergence divergence = ClothDivergence::None;
   double max_stretch = 1.0;
+  double max_edge_stretch = 1.0;
   ClothTimings timings;
 
   void build();
@@ -282,6 +284,7 @@ void Cloth::Impl::build() {
   status = SimStatus::Ok;
   divergence = ClothDivergence::None;
   max_stretch = 1.0;
+  max_edge_stretch = 1.0;
 
   if (p.self_collision) {
     const double spacing = std::max(p.length / (p.nodes_x - 1), p.width / (p.nodes_y - 1));
@@ -310,12 +313,19 @@ ClothDivergence Cloth::Impl::check() noexcept {
     too_fast = too_fast || node.m_v.length2() > speed2;
   }
   if (too_fast) return ClothDivergence::NodeSpeed;
-  double stretch = 0.0;
+  double stretch = 0.0, edge_stretch = 0.0;
+  const btSoftBody::Node* first = &soft->m_nodes[0];
+  const int nx = parameters.nodes_x;
   for (int l = 0; l < soft->m_links.size(); ++l) {
     const btSoftBody::Link& link = soft->m_links[l];
-    stretch = std::max(stretch, static_cast<double>((link.m_n[0]->m_x - link.m_n[1]->m_x).length() / link.m_rl));
+    const double ratio = (link.m_n[0]->m_x - link.m_n[1]->m_x).length() / link.m_rl;
+    stretch = std::max(stretch, ratio);
+    // CreatePatch numbers node (ix, iy) as iy * nodes_x + ix; a structural edge joins grid neighbours.
+    const int a = static_cast<int>(link.m_n[0] - first), b = static_cast<int>(link.m_n[1] - first);
+    if (std::abs(a % nx - b % nx) + std::abs(a / nx - b / nx) == 1) edge_stretch = std::max(edge_stretch, ratio);
   }
   max_stretch = stretch;
+  max_edge_stretch = edge_stretch;
   return stretch > parameters.max_stretch ? ClothDivergence::Stretch : ClothDivergence::None;
 }
 
@@ -365,6 +375,10 @@ const Eigen::Matrix3Xi& Cloth::triangles() const noexcept {
 const Eigen::Matrix3Xd& Cloth::restVertices() const noexcept {
   return impl_->rest;
 }
+double Cloth::maxEdgeStretch() const noexcept {
+  return impl_->max_edge_stretch;
+}
+
 double Cloth::maxStretch() const noexcept {
   return impl_->max_stretch;
 }

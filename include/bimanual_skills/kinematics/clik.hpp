@@ -156,7 +156,7 @@ class JointIndexList {
 
 /// Scratch buffers of a CLIK solver for one chain and one parameter set, sized once. n joints, m task rows.
 struct ClikData {
-  /// 	hrows std::invalid_argument for invalid parameters or a chain of more than kClikMaxJoints joints.
+  /// \throws std::invalid_argument for invalid parameters or a chain of more than kClikMaxJoints joints.
   ClikData(const ChainModel& model, const ClikParameters& parameters);
 
   ChainData kinematics;

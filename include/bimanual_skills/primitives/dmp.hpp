@@ -81,7 +81,7 @@ class Dmp {
   /// demonstration (rows = samples every dt, columns = DoF; τ its duration, g its last sample), from positions
   /// smoothed as in fit() and central differences (zero velocity and acceleration at the end samples). Not
   /// goal-scaled. What fit() regresses on the basis, and the demonstrated excitation of the DR-DMP (7.26).
-  /// 	hrows std::invalid_argument as fit().
+  /// \throws std::invalid_argument as fit().
   static Eigen::MatrixXd demonstratedForcing(const DmpParameters& parameters, const Eigen::MatrixXd& positions,
                                              double dt, double smoothing_hz = 20.0);
 

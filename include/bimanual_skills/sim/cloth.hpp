@@ -104,8 +104,12 @@ class Cloth {
   const Eigen::Matrix3Xi& triangles() const noexcept;
   /// Node positions at rest (the flat patch), world frame.
   const Eigen::Matrix3Xd& restVertices() const noexcept;
-  /// Largest link length over rest length after the last step.
+  /// Largest link length over rest length after the last step, over every Bullet link: the structural edges
+  /// between mesh neighbours, the diagonal shear links and the bending links (two nodes apart).
   double maxStretch() const noexcept;
+  /// Largest length over rest length of a structural edge (a link between neighbours along x or y of the mesh grid)
+  /// after the last step: how much the fabric itself stretches.
+  double maxEdgeStretch() const noexcept;
   /// Self-contacts (node-face) found in the last step.
   int selfContactCount() const noexcept;
 
