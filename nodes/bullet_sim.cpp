@@ -11,22 +11,31 @@
 #include "bimanual_skills/realtime/period_recorder.hpp"
 #include "bimanual_skills/realtime/triple_buffer.hpp"
 #include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
+#include "bimanual_skills/ros_layer/camera_messages.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/sim/torque_command_gate.hpp"
+#include "bimanual_skills/tasks/fold_reward.hpp"
+#include "bimanual_skills/vision/cloth_renderer.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
 #include "testing/allocation_counter.hpp"
 
+#include <cv_bridge/cv_bridge.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <ros/callback_queue.h>
 #include <ros/package.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
 #include <sensor_msgs/JointState.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
 #include <std_msgs/Float64MultiArray.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
+#include <tf2_ros/static_transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include <semaphore.h>
@@ -50,6 +59,7 @@
 namespace bs = bimanual_skills;
 namespace sim = bimanual_skills::sim;
 namespace rt = bimanual_skills::realtime;
+namespace vision = bimanual_skills::vision;
 
 namespace {
 
@@ -92,8 +102,12 @@ const std::string kUsage = std::string(
                                "  ~braking_damping      N m s/rad per joint applied when external commands are "
                                "stale\n"
                                "  ~initial_positions    map arm -> joint positions at start and after ~reset\n"
-                               "  ~marker_rate          cloth and table marker rate [Hz of simulated time] (default "
+                               "  ~marker_rate          cloth marker and ~cloth rate [Hz of simulated time] (default "
                                "30)\n"
+                               "  ~camera_rate          top-down camera images per simulated second (default 10; 0: "
+                               "no camera)\n"
+                               "  ~camera_depth_noise, ~camera_colour_noise  the camera's noise: depth [m], colour "
+                               "[levels] (0.001, 2)\n"
                                "  ~paused               start paused (default false)\n"
                                "  ~statistics_file      at exit, write the loop's periods and the times its "
                                "controllers took commands (CSV)\n"
@@ -103,7 +117,13 @@ const std::string kUsage = std::string(
                            "\n"
                            "Topics: publishes joint_states (sensor_msgs/JointState, every step; effort: the applied "
                            "torque), /clock,\n"
-                           "  ~markers (cloth TRIANGLE_LIST and table), /diagnostics (loop period, real-time factor, "
+                           "  ~markers (cloth TRIANGLE_LIST and table), ~cloth (sensor_msgs/PointCloud2: the cloth's "
+                           "nodes, world frame,\n"
+                           "  the simulator's ground truth), camera/image_raw (bgr8), camera/depth/image_raw (32FC1 "
+                           "[m]) with\n"
+                           "  camera/camera_info and camera/depth/camera_info (the orthographic top-down camera of "
+                           "the fold's reward,\n"
+                           "  frame top_down_camera on /tf_static), /diagnostics (loop period, real-time factor, "
                            "allocations per cycle);\n"
                            "  subscribes ARM/effort_command (std_msgs/Float64MultiArray) for external controllers.\n"
                            "  Each hosted controller serves ARM/command (trajectory_msgs/JointTrajectory), "
@@ -152,9 +172,15 @@ struct Arm {
 struct Snapshot {
   double time = 0.0;
   Eigen::VectorXd position, velocity, effort;  ///< All arms, in joint-name order.
-  bool with_cloth = false;
-  Eigen::Matrix3Xd cloth;
 };
+
+/// The cloth, handed to the scene thread at marker_rate.
+struct ClothFrame {
+  double time = 0.0;
+  Eigen::Matrix3Xd vertices;
+};
+
+constexpr const char* kCameraFrame = "top_down_camera";
 
 /// A service request for the loop thread; the service thread waits for `done`.
 struct Request {
@@ -184,6 +210,9 @@ class BulletSimNode {
     max_force_ = p.number("max_force", 200.0, 0.0, 1e9);
     max_torque_ = p.number("max_torque", 50.0, 0.0, 1e9);
     marker_rate_ = p.number("marker_rate", 30.0, 0.1, 1000.0);
+    camera_rate_ = p.number("camera_rate", 10.0, 0.0, 1000.0);
+    camera_noise_.depth_stddev = p.number("camera_depth_noise", camera_noise_.depth_stddev, 0.0, 1.0);
+    camera_noise_.colour_stddev = p.number("camera_colour_noise", camera_noise_.colour_stddev, 0.0, 255.0);
     paused_ = p.boolean("paused", false);
     statistics_file_ = p.text("statistics_file", "");
     const double command_timeout = p.number("command_timeout", 0.05, 1e-4, 10.0);
@@ -263,13 +292,22 @@ class BulletSimNode {
 
     Snapshot initial_snapshot;
     initial_snapshot.position = initial_snapshot.velocity = initial_snapshot.effort = Eigen::VectorXd::Zero(total);
-    if (simulation_->hasCloth()) {
-      initial_snapshot.cloth = simulation_->cloth().vertices();
-      cloth_triangles_ = simulation_->cloth().triangles();
-    }
     snapshots_ = std::make_unique<rt::TripleBuffer<Snapshot>>(initial_snapshot);
+    ClothFrame initial_frame;
+    if (simulation_->hasCloth()) {
+      initial_frame.vertices = simulation_->cloth().vertices();
+      cloth_triangles_ = simulation_->cloth().triangles();
+      if (camera_rate_ > 0.0) {
+        vision::ClothRendererParameters camera = bs::tasks::rendererFor(simulation_->config());
+        camera.noise = camera_noise_;
+        renderer_ = std::make_unique<vision::ClothRenderer>(camera);
+        camera_rng_.seed(simulation_->config().seed);
+      }
+    }
+    cloth_frames_ = std::make_unique<rt::TripleBuffer<ClothFrame>>(initial_frame);
     for (const auto& arm : arms_) names_.insert(names_.end(), arm->joint_names.begin(), arm->joint_names.end());
     sem_init(&publish_signal_, 0, 0);
+    sem_init(&scene_signal_, 0, 0);
 
     // External commands arrive on a queue and thread of their own and reach the loop through a triple buffer.
     for (std::size_t a = 0; a < arms_.size(); ++a) {
@@ -285,6 +323,15 @@ class BulletSimNode {
     joint_state_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10);
     clock_publisher_ = node_.advertise<rosgraph_msgs::Clock>("/clock", 10);
     marker_publisher_ = private_node.advertise<visualization_msgs::MarkerArray>("markers", 1, true);
+    cloth_publisher_ = private_node.advertise<sensor_msgs::PointCloud2>("cloth", 1, true);
+    if (renderer_) {
+      image_publisher_ = node_.advertise<sensor_msgs::Image>("camera/image_raw", 1);
+      info_publisher_ = node_.advertise<sensor_msgs::CameraInfo>("camera/camera_info", 1);
+      depth_publisher_ = node_.advertise<sensor_msgs::Image>("camera/depth/image_raw", 1);
+      depth_info_publisher_ = node_.advertise<sensor_msgs::CameraInfo>("camera/depth/camera_info", 1);
+      camera_frame_.sendTransform(
+          bs::ros_layer::cameraTransform(renderer_->parameters().camera, "world", kCameraFrame, ros::Time(0)));
+    }
     diagnostics_publisher_ = node_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     services_.push_back(private_node.advertiseService("reset", &BulletSimNode::onReset, this));
     services_.push_back(private_node.advertiseService("pause", &BulletSimNode::onPause, this));
@@ -301,7 +348,10 @@ class BulletSimNode {
              external_list.empty() ? " none" : external_list.c_str());
   }
 
-  ~BulletSimNode() { sem_destroy(&publish_signal_); }
+  ~BulletSimNode() {
+    sem_destroy(&publish_signal_);
+    sem_destroy(&scene_signal_);
+  }
 
   /// Runs the loop on the calling thread until shutdown; services and topics on other threads.
   void run() {
@@ -310,6 +360,7 @@ class BulletSimNode {
     services.start();
     commands.start();
     std::thread publisher([this] { publishLoop(); });
+    std::thread scene([this] { sceneLoop(); });
     if (loop_priority_ > 0) {
       const char* error = rt::requestRealtimeScheduling(loop_priority_);
       if (*error == '\0') {
@@ -323,7 +374,9 @@ class BulletSimNode {
     loop();
     running_ = false;
     sem_post(&publish_signal_);
+    sem_post(&scene_signal_);
     publisher.join();
+    scene.join();
     for (auto& request : takeRequests()) finish(*request, "the simulation is shutting down");
     interruptStepping("the simulation is shutting down");
     if (!statistics_file_.empty()) writeStatistics();
@@ -450,7 +503,7 @@ class BulletSimNode {
     }
   }
 
-  /// Hands the joint states (and at marker_rate the cloth) to the publisher thread.
+  /// Hands the joint states to the publisher thread, and at marker_rate the cloth to the scene thread.
   void publishState(bool force_cloth) {
     Snapshot& s = snapshots_->writeSlot();
     s.time = diverged_ ? divergence_time_ : simulation_->time();
@@ -463,13 +516,16 @@ class BulletSimNode {
         offset += arm->n;
       }
     }
-    s.with_cloth = simulation_->hasCloth() && (force_cloth || simulation_->time() >= next_marker_time_);
-    if (s.with_cloth) {
-      s.cloth = simulation_->cloth().vertices();
-      next_marker_time_ = simulation_->time() + 1.0 / marker_rate_;
-    }
     snapshots_->publish();
     sem_post(&publish_signal_);
+    if (simulation_->hasCloth() && (force_cloth || simulation_->time() >= next_marker_time_)) {
+      ClothFrame& frame = cloth_frames_->writeSlot();
+      frame.time = s.time;
+      frame.vertices = simulation_->cloth().vertices();
+      cloth_frames_->publish();
+      sem_post(&scene_signal_);
+      next_marker_time_ = simulation_->time() + 1.0 / marker_rate_;
+    }
   }
 
   void resetSimulation() {
@@ -518,16 +574,21 @@ class BulletSimNode {
     arm.commands_received.fetch_add(1, std::memory_order_release);  // answered, even wrongly: lockstep goes on
   }
 
+  /// Waits for the loop's signal, at most 0.1 s (so that a stopping node is seen).
+  static void waitForSignal(sem_t& signal) {
+    timespec deadline{};
+    clock_gettime(CLOCK_REALTIME, &deadline);
+    deadline.tv_nsec += 100000000;
+    if (deadline.tv_nsec >= 1000000000) deadline.tv_nsec -= 1000000000, ++deadline.tv_sec;
+    sem_timedwait(&signal, &deadline);
+  }
+
   /// Publishes what the loop handed over: /clock first, so the controllers' clocks move before the states.
   void publishLoop() {
     sensor_msgs::JointState states;
     states.name = names_;
     while (running_ && ros::ok()) {
-      timespec deadline{};
-      clock_gettime(CLOCK_REALTIME, &deadline);
-      deadline.tv_nsec += 100000000;
-      if (deadline.tv_nsec >= 1000000000) deadline.tv_nsec -= 1000000000, ++deadline.tv_sec;
-      sem_timedwait(&publish_signal_, &deadline);
+      waitForSignal(publish_signal_);
       const Snapshot* s = snapshots_->readNew();
       if (!s) continue;
       const ros::Time stamp(s->time);
@@ -539,17 +600,68 @@ class BulletSimNode {
       states.velocity.assign(s->velocity.data(), s->velocity.data() + s->velocity.size());
       states.effort.assign(s->effort.data(), s->effort.data() + s->effort.size());
       joint_state_publisher_.publish(states);
-      if (s->with_cloth || !markers_sent_) {
-        markers_sent_ = true;
-        visualization_msgs::MarkerArray markers;
-        if (simulation_->config().has_table) {
-          markers.markers.push_back(bs::nodes::tableMarker(simulation_->config().table, stamp));
-        }
-        if (simulation_->hasCloth())
-          markers.markers.push_back(bs::nodes::clothMarker(s->cloth, cloth_triangles_, stamp));
-        marker_publisher_.publish(markers);
-      }
     }
+  }
+
+  /// Publishes what the loop handed over of the cloth: the markers, ~cloth, and at camera_rate the camera's images.
+  void sceneLoop() {
+    bool first = true;
+    double next_image = 0.0, last_time = 0.0;
+    while (running_ && ros::ok()) {
+      waitForSignal(scene_signal_);
+      const ClothFrame* frame = cloth_frames_->readNew();
+      if (!frame && !first) continue;
+      if (!frame) frame = &cloth_frames_->current();
+      const ros::Time stamp(frame->time);
+      visualization_msgs::MarkerArray markers;
+      if (first && simulation_->config().has_table) {
+        markers.markers.push_back(bs::nodes::tableMarker(simulation_->config().table, stamp));
+      }
+      first = false;
+      if (!simulation_->hasCloth()) {
+        marker_publisher_.publish(markers);
+        continue;
+      }
+      markers.markers.push_back(bs::nodes::clothMarker(frame->vertices, cloth_triangles_, stamp));
+      marker_publisher_.publish(markers);
+      cloth_publisher_.publish(clothCloud(frame->vertices, stamp));
+      // An image every 1/camera_rate simulated seconds, and at once after a reset (time going back).
+      if (renderer_ && (frame->time >= next_image - 1e-9 || frame->time < last_time)) {
+        publishImages(*frame);
+        next_image = frame->time + 1.0 / camera_rate_;
+      }
+      last_time = frame->time;
+    }
+  }
+
+  /// The cloth's nodes (world frame) as a point cloud, in the simulation's node order.
+  static sensor_msgs::PointCloud2 clothCloud(const Eigen::Matrix3Xd& vertices, const ros::Time& stamp) {
+    sensor_msgs::PointCloud2 cloud;
+    cloud.header.stamp = stamp;
+    cloud.header.frame_id = "world";
+    sensor_msgs::PointCloud2Modifier modifier(cloud);
+    modifier.setPointCloud2FieldsByString(1, "xyz");
+    modifier.resize(static_cast<std::size_t>(vertices.cols()));
+    sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z");
+    for (Eigen::Index i = 0; i < vertices.cols(); ++i, ++x, ++y, ++z) {
+      *x = static_cast<float>(vertices(0, i));
+      *y = static_cast<float>(vertices(1, i));
+      *z = static_cast<float>(vertices(2, i));
+    }
+    return cloud;
+  }
+
+  /// The top-down camera's colour and depth images of `frame`, with noise, and their camera_info.
+  void publishImages(const ClothFrame& frame) {
+    if (renderer_->render(frame.vertices, cloth_triangles_, camera_rng_) != vision::VisionStatus::Ok) return;
+    std_msgs::Header header;
+    header.stamp = ros::Time(frame.time);
+    header.frame_id = kCameraFrame;
+    const sensor_msgs::CameraInfo info = bs::ros_layer::cameraInfo(renderer_->parameters().camera, header);
+    image_publisher_.publish(cv_bridge::CvImage(header, "bgr8", renderer_->bgr()).toImageMsg());
+    info_publisher_.publish(info);
+    depth_publisher_.publish(cv_bridge::CvImage(header, "32FC1", renderer_->depth()).toImageMsg());
+    depth_info_publisher_.publish(info);
   }
 
   std::vector<std::shared_ptr<Request>> takeRequests() {
@@ -836,11 +948,17 @@ class BulletSimNode {
   std::vector<std::string> names_;
   std::unique_ptr<rt::LoopPacer> pacer_;
   std::unique_ptr<rt::TripleBuffer<Snapshot>> snapshots_;
-  sem_t publish_signal_{};
+  sem_t publish_signal_{}, scene_signal_{};
+  std::unique_ptr<rt::TripleBuffer<ClothFrame>> cloth_frames_;
+  std::unique_ptr<vision::ClothRenderer> renderer_;  ///< The top-down camera (scene thread); null without one.
+  vision::RenderNoise camera_noise_;
+  std::mt19937 camera_rng_;
+  tf2_ros::StaticTransformBroadcaster camera_frame_;
   rt::PeriodRecorder periods_{200000}, cycle_times_{200000}, command_times_{10000};
   std::string statistics_file_;
   ros::CallbackQueue command_queue_;
-  ros::Publisher joint_state_publisher_, clock_publisher_, marker_publisher_, diagnostics_publisher_;
+  ros::Publisher joint_state_publisher_, clock_publisher_, marker_publisher_, diagnostics_publisher_, cloth_publisher_,
+      image_publisher_, info_publisher_, depth_publisher_, depth_info_publisher_;
   std::vector<ros::ServiceServer> services_;
   ros::SteadyTimer diagnostics_timer_;
   std::mutex requests_mutex_;
@@ -848,7 +966,7 @@ class BulletSimNode {
   std::shared_ptr<Request> stepping_;  ///< Loop thread only.
   // Settings.
   bool lockstep_ = false;
-  double lockstep_timeout_ = 0.2, realtime_factor_ = 1.0, marker_rate_ = 30.0;
+  double lockstep_timeout_ = 0.2, realtime_factor_ = 1.0, marker_rate_ = 30.0, camera_rate_ = 10.0;
   double max_step_duration_ = 60.0, max_payload_ = 4.0, max_force_ = 200.0, max_torque_ = 50.0;
   int loop_priority_ = 0;
   // Loop state (written by the loop; flags read by diagnostics).
@@ -857,7 +975,6 @@ class BulletSimNode {
   std::atomic<int> cloth_divergence_{0};
   Eigen::Matrix3Xi cloth_triangles_;  ///< Constant; copied for the publisher thread.
   double divergence_time_ = 0.0, next_marker_time_ = 0.0, next_diverged_publish_ = 0.0;
-  bool markers_sent_ = false;
   std::atomic<long> cycles_{0}, control_allocation_cycles_{0}, control_allocations_{0}, physics_allocation_cycles_{0};
   std::atomic<long> rejected_commands_{0}, lockstep_timeouts_{0};
   double last_diagnostics_wall_ = 0.0, last_diagnostics_time_ = 0.0;

@@ -6,6 +6,7 @@
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/ros_layer/camera_messages.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
 #include "bimanual_skills/ros_layer/workers/action_workers.hpp"
 #include "bimanual_skills/tasks/fold_quality.hpp"
 #include "io/summary_json.hpp"
@@ -45,6 +46,7 @@ namespace {
 const char* const kUsage =
     "usage: rosrun bimanual_skills fold_learner [_config:=FILE] [_out:=DIR] [_jobs:=N] [_replay_best:=true|false]\n"
     "                                          [_worker_namespace:=NS | _workers:=NAME,NAME,...] [_worker_timeout:=S]\n"
+    "                                          [_backend:=sim|ros [robot interface parameters]]\n"
     "\n"
     "Two simulated WAMs learn to fold a cloth (thesis Sec. 7.2.3, Table 7.5): DR-DMP policies over both tools,\n"
     "executed by CLIK and computed-torque control on the Bullet simulation, scored by eq. 7.52 on rendered top-down\n"
@@ -65,6 +67,23 @@ const char* const kUsage =
     "  ~worker_timeout  [s] a worker with a share that finishes no rollout for this long is left out and its\n"
     "                rollouts go to the others (default 60; must exceed one rollout)\n"
     "  ~share        rollouts per share sent to a worker (default 0: adaptive)\n"
+    "  ~backend      sim (default): the rollouts run in this process's own simulation (or on rollout workers);\n"
+    "                ros: one at a time on a robot through its ROS interfaces only (bullet_sim's simulated pair\n"
+    "                from sim.launch, or real arms), roslaunch bimanual_skills fold.launch backend:=ros. Each\n"
+    "                rollout: ~reset_service, both arms to the start and the policy through "
+    "ARM/follow_joint_trajectory\n"
+    "                (one goal per arm, common start), ~grasp_service closes and opens the grippers, the cloth\n"
+    "                settles, the reward scores the images of ~camera. Any failure is a failed rollout with its "
+    "reason.\n"
+    "  ~reset_service   std_srvs/Trigger that lays the cloth flat (default bullet_sim/reset; on hardware\n"
+    "                operator_prompt's ~reset)\n"
+    "  ~grasp_service   bimanual_skills/ClothGrasp of the grippers (default bullet_sim/grasp)\n"
+    "  ~arms         the arms' namespaces, left first (default [left, right])\n"
+    "  ~camera       namespace of image_raw, camera_info, depth/image_raw, depth/camera_info (default camera)\n"
+    "  ~cloth_topic  sensor_msgs/PointCloud2 of the cloth's nodes for the fold quality q (default bullet_sim/cloth;\n"
+    "                \"\": the robot has none, q is not measured)\n"
+    "  ~move_time    [s] to the start configuration (default 2); ~trajectory_rate points per second of the fold's\n"
+    "                goals (default 100); ~robot_timeout [s] longest wall-clock wait for any interface (default 30)\n"
     "\n"
     "Writes into DIR: rollouts.csv and rollout_parameters.csv (every rollout, as it finishes), epochs.csv,\n"
     "coordination.csv (final coordination matrices), summary.json (one row per algorithm and epoch), initial.png\n"
@@ -104,6 +123,10 @@ class FoldLearnerNode {
     config_ = br::FoldLearningConfig::fromYamlFile(config_path_);
     config_.jobs = parameters_.integer("jobs", config_.jobs, 0, 1024);
     std::unique_ptr<br::Evaluator> evaluator = makeDispatcher();
+    if (parameters_.text("backend", "sim", {"sim", "ros"}) == "ros") {
+      if (evaluator) throw std::invalid_argument("~backend ros runs the rollouts on the robot, not on workers");
+      evaluator = makeRobotBackend();
+    }
     parameters_.warnUnknown();
 
     cloth_publisher_ = private_node_.advertise<visualization_msgs::Marker>("cloth", 1, true);
@@ -141,8 +164,9 @@ class FoldLearnerNode {
     ROS_INFO("fold_learner: %s -> %s: %zu algorithm(s) x %d run(s) x %d update(s) x %d rollouts, seed %u, %s",
              config_path_.c_str(), out_.c_str(), config_.algorithms.size(), config_.runs, config_.updates,
              config_.rollouts, config_.seed,
-             dispatching_ ? ("rollout workers under " + workers_where_).c_str()
-                          : (std::to_string(learner_->config().jobs) + " thread(s)").c_str());
+             robot_backend_ ? "on the robot through ROS"
+             : dispatching_ ? ("rollout workers under " + workers_where_).c_str()
+                            : (std::to_string(learner_->config().jobs) + " thread(s)").c_str());
     start_ = std::chrono::steady_clock::now();
     const br::FoldLearningResult result = learner_->learn();
     ROS_INFO("fold_learner: %d rollouts simulated and %d read from %s in %s", result.simulated, result.resumed,
@@ -216,6 +240,25 @@ class FoldLearnerNode {
     workers_where_ = selection.names.empty() ? selection.space : "~workers";
     return std::make_unique<br::Dispatcher>(std::make_unique<bs::ros_layer::ActionWorkerDirectory>(selection),
                                             br::FoldRolloutTask::kTerms, dispatch);
+  }
+
+  /// The rollouts on the robot through ROS, one at a time.
+  std::unique_ptr<br::Evaluator> makeRobotBackend() {
+    bs::ros_layer::FoldRobotInterfaces robot;
+    robot.reset_service = parameters_.text("reset_service", robot.reset_service);
+    robot.grasp_service = parameters_.text("grasp_service", robot.grasp_service);
+    robot.arms = parameters_.texts("arms", robot.arms);
+    robot.camera = parameters_.text("camera", robot.camera);
+    robot.cloth = parameters_.text("cloth_topic", robot.cloth);
+    robot.move_time = parameters_.number("move_time", robot.move_time, 0.1, 60.0);
+    robot.trajectory_rate = parameters_.number("trajectory_rate", robot.trajectory_rate, 1.0, 1000.0);
+    robot.timeout = parameters_.number("robot_timeout", robot.timeout, 0.1, 3600.0);
+    robot.validate();
+    robot_backend_ = true;
+    const br::FoldLearningConfig config = config_;
+    return std::make_unique<br::ParallelEvaluator>(
+        [config, robot] { return std::make_unique<bs::ros_layer::FoldOnRobotTask>(config.task, config.reward, robot); },
+        1);
   }
 
   void onBatch(const br::DispatchStats& s) {
@@ -556,7 +599,7 @@ class FoldLearnerNode {
   std::deque<Paths> paths_;
   std::chrono::steady_clock::time_point start_;
   int done_ = 0, resumed_ = 0, total_ = 0;
-  bool dispatching_ = false;
+  bool dispatching_ = false, robot_backend_ = false;
   std::string workers_where_;
   std::size_t workers_lost_ = 0, redispatched_ = 0;
 };

@@ -61,6 +61,38 @@ TEST(ClothFold, TheDemonstrationFoldsTheClothRepeatably) {
   EXPECT_EQ(first.acceleration_cost, second.acceleration_cost);
 }
 
+TEST(ClothFold, ThePlanHoldsTheReferencesTheRolloutFollows) {
+  bt::ClothFoldTask task(config());
+  const std::vector<Eigen::MatrixXd> identity{
+      Eigen::MatrixXd::Identity(bt::ClothFoldTask::kDofs, bt::ClothFoldTask::kDofs)};
+  const bt::FoldPlan plan = task.plan(identity, task.demonstrationParameters());
+  ASSERT_EQ(plan.outcome, bt::FoldOutcome::Ok) << plan.reason;
+  const bt::FoldRollout rollout = task.run(identity, task.demonstrationParameters());
+  ASSERT_EQ(rollout.outcome, bt::FoldOutcome::Ok) << rollout.reason;
+  // Open-loop references: the same acceleration cost and IK error as the simulated rollout, bit for bit.
+  EXPECT_EQ(plan.acceleration_cost, rollout.acceleration_cost);
+  EXPECT_EQ(plan.max_ik_error, rollout.max_ik_error);
+  ASSERT_EQ(plan.position.size(), 2u);
+  const Eigen::Index periods = plan.position[0].cols();
+  EXPECT_EQ(periods, static_cast<Eigen::Index>(std::lround(rollout.simulated_seconds / plan.dt)));
+  EXPECT_GT(plan.release, plan.move_start);
+  for (int arm = 0; arm < 2; ++arm) {
+    // Starts at the start configuration, and the arm tracked it to the end (the measured joints at the last sample).
+    EXPECT_LT((plan.position[arm].col(0) - task.startPositions()[arm]).cwiseAbs().maxCoeff(), 1e-3);
+    const Eigen::MatrixXd& measured = rollout.joint_path[static_cast<std::size_t>(arm)];
+    EXPECT_LT((plan.position[arm].col(periods - 1) - measured.col(measured.cols() - 1)).cwiseAbs().maxCoeff(), 0.05);
+    // Velocities are the references' differences.
+    const Eigen::Index k = plan.move_start + 500;
+    EXPECT_NEAR((plan.position[arm].col(k) - plan.position[arm].col(k - 1)).norm() / plan.dt,
+                plan.velocity[arm].col(k).norm(), 1e-9);
+  }
+  // The ground truth of a mesh, as the rollout computed it.
+  EXPECT_EQ(task.foldQualityOf(rollout.cloth_vertices).q, rollout.fold.q);
+  Eigen::VectorXd theta = task.demonstrationParameters();
+  theta[3] = std::nan("");
+  EXPECT_EQ(task.plan(identity, theta).outcome, bt::FoldOutcome::InvalidPolicy);
+}
+
 TEST(ClothFold, ParametersRoundTrip) {
   bt::ClothFoldTask task(config());
   const auto dmps = task.dmps(task.demonstrationParameters());

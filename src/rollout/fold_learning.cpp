@@ -385,7 +385,8 @@ struct FoldLearner::Impl {
     evaluator->evaluate(
         requests,
         [&](std::size_t n, const RolloutResult& result, RolloutTask* task) {
-          auto* fold = static_cast<FoldRolloutTask*>(task);
+          // A task of another kind (e.g. one on a robot) gives its terms in the result only.
+          auto* fold = dynamic_cast<FoldRolloutTask*>(task);
           FoldRolloutRecord& rec = batch[pending[n]];
           rec.terms = fold ? fold->lastTerms() : FoldRolloutTask::termsOf(result);
           rec.reason = result.reason;

@@ -44,6 +44,10 @@ bool FoldRolloutTask::decode(const Eigen::VectorXd& parameters, int dofs, int ke
 }
 
 std::vector<std::string> FoldRolloutTask::termNames() const {
+  return names();
+}
+
+std::vector<std::string> FoldRolloutTask::names() {
   return {"r_acceleration", "r_color", "r_depth",      "fill_ratio",    "mean_gradient",
           "area_ratio",     "aspect",  "fold_quality", "fold_distance", "fold_displacement"};
 }
@@ -92,16 +96,19 @@ RolloutResult FoldRolloutTask::run(const Eigen::VectorXd& parameters, std::uint3
                    std::to_string(task_.config().kernels) + " kernels";
   }
   last_terms_ = score(last_, seed);
-  const tasks::FoldRewardTerms& t = last_terms_;
+  return resultOf(last_terms_, last_.reason, last_.actual_path);
+}
+
+RolloutResult FoldRolloutTask::resultOf(const tasks::FoldRewardTerms& t, const std::string& reason,
+                                        const std::vector<Eigen::Matrix3Xd>& paths) {
   RolloutResult result;
   result.reward = t.reward;
   result.terms.resize(kTerms);
   result.terms << t.r_acceleration, t.r_color, t.r_depth, t.fill_ratio, t.mean_gradient, t.area_ratio, t.aspect,
       t.fold_quality, t.fold_distance, t.fold_displacement;
-  result.ok = last_.outcome == tasks::FoldOutcome::Ok;
-  result.outcome = tasks::toString(last_.outcome);
-  result.reason = last_.reason;
-  const std::vector<Eigen::Matrix3Xd>& paths = last_.actual_path;
+  result.ok = t.outcome == tasks::FoldOutcome::Ok;
+  result.outcome = tasks::toString(t.outcome);
+  result.reason = reason;
   const bool summarised = !paths.empty() && std::all_of(paths.begin(), paths.end(), [&](const Eigen::Matrix3Xd& p) {
     return p.cols() == paths.front().cols();
   });

@@ -31,6 +31,95 @@ constexpr double kAccelerationDeadBand = 1e-3;
 /// Samples per second of the scripted demonstration the DMPs are fitted to.
 constexpr double kDemonstrationRate = 100.0;
 
+/// The coordinated forcing terms of both arms: a 12-DoF DR-DMP whose own transformation system is not used.
+/// Null, with `reason`, when the policy does not fit.
+std::unique_ptr<primitives::DrDmp> makeForcing(const std::vector<Eigen::MatrixXd>& coordination,
+                                               const Eigen::VectorXd& latent_weights,
+                                               const primitives::DmpParameters& dmp, int kernels, double duration,
+                                               std::string& reason) {
+  bool finite = latent_weights.allFinite();
+  for (const Eigen::MatrixXd& omega : coordination) finite = finite && omega.allFinite();
+  try {
+    if (!finite) throw std::invalid_argument("non-finite coordination or weights");
+    primitives::DrDmpParameters parameters;
+    parameters.dmp = dmp;
+    parameters.matrices = static_cast<int>(coordination.size());
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(ClothFoldTask::kDofs);
+    return std::make_unique<primitives::DrDmp>(parameters, coordination, latent_weights, zero, zero, duration);
+  } catch (const std::invalid_argument& e) {
+    reason = std::string("the coordinated policy does not fit 12 DoF and ") + std::to_string(kernels) +
+             " kernels: " + e.what();
+    return nullptr;
+  }
+}
+
+/// The joint references of a rollout, period by period: the two DMPs driven by the forcing terms while the
+/// movement runs, followed by one CLIK step per period from the start configuration, and ∫ ‖q̈_ref‖² dt. Open loop
+/// (nothing measured enters), so a rollout's references can be computed before it runs (ClothFoldTask::plan) or
+/// as it runs, with the same result.
+struct ReferenceGenerator {
+  ReferenceGenerator(const std::vector<CartesianDmp>& dmps, std::unique_ptr<primitives::DrDmp> forcing,
+                     const std::vector<Eigen::VectorXd>& start_q, double dt)
+      : dmps(dmps),
+        forcing(std::move(forcing)),
+        forcing_state(this->forcing->initialState()),
+        dmp_state{dmps[0].initialState(), dmps[1].initialState()},
+        q_ref(start_q),
+        qd_ref(2, Eigen::VectorXd::Zero(start_q.front().size())),
+        qdd_ref(qd_ref),
+        q_next(q_ref),
+        qd_next(qd_ref),
+        dt(dt) {}
+
+  /// The forcing terms' period (only while the movement runs); false when they are not finite.
+  bool stepForcing(bool moving) {
+    return !moving || forcing->step(forcing_state, dt) == primitives::DmpStatus::Success;
+  }
+
+  /// Arm `arm`'s period: its DMP (while moving), then one CLIK step towards the DMP's pose in the arm's base frame
+  /// `base`. Ok, or the outcome and `reason` of a failure.
+  FoldOutcome stepArm(int arm, bool moving, const kinematics::ChainModel& model, const kinematics::ClikParameters& p,
+                      const Eigen::Isometry3d& base, kinematics::ClikData& clik, double max_error,
+                      std::string& reason) {
+    const auto a = static_cast<std::size_t>(arm);
+    if (moving && dmps[a].step(dmp_state[a], dt, forcing_state.forcing.segment<6>(6 * arm)) ==
+                      primitives::DmpStatus::InvalidInput) {
+      reason = "the DMP of arm " + std::to_string(arm) + " produced an invalid state";
+      return FoldOutcome::IkFailed;
+    }
+    Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+    target.translation() = dmp_state[a].position.y;
+    target.linear() = dmp_state[a].orientation.toRotationMatrix();
+    target = base.inverse() * target;
+    if (kinematics::step(model, p, clik, q_ref[a], target) != kinematics::IkStatus::StepComputed) {
+      reason = "CLIK failed on arm " + std::to_string(arm);
+      return FoldOutcome::IkFailed;
+    }
+    const double ik_error = clik.error.head<3>().norm();
+    max_ik_error = std::max(max_ik_error, ik_error);
+    if (ik_error > max_error) {
+      reason =
+          "arm " + std::to_string(arm) + "'s references are " + std::to_string(ik_error) + " m from the DMP's pose";
+      return FoldOutcome::IkFailed;
+    }
+    q_next[a] = q_ref[a] + clik.dq;
+    qd_next[a] = (q_next[a] - q_ref[a]) / dt;
+    qdd_ref[a] = (qd_next[a] - qd_ref[a]) / dt;
+    acceleration_cost += qdd_ref[a].squaredNorm() * dt;
+    q_ref[a] = q_next[a];
+    qd_ref[a] = qd_next[a];
+    return FoldOutcome::Ok;
+  }
+
+  const std::vector<CartesianDmp>& dmps;
+  std::unique_ptr<primitives::DrDmp> forcing;
+  primitives::DrDmpState forcing_state;
+  std::array<CartesianDmpState, 2> dmp_state;
+  std::vector<Eigen::VectorXd> q_ref, qd_ref, qdd_ref, q_next, qd_next;
+  double dt;
+  double acceleration_cost = 0.0, max_ik_error = 0.0;
+};
+
 }  // namespace
 
 const char* toString(FoldOutcome outcome) noexcept {
@@ -47,6 +136,8 @@ const char* toString(FoldOutcome outcome) noexcept {
       return "ControllerFailed";
     case FoldOutcome::SimulationDiverged:
       return "SimulationDiverged";
+    case FoldOutcome::RobotFailed:
+      return "RobotFailed";
   }
   return "Unknown";
 }
@@ -54,7 +145,7 @@ const char* toString(FoldOutcome outcome) noexcept {
 FoldOutcome foldOutcomeFromString(const std::string& text, const std::string& where) {
   for (const FoldOutcome outcome :
        {FoldOutcome::Ok, FoldOutcome::InvalidPolicy, FoldOutcome::GraspFailed, FoldOutcome::IkFailed,
-        FoldOutcome::ControllerFailed, FoldOutcome::SimulationDiverged}) {
+        FoldOutcome::ControllerFailed, FoldOutcome::SimulationDiverged, FoldOutcome::RobotFailed}) {
     if (text == toString(outcome)) return outcome;
   }
   throw std::invalid_argument(where + ": unknown outcome '" + text + "'");
@@ -313,26 +404,12 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   Impl& m = *impl_;
   FoldRollout out;
   const auto wall_start = std::chrono::steady_clock::now();
-  const std::vector<CartesianDmp>& dmps = m.demonstration;
-  // The forcing terms of both arms: a 12-DoF DR-DMP whose own transformation system is not used.
-  std::unique_ptr<primitives::DrDmp> forcing;
-  bool finite = latent_weights.allFinite();
-  for (const Eigen::MatrixXd& omega : coordination) finite = finite && omega.allFinite();
-  try {
-    if (!finite) throw std::invalid_argument("non-finite coordination or weights");
-    primitives::DrDmpParameters parameters;
-    parameters.dmp = dmpParameters();
-    parameters.matrices = static_cast<int>(coordination.size());
-    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(kDofs);
-    forcing =
-        std::make_unique<primitives::DrDmp>(parameters, coordination, latent_weights, zero, zero, m.config.duration);
-  } catch (const std::invalid_argument& e) {
+  std::unique_ptr<primitives::DrDmp> forcing =
+      makeForcing(coordination, latent_weights, dmpParameters(), m.config.kernels, m.config.duration, out.reason);
+  if (!forcing) {
     out.outcome = FoldOutcome::InvalidPolicy;
-    out.reason = std::string("the coordinated policy does not fit 12 DoF and ") + std::to_string(m.config.kernels) +
-                 " kernels: " + e.what();
     return out;
   }
-  primitives::DrDmpState forcing_state = forcing->initialState();
   // A new simulation and new controllers for every rollout: after reset() a simulation whose cloth was grasped
   // differs from a new one in the last bits, which the contacts amplify (0.6 mm on the cloth after a fold), and the
   // CLIK data and controllers carry state from the last rollout; new ones make rollouts repeatable bit for bit
@@ -355,9 +432,8 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
 
   const double dt = simulation.stepSize();
   const int n = 7;
-  std::array<CartesianDmpState, 2> dmp_state = {dmps[0].initialState(), dmps[1].initialState()};
-  std::vector<Eigen::VectorXd> q_ref = m.start_q, qd_ref(2, Eigen::VectorXd::Zero(n)), qdd_ref = qd_ref;
-  std::vector<Eigen::VectorXd> q_next = q_ref, qd_next = qd_ref;
+  ReferenceGenerator references(m.demonstration, std::move(forcing), m.start_q, dt);
+  std::vector<Eigen::VectorXd>&q_ref = references.q_ref, &qd_ref = references.qd_ref, &qdd_ref = references.qdd_ref;
   std::vector<sim::JointState> measured(2, sim::JointState(n));
   Eigen::VectorXd torque(n), accel_sign(n);
   std::vector<Eigen::VectorXd> applied(2, Eigen::VectorXd::Zero(n));  // torque of the last period, per arm
@@ -386,7 +462,7 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
       for (int arm = 0; arm < 2; ++arm) (void)simulation.release(arm);
     }
     const bool moving = k >= move_start && k < move_end;
-    if (moving && forcing->step(forcing_state, dt) != primitives::DmpStatus::Success) {
+    if (!references.stepForcing(moving)) {
       fail(FoldOutcome::InvalidPolicy, "the coordinated forcing terms are not finite");
       break;
     }
@@ -397,35 +473,15 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
     }
     for (int arm = 0; arm < 2 && out.outcome == FoldOutcome::Ok; ++arm) {
       const auto a = static_cast<std::size_t>(arm);
-      const kinematics::ChainModel& model = simulation.armModel(arm);
-      // Reference: the DMP's pose (held before and after the movement), followed by one CLIK step per period.
-      if (moving && dmps[a].step(dmp_state[a], dt, forcing_state.forcing.segment<6>(6 * arm)) ==
-                        primitives::DmpStatus::InvalidInput) {
-        fail(FoldOutcome::IkFailed, "the DMP of arm " + std::to_string(arm) + " produced an invalid state");
-        break;
-      }
-      Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
-      target.translation() = dmp_state[a].position.y;
-      target.linear() = dmp_state[a].orientation.toRotationMatrix();
-      target = simulation.basePose(arm).inverse() * target;
       kinematics::ClikData& clik = m.clik[a];
-      if (kinematics::step(model, m.clik_parameters, clik, q_ref[a], target) != kinematics::IkStatus::StepComputed) {
-        fail(FoldOutcome::IkFailed, "CLIK failed on arm " + std::to_string(arm));
+      // Reference: the DMP's pose (held before and after the movement), followed by one CLIK step per period.
+      std::string reason;
+      const FoldOutcome planned = references.stepArm(arm, moving, simulation.armModel(arm), m.clik_parameters,
+                                                     simulation.basePose(arm), clik, m.config.max_ik_error, reason);
+      if (planned != FoldOutcome::Ok) {
+        fail(planned, reason);
         break;
       }
-      const double ik_error = clik.error.head<3>().norm();
-      out.max_ik_error = std::max(out.max_ik_error, ik_error);
-      if (ik_error > m.config.max_ik_error) {
-        fail(FoldOutcome::IkFailed,
-             "arm " + std::to_string(arm) + "'s references are " + std::to_string(ik_error) + " m from the DMP's pose");
-        break;
-      }
-      q_next[a] = q_ref[a] + clik.dq;
-      qd_next[a] = (q_next[a] - q_ref[a]) / dt;
-      qdd_ref[a] = (qd_next[a] - qd_ref[a]) / dt;
-      out.acceleration_cost += qdd_ref[a].squaredNorm() * dt;
-      q_ref[a] = q_next[a];
-      qd_ref[a] = qd_next[a];
 
       // The controller on the measured state.
       sim::JointState& state = measured[a];
@@ -457,6 +513,8 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
     if (status == sim::SimStatus::ArmDiverged) fail(FoldOutcome::SimulationDiverged, "an arm diverged");
     if (status == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the cloth diverged");
   }
+  out.acceleration_cost = references.acceleration_cost;
+  out.max_ik_error = references.max_ik_error;
 
   // A failure may stop the loop between the arms: keep the samples both arms have.
   const std::size_t samples = std::min({path_times.size(), commanded[0].size(), commanded[1].size()});
@@ -485,6 +543,74 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   out.simulated_seconds = simulation.time();
   out.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   return out;
+}
+
+FoldPlan ClothFoldTask::plan(const std::vector<Eigen::MatrixXd>& coordination,
+                             const Eigen::VectorXd& latent_weights) const {
+  const Impl& m = *impl_;
+  FoldPlan out;
+  const sim::BimanualSimulation& simulation = *m.simulation;
+  out.dt = simulation.stepSize();
+  std::unique_ptr<primitives::DrDmp> forcing =
+      makeForcing(coordination, latent_weights, dmpParameters(), m.config.kernels, m.config.duration, out.reason);
+  if (!forcing) {
+    out.outcome = FoldOutcome::InvalidPolicy;
+    return out;
+  }
+  // The same periods as run(): hold, move, hold, then settle after the release.
+  out.move_start = static_cast<int>(std::lround(m.config.hold_before / out.dt));
+  const int move_end = out.move_start + static_cast<int>(std::lround(m.config.duration / out.dt));
+  out.release = move_end + static_cast<int>(std::lround(m.config.hold_after / out.dt));
+  const int steps = out.release + static_cast<int>(std::lround(m.config.settle / out.dt));
+  ReferenceGenerator references(m.demonstration, std::move(forcing), m.start_q, out.dt);
+  std::vector<kinematics::ClikData> clik;
+  for (int arm = 0; arm < 2; ++arm) {
+    clik.emplace_back(simulation.armModel(arm), m.clik_parameters);
+    out.position.emplace_back(7, steps);
+    out.velocity.emplace_back(7, steps);
+    out.acceleration.emplace_back(7, steps);
+  }
+  for (int k = 0; k < steps; ++k) {
+    const bool moving = k >= out.move_start && k < move_end;
+    if (!references.stepForcing(moving)) {
+      out.outcome = FoldOutcome::InvalidPolicy;
+      out.reason = "the coordinated forcing terms are not finite";
+      break;
+    }
+    for (int arm = 0; arm < 2 && out.outcome == FoldOutcome::Ok; ++arm) {
+      const auto a = static_cast<std::size_t>(arm);
+      out.outcome = references.stepArm(arm, moving, simulation.armModel(arm), m.clik_parameters,
+                                       simulation.basePose(arm), clik[a], m.config.max_ik_error, out.reason);
+      out.position[a].col(k) = references.q_ref[a];
+      out.velocity[a].col(k) = references.qd_ref[a];
+      out.acceleration[a].col(k) = references.qdd_ref[a];
+    }
+    if (out.outcome != FoldOutcome::Ok) {
+      out.reason += " at t = " + std::to_string(k * out.dt) + " s";
+      break;
+    }
+  }
+  out.acceleration_cost = references.acceleration_cost;
+  out.max_ik_error = references.max_ik_error;
+  return out;
+}
+
+const std::vector<Eigen::VectorXd>& ClothFoldTask::startPositions() const noexcept {
+  return impl_->start_q;
+}
+
+const kinematics::ChainModel& ClothFoldTask::armModel(int arm) const {
+  return impl_->simulation->armModel(arm);
+}
+
+Eigen::Isometry3d ClothFoldTask::basePose(int arm) const {
+  return impl_->simulation->basePose(arm);
+}
+
+FoldQuality ClothFoldTask::foldQualityOf(const Eigen::Matrix3Xd& vertices) const {
+  const sim::Cloth& cloth = impl_->simulation->cloth();
+  const sim::ClothParameters& p = cloth.parameters();
+  return foldQuality(vertices, cloth.restVertices(), p.nodes_x, p.nodes_y, p.thickness);
 }
 
 }  // namespace bimanual_skills::tasks

@@ -41,10 +41,19 @@ FoldReward::FoldReward(const FoldRewardConfig& config, double flat_area)
 }
 
 FoldRewardTerms FoldReward::evaluate(const FoldRollout& rollout, std::mt19937& rng) {
-  FoldRewardTerms t;
-  t.outcome = rollout.outcome;
   renderer_.render(rollout.cloth_vertices, rollout.cloth_triangles, rng);
-  const vision::ImageRewardTerms image = image_.evaluate(renderer_.bgr(), renderer_.depth());
+  FoldRewardTerms t = evaluateImages(rollout.outcome, rollout.acceleration_cost, renderer_.bgr(), renderer_.depth());
+  t.fold_quality = rollout.fold.q;
+  t.fold_distance = rollout.fold.distance;
+  t.fold_displacement = rollout.fold.displacement;
+  return t;
+}
+
+FoldRewardTerms FoldReward::evaluateImages(FoldOutcome outcome, double acceleration_cost, const cv::Mat& bgr,
+                                           const cv::Mat& depth) {
+  FoldRewardTerms t;
+  t.outcome = outcome;
+  const vision::ImageRewardTerms image = image_.evaluate(bgr, depth);
   const vision::FoldFacts facts = image_.foldFacts(image_.mask(), flat_area_);
   t.vision = image.status;
   t.r_color = image.r_color;
@@ -53,11 +62,8 @@ FoldRewardTerms FoldReward::evaluate(const FoldRollout& rollout, std::mt19937& r
   t.mean_gradient = image.depth.mean_gradient;
   t.area_ratio = facts.area_ratio;
   t.aspect = facts.aspect;
-  t.r_acceleration = config_.acceleration_weight * rollout.acceleration_cost;
-  t.fold_quality = rollout.fold.q;
-  t.fold_distance = rollout.fold.distance;
-  t.fold_displacement = rollout.fold.displacement;
-  t.reward = rollout.outcome == FoldOutcome::Ok ? -t.r_acceleration + image.reward() : config_.failure_reward;
+  t.r_acceleration = config_.acceleration_weight * acceleration_cost;
+  t.reward = outcome == FoldOutcome::Ok ? -t.r_acceleration + image.reward() : config_.failure_reward;
   if (!std::isfinite(t.reward)) t.reward = config_.failure_reward;
   return t;
 }

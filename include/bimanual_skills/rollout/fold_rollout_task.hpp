@@ -27,12 +27,17 @@ class FoldRolloutTask : public RolloutTask {
   /// r_acceleration, r_color, r_depth, fill_ratio, mean_gradient, area_ratio, aspect, fold_quality, fold_distance,
   /// fold_displacement (tasks::FoldRewardTerms).
   std::vector<std::string> termNames() const override;
+  static std::vector<std::string> names();
   static constexpr std::size_t kTerms = 10;
   /// The demonstration: one coordination matrix Ω = I, the demonstration's weights.
   Eigen::VectorXd initialParameters() const override;
   /// The terms of a result of run() (e.g. one that ran on a rollout worker); the vision status is not part of it.
   /// \throws std::invalid_argument for a result with other terms or an unknown outcome.
   static tasks::FoldRewardTerms termsOf(const RolloutResult& result);
+  /// A result as run() gives it: the rollout's terms (their outcome and reward), its reason, and the tool paths
+  /// (world, per arm) as its trajectory summary when every arm has the same number of samples.
+  static RolloutResult resultOf(const tasks::FoldRewardTerms& terms, const std::string& reason,
+                                const std::vector<Eigen::Matrix3Xd>& paths);
   /// The tool paths (world, per arm) of a result of run(): its trajectory summary, the arms' 3 rows each; none when
   /// it holds no such summary.
   static std::vector<Eigen::Matrix3Xd> toolPaths(const RolloutResult& result);

@@ -12,6 +12,7 @@
 #include "bimanual_skills/tasks/fold_quality.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <cstdint>
 #include <memory>
@@ -50,6 +51,7 @@ enum class FoldOutcome {
   IkFailed,            ///< The CLIK references could not follow the DMP (task error beyond max_ik_error).
   ControllerFailed,    ///< Tracking error beyond max_tracking_error (or an invalid controller input).
   SimulationDiverged,  ///< The arms or the cloth left their bounds (NaN, speeds, stretch).
+  RobotFailed,         ///< A robot interface failed or did not answer in time (a service, an action, a topic).
 };
 const char* toString(FoldOutcome outcome) noexcept;
 /// The inverse of toString(). \throws std::invalid_argument naming `where` for an unknown name.
@@ -72,6 +74,19 @@ struct FoldRollout {
   Eigen::Matrix3Xd cloth_rest_vertices;
   FoldQuality fold;  ///< The final cloth's fold quality (ground truth, fold_quality.hpp).
   double simulated_seconds = 0.0, wall_seconds = 0.0;
+};
+
+/// A rollout's joint references computed before it runs (ClothFoldTask::plan): what run() computes period by
+/// period, for a robot that takes whole trajectories. Column k of each matrix is the reference of period k
+/// (t = k dt after the grasp), over the hold, the movement, the hold, the release and the settling.
+struct FoldPlan {
+  FoldOutcome outcome = FoldOutcome::Ok;  ///< Ok, InvalidPolicy or IkFailed.
+  std::string reason;
+  double dt = 0.0;                  ///< [s]
+  int move_start = 0, release = 0;  ///< Periods at which the movement starts, the grippers open.
+  std::vector<Eigen::MatrixXd> position, velocity, acceleration;  ///< Per arm, 7 × periods (up to a failure).
+  double acceleration_cost = 0.0;                                 ///< As FoldRollout::acceleration_cost.
+  double max_ik_error = 0.0;                                      ///< [m]
 };
 
 /// The task. Construction builds the simulation, controllers and the demonstration (allocates, throws
@@ -106,6 +121,17 @@ class ClothFoldTask {
   /// seed: the same policy and seed give the same rollout).
   FoldRollout run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights,
                   std::uint32_t seed);
+
+  /// The joint references run() would follow for this policy (same values), without simulating: for a robot that
+  /// executes the rollout through its own interfaces.
+  FoldPlan plan(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights) const;
+  /// Each arm's joint positions at the start of the fold (the tools at the cloth's far corners).
+  const std::vector<Eigen::VectorXd>& startPositions() const noexcept;
+  /// Arm `arm`'s kinematic model and its base in the world (0 left, 1 right). \throws std::out_of_range.
+  const kinematics::ChainModel& armModel(int arm) const;
+  Eigen::Isometry3d basePose(int arm) const;
+  /// The fold quality of a cloth mesh of this task's cloth (world frame, its nodes in the simulation's order).
+  FoldQuality foldQualityOf(const Eigen::Matrix3Xd& vertices) const;
 
   /// The DoF of the policy's forcing terms: 2 arms × (position + orientation vector).
   static constexpr int kDofs = 12;

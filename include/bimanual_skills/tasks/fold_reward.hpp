@@ -59,6 +59,11 @@ class FoldReward {
   /// Renders the rollout's final cloth with noise drawn from `rng` and evaluates (7.52). A rollout without a
   /// cloth mesh renders the empty table.
   FoldRewardTerms evaluate(const FoldRollout& rollout, std::mt19937& rng);
+  /// (7.52) on images a camera took (colour bgr8 and depth 32FC1 in metres, of config().renderer.camera's size;
+  /// other images give the vision status of vision::ImageReward and a failed image term) for a rollout that ended
+  /// with `outcome` and ∫ ‖q̈_ref‖² dt = `acceleration_cost`. The fold quality terms stay 0.
+  FoldRewardTerms evaluateImages(FoldOutcome outcome, double acceleration_cost, const cv::Mat& bgr,
+                                 const cv::Mat& depth);
 
   const FoldRewardConfig& config() const noexcept { return config_; }
   /// The images of the last evaluate(): colour (bgr8) and depth (32FC1, metres).

@@ -1,0 +1,103 @@
+/// \file
+/// The cloth fold as a rollout::RolloutTask that runs on a robot through ROS interfaces only, what a pair of real
+/// arms with grippers and a camera provides (bullet_sim provides the same for the simulation):
+///   - reset the scene: a std_srvs/Trigger service (bullet_sim's ~reset; on hardware the operator_prompt node, which
+///     waits for a person to lay the cloth flat);
+///   - both arms: each a FollowJointTrajectory action ARM/follow_joint_trajectory and its controller state ARM/state
+///     (bimanual_skills/JointTrajectoryControllerState);
+///   - the grippers: a bimanual_skills/ClothGrasp service (bullet_sim's ~grasp);
+///   - the camera: colour (bgr8) and depth (32FC1, metres) sensor_msgs/Image with their sensor_msgs/CameraInfo;
+///   - optionally the cloth's ground truth (sensor_msgs/PointCloud2 of its nodes, bullet_sim's ~cloth) for the fold
+///     quality q; without it q is not measured (NaN).
+/// One rollout: reset, move both arms to the fold's start, grasp, run the policy's joint references (the DMPs through
+/// CLIK, tasks::ClothFoldTask::plan, identical to the in-process task's) as one trajectory goal per arm with a common
+/// start time, release, let the cloth settle, and score the camera's images with (7.52) (tasks::FoldReward). Any
+/// failure (a goal aborted or out of tolerance, a service that fails, a timeout, no image) ends the rollout with its
+/// outcome, a reason and the failure reward; nothing hangs: every wait has a wall-clock limit. Target
+/// bimanual_skills_ros_robot. Offline: allocates; one object per thread.
+#pragma once
+
+#include "bimanual_skills/FollowJointTrajectoryAction.h"
+#include "bimanual_skills/JointTrajectoryControllerState.h"
+#include "bimanual_skills/rollout/parallel_evaluator.hpp"
+#include "bimanual_skills/tasks/cloth_fold.hpp"
+#include "bimanual_skills/tasks/fold_reward.hpp"
+
+#include <actionlib/client/simple_action_client.h>
+#include <ros/callback_queue.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::ros_layer {
+
+/// Where the robot's interfaces are and how long a rollout may wait for them (fold_learner's ~ros_* parameters).
+struct FoldRobotInterfaces {
+  std::string reset_service = "bullet_sim/reset";     ///< std_srvs/Trigger
+  std::string grasp_service = "bullet_sim/grasp";     ///< bimanual_skills/ClothGrasp
+  std::vector<std::string> arms = {"left", "right"};  ///< Namespaces of the arms' actions and states, left first.
+  std::string camera = "camera";           ///< CAMERA/image_raw, CAMERA/camera_info, CAMERA/depth/image_raw, ...
+  std::string cloth = "bullet_sim/cloth";  ///< Ground truth of the cloth; "" when the robot has none.
+  double move_time = 2.0;                  ///< To the fold's start configuration [s of the robot's clock].
+  double trajectory_rate = 100.0;          ///< Points per second of the fold's trajectory goals.
+  double start_delay = 0.2;                ///< From sending the fold's goals to their common start [s].
+  double timeout = 30.0;                   ///< Longest wall-clock wait for any one interface [s].
+
+  /// \throws std::invalid_argument naming the field that is out of range.
+  void validate() const;
+};
+
+class FoldOnRobotTask : public rollout::RolloutTask {
+ public:
+  /// Builds the task (the policy's encoding and references as rollout::FoldRolloutTask), connects to the
+  /// interfaces and waits up to `robot.timeout` for the actions. \throws std::invalid_argument for a bad
+  /// configuration, std::runtime_error when an action server does not appear.
+  FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks::FoldRewardConfig& reward,
+                  const FoldRobotInterfaces& robot);
+  ~FoldOnRobotTask() override;
+
+  std::vector<std::string> termNames() const override;
+  Eigen::VectorXd initialParameters() const override;
+  /// One rollout on the robot. The seed does not enter (the robot has its own noise): the same policy gives a
+  /// statistically, not bitwise, equal rollout. Its trajectory summary holds the measured tool paths, 3 rows per arm.
+  rollout::RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override;
+
+  /// The largest joint tracking error the arms' controllers reported during the last rollout's fold [rad].
+  double lastTrackingError() const noexcept { return last_tracking_error_; }
+
+ private:
+  struct Arm;
+  struct Failure;
+  /// The steps of a rollout; each throws Failure.
+  void reset();
+  void moveToStart();
+  void grasp(bool close);
+  void fold(const tasks::FoldPlan& plan);
+  void waitUntil(const ros::Time& time, const char* what);
+  void waitForGoal(Arm& arm, const std::string& what);
+  tasks::FoldRewardTerms observe(const ros::Time& after, double acceleration_cost);
+  template <typename Done>
+  void waitFor(const Done& done, const std::string& what);
+
+  tasks::ClothFoldTask task_;
+  tasks::FoldReward reward_;
+  FoldRobotInterfaces robot_;
+  ros::CallbackQueue queue_;
+  std::unique_ptr<ros::NodeHandle> node_;
+  std::unique_ptr<ros::AsyncSpinner> spinner_;
+  std::vector<std::unique_ptr<Arm>> arms_;
+  ros::Subscriber image_sub_, depth_sub_, info_sub_, cloth_sub_;
+  std::mutex mutex_;  ///< Guards the latest messages below (written by the spinner's threads).
+  sensor_msgs::ImageConstPtr image_, depth_;
+  sensor_msgs::CameraInfoConstPtr info_;
+  sensor_msgs::PointCloud2ConstPtr cloth_;
+  double last_tracking_error_ = 0.0;
+};
+
+}  // namespace bimanual_skills::ros_layer

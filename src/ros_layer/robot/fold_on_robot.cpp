@@ -1,0 +1,398 @@
+#include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
+
+#include "bimanual_skills/ClothGrasp.h"
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "bimanual_skills/sim/sim_config.hpp"
+
+#include <cv_bridge/cv_bridge.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+#include <std_srvs/Trigger.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+#include <thread>
+
+namespace bimanual_skills::ros_layer {
+
+namespace {
+
+using Client = actionlib::SimpleActionClient<bimanual_skills::FollowJointTrajectoryAction>;
+
+/// Wall-clock pause between polls of a wait [s]: short against a rollout, long against the spinner's work.
+constexpr double kPoll = 0.002;
+/// Controller states of each arm to wait for after a reset before commanding the arms.
+constexpr std::uint64_t kStatesAfterReset = 3;
+/// Samples per second of the measured tool paths in a result.
+constexpr double kPathRate = 50.0;
+
+const char* errorName(int code) {
+  switch (code) {
+    case bimanual_skills::FollowJointTrajectoryResult::SUCCESSFUL:
+      return "SUCCESSFUL";
+    case bimanual_skills::FollowJointTrajectoryResult::INVALID_GOAL:
+      return "INVALID_GOAL";
+    case bimanual_skills::FollowJointTrajectoryResult::INVALID_JOINTS:
+      return "INVALID_JOINTS";
+    case bimanual_skills::FollowJointTrajectoryResult::OLD_HEADER_TIMESTAMP:
+      return "OLD_HEADER_TIMESTAMP";
+    case bimanual_skills::FollowJointTrajectoryResult::PATH_TOLERANCE_VIOLATED:
+      return "PATH_TOLERANCE_VIOLATED";
+    case bimanual_skills::FollowJointTrajectoryResult::GOAL_TOLERANCE_VIOLATED:
+      return "GOAL_TOLERANCE_VIOLATED";
+    default:
+      return "unknown error code";
+  }
+}
+
+trajectory_msgs::JointTrajectoryPoint point(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                            const Eigen::VectorXd& qdd, double t) {
+  trajectory_msgs::JointTrajectoryPoint p;
+  p.positions.assign(q.data(), q.data() + q.size());
+  p.velocities.assign(qd.data(), qd.data() + qd.size());
+  p.accelerations.assign(qdd.data(), qdd.data() + qdd.size());
+  p.time_from_start = ros::Duration(t);
+  return p;
+}
+
+}  // namespace
+
+void FoldRobotInterfaces::validate() const {
+  const auto fail = [](const std::string& what) { throw std::invalid_argument("fold on the robot: " + what); };
+  if (reset_service.empty() || grasp_service.empty()) fail("the reset and grasp services need names");
+  if (arms.size() != 2) fail("two arms (left, right) are needed, " + std::to_string(arms.size()) + " given");
+  if (camera.empty()) fail("the camera needs a namespace");
+  if (!(move_time > 0.0) || !std::isfinite(move_time)) fail("move_time must be finite and > 0");
+  if (!(trajectory_rate >= 1.0) || !(trajectory_rate <= 1000.0)) fail("trajectory_rate must lie in [1, 1000] Hz");
+  if (!(start_delay >= 0.0) || !(start_delay <= 10.0)) fail("start_delay must lie in [0, 10] s");
+  if (!(timeout > 0.0) || !std::isfinite(timeout)) fail("timeout must be finite and > 0");
+}
+
+/// A failed step of a rollout: how it ended and why.
+struct FoldOnRobotTask::Failure {
+  tasks::FoldOutcome outcome;
+  std::string reason;
+};
+
+/// One arm's trajectory action and controller state.
+struct FoldOnRobotTask::Arm {
+  std::string name;
+  std::vector<std::string> joints;
+  std::unique_ptr<Client> client;
+  ros::Subscriber state_sub;
+  // Written by the spinner (guarded by the task's mutex): states received, and while a fold runs its samples.
+  std::uint64_t states = 0;
+  bool recording = false;
+  std::vector<double> times;
+  std::vector<Eigen::VectorXd> positions;
+  double max_error = 0.0;
+};
+
+FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks::FoldRewardConfig& reward,
+                                 const FoldRobotInterfaces& robot)
+    : task_(task),
+      reward_(
+          [&] {
+            // The camera of the simulation's reward (bullet_sim publishes the same), with the learner's settings.
+            tasks::FoldRewardConfig r = reward;
+            r.renderer = tasks::rendererFor(task_.simConfig());
+            r.renderer.noise = reward.renderer.noise;
+            return r;
+          }(),
+          task_.simConfig().cloth.length * task_.simConfig().cloth.width),
+      robot_(robot) {
+  robot_.validate();
+  node_ = std::make_unique<ros::NodeHandle>();
+  node_->setCallbackQueue(&queue_);
+  const std::string camera = robot_.camera + "/";
+  const auto keep = [this](auto& slot) {
+    return [this, &slot](const auto& message) {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      slot = message;
+    };
+  };
+  image_sub_ = node_->subscribe<sensor_msgs::Image>(camera + "image_raw", 2, keep(image_));
+  depth_sub_ = node_->subscribe<sensor_msgs::Image>(camera + "depth/image_raw", 2, keep(depth_));
+  info_sub_ = node_->subscribe<sensor_msgs::CameraInfo>(camera + "camera_info", 2, keep(info_));
+  if (!robot_.cloth.empty()) {
+    cloth_sub_ = node_->subscribe<sensor_msgs::PointCloud2>(robot_.cloth, 2, keep(cloth_));
+  }
+  for (int a = 0; a < 2; ++a) {
+    auto arm = std::make_unique<Arm>();
+    arm->name = robot_.arms[static_cast<std::size_t>(a)];
+    arm->joints = task_.armModel(a).jointNames();
+    arm->client = std::make_unique<Client>(*node_, arm->name + "/follow_joint_trajectory", false);
+    Arm* raw = arm.get();
+    arm->state_sub = node_->subscribe<bimanual_skills::JointTrajectoryControllerState>(
+        arm->name + "/state", 100, [this, raw](const bimanual_skills::JointTrajectoryControllerState::ConstPtr& s) {
+          const std::lock_guard<std::mutex> lock(mutex_);
+          ++raw->states;
+          if (!raw->recording || s->actual.positions.size() != raw->joints.size()) return;
+          raw->times.push_back(s->header.stamp.toSec());
+          raw->positions.push_back(
+              Eigen::Map<const Eigen::VectorXd>(s->actual.positions.data(), Eigen::Index(s->actual.positions.size())));
+          for (const double e : s->error.positions) raw->max_error = std::max(raw->max_error, std::abs(e));
+        });
+    arms_.push_back(std::move(arm));
+  }
+  spinner_ = std::make_unique<ros::AsyncSpinner>(2, &queue_);
+  spinner_->start();
+  try {
+    waitFor([this] { return arms_[0]->client->isServerConnected() && arms_[1]->client->isServerConnected(); },
+            "the arms' follow_joint_trajectory actions");
+  } catch (const Failure& f) {
+    throw std::runtime_error("fold on the robot: " + f.reason);
+  }
+}
+
+FoldOnRobotTask::~FoldOnRobotTask() {
+  spinner_->stop();
+}
+
+std::vector<std::string> FoldOnRobotTask::termNames() const {
+  return rollout::FoldRolloutTask::names();
+}
+
+Eigen::VectorXd FoldOnRobotTask::initialParameters() const {
+  return rollout::FoldRolloutTask::encode(
+      {Eigen::MatrixXd::Identity(tasks::ClothFoldTask::kDofs, tasks::ClothFoldTask::kDofs)},
+      task_.demonstrationParameters());
+}
+
+template <typename Done>
+void FoldOnRobotTask::waitFor(const Done& done, const std::string& what) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(robot_.timeout);
+  while (!done()) {
+    if (!ros::ok()) throw Failure{tasks::FoldOutcome::RobotFailed, "shut down while waiting for " + what};
+    if (std::chrono::steady_clock::now() > deadline) {
+      std::ostringstream message;
+      message << "no answer from " << what << " within " << robot_.timeout << " s";
+      throw Failure{tasks::FoldOutcome::RobotFailed, message.str()};
+    }
+    std::this_thread::sleep_for(std::chrono::duration<double>(kPoll));
+  }
+}
+
+void FoldOnRobotTask::waitForGoal(Arm& arm, const std::string& what) {
+  Client& client = *arm.client;
+  waitFor(
+      [&] {
+        if (!client.isServerConnected()) {
+          throw Failure{tasks::FoldOutcome::RobotFailed, arm.name + "'s follow_joint_trajectory action server went " +
+                                                             "away during its " + what +
+                                                             " (the robot or its controller stopped)"};
+        }
+        return client.getState().isDone();
+      },
+      arm.name + "'s " + what);
+  const auto result = client.getResult();
+  if (client.getState() != actionlib::SimpleClientGoalState::SUCCEEDED || !result) {
+    throw Failure{tasks::FoldOutcome::ControllerFailed,
+                  arm.name + "'s " + what + " ended " + client.getState().toString() +
+                      (result ? std::string(": ") + errorName(result->error_code) + " " + result->error_string : "")};
+  }
+}
+
+void FoldOnRobotTask::waitUntil(const ros::Time& time, const char* what) {
+  waitFor([&] { return ros::Time::now() >= time; }, std::string("the robot's clock (") + what + ")");
+}
+
+void FoldOnRobotTask::reset() {
+  ros::ServiceClient client = node_->serviceClient<std_srvs::Trigger>(robot_.reset_service);
+  if (!client.waitForExistence(ros::Duration(robot_.timeout))) {
+    throw Failure{tasks::FoldOutcome::RobotFailed, "no reset service " + client.getService()};
+  }
+  std_srvs::Trigger trigger;
+  if (!client.call(trigger) || !trigger.response.success) {
+    throw Failure{tasks::FoldOutcome::RobotFailed, "reset failed: " + trigger.response.message};
+  }
+  // The controllers have seen the reset scene (a simulation's clock went back) once their states come again.
+  const auto states = [this] {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return std::min(arms_[0]->states, arms_[1]->states);
+  };
+  const std::uint64_t before = states();
+  waitFor([&] { return states() >= before + kStatesAfterReset; }, "the arms' states after the reset");
+}
+
+void FoldOnRobotTask::grasp(bool close) {
+  ros::ServiceClient client = node_->serviceClient<bimanual_skills::ClothGrasp>(robot_.grasp_service);
+  if (!client.waitForExistence(ros::Duration(robot_.timeout))) {
+    throw Failure{tasks::FoldOutcome::RobotFailed, "no gripper service " + client.getService()};
+  }
+  for (const auto& arm : arms_) {
+    bimanual_skills::ClothGrasp request;
+    request.request.arm = arm->name;
+    request.request.grasp = close;
+    if (!client.call(request)) {
+      throw Failure{tasks::FoldOutcome::RobotFailed, "the gripper service " + client.getService() + " did not answer"};
+    }
+    if (!request.response.success) {
+      throw Failure{close ? tasks::FoldOutcome::GraspFailed : tasks::FoldOutcome::RobotFailed,
+                    request.response.message};
+    }
+  }
+}
+
+void FoldOnRobotTask::moveToStart() {
+  for (int a = 0; a < 2; ++a) {
+    Arm& arm = *arms_[static_cast<std::size_t>(a)];
+    bimanual_skills::FollowJointTrajectoryGoal goal;
+    goal.trajectory.joint_names = arm.joints;
+    const Eigen::VectorXd& q = task_.startPositions()[static_cast<std::size_t>(a)];
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(q.size());
+    goal.trajectory.points.push_back(point(q, zero, zero, robot_.move_time));
+    arm.client->sendGoal(goal);
+  }
+  for (const auto& arm : arms_) waitForGoal(*arm, "move to the start");
+}
+
+void FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
+  // One goal per arm over the hold, the movement and the hold up to the release, both starting at the same time.
+  const int every = std::max(1, static_cast<int>(std::lround(1.0 / (robot_.trajectory_rate * plan.dt))));
+  const ros::Time start = ros::Time::now() + ros::Duration(robot_.start_delay);
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& arm : arms_) {
+      arm->recording = true;
+      arm->times.clear();
+      arm->positions.clear();
+      arm->max_error = 0.0;
+    }
+  }
+  for (int a = 0; a < 2; ++a) {
+    Arm& arm = *arms_[static_cast<std::size_t>(a)];
+    const auto i = static_cast<std::size_t>(a);
+    bimanual_skills::FollowJointTrajectoryGoal goal;
+    goal.trajectory.header.stamp = start;
+    goal.trajectory.joint_names = arm.joints;
+    for (int k = 0; k <= plan.release; k += every) {
+      const int c = std::min(k, static_cast<int>(plan.position[i].cols()) - 1);
+      goal.trajectory.points.push_back(
+          point(plan.position[i].col(c), plan.velocity[i].col(c), plan.acceleration[i].col(c), k * plan.dt));
+    }
+    for (const std::string& joint : arm.joints) {
+      bimanual_skills::JointTolerance tolerance;
+      tolerance.name = joint;
+      tolerance.position = task_.config().max_tracking_error;
+      goal.path_tolerance.push_back(tolerance);
+    }
+    arm.client->sendGoal(goal);
+  }
+  for (const auto& arm : arms_) waitForGoal(*arm, "fold trajectory");
+  const std::lock_guard<std::mutex> lock(mutex_);
+  for (const auto& arm : arms_) arm->recording = false;
+}
+
+tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double acceleration_cost) {
+  sensor_msgs::ImageConstPtr image, depth;
+  sensor_msgs::CameraInfoConstPtr info;
+  sensor_msgs::PointCloud2ConstPtr cloth;
+  waitFor(
+      [&] {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        image = image_;
+        depth = depth_;
+        info = info_;
+        cloth = cloth_;
+        const auto fresh = [&](const auto& m) { return m && m->header.stamp >= after; };
+        return fresh(image) && fresh(depth) && fresh(info) && (robot_.cloth.empty() || fresh(cloth));
+      },
+      "the camera " + robot_.camera + (robot_.cloth.empty() ? "" : " and the cloth " + robot_.cloth));
+  const vision::TopDownCamera& camera = reward_.config().renderer.camera;
+  if (static_cast<int>(info->width) != camera.columns || static_cast<int>(info->height) != camera.rows) {
+    throw Failure{tasks::FoldOutcome::RobotFailed,
+                  "the camera's images are " + std::to_string(info->width) + " x " + std::to_string(info->height) +
+                      ", the reward's camera " + std::to_string(camera.columns) + " x " + std::to_string(camera.rows)};
+  }
+  cv_bridge::CvImageConstPtr bgr, metres;
+  try {
+    bgr = cv_bridge::toCvShare(image, "bgr8");
+    metres = cv_bridge::toCvShare(depth, "32FC1");
+  } catch (const cv_bridge::Exception& e) {
+    throw Failure{tasks::FoldOutcome::RobotFailed, std::string("unreadable camera image: ") + e.what()};
+  }
+  tasks::FoldRewardTerms terms =
+      reward_.evaluateImages(tasks::FoldOutcome::Ok, acceleration_cost, bgr->image, metres->image);
+  terms.fold_quality = terms.fold_distance = terms.fold_displacement = std::numeric_limits<double>::quiet_NaN();
+  if (cloth) {
+    Eigen::Matrix3Xd vertices(3, static_cast<Eigen::Index>(cloth->width) * cloth->height);
+    sensor_msgs::PointCloud2ConstIterator<float> x(*cloth, "x"), y(*cloth, "y"), z(*cloth, "z");
+    for (Eigen::Index i = 0; i < vertices.cols(); ++i, ++x, ++y, ++z) vertices.col(i) << *x, *y, *z;
+    const tasks::FoldQuality fold = task_.foldQualityOf(vertices);
+    terms.fold_quality = fold.q;
+    terms.fold_distance = fold.distance;
+    terms.fold_displacement = fold.displacement;
+  }
+  return terms;
+}
+
+rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, std::uint32_t /*seed*/) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  last_tracking_error_ = 0.0;
+  tasks::FoldRewardTerms terms;
+  std::string reason;
+  std::vector<Eigen::Matrix3Xd> paths;
+  std::vector<Eigen::MatrixXd> coordination;
+  Eigen::VectorXd weights;
+  double acceleration_cost = 0.0;
+  try {
+    if (!rollout::FoldRolloutTask::decode(parameters, tasks::ClothFoldTask::kDofs, task_.config().kernels, coordination,
+                                          weights)) {
+      throw Failure{tasks::FoldOutcome::InvalidPolicy,
+                    "the parameters do not encode a coordinated policy of 12 DoF and " +
+                        std::to_string(task_.config().kernels) + " kernels"};
+    }
+    const tasks::FoldPlan plan = task_.plan(coordination, weights);
+    acceleration_cost = plan.acceleration_cost;
+    if (plan.outcome != tasks::FoldOutcome::Ok) throw Failure{plan.outcome, plan.reason};
+    reset();
+    moveToStart();
+    grasp(true);
+    fold(plan);
+    grasp(false);
+    const ros::Time settled = ros::Time::now() + ros::Duration(task_.config().settle);
+    waitUntil(settled, "the cloth settling");
+    terms = observe(settled, acceleration_cost);
+  } catch (const Failure& failure) {
+    terms = tasks::FoldRewardTerms{};
+    terms.outcome = failure.outcome;
+    terms.reward = reward_.config().failure_reward;
+    terms.r_acceleration = reward_.config().acceleration_weight * acceleration_cost;
+    reason = failure.reason;
+    for (const auto& arm : arms_) arm->client->cancelGoal();
+  }
+  // The measured tool paths at kPathRate of the robot's clock.
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    std::size_t samples = std::numeric_limits<std::size_t>::max();
+    for (const auto& arm : arms_) {
+      arm->recording = false;
+      last_tracking_error_ = std::max(last_tracking_error_, arm->max_error);
+      samples = std::min(samples, arm->positions.size());
+    }
+    // The same samples of both arms (their states share the controllers' stamps), thinned to kPathRate.
+    const std::vector<double>& times = arms_[0]->times;
+    const double period = samples > 1 ? (times[samples - 1] - times[0]) / static_cast<double>(samples - 1) : 1.0;
+    const auto stride = static_cast<std::size_t>(std::max(1.0, std::round(1.0 / (kPathRate * period))));
+    for (int a = 0; a < 2 && samples > 0 && samples != std::numeric_limits<std::size_t>::max(); ++a) {
+      const Arm& arm = *arms_[static_cast<std::size_t>(a)];
+      kinematics::ChainData data(task_.armModel(a));
+      Eigen::Matrix3Xd path(3, static_cast<Eigen::Index>((samples + stride - 1) / stride));
+      for (std::size_t k = 0; k < samples; k += stride) {
+        (void)kinematics::forwardKinematics(task_.armModel(a), data, arm.positions[k]);
+        path.col(static_cast<Eigen::Index>(k / stride)) = task_.basePose(a) * data.tipPose().translation();
+      }
+      paths.push_back(path);
+    }
+  }
+  rollout::RolloutResult result = rollout::FoldRolloutTask::resultOf(terms, reason, paths);
+  result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  return result;
+}
+
+}  // namespace bimanual_skills::ros_layer

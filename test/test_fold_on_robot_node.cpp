@@ -1,0 +1,190 @@
+// rostest (test/fold_on_robot.test): the fold through the ROS backend against sim.launch.
+// 1. fold_learner _backend:=ros learns 1 update x 4 rollouts: every rollout ends with a finite reward and an outcome,
+//    the camera topics carry bgr8 and 32FC1 images with their CameraInfo, the trajectory actions report success.
+// 2. A rollout of a FoldOnRobotTask here, with bullet_sim killed (SIGKILL) while the fold's trajectories run, ends
+//    as a failed rollout with a reason within the task's timeouts; the next one fails at once too, and neither hangs.
+#include "bimanual_skills/FollowJointTrajectoryActionGoal.h"
+#include "bimanual_skills/FollowJointTrajectoryActionResult.h"
+#include "bimanual_skills/rollout/fold_learning.hpp"
+#include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
+
+#include <actionlib_msgs/GoalStatus.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <sstream>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace bs = bimanual_skills;
+
+namespace {
+
+std::vector<std::string> splitCsv(const std::string& line) {
+  std::vector<std::string> cells;
+  std::string cell;
+  bool quoted = false;
+  for (const char c : line) {
+    if (c == '"') {
+      quoted = !quoted;
+    } else if (c == ',' && !quoted) {
+      cells.push_back(cell);
+      cell.clear();
+    } else {
+      cell += c;
+    }
+  }
+  cells.push_back(cell);
+  return cells;
+}
+
+std::string configPath() {
+  std::string path;
+  ros::param::get("~config", path);
+  return path;
+}
+
+}  // namespace
+
+TEST(FoldOnRobot, LearnsThroughTheTrajectoryActionsTheGripperAndTheCamera) {
+  ros::NodeHandle node;
+  std::atomic<int> images{0}, depths{0}, infos{0}, bad_images{0};
+  const auto image_sub =
+      node.subscribe<sensor_msgs::Image>("/camera/image_raw", 10, [&](const sensor_msgs::ImageConstPtr& m) {
+        ++images;
+        if (m->encoding != "bgr8" || m->width != 320 || m->height != 240 || m->header.frame_id != "top_down_camera")
+          ++bad_images;
+      });
+  const auto depth_sub =
+      node.subscribe<sensor_msgs::Image>("/camera/depth/image_raw", 10, [&](const sensor_msgs::ImageConstPtr& m) {
+        ++depths;
+        if (m->encoding != "32FC1" || m->width != 320 || m->height != 240) ++bad_images;
+      });
+  const auto info_sub =
+      node.subscribe<sensor_msgs::CameraInfo>("/camera/camera_info", 10, [&](const sensor_msgs::CameraInfoConstPtr& m) {
+        ++infos;
+        if (m->width != 320 || m->height != 240 || m->K[0] <= 0.0) ++bad_images;
+      });
+  std::atomic<int> succeeded{0}, failed{0};
+  const auto on_result = [&](const bimanual_skills::FollowJointTrajectoryActionResultConstPtr& m) {
+    if (m->status.status == actionlib_msgs::GoalStatus::SUCCEEDED && m->result.error_code == 0) {
+      ++succeeded;
+    } else {
+      ++failed;
+    }
+  };
+  const auto left_sub = node.subscribe<bimanual_skills::FollowJointTrajectoryActionResult>(
+      "/left/follow_joint_trajectory/result", 20, on_result);
+  const auto right_sub = node.subscribe<bimanual_skills::FollowJointTrajectoryActionResult>(
+      "/right/follow_joint_trajectory/result", 20, on_result);
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  std::string out;
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(240.0);
+  while (ros::ok() && ros::WallTime::now() < deadline &&
+         !(ros::param::get("/fold_learner/out", out) && std::filesystem::exists(out + "/summary.json"))) {
+    ros::WallDuration(0.1).sleep();
+  }
+  ASSERT_TRUE(std::filesystem::exists(out + "/summary.json")) << "fold_learner did not finish in 240 s";
+  std::ifstream csv(out + "/rollouts.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  const std::vector<std::string> header = splitCsv(line);
+  const auto column = [&](const std::string& name) {
+    return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) - header.begin());
+  };
+  const std::size_t outcome = column("outcome"), reward = column("reward"), reason = column("reason");
+  ASSERT_LT(reason, header.size());
+  int rows = 0, ok = 0;
+  while (std::getline(csv, line)) {
+    const std::vector<std::string> cells = splitCsv(line);
+    ASSERT_EQ(cells.size(), header.size()) << line;
+    ++rows;
+    EXPECT_TRUE(std::isfinite(std::stod(cells[reward]))) << line;
+    EXPECT_FALSE(cells[outcome].empty()) << line;
+    if (cells[outcome] == "Ok") {
+      ++ok;
+    } else {
+      EXPECT_FALSE(cells[reason].empty()) << line;
+    }
+  }
+  // Epoch 0: its policy and 4 samples; epoch 1: 4 samples and its policy.
+  EXPECT_EQ(rows, 10);
+  EXPECT_GE(ok, 8) << "most rollouts of a small exploration fold";
+  std::printf(
+      "through ROS: %d rollouts, %d Ok; %d colour, %d depth images, %d camera_info; goals: %d succeeded, %d not\n",
+      rows, ok, images.load(), depths.load(), infos.load(), succeeded.load(), failed.load());
+  EXPECT_GT(images, 0);
+  EXPECT_GT(depths, 0);
+  EXPECT_GT(infos, 0);
+  EXPECT_EQ(bad_images, 0);
+  // Per successful rollout and arm: the move to the start and the fold.
+  EXPECT_GE(succeeded, 4 * ok);
+}
+
+TEST(FoldOnRobot, AKilledSimulatorGivesAFailedRolloutNotAHang) {
+  const bs::rollout::FoldLearningConfig config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
+  bs::ros_layer::FoldRobotInterfaces robot;
+  robot.timeout = 3.0;
+  bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
+  const bs::rollout::RolloutResult first = task.run(task.initialParameters(), 1);
+  EXPECT_TRUE(first.ok) << first.outcome << ": " << first.reason;
+  std::printf("the demonstration through ROS: R = %.4f, q = %.3f, tracking error %.4f rad, %.2f s\n", first.reward,
+              first.terms[7], task.lastTrackingError(), first.wall_seconds);
+
+  // Kill the simulator once the fold's goals (many points) are on their way.
+  ros::NodeHandle node;
+  std::atomic<bool> folding{false};
+  const auto goal_sub = node.subscribe<bimanual_skills::FollowJointTrajectoryActionGoal>(
+      "/left/follow_joint_trajectory/goal", 10, [&](const bimanual_skills::FollowJointTrajectoryActionGoalConstPtr& m) {
+        if (m->goal.trajectory.points.size() > 10) folding = true;
+      });
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  const auto start = std::chrono::steady_clock::now();
+  std::future<bs::rollout::RolloutResult> killed =
+      std::async(std::launch::async, [&] { return task.run(task.initialParameters(), 2); });
+  while (!folding && std::chrono::steady_clock::now() - start < std::chrono::seconds(30)) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  ASSERT_TRUE(folding) << "the fold's goal never came";
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  ASSERT_EQ(std::system("pkill -9 -f __name:=bullet_si[m]"), 0);
+  ASSERT_EQ(killed.wait_for(std::chrono::seconds(30)), std::future_status::ready) << "the rollout hangs";
+  const bs::rollout::RolloutResult result = killed.get();
+  std::printf("bullet_sim killed mid-rollout: %s: %s (%.1f s)\n", result.outcome.c_str(), result.reason.c_str(),
+              result.wall_seconds);
+  EXPECT_FALSE(result.ok);
+  EXPECT_FALSE(result.reason.empty());
+  EXPECT_TRUE(std::isfinite(result.reward));
+  EXPECT_EQ(result.reward, config.reward.failure_reward);
+
+  // Without a simulator, the next rollout fails as well, within the timeouts.
+  std::future<bs::rollout::RolloutResult> next =
+      std::async(std::launch::async, [&] { return task.run(task.initialParameters(), 3); });
+  ASSERT_EQ(next.wait_for(std::chrono::seconds(30)), std::future_status::ready) << "the rollout hangs";
+  const bs::rollout::RolloutResult after = next.get();
+  std::printf("no simulator: %s: %s\n", after.outcome.c_str(), after.reason.c_str());
+  EXPECT_FALSE(after.ok);
+  EXPECT_EQ(after.outcome, "RobotFailed");
+  EXPECT_FALSE(after.reason.empty());
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_fold_on_robot");
+  ros::NodeHandle keep_alive;
+  return RUN_ALL_TESTS();
+}
