@@ -104,7 +104,7 @@ const std::string kUsage = std::string(
                                "  ~initial_positions    map arm -> joint positions at start and after ~reset\n"
                                "  ~marker_rate          cloth marker and ~cloth rate [Hz of simulated time] (default "
                                "30)\n"
-                               "  ~camera_rate          top-down camera images per simulated second (default 10; 0: "
+                               "  ~camera_rate          top-down camera images per simulated second, at most marker_rate (default 30; 0: "
                                "no camera)\n"
                                "  ~camera_depth_noise, ~camera_colour_noise  the camera's noise: depth [m], colour "
                                "[levels] (0.001, 2)\n"
@@ -210,7 +210,7 @@ class BulletSimNode {
     max_force_ = p.number("max_force", 200.0, 0.0, 1e9);
     max_torque_ = p.number("max_torque", 50.0, 0.0, 1e9);
     marker_rate_ = p.number("marker_rate", 30.0, 0.1, 1000.0);
-    camera_rate_ = p.number("camera_rate", 10.0, 0.0, 1000.0);
+    camera_rate_ = p.number("camera_rate", 30.0, 0.0, 1000.0);
     camera_noise_.depth_stddev = p.number("camera_depth_noise", camera_noise_.depth_stddev, 0.0, 1.0);
     camera_noise_.colour_stddev = p.number("camera_colour_noise", camera_noise_.colour_stddev, 0.0, 255.0);
     paused_ = p.boolean("paused", false);
@@ -966,7 +966,7 @@ class BulletSimNode {
   std::shared_ptr<Request> stepping_;  ///< Loop thread only.
   // Settings.
   bool lockstep_ = false;
-  double lockstep_timeout_ = 0.2, realtime_factor_ = 1.0, marker_rate_ = 30.0, camera_rate_ = 10.0;
+  double lockstep_timeout_ = 0.2, realtime_factor_ = 1.0, marker_rate_ = 30.0, camera_rate_ = 30.0;
   double max_step_duration_ = 60.0, max_payload_ = 4.0, max_force_ = 200.0, max_torque_ = 50.0;
   int loop_priority_ = 0;
   // Loop state (written by the loop; flags read by diagnostics).

@@ -3,6 +3,7 @@
 //    the camera topics carry bgr8 and 32FC1 images with their CameraInfo, the trajectory actions report success.
 // 2. A rollout of a FoldOnRobotTask here, with bullet_sim killed (SIGKILL) while the fold's trajectories run, ends
 //    as a failed rollout with a reason within the task's timeouts; the next one fails at once too, and neither hangs.
+// 3. operator_prompt (the hardware's scene reset) with nobody at its terminal refuses the reset with a reason.
 #include "bimanual_skills/FollowJointTrajectoryActionGoal.h"
 #include "bimanual_skills/FollowJointTrajectoryActionResult.h"
 #include "bimanual_skills/rollout/fold_learning.hpp"
@@ -12,6 +13,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <std_srvs/Trigger.h>
 
 #include <gtest/gtest.h>
 
@@ -141,8 +143,12 @@ TEST(FoldOnRobot, AKilledSimulatorGivesAFailedRolloutNotAHang) {
   bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
   const bs::rollout::RolloutResult first = task.run(task.initialParameters(), 1);
   EXPECT_TRUE(first.ok) << first.outcome << ": " << first.reason;
-  std::printf("the demonstration through ROS: R = %.4f, q = %.3f, tracking error %.4f rad, %.2f s\n", first.reward,
-              first.terms[7], task.lastTrackingError(), first.wall_seconds);
+  std::printf(
+      "the demonstration through ROS: R = %.4f, q = %.3f, tracking error %.4f rad, %.2f s of the robot's clock in "
+      "%.2f s (%.1fx real time)\n",
+      first.reward, first.terms[7], task.lastTrackingError(), task.lastRobotSeconds(), first.wall_seconds,
+      task.lastRobotSeconds() / first.wall_seconds);
+  EXPECT_GT(task.lastRobotSeconds(), 5.0);  // the move to the start, the fold and the settling
 
   // Kill the simulator once the fold's goals (many points) are on their way.
   ros::NodeHandle node;
@@ -180,6 +186,17 @@ TEST(FoldOnRobot, AKilledSimulatorGivesAFailedRolloutNotAHang) {
   EXPECT_FALSE(after.ok);
   EXPECT_EQ(after.outcome, "RobotFailed");
   EXPECT_FALSE(after.reason.empty());
+}
+
+TEST(FoldOnRobot, TheOperatorPromptWithoutAnOperatorRefuses) {
+  ASSERT_TRUE(ros::service::waitForService("/operator_prompt/reset", ros::Duration(10.0)));
+  std_srvs::Trigger trigger;
+  const auto start = std::chrono::steady_clock::now();
+  ASSERT_TRUE(ros::service::call("/operator_prompt/reset", trigger));
+  std::printf("operator_prompt without an operator: %s\n", trigger.response.message.c_str());
+  EXPECT_FALSE(trigger.response.success);
+  EXPECT_FALSE(trigger.response.message.empty());
+  EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));  // ~timeout 2 s
 }
 
 int main(int argc, char** argv) {

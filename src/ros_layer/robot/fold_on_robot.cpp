@@ -2,6 +2,7 @@
 
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 
@@ -27,6 +28,8 @@ using Client = actionlib::SimpleActionClient<bimanual_skills::FollowJointTraject
 constexpr double kPoll = 0.002;
 /// Controller states of each arm to wait for after a reset before commanding the arms.
 constexpr std::uint64_t kStatesAfterReset = 3;
+/// Share of move_time spent reaching the configuration above the start (the rest: coming down onto the cloth).
+constexpr double kApproachShare = 0.7;
 /// Samples per second of the measured tool paths in a result.
 constexpr double kPathRate = 50.0;
 
@@ -67,6 +70,7 @@ void FoldRobotInterfaces::validate() const {
   if (arms.size() != 2) fail("two arms (left, right) are needed, " + std::to_string(arms.size()) + " given");
   if (camera.empty()) fail("the camera needs a namespace");
   if (!(move_time > 0.0) || !std::isfinite(move_time)) fail("move_time must be finite and > 0");
+  if (!(approach_height >= 0.0) || !(approach_height <= 0.5)) fail("approach_height must lie in [0, 0.5] m");
   if (!(trajectory_rate >= 1.0) || !(trajectory_rate <= 1000.0)) fail("trajectory_rate must lie in [1, 1000] Hz");
   if (!(start_delay >= 0.0) || !(start_delay <= 10.0)) fail("start_delay must lie in [0, 10] s");
   if (!(timeout > 0.0) || !std::isfinite(timeout)) fail("timeout must be finite and > 0");
@@ -82,6 +86,7 @@ struct FoldOnRobotTask::Failure {
 struct FoldOnRobotTask::Arm {
   std::string name;
   std::vector<std::string> joints;
+  Eigen::VectorXd above_start;  ///< The start configuration with the tool approach_height higher.
   std::unique_ptr<Client> client;
   ros::Subscriber state_sub;
   // Written by the spinner (guarded by the task's mutex): states received, and while a fold runs its samples.
@@ -125,6 +130,20 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
     auto arm = std::make_unique<Arm>();
     arm->name = robot_.arms[static_cast<std::size_t>(a)];
     arm->joints = task_.armModel(a).jointNames();
+    // Above the start: the tool comes down onto the cloth's corner instead of sweeping over the table.
+    const Eigen::VectorXd& start = task_.startPositions()[static_cast<std::size_t>(a)];
+    kinematics::ChainData data(task_.armModel(a));
+    (void)kinematics::forwardKinematics(task_.armModel(a), data, start);
+    Eigen::Isometry3d above = data.tipPose();
+    above.translation() += task_.basePose(a).linear().transpose() * Eigen::Vector3d(0.0, 0.0, robot_.approach_height);
+    kinematics::GlobalIkSolver solver(task_.armModel(a), kinematics::GlobalIkParameters{});
+    arm->above_start = start;
+    if (solver.solve(above, start, arm->above_start).status != kinematics::IkStatus::Converged ||
+        (arm->above_start - start).cwiseAbs().maxCoeff() > 0.5) {
+      throw std::invalid_argument("fold on the robot: no configuration of " + arm->name +
+                                  " near its start with the tool " + std::to_string(robot_.approach_height) +
+                                  " m above it");
+    }
     arm->client = std::make_unique<Client>(*node_, arm->name + "/follow_joint_trajectory", false);
     Arm* raw = arm.get();
     arm->state_sub = node_->subscribe<bimanual_skills::JointTrajectoryControllerState>(
@@ -245,14 +264,17 @@ void FoldOnRobotTask::moveToStart() {
     goal.trajectory.joint_names = arm.joints;
     const Eigen::VectorXd& q = task_.startPositions()[static_cast<std::size_t>(a)];
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(q.size());
+    goal.trajectory.points.push_back(point(arm.above_start, zero, zero, kApproachShare * robot_.move_time));
     goal.trajectory.points.push_back(point(q, zero, zero, robot_.move_time));
     arm.client->sendGoal(goal);
   }
   for (const auto& arm : arms_) waitForGoal(*arm, "move to the start");
 }
 
-void FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
-  // One goal per arm over the hold, the movement and the hold up to the release, both starting at the same time.
+ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
+  // One goal per arm over the hold, the movement and the hold up to the release, both starting at the same time;
+  // the grippers open at the planned release, as in the in-process task (the scene is sensitive to when: a fold
+  // near the table's edge slides on after the release).
   const int every = std::max(1, static_cast<int>(std::lround(1.0 / (robot_.trajectory_rate * plan.dt))));
   const ros::Time start = ros::Time::now() + ros::Duration(robot_.start_delay);
   {
@@ -283,9 +305,30 @@ void FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
     }
     arm.client->sendGoal(goal);
   }
+  const ros::Time release = start + ros::Duration(plan.release * plan.dt);
+  waitFor(
+      [&] {
+        for (const auto& arm : arms_) {
+          const actionlib::SimpleClientGoalState state = arm->client->getState();
+          if (!arm->client->isServerConnected() ||
+              (state.isDone() && state != actionlib::SimpleClientGoalState::SUCCEEDED)) {
+            return true;  // reported by waitForGoal below
+          }
+        }
+        return ros::Time::now() >= release;
+      },
+      "the robot's clock (the fold's release)");
+  for (const auto& arm : arms_) {
+    const actionlib::SimpleClientGoalState state = arm->client->getState();
+    if (!arm->client->isServerConnected() || (state.isDone() && state != actionlib::SimpleClientGoalState::SUCCEEDED)) {
+      waitForGoal(*arm, "fold trajectory");
+    }
+  }
+  grasp(false);
   for (const auto& arm : arms_) waitForGoal(*arm, "fold trajectory");
   const std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& arm : arms_) arm->recording = false;
+  return release;
 }
 
 tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double acceleration_cost) {
@@ -333,7 +376,7 @@ tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double a
 
 rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, std::uint32_t /*seed*/) {
   const auto wall_start = std::chrono::steady_clock::now();
-  last_tracking_error_ = 0.0;
+  last_tracking_error_ = last_robot_seconds_ = 0.0;
   tasks::FoldRewardTerms terms;
   std::string reason;
   std::vector<Eigen::Matrix3Xd> paths;
@@ -352,12 +395,13 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     if (plan.outcome != tasks::FoldOutcome::Ok) throw Failure{plan.outcome, plan.reason};
     reset();
     moveToStart();
+    // The move started move_time before it ended (the clock read before it may still be the one before a reset).
+    const ros::Time began = ros::Time::now() - ros::Duration(robot_.move_time);
     grasp(true);
-    fold(plan);
-    grasp(false);
-    const ros::Time settled = ros::Time::now() + ros::Duration(task_.config().settle);
+    const ros::Time settled = fold(plan) + ros::Duration(task_.config().settle);
     waitUntil(settled, "the cloth settling");
     terms = observe(settled, acceleration_cost);
+    last_robot_seconds_ = (ros::Time::now() - began).toSec();
   } catch (const Failure& failure) {
     terms = tasks::FoldRewardTerms{};
     terms.outcome = failure.outcome;

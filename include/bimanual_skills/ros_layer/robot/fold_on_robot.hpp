@@ -45,9 +45,10 @@ struct FoldRobotInterfaces {
   std::string camera = "camera";           ///< CAMERA/image_raw, CAMERA/camera_info, CAMERA/depth/image_raw, ...
   std::string cloth = "bullet_sim/cloth";  ///< Ground truth of the cloth; "" when the robot has none.
   double move_time = 2.0;                  ///< To the fold's start configuration [s of the robot's clock].
+  double approach_height = 0.05;           ///< The tools come down onto the cloth from this far above their start [m].
   double trajectory_rate = 100.0;          ///< Points per second of the fold's trajectory goals.
-  double start_delay = 0.2;                ///< From sending the fold's goals to their common start [s].
-  double timeout = 30.0;                   ///< Longest wall-clock wait for any one interface [s].
+  double start_delay = 0.5;  ///< From sending the fold's goals to their common start [s of the robot's clock].
+  double timeout = 30.0;     ///< Longest wall-clock wait for any one interface [s].
 
   /// \throws std::invalid_argument naming the field that is out of range.
   void validate() const;
@@ -70,6 +71,9 @@ class FoldOnRobotTask : public rollout::RolloutTask {
 
   /// The largest joint tracking error the arms' controllers reported during the last rollout's fold [rad].
   double lastTrackingError() const noexcept { return last_tracking_error_; }
+  /// The robot's clock time the last rollout took from the start of the move to the start to its images (0 for a
+  /// failed one) [s].
+  double lastRobotSeconds() const noexcept { return last_robot_seconds_; }
 
  private:
   struct Arm;
@@ -78,7 +82,8 @@ class FoldOnRobotTask : public rollout::RolloutTask {
   void reset();
   void moveToStart();
   void grasp(bool close);
-  void fold(const tasks::FoldPlan& plan);
+  /// Runs the fold and opens the grippers; returns the time they opened at (as planned).
+  ros::Time fold(const tasks::FoldPlan& plan);
   void waitUntil(const ros::Time& time, const char* what);
   void waitForGoal(Arm& arm, const std::string& what);
   tasks::FoldRewardTerms observe(const ros::Time& after, double acceleration_cost);
@@ -97,7 +102,7 @@ class FoldOnRobotTask : public rollout::RolloutTask {
   sensor_msgs::ImageConstPtr image_, depth_;
   sensor_msgs::CameraInfoConstPtr info_;
   sensor_msgs::PointCloud2ConstPtr cloth_;
-  double last_tracking_error_ = 0.0;
+  double last_tracking_error_ = 0.0, last_robot_seconds_ = 0.0;
 };
 
 }  // namespace bimanual_skills::ros_layer
