@@ -82,7 +82,8 @@ const char* const kUsage =
     "  ~camera       namespace of image_raw, camera_info, depth/image_raw, depth/camera_info (default camera)\n"
     "  ~cloth_topic  sensor_msgs/PointCloud2 of the cloth's nodes for the fold quality q (default bullet_sim/cloth;\n"
     "                \"\": the robot has none, q is not measured)\n"
-    "  ~move_time    [s] to the start configuration (default 2); ~trajectory_rate points per second of the fold's\n"
+    "  ~move_time    [s] to the start configuration (default 2), the tools coming down onto the cloth from\n"
+    "                ~approach_height [m] above it (default 0.05); ~trajectory_rate points per second of the fold's\n"
     "                goals (default 100); ~robot_timeout [s] longest wall-clock wait for any interface (default 30)\n"
     "\n"
     "Writes into DIR: rollouts.csv and rollout_parameters.csv (every rollout, as it finishes), epochs.csv,\n"
@@ -251,6 +252,7 @@ class FoldLearnerNode {
     robot.camera = parameters_.text("camera", robot.camera);
     robot.cloth = parameters_.text("cloth_topic", robot.cloth);
     robot.move_time = parameters_.number("move_time", robot.move_time, 0.1, 60.0);
+    robot.approach_height = parameters_.number("approach_height", robot.approach_height, 0.0, 0.5);
     robot.trajectory_rate = parameters_.number("trajectory_rate", robot.trajectory_rate, 1.0, 1000.0);
     robot.timeout = parameters_.number("robot_timeout", robot.timeout, 0.1, 3600.0);
     robot.validate();
