@@ -63,78 +63,79 @@ namespace vision = bimanual_skills::vision;
 
 namespace {
 
-const std::string kUsage = std::string(
-                               "usage: rosrun bimanual_skills bullet_sim [_param:=value ...] [ROS remappings]\n"
-                               "\n"
-                               "The Bullet simulation of the bimanual WAM (two arms with their true plant, table, "
-                               "cloth) as a ROS node that hosts\n"
-                               "the arms' computed-torque controllers in its real-time loop, as a robot's driver "
-                               "would. Simulated time is\n"
-                               "published on /clock (set /use_sim_time true for the other nodes).\n"
-                               "\n"
-                               "Parameters (private, defaults in config/bullet_sim.yaml):\n"
-                               "  ~config               simulation file (default: the package's config/sim.yaml)\n"
-                               "  ~hosted_controllers   arms whose controller runs in this node's loop (default: "
-                               "all); each reads its\n"
-                               "                        parameters from ARM/ctc_controller/ (see below)\n"
-                               "  ~external_controllers arms commanded on ARM/effort_command by a separate "
-                               "controller (ctc_controller);\n"
-                               "                        lockstep waits for them (default: none)\n"
-                               "  ~lockstep             true: each step waits for one command of every external "
-                               "controller, so a run is\n"
-                               "                        repeatable bit for bit; false: free-running at "
-                               "~realtime_factor\n"
-                               "  ~lockstep_timeout     wall seconds a lockstep step waits before braking the "
-                               "missing arms (default 0.2)\n"
-                               "  ~realtime_factor      free-running speed, simulated s per wall s (default 1; 0: as "
-                               "fast as possible)\n"
-                               "  ~max_drift            wall seconds the loop may fall behind or run ahead before "
-                               "its schedule restarts (0.05)\n"
-                               "  ~loop_priority        SCHED_FIFO priority of the loop thread, 1-99 (0: "
-                               "unchanged, the default)\n"
-                               "  ~max_step_duration    most simulated seconds one ~step call may ask for (default "
-                               "60)\n"
-                               "  ~max_payload          heaviest ~set_payload [kg] (default 4, the WAM's rated "
-                               "payload)\n"
-                               "  ~max_force, ~max_torque  largest ~apply_wrench [N, N m] (default 200, 50)\n"
-                               "  ~command_timeout      simulated s after which an external command is stale: zero "
-                               "torque plus braking (0.05)\n"
-                               "  ~braking_damping      N m s/rad per joint applied when external commands are "
-                               "stale\n"
-                               "  ~initial_positions    map arm -> joint positions at start and after ~reset\n"
-                               "  ~marker_rate          cloth marker and ~cloth rate [Hz of simulated time] (default "
-                               "30)\n"
-                               "  ~camera_rate          top-down camera images per simulated second, at most marker_rate (default 30; 0: "
-                               "no camera)\n"
-                               "  ~camera_depth_noise, ~camera_colour_noise  the camera's noise: depth [m], colour "
-                               "[levels] (0.001, 2)\n"
-                               "  ~paused               start paused (default false)\n"
-                               "  ~statistics_file      at exit, write the loop's periods and the times its "
-                               "controllers took commands (CSV)\n"
-                               "\n"
-                               "Hosted controller parameters (ARM/ctc_controller/...):\n") +
-                           bs::ros_layer::kControllerParameterHelp +
-                           "\n"
-                           "Topics: publishes joint_states (sensor_msgs/JointState, every step; effort: the applied "
-                           "torque), /clock,\n"
-                           "  ~markers (cloth TRIANGLE_LIST and table), ~cloth (sensor_msgs/PointCloud2: the cloth's "
-                           "nodes, world frame,\n"
-                           "  the simulator's ground truth), camera/image_raw (bgr8), camera/depth/image_raw (32FC1 "
-                           "[m]) with\n"
-                           "  camera/camera_info and camera/depth/camera_info (the orthographic top-down camera of "
-                           "the fold's reward,\n"
-                           "  frame top_down_camera on /tf_static), /diagnostics (loop period, real-time factor, "
-                           "allocations per cycle);\n"
-                           "  subscribes ARM/effort_command (std_msgs/Float64MultiArray) for external controllers.\n"
-                           "  Each hosted controller serves ARM/command (trajectory_msgs/JointTrajectory), "
-                           "ARM/follow_joint_trajectory\n"
-                           "  (bimanual_skills/FollowJointTrajectory action), ARM/set_mode and publishes ARM/state, "
-                           "ARM/estimated_wrench,\n"
-                           "  ARM/tool_paths.\n"
-                           "Services: ~reset (std_srvs/Trigger), ~pause (std_srvs/SetBool), ~step "
-                           "(bimanual_skills/SimStep, bounded),\n"
-                           "  ~set_payload, ~apply_wrench (bounded), ~grasp (bimanual_skills/ClothGrasp: fails when "
-                           "no cloth node is in reach).\n";
+const std::string kUsage =
+    std::string(
+        "usage: rosrun bimanual_skills bullet_sim [_param:=value ...] [ROS remappings]\n"
+        "\n"
+        "The Bullet simulation of the bimanual WAM (two arms with their true plant, table, "
+        "cloth) as a ROS node that hosts\n"
+        "the arms' computed-torque controllers in its real-time loop, as a robot's driver "
+        "would. Simulated time is\n"
+        "published on /clock (set /use_sim_time true for the other nodes).\n"
+        "\n"
+        "Parameters (private, defaults in config/bullet_sim.yaml):\n"
+        "  ~config               simulation file (default: the package's config/sim.yaml)\n"
+        "  ~hosted_controllers   arms whose controller runs in this node's loop (default: "
+        "all); each reads its\n"
+        "                        parameters from ARM/ctc_controller/ (see below)\n"
+        "  ~external_controllers arms commanded on ARM/effort_command by a separate "
+        "controller (ctc_controller);\n"
+        "                        lockstep waits for them (default: none)\n"
+        "  ~lockstep             true: each step waits for one command of every external "
+        "controller, so a run is\n"
+        "                        repeatable bit for bit; false: free-running at "
+        "~realtime_factor\n"
+        "  ~lockstep_timeout     wall seconds a lockstep step waits before braking the "
+        "missing arms (default 0.2)\n"
+        "  ~realtime_factor      free-running speed, simulated s per wall s (default 1; 0: as "
+        "fast as possible)\n"
+        "  ~max_drift            wall seconds the loop may fall behind or run ahead before "
+        "its schedule restarts (0.05)\n"
+        "  ~loop_priority        SCHED_FIFO priority of the loop thread, 1-99 (0: "
+        "unchanged, the default)\n"
+        "  ~max_step_duration    most simulated seconds one ~step call may ask for (default "
+        "60)\n"
+        "  ~max_payload          heaviest ~set_payload [kg] (default 4, the WAM's rated "
+        "payload)\n"
+        "  ~max_force, ~max_torque  largest ~apply_wrench [N, N m] (default 200, 50)\n"
+        "  ~command_timeout      simulated s after which an external command is stale: zero "
+        "torque plus braking (0.05)\n"
+        "  ~braking_damping      N m s/rad per joint applied when external commands are "
+        "stale\n"
+        "  ~initial_positions    map arm -> joint positions at start and after ~reset\n"
+        "  ~marker_rate          cloth marker and ~cloth rate [Hz of simulated time] (default "
+        "30)\n"
+        "  ~camera_rate          top-down camera images per simulated second, at most marker_rate (default 30; 0: "
+        "no camera)\n"
+        "  ~camera_depth_noise, ~camera_colour_noise  the camera's noise: depth [m], colour "
+        "[levels] (0.001, 2)\n"
+        "  ~paused               start paused (default false)\n"
+        "  ~statistics_file      at exit, write the loop's periods and the times its "
+        "controllers took commands (CSV)\n"
+        "\n"
+        "Hosted controller parameters (ARM/ctc_controller/...):\n") +
+    bs::ros_layer::kControllerParameterHelp +
+    "\n"
+    "Topics: publishes joint_states (sensor_msgs/JointState, every step; effort: the applied "
+    "torque), /clock,\n"
+    "  ~markers (cloth TRIANGLE_LIST and table), ~cloth (sensor_msgs/PointCloud2: the cloth's "
+    "nodes, world frame,\n"
+    "  the simulator's ground truth), camera/image_raw (bgr8), camera/depth/image_raw (32FC1 "
+    "[m]) with\n"
+    "  camera/camera_info and camera/depth/camera_info (the orthographic top-down camera of "
+    "the fold's reward,\n"
+    "  frame top_down_camera on /tf_static), /diagnostics (loop period, real-time factor, "
+    "allocations per cycle);\n"
+    "  subscribes ARM/effort_command (std_msgs/Float64MultiArray) for external controllers.\n"
+    "  Each hosted controller serves ARM/command (trajectory_msgs/JointTrajectory), "
+    "ARM/follow_joint_trajectory\n"
+    "  (bimanual_skills/FollowJointTrajectory action), ARM/set_mode and publishes ARM/state, "
+    "ARM/estimated_wrench,\n"
+    "  ARM/tool_paths.\n"
+    "Services: ~reset (std_srvs/Trigger), ~pause (std_srvs/SetBool), ~step "
+    "(bimanual_skills/SimStep, bounded),\n"
+    "  ~set_payload, ~apply_wrench (bounded), ~grasp (bimanual_skills/ClothGrasp: fails when "
+    "no cloth node is in reach).\n";
 
 /// Wall seconds a service waits for the loop to take a request (the loop polls between cycles).
 constexpr double kServiceWait = 5.0;
@@ -613,16 +614,18 @@ class BulletSimNode {
       if (!frame && !first) continue;
       if (!frame) frame = &cloth_frames_->current();
       const ros::Time stamp(frame->time);
+      // The table each time too: the topic is latched, and a late subscriber gets only the last message. Stamped
+      // 0 (the latest transform): rviz drops markers stamped before a reset's jump back in time.
       visualization_msgs::MarkerArray markers;
-      if (first && simulation_->config().has_table) {
-        markers.markers.push_back(bs::nodes::tableMarker(simulation_->config().table, stamp));
+      if (simulation_->config().has_table) {
+        markers.markers.push_back(bs::nodes::tableMarker(simulation_->config().table, ros::Time()));
       }
       first = false;
       if (!simulation_->hasCloth()) {
         marker_publisher_.publish(markers);
         continue;
       }
-      markers.markers.push_back(bs::nodes::clothMarker(frame->vertices, cloth_triangles_, stamp));
+      markers.markers.push_back(bs::nodes::clothMarker(frame->vertices, cloth_triangles_, ros::Time()));
       marker_publisher_.publish(markers);
       cloth_publisher_.publish(clothCloud(frame->vertices, stamp));
       // An image every 1/camera_rate simulated seconds, and at once after a reset (time going back).
