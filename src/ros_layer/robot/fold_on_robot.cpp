@@ -293,9 +293,8 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
     goal.trajectory.header.stamp = start;
     goal.trajectory.joint_names = arm.joints;
     for (int k = 0; k <= plan.release; k += every) {
-      const int c = std::min(k, static_cast<int>(plan.position[i].cols()) - 1);
       goal.trajectory.points.push_back(
-          point(plan.position[i].col(c), plan.velocity[i].col(c), plan.acceleration[i].col(c), k * plan.dt));
+          point(plan.position[i].col(k), plan.velocity[i].col(k), plan.acceleration[i].col(k), k * plan.dt));
     }
     for (const std::string& joint : arm.joints) {
       bimanual_skills::JointTolerance tolerance;
@@ -305,24 +304,16 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
     }
     arm.client->sendGoal(goal);
   }
+  // Until the release, unless an arm's goal fails first (waitForGoal then reports why).
   const ros::Time release = start + ros::Duration(plan.release * plan.dt);
-  waitFor(
-      [&] {
-        for (const auto& arm : arms_) {
-          const actionlib::SimpleClientGoalState state = arm->client->getState();
-          if (!arm->client->isServerConnected() ||
-              (state.isDone() && state != actionlib::SimpleClientGoalState::SUCCEEDED)) {
-            return true;  // reported by waitForGoal below
-          }
-        }
-        return ros::Time::now() >= release;
-      },
-      "the robot's clock (the fold's release)");
+  const auto failed = [](const Arm& arm) {
+    const actionlib::SimpleClientGoalState state = arm.client->getState();
+    return !arm.client->isServerConnected() || (state.isDone() && state != actionlib::SimpleClientGoalState::SUCCEEDED);
+  };
+  waitFor([&] { return failed(*arms_[0]) || failed(*arms_[1]) || ros::Time::now() >= release; },
+          "the robot's clock (the fold's release)");
   for (const auto& arm : arms_) {
-    const actionlib::SimpleClientGoalState state = arm->client->getState();
-    if (!arm->client->isServerConnected() || (state.isDone() && state != actionlib::SimpleClientGoalState::SUCCEEDED)) {
-      waitForGoal(*arm, "fold trajectory");
-    }
+    if (failed(*arm)) waitForGoal(*arm, "fold trajectory");
   }
   grasp(false);
   for (const auto& arm : arms_) waitForGoal(*arm, "fold trajectory");
@@ -363,13 +354,17 @@ tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double a
       reward_.evaluateImages(tasks::FoldOutcome::Ok, acceleration_cost, bgr->image, metres->image);
   terms.fold_quality = terms.fold_distance = terms.fold_displacement = std::numeric_limits<double>::quiet_NaN();
   if (cloth) {
-    Eigen::Matrix3Xd vertices(3, static_cast<Eigen::Index>(cloth->width) * cloth->height);
-    sensor_msgs::PointCloud2ConstIterator<float> x(*cloth, "x"), y(*cloth, "y"), z(*cloth, "z");
-    for (Eigen::Index i = 0; i < vertices.cols(); ++i, ++x, ++y, ++z) vertices.col(i) << *x, *y, *z;
-    const tasks::FoldQuality fold = task_.foldQualityOf(vertices);
-    terms.fold_quality = fold.q;
-    terms.fold_distance = fold.distance;
-    terms.fold_displacement = fold.displacement;
+    try {  // a cloud without x, y, z or of another cloth is the robot's fault, not the learner's
+      Eigen::Matrix3Xd vertices(3, static_cast<Eigen::Index>(cloth->width) * cloth->height);
+      sensor_msgs::PointCloud2ConstIterator<float> x(*cloth, "x"), y(*cloth, "y"), z(*cloth, "z");
+      for (Eigen::Index i = 0; i < vertices.cols(); ++i, ++x, ++y, ++z) vertices.col(i) << *x, *y, *z;
+      const tasks::FoldQuality fold = task_.foldQualityOf(vertices);
+      terms.fold_quality = fold.q;
+      terms.fold_distance = fold.distance;
+      terms.fold_displacement = fold.displacement;
+    } catch (const std::exception& e) {
+      throw Failure{tasks::FoldOutcome::RobotFailed, "unusable cloth cloud " + robot_.cloth + ": " + e.what()};
+    }
   }
   return terms;
 }
@@ -423,7 +418,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     const std::vector<double>& times = arms_[0]->times;
     const double period = samples > 1 ? (times[samples - 1] - times[0]) / static_cast<double>(samples - 1) : 1.0;
     const auto stride = static_cast<std::size_t>(std::max(1.0, std::round(1.0 / (kPathRate * period))));
-    for (int a = 0; a < 2 && samples > 0 && samples != std::numeric_limits<std::size_t>::max(); ++a) {
+    for (int a = 0; a < 2 && samples > 0; ++a) {
       const Arm& arm = *arms_[static_cast<std::size_t>(a)];
       kinematics::ChainData data(task_.armModel(a));
       Eigen::Matrix3Xd path(3, static_cast<Eigen::Index>((samples + stride - 1) / stride));
