@@ -152,8 +152,15 @@ void run(sim::BimanualSimulation& simulation, int steps, const std::function<voi
   row.timings = simulation.timings();
 }
 
+/// The simulation the speed and fold_rollout experiments run (sim_benchmark --sim FILE); empty: config/sim.yaml.
+std::string g_sim_file;
+
+std::string simFile() {
+  return g_sim_file.empty() ? bimanual_skills::cli::packageFile("config/sim.yaml") : g_sim_file;
+}
+
 sim::SimConfig baseConfig(const Options& options) {
-  sim::SimConfig config = sim::SimConfig::fromYamlFile(bimanual_skills::cli::packageFile("config/sim.yaml"));
+  sim::SimConfig config = sim::SimConfig::fromYamlFile(simFile());
   config.seed = options.seed;
   return config;
 }
@@ -378,10 +385,10 @@ void speed(const Options& options, std::vector<bs::bench::JsonRow>& rows) {
 void foldRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows) {
   std::ofstream csv(options.out + "/fold_rollout.csv");
   csv << "ik_method,outcome,simulated_s,wall_s,realtime_factor,max_ik_error_m,max_tracking_error_rad,"
-         "acceleration_cost\n";
+         "acceleration_cost,max_edge_stretch,fold_quality\n";
   for (const char* method : {"ED", "CTP+SD+SVF"}) {
     bs::tasks::ClothFoldConfig config;
-    config.sim_config = bimanual_skills::cli::packageFile("config/sim.yaml");
+    config.sim_config = simFile();
     config.duration = options.quick ? 1.5 : 8.5;
     config.settle = options.quick ? 0.2 : 1.0;
     config.ik_method = method;
@@ -390,12 +397,13 @@ void foldRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows) 
     const double factor = r.simulated_seconds / r.wall_seconds;
     std::printf(
         "sim_benchmark: fold_rollout %-11s %s, %5.2f s simulated in %5.2f s: %5.2fx real time, IK error "
-        "%.5f m, tracking error %.4f rad\n",
+        "%.5f m, tracking error %.4f rad, max edge stretch %.3f, fold quality %.3f\n",
         method, bs::tasks::toString(r.outcome), r.simulated_seconds, r.wall_seconds, factor, r.max_ik_error,
-        r.max_tracking_error);
+        r.max_tracking_error, r.max_edge_stretch, r.fold.q);
     std::fflush(stdout);
     csv << method << ',' << bs::tasks::toString(r.outcome) << ',' << r.simulated_seconds << ',' << r.wall_seconds << ','
-        << factor << ',' << r.max_ik_error << ',' << r.max_tracking_error << ',' << r.acceleration_cost << '\n';
+        << factor << ',' << r.max_ik_error << ',' << r.max_tracking_error << ',' << r.acceleration_cost << ','
+        << r.max_edge_stretch << ',' << r.fold.q << '\n';
     csv.flush();
     bs::bench::JsonRow row;
     row.add("experiment", "fold_rollout")
@@ -408,6 +416,8 @@ void foldRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows) 
         .add("max_ik_error_m", r.max_ik_error)
         .add("max_tracking_error_rad", r.max_tracking_error)
         .add("acceleration_cost", r.acceleration_cost)
+        .add("max_edge_stretch", r.max_edge_stretch)
+        .add("fold_quality", r.fold.q)
         .add("cpu", 0);
     rows.push_back(row);
   }
@@ -444,6 +454,8 @@ int main(int argc, char** argv) {
     line.option("--plant", "FILE",
                 "true plant of the friction and payload experiments (default: config/plant.yaml; for diagnosis)",
                 &plant_file);
+    line.option("--sim", "FILE", "simulation of the speed and fold_rollout experiments (default: config/sim.yaml)",
+                &g_sim_file);
     line.option("--arm", "NAME", "arm of config/sim.yaml the friction and payload experiments use (default left)",
                 &arm_name);
   };

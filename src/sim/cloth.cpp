@@ -30,6 +30,15 @@ constexpr double kGripperInertia = 10.0;  // [kg m²], isotropic
 /// distance to a thin table top so coarsely that the cloth rests 2–3 cm inside it (measured); 0.05 m is exact for
 /// the table's faces.
 constexpr double kSdfVoxel = 0.05;
+/// Gauss-Seidel passes of the strain limiting per step (fewer leave edges above the limit after a fold's put-down;
+/// more cost time for little: docs/RESULTS.md "How much the fabric stretches").
+constexpr int kStrainPasses = 4;
+
+/// CreatePatch numbers node (ix, iy) as iy · nodes_x + ix; a structural edge joins grid neighbours.
+bool isStructural(const btSoftBody::Link& link, const btSoftBody::Node* first, int nodes_x) {
+  const int a = static_cast<int>(link.m_n[0] - first), b = static_cast<int>(link.m_n[1] - first);
+  return std::abs(a % nodes_x - b % nodes_x) + std::abs(a / nodes_x - b / nodes_x) == 1;
+}
 
 /// Node-versus-face self-contacts of one cloth, fed to Bullet's soft-contact position solver (PSolve_SContacts).
 /// Bullet's own VF_SS handler skips self-collision (and its node/face exclusion test is a no-op), so this does the
@@ -123,6 +132,7 @@ void ClothParameters::validate(const char* where) const {
   }
   if (nodes_x < 2 || nodes_y < 2) throw std::invalid_argument(at + ": cloth 'nodes' must be at least 2 x 2");
   if (position_iterations < 1) throw std::invalid_argument(at + ": cloth 'position_iterations' must be >= 1");
+  if (!std::isfinite(strain_limit)) throw std::invalid_argument(at + ": cloth 'strain_limit' must be finite");
   unit(stretch_stiffness, "stretch_stiffness", false, true);
   unit(bending_stiffness, "bending_stiffness", true, true);
   unit(damping, "damping", true, false);
@@ -165,10 +175,18 @@ struct Cloth::Impl {
   Eigen::Matrix3Xd vertices, velocities, rest;
   Eigen::Matrix3Xi triangles;
   std::vector<Vector6d> wrenches;
+  /// Pull on each gripper of this step's pinning, tethers and strain limiting (their impulses on the nodes,
+  /// reversed), [force; torque about the gripper's origin] [N, N m].
+  std::vector<Vector6d> constraint_pull;
   std::vector<Vector6d> twists;
   std::vector<Eigen::Isometry3d> poses;
   std::vector<int> owner;  ///< Gripper holding each node, −1 if free.
   std::vector<int> grasped;
+  /// Per node: the held node nearest to it on the rest mesh (−1 while no node is held) and their rest distance.
+  std::vector<int> tether_node;
+  std::vector<double> tether_rest;
+  std::vector<btVector3> start_x;  ///< Node positions before limitStrain().
+  std::vector<int> structural;     ///< Links between grid neighbours (structural edges).
   SimStatus status = SimStatus::Ok;
   ClothDivergence divergence = ClothDivergence::None;
   double max_stretch = 1.0;
@@ -179,7 +197,107 @@ struct Cloth::Impl {
   void destroy() noexcept;
   void copyMesh() noexcept;
   ClothDivergence check() noexcept;
+  void updateTethers() noexcept;
+  void limitStrain(double dt) noexcept;
+  void pinHeldNodes(double dt) noexcept;
+  /// Adds to constraint_pull[gripper] the pull of moving `node` by `correction` this step (nothing for −1).
+  void pull(int gripper, const btSoftBody::Node& node, const btVector3& correction) noexcept;
 };
+
+// Bullet's anchors are soft (an impulse per iteration towards the anchor point), so a lifted cloth drags its held
+// nodes out of the gripper's grip and stretches the edges between them. After the solve, each held node takes its
+// anchor point and the gripper's velocity there: the grip is rigid, and what the anchors transferred to the gripper
+// body (its wrench) is unchanged.
+void Cloth::Impl::pinHeldNodes(double dt) noexcept {
+  const btSoftBody::Node* first = &soft->m_nodes[0];
+  for (int a = 0; a < soft->m_anchors.size(); ++a) {
+    btSoftBody::Anchor& anchor = soft->m_anchors[a];
+    btSoftBody::Node& node = *anchor.m_node;
+    const btVector3 offset = anchor.m_body->getWorldTransform().getBasis() * anchor.m_local;
+    const btVector3 velocity = anchor.m_body->getLinearVelocity() + anchor.m_body->getAngularVelocity().cross(offset);
+    pull(owner[static_cast<std::size_t>(&node - first)], node, (velocity - node.m_v) * dt);
+    node.m_x = anchor.m_body->getWorldTransform().getOrigin() + offset;
+    node.m_v = velocity;
+  }
+}
+
+void Cloth::Impl::pull(int gripper, const btSoftBody::Node& node, const btVector3& correction) noexcept {
+  if (gripper < 0 || !(node.m_im > 0.0)) return;
+  const double dt = parameters.step;
+  // The node's momentum change over the step, m Δx / dt, came from the gripper: the cloth pulls the other way.
+  const Eigen::Vector3d force = -toEigen(correction) / (node.m_im * dt * dt);
+  const btRigidBody& body = *grippers[static_cast<std::size_t>(gripper)];
+  Vector6d& w = constraint_pull[static_cast<std::size_t>(gripper)];
+  w.head<3>() += force;
+  w.tail<3>() += toEigen(node.m_x - body.getWorldTransform().getOrigin()).cross(force);
+}
+
+void Cloth::Impl::updateTethers() noexcept {
+  const int n = soft->m_nodes.size();
+  std::fill(tether_node.begin(), tether_node.end(), -1);
+  if (parameters.strain_limit < 0.0) return;
+  for (int a = 0; a < n; ++a) {
+    if (owner[static_cast<std::size_t>(a)] < 0) continue;
+    for (int i = 0; i < n; ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      const double d = (rest_bt[k] - rest_bt[static_cast<std::size_t>(a)]).length();
+      if (tether_node[k] < 0 || d < tether_rest[k]) {
+        tether_node[k] = a;
+        tether_rest[k] = d;
+      }
+    }
+  }
+}
+
+// Inextensibility after Bullet's solve, in position-based dynamics' way (positions move, velocities take the
+// position change over the step); held nodes do not move. First the long-range attachments (tethers; Kim,
+// Chentanez and Müller-Fischer, "Long range attachments", SCA 2012): a free node farther than (1 + limit) times
+// its rest distance from its nearest held node (of any gripper) moves back onto that sphere. Then strain limiting
+// (Provot, "Deformation constraints in a mass-spring model to describe rigid cloth behavior", 1995): each
+// structural edge longer than (1 + limit) times its rest length is shortened to that length, its free ends moving
+// equally, for a few Gauss-Seidel passes.
+void Cloth::Impl::limitStrain(double dt) noexcept {
+  const double limit = 1.0 + parameters.strain_limit;
+  const int n = soft->m_nodes.size();
+  for (int i = 0; i < n; ++i) start_x[static_cast<std::size_t>(i)] = soft->m_nodes[i].m_x;
+  for (int i = 0; i < n; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    if (tether_node[k] < 0 || owner[k] >= 0) continue;
+    btSoftBody::Node& node = soft->m_nodes[i];
+    const btVector3 d = node.m_x - soft->m_nodes[tether_node[k]].m_x;
+    const double length = d.length(), most = limit * tether_rest[k];
+    if (!(length > most)) continue;
+    const btVector3 correction = d * (most / length - 1.0);
+    node.m_x += correction;
+    pull(owner[static_cast<std::size_t>(tether_node[k])], node, correction);
+  }
+  const btSoftBody::Node* first = &soft->m_nodes[0];
+  for (int pass = 0; pass < kStrainPasses; ++pass) {
+    bool moved = false;
+    for (const int l : structural) {
+      btSoftBody::Link& link = soft->m_links[l];
+      btSoftBody::Node& a = *link.m_n[0];
+      btSoftBody::Node& b = *link.m_n[1];
+      const btVector3 d = b.m_x - a.m_x;
+      const double length = d.length(), most = limit * link.m_rl;
+      if (!(length > most)) continue;
+      const int owner_a = owner[static_cast<std::size_t>(&a - first)];
+      const int owner_b = owner[static_cast<std::size_t>(&b - first)];
+      if (owner_a >= 0 && owner_b >= 0) continue;
+      const btVector3 correction = d * ((length - most) / length / (owner_a < 0 && owner_b < 0 ? 2.0 : 1.0));
+      if (owner_a < 0) a.m_x += correction;
+      if (owner_b < 0) b.m_x -= correction;
+      // Between two free nodes the impulses cancel; a free node pulled towards a held one pulls its gripper.
+      if (owner_b >= 0) pull(owner_b, a, correction);
+      if (owner_a >= 0) pull(owner_a, b, -correction);
+      moved = true;
+    }
+    if (!moved) break;
+  }
+  for (int i = 0; i < n; ++i) {
+    soft->m_nodes[i].m_v += (soft->m_nodes[i].m_x - start_x[static_cast<std::size_t>(i)]) / dt;
+  }
+}
 
 void Cloth::Impl::destroy() noexcept {
   if (world) {
@@ -252,7 +370,16 @@ void Cloth::Impl::build() {
   if (p.bending_stiffness > 0.0) {
     btSoftBody::Material* bending = soft->appendMaterial();
     bending->m_kLST = p.bending_stiffness;
-    soft->generateBendingConstraints(2, bending);
+    // Flexion links two nodes apart along the grid's axes (the mass-spring cloth's bending springs). Bullet's
+    // generateBendingConstraints(2) also links every node to those two links away across the diagonals: twice the
+    // links, and the link solver was a third of a fold rollout's time (docs/RESULTS.md "How much the fabric
+    // stretches").
+    for (int iy = 0; iy < p.nodes_y; ++iy) {
+      for (int ix = 0; ix < p.nodes_x; ++ix) {
+        if (ix + 2 < p.nodes_x) soft->appendLink(iy * p.nodes_x + ix, iy * p.nodes_x + ix + 2, bending);
+        if (iy + 2 < p.nodes_y) soft->appendLink(iy * p.nodes_x + ix, (iy + 2) * p.nodes_x + ix, bending);
+      }
+    }
   }
   soft->m_cfg.piterations = p.position_iterations;
   soft->m_cfg.kDF = p.friction;
@@ -280,7 +407,15 @@ void Cloth::Impl::build() {
   velocities.setZero(3, n);
   owner.assign(static_cast<std::size_t>(n), -1);
   grasped.assign(static_cast<std::size_t>(gripper_count), 0);
+  tether_node.assign(static_cast<std::size_t>(n), -1);
+  tether_rest.assign(static_cast<std::size_t>(n), 0.0);
+  start_x.resize(static_cast<std::size_t>(n));
+  structural.clear();
+  for (int l = 0; l < soft->m_links.size(); ++l) {
+    if (isStructural(soft->m_links[l], &soft->m_nodes[0], p.nodes_x)) structural.push_back(l);
+  }
   wrenches.assign(static_cast<std::size_t>(gripper_count), Vector6d::Zero());
+  constraint_pull.assign(static_cast<std::size_t>(gripper_count), Vector6d::Zero());
   status = SimStatus::Ok;
   divergence = ClothDivergence::None;
   max_stretch = 1.0;
@@ -314,15 +449,13 @@ ClothDivergence Cloth::Impl::check() noexcept {
   }
   if (too_fast) return ClothDivergence::NodeSpeed;
   double stretch = 0.0, edge_stretch = 0.0;
-  const btSoftBody::Node* first = &soft->m_nodes[0];
-  const int nx = parameters.nodes_x;
   for (int l = 0; l < soft->m_links.size(); ++l) {
     const btSoftBody::Link& link = soft->m_links[l];
-    const double ratio = (link.m_n[0]->m_x - link.m_n[1]->m_x).length() / link.m_rl;
-    stretch = std::max(stretch, ratio);
-    // CreatePatch numbers node (ix, iy) as iy * nodes_x + ix; a structural edge joins grid neighbours.
-    const int a = static_cast<int>(link.m_n[0] - first), b = static_cast<int>(link.m_n[1] - first);
-    if (std::abs(a % nx - b % nx) + std::abs(a / nx - b / nx) == 1) edge_stretch = std::max(edge_stretch, ratio);
+    stretch = std::max(stretch, (link.m_n[0]->m_x - link.m_n[1]->m_x).length() / link.m_rl);
+  }
+  for (const int l : structural) {
+    const btSoftBody::Link& link = soft->m_links[l];
+    edge_stretch = std::max(edge_stretch, (link.m_n[0]->m_x - link.m_n[1]->m_x).length() / link.m_rl);
   }
   max_stretch = stretch;
   max_edge_stretch = edge_stretch;
@@ -427,6 +560,9 @@ SimStatus Cloth::step() noexcept {
   const double self_before = m.world->self_collision_seconds;
   const auto start = Clock::now();
   m.world->stepSimulation(dt, 0, dt);
+  for (Vector6d& w : m.constraint_pull) w.setZero();
+  m.pinHeldNodes(dt);
+  if (m.parameters.strain_limit >= 0.0) m.limitStrain(dt);
   const auto stepped = Clock::now();
   const double self_seconds = m.world->self_collision_seconds - self_before;
   m.timings.bullet += seconds(start, stepped) - self_seconds;
@@ -449,6 +585,7 @@ SimStatus Cloth::step() noexcept {
       }
       w.head<3>() = kGripperMass / dt * (toEigen(body.getLinearVelocity()) - m.twists[k].head<3>());
       w.tail<3>() = kGripperInertia / dt * (toEigen(body.getAngularVelocity()) - m.twists[k].tail<3>());
+      w += m.constraint_pull[k];
     }
   }
   m.timings.bookkeeping += seconds(stepped, Clock::now());
@@ -473,6 +610,7 @@ SimStatus Cloth::grasp(int gripper, double radius, int* attached) noexcept {
     ++count;
   }
   m.grasped[g] += count;
+  if (count > 0) m.updateTethers();
   if (attached != nullptr) *attached = count;
   return SimStatus::Ok;
 }
@@ -498,6 +636,7 @@ SimStatus Cloth::release(int gripper) noexcept {
   }
   anchors.resize(kept);
   m.grasped[g] = 0;
+  m.updateTethers();
   m.wrenches[g].setZero();
   return SimStatus::Ok;
 }

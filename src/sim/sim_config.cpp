@@ -26,10 +26,10 @@ Eigen::Isometry3d readPose(const YAML::Node& node, const std::string& where) {
 }
 
 ClothParameters readCloth(const YAML::Node& node, const std::string& where, double& grasp_radius) {
-  io::checkKeys(
-      node, where,
-      {"xyz", "rpy", "size", "nodes", "mass", "stretch_stiffness", "bending_stiffness", "damping", "friction",
-       "thickness", "position_iterations", "self_collision", "step", "max_node_speed", "max_stretch", "grasp_radius"});
+  io::checkKeys(node, where,
+                {"xyz", "rpy", "size", "nodes", "mass", "stretch_stiffness", "bending_stiffness", "damping", "friction",
+                 "thickness", "position_iterations", "self_collision", "strain_limit", "step", "max_node_speed",
+                 "max_stretch", "grasp_radius"});
   ClothParameters c;
   c.pose = readPose(node, where);
   if (node["size"]) {
@@ -57,6 +57,7 @@ ClothParameters readCloth(const YAML::Node& node, const std::string& where, doub
     c.position_iterations = io::readInt(node, "position_iterations", where);
   }
   if (node["self_collision"]) c.self_collision = io::readBool(node, "self_collision", where);
+  c.strain_limit = io::readDouble(node, "strain_limit", where, c.strain_limit);
   c.step = io::readDouble(node, "step", where, c.step);
   c.max_node_speed = io::readDouble(node, "max_node_speed", where, c.max_node_speed);
   c.max_stretch = io::readDouble(node, "max_stretch", where, c.max_stretch);

@@ -512,6 +512,7 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
     const sim::SimStatus status = simulation.step();
     if (status == sim::SimStatus::ArmDiverged) fail(FoldOutcome::SimulationDiverged, "an arm diverged");
     if (status == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the cloth diverged");
+    out.max_edge_stretch = std::max(out.max_edge_stretch, simulation.cloth().maxEdgeStretch());
   }
   out.acceleration_cost = references.acceleration_cost;
   out.max_ik_error = references.max_ik_error;

@@ -29,11 +29,16 @@ struct ClothParameters {
   double stretch_stiffness = 0.9;   ///< Bullet kLST of the structural and shear links, in (0, 1].
   double bending_stiffness = 0.05;  ///< Bullet kLST of the bending links (between nodes two links apart), [0, 1].
   double damping = 0.01;            ///< Bullet kDP: velocity damping per step, [0, 1).
-  double friction = 0.5;         ///< Bullet kDF: friction with the table (times the table's) and with itself, [0, 1].
-  double thickness = 0.004;      ///< Collision margin [m]: the cloth rests this far above the table, and two
-                                 ///< layers twice this far apart.
-  int position_iterations = 4;   ///< Bullet piterations per step (≥ 1).
-  bool self_collision = true;    ///< Node-versus-face contacts of the cloth with itself.
+  double friction = 0.5;        ///< Bullet kDF: friction with the table (times the table's) and with itself, [0, 1].
+  double thickness = 0.004;     ///< Collision margin [m]: the cloth rests this far above the table, and two
+                                ///< layers twice this far apart.
+  int position_iterations = 4;  ///< Bullet piterations per step (≥ 1).
+  bool self_collision = true;   ///< Node-versus-face contacts of the cloth with itself.
+  /// Inextensibility: after each step, no free node is farther from its nearest held node (on the rest mesh) than
+  /// (1 + strain_limit) times their rest distance (tethers), and structural edges longer than (1 + strain_limit)
+  /// times their rest length are shortened (strain limiting, a few passes). Negative: off (Bullet's links alone
+  /// stretch a lifted cloth by 15 % and more at few iterations).
+  double strain_limit = 0.05;
   double step = 0.004;           ///< Cloth time step [s].
   double max_node_speed = 20.0;  ///< Divergence bound on any node's speed [m/s].
   double max_stretch = 3.0;      ///< Divergence bound on any link's length over its rest length.
@@ -93,7 +98,8 @@ class Cloth {
 
   /// Wrench the cloth exerted on gripper `gripper` over the last step, [force; torque about the gripper origin],
   /// world frame [N, N m] (zero while it holds nothing or after a divergence). Measured as the momentum Bullet's
-  /// anchor constraints transferred to the gripper body.
+  /// anchor constraints transferred to the gripper body, plus the momentum the rigid grip, the tethers and the strain
+  /// limiting gave the nodes from the gripper (reversed).
   const Vector6d& gripperWrench(int gripper) const noexcept;
 
   /// Node positions (3 × nodeCount, world frame), updated after every step. Node (i, j) is column j·nodes_x + i.

@@ -49,7 +49,7 @@ struct SimConfig {
   /// cloth:                                                                             # optional
   ///   {xyz: [...], rpy: [...], size: [0.5, 0.6], nodes: [20, 24], mass: 0.22, stretch_stiffness: 0.9,
   ///    bending_stiffness: 0.05, damping: 0.01, friction: 0.5, thickness: 0.004, position_iterations: 4,
-  ///    self_collision: true, step: 0.004, max_node_speed: 20, max_stretch: 3, grasp_radius: 0.04}
+  ///    self_collision: true, strain_limit: 0.05, step: 0.004, max_node_speed: 20, max_stretch: 3, grasp_radius: 0.04}
   /// \endcode
   /// \throws std::invalid_argument naming the file and the entry (missing or unknown entries, wrong types, values
   /// out of range, a cloth step that is not a multiple of the step, unreadable plant file).

@@ -63,6 +63,7 @@ struct FoldRollout {
   double acceleration_cost = 0.0;   ///< ∫ ‖q̈_ref‖² dt over both arms [rad²/s³] (R_acceleration's raw value).
   double max_tracking_error = 0.0;  ///< [rad]
   double max_ik_error = 0.0;        ///< [m]
+  double max_edge_stretch = 1.0;    ///< Largest structural-edge stretch of the cloth over the rollout (Cloth).
   int grasped_nodes[2] = {0, 0};
   std::vector<Eigen::Matrix3Xd> commanded_path, actual_path;  ///< Tool positions (world) per arm, at path_rate.
   std::vector<Eigen::MatrixXd> joint_path;                    ///< Measured joint positions per arm (7 × samples).
