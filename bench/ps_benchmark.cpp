@@ -15,7 +15,7 @@
 #include "bimanual_skills/learning/pi2.hpp"
 #include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
-#include "bimanual_skills/ros_layer/workers/action_workers.hpp"
+#include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
 #include "cli/package_share.hpp"
 #include "experiment_cli.hpp"
@@ -86,7 +86,7 @@ class WorkerRollouts {
       workers_ = std::max(workers_, s.workers);
     };
     dispatcher_ = std::make_unique<br::Dispatcher>(
-        std::make_unique<bimanual_skills::ros_layer::ActionWorkerDirectory>(selection), terms_, dispatch);
+        std::make_unique<bimanual_skills::ros_layer::TopicWorkerDirectory>(selection), terms_, dispatch);
   }
 
   /// The rewards of the rows of `samples`, and their step costs when `costs` is given.

@@ -1,9 +1,11 @@
-// rollout_benchmark: what rollouts cost on threads of one process and on rollout worker nodes (actionlib), on this
-// machine. It starts its own ROS master when none answers at ROS_MASTER_URI, and its own rollout_worker processes
-// (the binary next to it) in a namespace of its own, so it needs nothing running.
+// rollout_benchmark: what rollouts cost on threads of one process and on rollout worker nodes (topics with
+// TCP_NODELAY), on this machine. It starts its own ROS master when none answers at ROS_MASTER_URI, and its own
+// rollout_worker processes (the binary next to it) in a namespace of its own, so it needs nothing running.
 //   throughput: a batch of fold rollouts on 1 and 2 threads and on 1, 2, 4 workers (default; --workers), and on the
 //               workers already running under --worker-namespace NS if given (other hosts, say), rollouts/s and
-//               whether every result equals the one-thread result bit for bit;
+//               whether every result equals the one-thread result bit for bit; then cheap rollouts (ps_benchmark's
+//               circle task, 0.3 ms each) in batches of 50, one batch after another as a learner asks for them, on
+//               one thread and on 1 and 2 workers;
 //   overhead:   the dispatch's own cost per rollout: batches of the instant "quadratic" task on one worker, one
 //               rollout per share and adaptive shares, as a fraction of a 1 s rollout; Table 7.3's planar DR-DMP
 //               task (cheap rollouts) on two workers; and on the fold with one rollout per share, the batch's time
@@ -13,7 +15,7 @@
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
-#include "bimanual_skills/ros_layer/workers/action_workers.hpp"
+#include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "cli/package_share.hpp"
 #include "experiment_cli.hpp"
 #include "ros_processes.hpp"
@@ -62,13 +64,24 @@ struct Timing {
   }
 };
 
-Timing onThreads(const Batch& b, int threads) {
-  br::ParallelEvaluator evaluator([&] { return br::makeRolloutTask(b.task, b.config); }, threads);
+/// Times `evaluate` on the requests of `b` in consecutive batches of `per_batch` (all at once for 0).
+Timing inBatches(const Batch& b, std::size_t per_batch, br::Evaluator& evaluator) {
+  const std::size_t size = per_batch == 0 ? b.requests.size() : per_batch;
   const auto start = Clock::now();
   Timing t;
-  t.results = evaluator.evaluate(b.requests);
+  for (std::size_t first = 0; first < b.requests.size(); first += size) {
+    const auto begin = b.requests.begin() + static_cast<std::ptrdiff_t>(first);
+    const std::vector<br::RolloutRequest> batch(
+        begin, begin + static_cast<std::ptrdiff_t>(std::min(size, b.requests.size() - first)));
+    for (br::RolloutResult& r : evaluator.evaluate(batch)) t.results.push_back(std::move(r));
+  }
   t.seconds = secondsSince(start);
   return t;
+}
+
+Timing onThreads(const Batch& b, int threads, std::size_t per_batch = 0) {
+  br::ParallelEvaluator evaluator([&] { return br::makeRolloutTask(b.task, b.config); }, threads);
+  return inBatches(b, per_batch, evaluator);
 }
 
 /// A dispatcher to `workers` rollout_worker processes started under a namespace of their own or, with `workers` 0,
@@ -93,7 +106,7 @@ class WorkerSet {
     br::DispatchConfig dispatch;
     dispatch.share = share;
     dispatch.timeout = 120.0;
-    dispatcher_ = std::make_unique<br::Dispatcher>(std::make_unique<bs::ros_layer::ActionWorkerDirectory>(selection),
+    dispatcher_ = std::make_unique<br::Dispatcher>(std::make_unique<bs::ros_layer::TopicWorkerDirectory>(selection),
                                                    terms, dispatch);
     // Until every worker is up (started ones), or until no new one came for 3 s (running ones).
     const auto start = Clock::now();
@@ -115,15 +128,12 @@ class WorkerSet {
 
   int count() const noexcept { return count_; }
 
-  /// Times the batch after a first batch of one rollout per worker (each builds its task on its first goal).
-  Timing run(const Batch& b, int workers) {
+  /// Times the requests (in batches of `per_batch`, all at once for 0) after a first batch of one rollout per worker
+  /// (each builds its task on its first share).
+  Timing run(const Batch& b, int workers, std::size_t per_batch = 0) {
     const std::vector<br::RolloutRequest> warm(static_cast<std::size_t>(workers), b.requests.front());
     dispatcher_->evaluate(warm);
-    const auto start = Clock::now();
-    Timing t;
-    t.results = dispatcher_->evaluate(b.requests);
-    t.seconds = secondsSince(start);
-    return t;
+    return inBatches(b, per_batch, *dispatcher_);
   }
 
  private:
@@ -161,8 +171,9 @@ int main(int argc, char** argv) {
   bs::bench::ExperimentProgram program;
   program.name = "rollout_benchmark";
   program.description =
-      "Rollouts on threads of one process against rollout_worker nodes (actionlib): throughput on 1 and 2 threads\n"
-      "and on 1, 2, 4 workers, and the dispatch's own cost per rollout. Starts its own ROS master when none answers\n"
+      "Rollouts on threads of one process against rollout_worker nodes (topics): throughput of fold rollouts on 1\n"
+      "and 2 threads and on 1, 2, 4 workers, and of cheap rollouts (circle, 0.3 ms, in batches of 50) on one thread\n"
+      "and on 1 and 2 workers; and the dispatch's own cost per rollout. Starts its own ROS master when none answers\n"
       "at ROS_MASTER_URI, and its own workers.";
   program.experiments = {"throughput", "overhead", "all"};
   program.extra = [&](bs::cli::CommandLine& line) {
@@ -245,6 +256,27 @@ int main(int argc, char** argv) {
         all_identical = all_identical && same;
         record("throughput", "fold", "workers", set.count(), "auto", n, t.seconds, same);
         rows.back().add("namespace", external);
+      }
+      // Cheap rollouts as ps_benchmark's circle experiment asks for them: batches of 50, one after another.
+      constexpr std::size_t kPerBatch = 50;
+      const std::string circle_config = bimanual_skills::cli::packageFile("config/circle_task.yaml");
+      const Batch circle = makeBatch("circle", circle_config, options.quick ? 500 : 10000, options.seed);
+      const std::size_t circle_terms = br::makeRolloutTask("circle", circle_config)->termNames().size();
+      const Timing local = onThreads(circle, 1, kPerBatch);
+      const int size = static_cast<int>(circle.requests.size());
+      record("throughput", "circle", "threads", 1, "-", size, local.seconds, true);
+      rows.back().add("per_batch", static_cast<int>(kPerBatch));
+      for (const int w : {1, 2}) {
+        WorkerSet set(w, "", "circle", circle_config, circle_terms, 0, log);
+        const Timing t = set.run(circle, w, kPerBatch);
+        const bool same = identical(t.results, local.results);
+        all_identical = all_identical && same;
+        record("throughput", "circle", "workers", w, "auto", size, t.seconds, same);
+        rows.back()
+            .add("per_batch", static_cast<int>(kPerBatch))
+            .add("vs_one_thread", local.seconds / t.seconds)
+            .add("dispatch_ms_per_rollout", t.dispatchMs())
+            .add("ms_per_batch", 1000.0 * t.seconds * kPerBatch / size);
       }
     }
     if (options.experiment != "throughput") {

@@ -7,7 +7,7 @@
 #include "bimanual_skills/ros_layer/camera_messages.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
-#include "bimanual_skills/ros_layer/workers/action_workers.hpp"
+#include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "bimanual_skills/tasks/fold_quality.hpp"
 #include "io/summary_json.hpp"
 #include "node_cli.hpp"
@@ -239,7 +239,7 @@ class FoldLearnerNode {
     dispatch.batch = [this](const br::DispatchStats& s) { onBatch(s); };
     dispatching_ = true;
     workers_where_ = selection.names.empty() ? selection.space : "~workers";
-    return std::make_unique<br::Dispatcher>(std::make_unique<bs::ros_layer::ActionWorkerDirectory>(selection),
+    return std::make_unique<br::Dispatcher>(std::make_unique<bs::ros_layer::TopicWorkerDirectory>(selection),
                                             br::FoldRolloutTask::kTerms, dispatch);
   }
 

@@ -22,7 +22,7 @@ PACKAGES=(
   libbullet-dev libbullet-extras-dev pkg-config
   # vision (vision/): rendered camera images and the image terms of the folding reward
   libopencv-dev libcv-bridge-dev librosbag-dev python3-rosbag
-  # rollout workers (actionlib), with the Python modules for rostopic/axclient
+  # trajectory actions (actionlib), with the Python modules for rostopic/axclient
   libactionlib-dev libactionlib-msgs-dev python3-actionlib python3-actionlib-msgs
   # build and test
   cmake g++ make colcon python3-colcon-ros python3-colcon-cmake python3-colcon-test-result python3-colcon-bash

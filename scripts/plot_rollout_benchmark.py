@@ -1,6 +1,7 @@
 #!/usr/bin/python3
-"""Plots of rollout_benchmark: DIR/throughput.png (fold rollouts per second on threads and on rollout workers) and
-DIR/tables.md, from DIR/summary.json. Usage: plot_rollout_benchmark.py DIR"""
+"""Plots of rollout_benchmark: DIR/throughput.png (fold and cheap circle rollouts per second on threads and on
+rollout workers, relative to one thread) and DIR/tables.md, from DIR/summary.json. Usage: plot_rollout_benchmark.py
+DIR"""
 import json
 import os
 import sys
@@ -19,30 +20,37 @@ def main():
     throughput = [r for r in rows if r["experiment"] == "throughput"]
     overhead = [r for r in rows if r["experiment"] == "overhead"]
     lines = ["# rollout_benchmark (seed %d%s)" % (summary["seed"], ", quick" if summary["quick"] else ""), ""]
-    if throughput:
-        base = next(r for r in throughput if r["mode"] == "threads" and r["count"] == 1)["rollouts_per_second"]
-        lines += ["| evaluator | rollouts | s | rollouts/s | vs 1 thread | same results |",
-                  "|---|---:|---:|---:|---:|---|"]
-        for r in throughput:
-            mode = r["mode"] if r["count"] > 1 else r["mode"][:-1]
-            if "namespace" in r:
-                mode += " under " + r["namespace"]
-            lines.append("| %d %s | %d | %.2f | %.3f | %.2f× | %s |" % (
-                r["count"], mode, r["rollouts"], r["seconds"],
-                r["rollouts_per_second"], r["rollouts_per_second"] / base, "yes" if r["identical"] else "NO"))
-        lines.append("")
-        fig, ax = plt.subplots(figsize=(6.4, 3.6))
-        def label(r):
-            text = "%d %s" % (r["count"], r["mode"] if r["count"] > 1 else r["mode"][:-1])
-            return text + "\n" + r["namespace"] if "namespace" in r else text
+    tasks = [t for t in ("fold", "circle") if any(r["task"] == t for r in throughput)]
+    if tasks:
+        lines += ["| task | evaluator | rollouts | s | rollouts/s | vs 1 thread | same results |",
+                  "|---|---|---:|---:|---:|---:|---|"]
+        fig, axes = plt.subplots(1, len(tasks), figsize=(6.4 * len(tasks), 3.6), squeeze=False)
+        for ax, task in zip(axes[0], tasks):
+            rows_t = [r for r in throughput if r["task"] == task]
+            base = next(r for r in rows_t if r["mode"] == "threads" and r["count"] == 1)["rollouts_per_second"]
+            for r in rows_t:
+                mode = r["mode"] if r["count"] > 1 else r["mode"][:-1]
+                if "namespace" in r:
+                    mode += " under " + r["namespace"]
+                lines.append("| %s | %d %s | %d | %.2f | %.3f | %.2f× | %s |" % (
+                    task, r["count"], mode, r["rollouts"], r["seconds"], r["rollouts_per_second"],
+                    r["rollouts_per_second"] / base, "yes" if r["identical"] else "NO"))
 
-        labels = [label(r) for r in throughput]
-        colours = ["tab:blue" if r["mode"] == "threads" else "tab:green" if "namespace" in r else "tab:orange"
-                   for r in throughput]
-        ax.bar(labels, [r["rollouts_per_second"] for r in throughput], color=colours)
-        ax.set_ylabel("fold rollouts / s")
-        ax.set_title("Rollout throughput on this machine (%d rollouts per batch)" % throughput[0]["rollouts"])
-        ax.grid(axis="y", alpha=0.3)
+            def label(r):
+                text = "%d %s" % (r["count"], r["mode"] if r["count"] > 1 else r["mode"][:-1])
+                return text + "\n" + r["namespace"] if "namespace" in r else text
+
+            colours = ["tab:blue" if r["mode"] == "threads" else "tab:green" if "namespace" in r else "tab:orange"
+                       for r in rows_t]
+            ax.bar([label(r) for r in rows_t], [r["rollouts_per_second"] / base for r in rows_t], color=colours)
+            ax.axhline(1.0, color="grey", lw=0.8)
+            ax.set_ylabel("throughput / one thread's")
+            per_batch = rows_t[0].get("per_batch")
+            ax.set_title("%s rollouts (%s)" % (task, "batches of %d" % per_batch if per_batch else
+                                               "%d per batch" % rows_t[0]["rollouts"]))
+            ax.grid(axis="y", alpha=0.3)
+        lines.append("")
+        fig.suptitle("Rollout throughput on this machine (2 cores)")
         fig.tight_layout()
         fig.savefig(os.path.join(out, "throughput.png"), dpi=120)
     if overhead:

@@ -17,6 +17,10 @@ namespace {
 using bimanual_skills::realtime::Clock;
 using bimanual_skills::realtime::secondsSince;
 
+/// Below this many seconds of rollouts per worker, what is left of a batch goes out in one share per worker: the
+/// halving shares' round trips would cost more than the balance they buy.
+constexpr double kEvenShareSeconds = 0.05;
+
 /// Why `results` cannot be the answer to a share of `size` rollouts of a task with `terms` terms; empty if it can.
 std::string garbage(const std::vector<RolloutResult>& results, std::size_t size, std::size_t terms) {
   if (results.size() != size) {
@@ -152,7 +156,15 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
         Worker& w = *workers_[at];
         if (!w.share.empty()) continue;
         std::size_t size = config_.share;
-        if (size == 0) size = (pending.size() + 2 * workers_.size() - 1) / (2 * workers_.size());
+        if (size == 0) {
+          // Cheap rollouts: an even split of what is left among the idle workers, one share each.
+          const auto idle = static_cast<std::size_t>(
+              std::count_if(workers_.begin() + static_cast<std::ptrdiff_t>(at), workers_.end(),
+                            [](const std::unique_ptr<Worker>& v) { return v->share.empty(); }));
+          const std::size_t even = (pending.size() + idle - 1) / idle;
+          const bool cheap = timed_ > 0 && rollout_seconds_ * static_cast<double>(even) < kEvenShareSeconds;
+          size = cheap ? even : (pending.size() + 2 * workers_.size() - 1) / (2 * workers_.size());
+        }
         size = std::max<std::size_t>(1, std::min(size, pending.size()));
         std::vector<RolloutRequest> requests;
         for (std::size_t k = 0; k < size; ++k) {
@@ -195,6 +207,8 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
             const std::vector<std::size_t> share = std::move(w.share);
             w.share.clear();
             for (std::size_t k = 0; k < share.size(); ++k) {
+              ++timed_;
+              rollout_seconds_ += (status.results[k].wall_seconds - rollout_seconds_) / static_cast<double>(timed_);
               results[share[k]] = std::move(status.results[k]);
               ++reported;
               if (done) done(share[k], results[share[k]], nullptr);

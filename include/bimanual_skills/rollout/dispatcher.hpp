@@ -6,7 +6,7 @@
 /// depends on its parameters and seed only, the results do not depend on which worker ran what, on the number of
 /// workers or on the faults. Workers are looked up again at every batch, so workers can join between batches.
 ///
-/// The transport is behind WorkerLink and WorkerDirectory (ROS actionlib in ros_layer/workers/action_workers.hpp;
+/// The transport is behind WorkerLink and WorkerDirectory (ROS topics in ros_layer/workers/topic_workers.hpp;
 /// in-process links in the tests). Target bimanual_skills_rollout. Offline: allocates; errors are exceptions.
 #pragma once
 
@@ -76,7 +76,8 @@ struct DispatchConfig {
   /// the others and it is left out until the next batch. Must exceed the longest rollout.
   double timeout = 60.0;
   /// Rollouts per share: 0 hands each idle worker ⌈remaining / (2 · workers)⌉ (large shares first, small ones at
-  /// the end); k > 0 hands out k at a time.
+  /// the end), or ⌈remaining / workers⌉ when the rollouts so far took so little (that share under 50 ms) that
+  /// another round trip would cost more than it balances; k > 0 hands out k at a time.
   std::size_t share = 0;
   /// How long [s] a batch waits for a first worker (or for one after all were lost) before it throws.
   double wait_for_workers = 30.0;
@@ -120,6 +121,8 @@ class Dispatcher : public Evaluator {
   DispatchConfig config_;
   DispatchStats last_;
   std::vector<std::unique_ptr<Worker>> workers_;
+  double rollout_seconds_ = 0.0;  ///< Mean wall time of a rollout on the workers, over every result so far.
+  std::size_t timed_ = 0;         ///< Results behind that mean.
 };
 
 }  // namespace bimanual_skills::rollout

@@ -1,129 +1,182 @@
-#include "bimanual_skills/ros_layer/workers/action_workers.hpp"
+#include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 
-#include <bimanual_skills/EvaluateRolloutsAction.h>
+#include <bimanual_skills/RolloutShare.h>
 
-#include <actionlib/client/simple_action_client.h>
 #include <ros/master.h>
 
-#include <atomic>
+#include <stdexcept>
 #include <utility>
 
 namespace bimanual_skills::ros_layer {
 
 namespace {
 
-constexpr const char* kAction = "evaluate_rollouts";
-/// A worker whose status is older than this [s] is not alive (actionlib publishes it at 5 Hz).
-constexpr double kStatusAge = 1.0;
-constexpr double kConnectTimeout = 3.0;  ///< [s] to connect to a worker's action server.
+/// A worker not heard for this long [s] is not alive (it publishes its state at 5 Hz).
+constexpr double kStateAge = 1.0;
+constexpr double kConnectTimeout = 3.0;  ///< [s] to connect to a worker's topics.
 
 bool endsWith(const std::string& s, const std::string& tail) {
   return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
 }
 
-class ActionWorkerLink : public rollout::WorkerLink {
- public:
-  ActionWorkerLink(ros::NodeHandle& node, std::string name, const WorkerSelection& selection)
-      : name_(std::move(name)), selection_(selection), client_(node, name_, false) {}
+bool terminal(std::uint8_t state) {
+  return state == RolloutShareState::SUCCEEDED || state == RolloutShareState::REFUSED ||
+         state == RolloutShareState::FAILED || state == RolloutShareState::CANCELLED;
+}
 
-  bool connected() { return client_.waitForServer(ros::Duration(kConnectTimeout)); }
+class TopicWorkerLink : public rollout::WorkerLink {
+ public:
+  TopicWorkerLink(ros::NodeHandle& node, std::string name, const WorkerSelection& selection)
+      : name_(std::move(name)),
+        selection_(selection),
+        client_(ros::this_node::getName()),
+        // Numbers start at the clock so that a restarted learner never reuses the number of a share still running.
+        next_id_(ros::WallTime::now().toNSec()) {
+    share_ = node.advertise<RolloutShare>(name_ + "/share", 4);
+    state_ = node.subscribe<RolloutShareState>(
+        name_ + "/state", 16, [this](const RolloutShareStateConstPtr& m) { heard(m); }, ros::VoidConstPtr(),
+        ros::TransportHints().tcpNoDelay());
+  }
+
+  /// Whether the worker takes shares: it subscribes to this link's shares and has been heard, within a timeout.
+  bool connected() {
+    const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(kConnectTimeout);
+    while (ros::WallTime::now() < deadline && ros::ok()) {
+      {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        if (heard_ && share_.getNumSubscribers() > 0) return true;
+      }
+      ros::WallDuration(0.005).sleep();
+    }
+    return false;
+  }
 
   const std::string& name() const override { return name_; }
 
   bool start(const std::vector<rollout::RolloutRequest>& share) override {
-    if (!client_.isServerConnected()) return false;
-    EvaluateRolloutsGoal goal;
-    goal.task = selection_.task;
-    goal.config = selection_.config;
-    goal.dimension = share.empty() ? 0 : static_cast<std::uint32_t>(share.front().parameters.size());
+    if (share_.getNumSubscribers() == 0) return false;
+    RolloutShare message;
+    message.client = client_;
+    message.id = ++next_id_;
+    message.task = selection_.task;
+    message.config = selection_.config;
+    message.dimension = share.empty() ? 0 : static_cast<std::uint32_t>(share.front().parameters.size());
     for (const rollout::RolloutRequest& r : share) {
-      if (static_cast<std::uint32_t>(r.parameters.size()) != goal.dimension) {
+      if (static_cast<std::uint32_t>(r.parameters.size()) != message.dimension) {
         throw std::invalid_argument("dispatch: the rollouts of a batch must have parameter vectors of one size");
       }
-      goal.parameters.insert(goal.parameters.end(), r.parameters.data(), r.parameters.data() + r.parameters.size());
-      goal.seeds.push_back(r.seed);
+      message.parameters.insert(message.parameters.end(), r.parameters.data(),
+                                r.parameters.data() + r.parameters.size());
+      message.seeds.push_back(r.seed);
     }
-    done_ = 0;
-    client_.sendGoal(goal, actionlib::SimpleActionClient<EvaluateRolloutsAction>::SimpleDoneCallback(),
-                     actionlib::SimpleActionClient<EvaluateRolloutsAction>::SimpleActiveCallback(),
-                     [this](const EvaluateRolloutsFeedbackConstPtr& feedback) { done_ = feedback->done; });
-    active_ = true;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      active_ = message.id;
+      done_ = 0;
+      end_.reset();
+    }
+    share_.publish(message);
     return true;
   }
 
   Status poll() override {
+    RolloutShareStateConstPtr end;
     Status status;
-    if (!active_) return status;
-    const actionlib::SimpleClientGoalState state = client_.getState();
-    switch (state.state_) {
-      case actionlib::SimpleClientGoalState::PENDING:
-      case actionlib::SimpleClientGoalState::ACTIVE:
-        if (!client_.isServerConnected()) return lost("its action server disconnected");
-        status.state = State::Running;
-        status.done = done_;
-        return status;
-      case actionlib::SimpleClientGoalState::SUCCEEDED:
-        return finished();
-      case actionlib::SimpleClientGoalState::ABORTED: {
-        active_ = false;
-        const EvaluateRolloutsResultConstPtr result = client_.getResult();
-        status.state = result && result->refused ? State::Refused : State::Lost;
-        status.reason = state.getText().empty() ? "aborted" : state.getText();
-        return status;
-      }
-      case actionlib::SimpleClientGoalState::REJECTED:
-        active_ = false;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      if (active_ == 0) return status;
+      end = end_;
+      status.done = done_;
+    }
+    if (!end) {
+      if (share_.getNumSubscribers() == 0) return lost("it disconnected");
+      status.state = State::Running;
+      return status;
+    }
+    forget();
+    switch (end->state) {
+      case RolloutShareState::SUCCEEDED:
+        return finished(*end);
+      case RolloutShareState::REFUSED:
         status.state = State::Refused;
-        status.reason = state.getText().empty() ? "rejected" : state.getText();
+        status.reason = end->text.empty() ? "refused" : end->text;
         return status;
+      case RolloutShareState::FAILED:
+        return lost(end->text.empty() ? "it failed" : end->text);
       default:
-        return lost("its goal ended " + state.toString());
+        return lost("its share was cancelled" + (end->text.empty() ? std::string() : ": " + end->text));
     }
   }
 
   void cancel() override {
-    if (active_) client_.cancelGoal();
-    active_ = false;
+    std::uint64_t id = 0;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      id = active_;
+    }
+    if (id == 0) return;
+    RolloutShare message;
+    message.client = client_;
+    message.id = id;
+    message.cancel = true;
+    share_.publish(message);
+    forget();
   }
 
  private:
+  /// On the directory's spinner thread: keeps the progress and the end of the active share.
+  void heard(const RolloutShareStateConstPtr& m) {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    heard_ = true;
+    if (active_ == 0 || m->id != active_ || m->client != client_ || end_) return;
+    done_ = m->done;
+    if (terminal(m->state)) end_ = m;
+  }
+
+  void forget() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    active_ = 0;
+    end_.reset();
+  }
+
   Status lost(const std::string& why) {
-    active_ = false;
+    forget();
     Status status;
     status.state = State::Lost;
     status.reason = why;
     return status;
   }
 
-  /// The results of a succeeded goal; a malformed answer is a lost worker (its share goes to the others).
-  Status finished() {
-    active_ = false;
-    const EvaluateRolloutsResultConstPtr r = client_.getResult();
-    if (!r) return lost("it answered no result");
-    const std::size_t n = r->rewards.size(), terms = r->term_names.size();
-    if (r->ok.size() != n || r->outcomes.size() != n || r->reasons.size() != n || r->wall_seconds.size() != n ||
-        r->terms.size() != n * terms || r->trajectory_rows.size() != n || r->trajectory_cols.size() != n) {
-      return lost("it answered a malformed result (arrays of different lengths)");
+  /// The results of a succeeded share; a malformed answer is a lost worker (its share goes to the others).
+  static Status finished(const RolloutShareState& r) {
+    Status status;
+    const std::size_t n = r.rewards.size(), terms = r.term_names.size();
+    if (r.ok.size() != n || r.outcomes.size() != n || r.reasons.size() != n || r.wall_seconds.size() != n ||
+        r.terms.size() != n * terms || r.trajectory_rows.size() != n || r.trajectory_cols.size() != n) {
+      status.state = State::Lost;
+      status.reason = "it answered a malformed result (arrays of different lengths)";
+      return status;
     }
     std::size_t values = 0;
-    for (std::size_t k = 0; k < n; ++k) {
-      values += static_cast<std::size_t>(r->trajectory_rows[k]) * r->trajectory_cols[k];
+    for (std::size_t k = 0; k < n; ++k) values += static_cast<std::size_t>(r.trajectory_rows[k]) * r.trajectory_cols[k];
+    if (values != r.trajectory.size()) {
+      status.state = State::Lost;
+      status.reason = "it answered a malformed result (trajectory sizes)";
+      return status;
     }
-    if (values != r->trajectory.size()) return lost("it answered a malformed result (trajectory sizes)");
-    Status status;
     status.state = State::Finished;
     status.done = n;
     std::size_t offset = 0;
     for (std::size_t k = 0; k < n; ++k) {
       rollout::RolloutResult result;
-      result.reward = r->rewards[k];
-      result.terms = Eigen::Map<const Eigen::VectorXd>(r->terms.data() + k * terms, static_cast<Eigen::Index>(terms));
-      result.ok = r->ok[k];
-      result.outcome = r->outcomes[k];
-      result.reason = r->reasons[k];
-      result.wall_seconds = r->wall_seconds[k];
-      const Eigen::Index rows = r->trajectory_rows[k], cols = r->trajectory_cols[k];
-      result.trajectory = Eigen::Map<const Eigen::MatrixXd>(r->trajectory.data() + offset, rows, cols);
+      result.reward = r.rewards[k];
+      result.terms = Eigen::Map<const Eigen::VectorXd>(r.terms.data() + k * terms, static_cast<Eigen::Index>(terms));
+      result.ok = r.ok[k];
+      result.outcome = r.outcomes[k];
+      result.reason = r.reasons[k];
+      result.wall_seconds = r.wall_seconds[k];
+      const Eigen::Index rows = r.trajectory_rows[k], cols = r.trajectory_cols[k];
+      result.trajectory = Eigen::Map<const Eigen::MatrixXd>(r.trajectory.data() + offset, rows, cols);
       offset += static_cast<std::size_t>(rows * cols);
       status.results.push_back(std::move(result));
     }
@@ -132,10 +185,16 @@ class ActionWorkerLink : public rollout::WorkerLink {
 
   std::string name_;
   WorkerSelection selection_;
-  std::atomic<std::size_t> done_{0};  ///< Written by the feedback callback on the directory's spinner thread.
-  bool active_ = false;
-  /// Last, so that it is destroyed first: its destructor waits for its callbacks, which use the members above.
-  actionlib::SimpleActionClient<EvaluateRolloutsAction> client_;
+  std::string client_;
+  std::uint64_t next_id_;
+  std::mutex mutex_;  ///< Guards what heard() writes on the spinner thread.
+  bool heard_ = false;
+  std::uint64_t active_ = 0;  ///< The share running, 0 for none.
+  std::size_t done_ = 0;
+  RolloutShareStateConstPtr end_;  ///< Its final state, once heard.
+  ros::Publisher share_;
+  /// Last, so that it is shut down first: its callback uses the members above.
+  ros::Subscriber state_;
 };
 
 }  // namespace
@@ -170,65 +229,63 @@ bool readWorkerSelection(const ros::NodeHandle& private_node, WorkerSelection& s
   return by_list || by_space;
 }
 
-std::string workerActionName(const std::string& name) {
-  if (endsWith(name, std::string("/") + kAction)) return name;
-  return (endsWith(name, "/") ? name : name + "/") + kAction;
-}
-
-ActionWorkerDirectory::ActionWorkerDirectory(WorkerSelection selection) : selection_(std::move(selection)) {
+TopicWorkerDirectory::TopicWorkerDirectory(WorkerSelection selection) : selection_(std::move(selection)) {
   if (selection_.task.empty()) throw std::invalid_argument("dispatch: no task named for the rollout workers");
   node_ = std::make_unique<ros::NodeHandle>();
   node_->setCallbackQueue(&queue_);
   spinner_ = std::make_unique<ros::AsyncSpinner>(1, &queue_);
   spinner_->start();
-  for (const std::string& name : selection_.names) watch(workerActionName(name));
+  for (const std::string& name : selection_.names) watch(name);
 }
 
-ActionWorkerDirectory::~ActionWorkerDirectory() {
+TopicWorkerDirectory::~TopicWorkerDirectory() {
   spinner_->stop();
 }
 
-void ActionWorkerDirectory::watch(const std::string& action) {
+void TopicWorkerDirectory::watch(const std::string& worker) {
   const std::lock_guard<std::mutex> lock(mutex_);
-  if (status_.count(action) != 0) return;
-  status_[action] = node_->subscribe<actionlib_msgs::GoalStatusArray>(
-      action + "/status", 1, [this, action](const actionlib_msgs::GoalStatusArrayConstPtr&) {
+  if (state_.count(worker) != 0) return;
+  state_[worker] = node_->subscribe<RolloutShareState>(
+      worker + "/state", 16,
+      [this, worker](const RolloutShareStateConstPtr&) {
         const std::lock_guard<std::mutex> lock(mutex_);
-        last_status_[action] = ros::WallTime::now();
-      });
+        last_state_[worker] = ros::WallTime::now();
+      },
+      ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
 }
 
-std::vector<std::string> ActionWorkerDirectory::alive() {
+std::vector<std::string> TopicWorkerDirectory::alive() {
   if (selection_.names.empty()) {
     ros::master::V_TopicInfo topics;
     ros::master::getTopics(topics);
     const std::string space =
         selection_.space.empty() || selection_.space.back() != '/' ? selection_.space + "/" : selection_.space;
-    const std::string tail = std::string("/") + kAction + "/status";
+    const std::string tail = "/state";
     for (const ros::master::TopicInfo& t : topics) {
-      if (t.name.rfind(space, 0) == 0 && endsWith(t.name, tail) && t.datatype == "actionlib_msgs/GoalStatusArray") {
-        watch(t.name.substr(0, t.name.size() - std::string("/status").size()));
+      if (t.name.rfind(space, 0) == 0 && endsWith(t.name, tail) &&
+          t.datatype == ros::message_traits::datatype<RolloutShareState>()) {
+        watch(t.name.substr(0, t.name.size() - tail.size()));
       }
     }
   }
   std::vector<std::string> names;
   const ros::WallTime now = ros::WallTime::now();
   const std::lock_guard<std::mutex> lock(mutex_);
-  for (const auto& [action, time] : last_status_) {
-    if ((now - time).toSec() < kStatusAge) names.push_back(action);
+  for (const auto& [worker, time] : last_state_) {
+    if ((now - time).toSec() < kStateAge) names.push_back(worker);
   }
   return names;
 }
 
-std::string ActionWorkerDirectory::where() const {
+std::string TopicWorkerDirectory::where() const {
   std::string names;
-  for (const std::string& n : selection_.names) names += (names.empty() ? "" : ", ") + workerActionName(n);
+  for (const std::string& n : selection_.names) names += (names.empty() ? "" : ", ") + n;
   return (selection_.names.empty() ? "under " + selection_.space : "among " + names) +
          " (start them with: roslaunch bimanual_skills rollout_workers.launch workers:=N)";
 }
 
-std::unique_ptr<rollout::WorkerLink> ActionWorkerDirectory::connect(const std::string& name) {
-  auto link = std::make_unique<ActionWorkerLink>(*node_, name, selection_);
+std::unique_ptr<rollout::WorkerLink> TopicWorkerDirectory::connect(const std::string& name) {
+  auto link = std::make_unique<TopicWorkerLink>(*node_, name, selection_);
   if (!link->connected()) return nullptr;
   return link;
 }
