@@ -10,11 +10,13 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 #include <thread>
 
@@ -71,8 +73,49 @@ TEST(FoldLearning, VariantNames) {
   const br::DrDmpVariant mcmu = br::parseDrDmpVariant("DR-DMP_MCMU(2,4)", 12, 50.0);
   EXPECT_EQ(mcmu.matrices, 2);
   EXPECT_EQ(mcmu.latent_dims, 4);
+  EXPECT_EQ(mcmu.search, br::PolicySearch::Reps);
+  for (const auto& [name, search] :
+       {std::pair{"PI2-CMA", br::PolicySearch::Pi2Cma}, std::pair{"CMA-ES", br::PolicySearch::CmaEs}}) {
+    const br::DrDmpVariant peer = br::parseDrDmpVariant(name, 12, 50.0);
+    EXPECT_EQ(peer.search, search);
+    EXPECT_EQ(peer.latent_dims, 12);
+    EXPECT_EQ(peer.rule, bimanual_skills::learning::CoordinationRule::Fixed);
+  }
   EXPECT_THROW(br::parseDrDmpVariant("DR-DMP0(13)", 12, 50.0), std::invalid_argument);
   EXPECT_THROW(br::parseDrDmpVariant("PoWER", 12, 50.0), std::invalid_argument);
+}
+
+TEST(FoldLearning, PeersUpdateTowardsTheirBestRollouts) {
+  // One update from three rollouts. CMA-ES recombines the best half (one rollout: weight 1), so its new mean is the
+  // best rollout's weights; PI2-CMA's is a projected, probability-weighted average that lands nearer the best
+  // rollout than the worst. Both adapt the exploration covariance.
+  br::FoldLearningConfig config = smallConfig();
+  config.algorithms = {"PI2-CMA", "CMA-ES"};
+  std::map<std::string, std::vector<br::FoldRolloutRecord>> samples;
+  br::FoldLearningObserver observer;
+  observer.rollout = [&](const br::FoldRolloutRecord& r, const bt::FoldRollout&, const bt::FoldReward&) {
+    if (r.kind == br::RolloutKind::Sample && r.epoch == 0) samples[r.algorithm].push_back(r);
+  };
+  const br::FoldLearningResult result = br::FoldLearner(config, freshDirectory("peers"), observer).learn();
+  ASSERT_EQ(result.runs.size(), 2u);
+  for (const br::FoldRunResult& run : result.runs) {
+    const std::vector<br::FoldRolloutRecord>& batch = samples[run.algorithm];
+    ASSERT_EQ(batch.size(), 3u) << run.algorithm;
+    const auto by_reward = [](const br::FoldRolloutRecord& a, const br::FoldRolloutRecord& b) {
+      return a.terms.reward < b.terms.reward;
+    };
+    const br::FoldRolloutRecord& best = *std::max_element(batch.begin(), batch.end(), by_reward);
+    const br::FoldRolloutRecord& worst = *std::min_element(batch.begin(), batch.end(), by_reward);
+    ASSERT_LT(worst.terms.reward, best.terms.reward) << run.algorithm;
+    const double initial_variance = config.initial_stddev * config.initial_stddev;
+    EXPECT_GT((run.final.covariance - initial_variance * Eigen::MatrixXd::Identity(240, 240)).norm(), 1e-6)
+        << run.algorithm;
+    if (run.algorithm == "CMA-ES") {
+      EXPECT_LT((run.final.mean - best.weights).norm(), 1e-9);
+    } else {
+      EXPECT_LT((run.final.mean - best.weights).norm(), (run.final.mean - worst.weights).norm());
+    }
+  }
 }
 
 TEST(FoldLearning, LearningFiles) {
@@ -80,7 +123,7 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_EQ(demo.task.friction_files.size(), 2u);
   EXPECT_TRUE(std::filesystem::exists(demo.task.sim_config));
   const br::FoldLearningConfig table = br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_table75.yaml");
-  EXPECT_EQ(table.algorithms.size(), 3u);
+  EXPECT_EQ(table.algorithms.size(), 5u);
   EXPECT_EQ(table.runs, 5);
   EXPECT_EQ(table.updates, 15);
   EXPECT_EQ(table.rollouts, 12);

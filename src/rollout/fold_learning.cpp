@@ -1,12 +1,14 @@
 #include "bimanual_skills/rollout/fold_learning.hpp"
 
 #include "bimanual_skills/learning/gaussian.hpp"
+#include "bimanual_skills/learning/pi2.hpp"
 #include "bimanual_skills/primitives/dr_dmp.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "io/csv_records.hpp"
 #include "io/yaml_io.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -17,6 +19,7 @@
 #include <regex>
 #include <sstream>
 #include <stdexcept>
+#include <vector>
 
 namespace bimanual_skills::rollout {
 
@@ -129,6 +132,47 @@ const char* toString(RolloutKind kind) noexcept {
   return "unknown";
 }
 
+namespace {
+
+/// PI2-CMA on the policy's weights: the episode's reward is the cost of its last step (the fold is scored once, at
+/// the end), so every step weighs the rollouts alike and the update is PI2's projected, probability-weighted average
+/// of the exploration (5.8–5.13) with the covariance adapted from the same probabilities.
+learning::CoordinatedPolicy pi2CmaStep(learning::CoordinatedPolicy policy, const Eigen::MatrixXd& samples,
+                                       const Eigen::VectorXd& rewards, const Eigen::MatrixXd& basis) {
+  learning::Pi2Parameters parameters;
+  parameters.covariance_adaptation = true;
+  Eigen::MatrixXd costs = Eigen::MatrixXd::Zero(samples.rows(), basis.rows());
+  costs.col(costs.cols() - 1) = -rewards;
+  const learning::Pi2Update update =
+      learning::pi2Update(parameters, policy.mean, policy.covariance, samples, costs, basis);
+  policy.mean = update.mean;
+  policy.covariance = update.covariance;
+  return policy;
+}
+
+/// CMA-ES (Hansen 2006, (μ/μ_w, λ)): the new mean is the log-rank weighted mean of the best half of the batch, and
+/// the covariance and step size follow CovarianceAdaptation from the same weights.
+learning::CoordinatedPolicy cmaEsStep(learning::CoordinatedPolicy policy, learning::CovarianceAdaptation& adaptation,
+                                      const Eigen::MatrixXd& samples, const Eigen::VectorXd& rewards) {
+  const Eigen::Index k = rewards.size(), best = std::max<Eigen::Index>(1, k / 2);
+  std::vector<Eigen::Index> order(static_cast<std::size_t>(k));
+  for (Eigen::Index i = 0; i < k; ++i) order[static_cast<std::size_t>(i)] = i;
+  std::stable_sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return rewards[a] > rewards[b]; });
+  Eigen::VectorXd weights = Eigen::VectorXd::Zero(k);
+  for (Eigen::Index rank = 0; rank < best; ++rank) {
+    weights[order[static_cast<std::size_t>(rank)]] =
+        std::log(static_cast<double>(best) + 0.5) - std::log(static_cast<double>(rank) + 1.0);
+  }
+  weights /= weights.sum();
+  const Eigen::VectorXd mean = samples.transpose() * weights;
+  adaptation.update(policy.mean, mean, samples, weights);
+  policy.mean = mean;
+  policy.covariance = adaptation.covariance();
+  return policy;
+}
+
+}  // namespace
+
 DrDmpVariant parseDrDmpVariant(const std::string& name, int dofs, double eta) {
   std::smatch m;
   DrDmpVariant v;
@@ -153,9 +197,13 @@ DrDmpVariant parseDrDmpVariant(const std::string& name, int dofs, double eta) {
     v.latent_dims = dofs;
     v.rule = learning::CoordinationRule::Cmu;
     v.eta = eta;
+  } else if (name == "PI2-CMA" || name == "CMA-ES") {
+    v.latent_dims = dofs;
+    v.search = name == "PI2-CMA" ? PolicySearch::Pi2Cma : PolicySearch::CmaEs;
   } else {
-    throw std::invalid_argument("unknown algorithm '" + name +
-                                "' (DR-DMP0(r), DR-DMP_CMU(r), DR-DMP_MCMU(Ns,r), IDR-DMP_CMU, IDR-DMP_MCMU(Ns))");
+    throw std::invalid_argument(
+        "unknown algorithm '" + name +
+        "' (DR-DMP0(r), DR-DMP_CMU(r), DR-DMP_MCMU(Ns,r), IDR-DMP_CMU, IDR-DMP_MCMU(Ns), PI2-CMA, CMA-ES)");
   }
   if (v.latent_dims < 1 || v.latent_dims > dofs || v.matrices < 1 || v.matrices > 20) {
     throw std::invalid_argument("algorithm '" + name + "': r must be in [1, " + std::to_string(dofs) +
@@ -511,6 +559,12 @@ struct FoldLearner::Impl {
         config.initial_stddev * config.initial_stddev * Eigen::MatrixXd::Identity(mean.size(), mean.size()),
         {}};
     learning::CoordinatedReps learner(reps, grid, initial, fit.excitation);
+    // The peers keep their own policy on the standard DMP's weights (the coordination stays the fitted one).
+    learning::CoordinatedPolicy peer = initial;
+    learning::CovarianceAdaptation adaptation = learning::CovarianceAdaptation::start(initial.covariance);
+    const auto current = [&]() -> const learning::CoordinatedPolicy& {
+      return variant.search == PolicySearch::Reps ? learner.policy() : peer;
+    };
 
     std::seed_seq sequence{config.seed, static_cast<std::uint32_t>(algorithm_index), static_cast<std::uint32_t>(run)};
     std::mt19937 rng(sequence);
@@ -526,13 +580,13 @@ struct FoldLearner::Impl {
       rec.epoch = epoch;
       rec.kind = kind;
       rec.index = index;
-      rec.coordination = learner.policy().coordination;
+      rec.coordination = current().coordination;
       rec.weights = w;
       rec.seed = static_cast<std::uint32_t>(rng());
       return rec;
     };
     for (int epoch = 0; epoch <= config.updates; ++epoch) {
-      const learning::CoordinatedPolicy& policy = learner.policy();
+      const learning::CoordinatedPolicy& policy = current();
       const Eigen::MatrixXd factor = learning::choleskyFactor(policy.covariance);
       std::vector<FoldRolloutRecord> batch;
       Eigen::MatrixXd samples(config.rollouts, policy.mean.size());
@@ -557,9 +611,17 @@ struct FoldLearner::Impl {
       result.epochs.push_back(epochStats(algorithm, run, epoch, policy.latentDims(), batch));
       if (observer.epoch) observer.epoch(result.epochs.back());
       writeEpochs(done, result);
-      if (epoch < config.updates) learner.update(samples, values, rewards);
+      if (epoch < config.updates) {
+        if (variant.search == PolicySearch::Reps) {
+          learner.update(samples, values, rewards);
+        } else if (variant.search == PolicySearch::Pi2Cma) {
+          peer = pi2CmaStep(peer, samples, rewards, grid.basis());
+        } else {
+          peer = cmaEsStep(peer, adaptation, samples, rewards);
+        }
+      }
     }
-    result.final = learner.policy();
+    result.final = current();
     result.seconds = secondsSince(start);
     return result;
   }

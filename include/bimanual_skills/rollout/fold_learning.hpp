@@ -34,17 +34,26 @@
 
 namespace bimanual_skills::rollout {
 
-/// A DR-DMP variant of Tables 7.1–7.2, by the thesis' name.
+/// How the policy follows the rollouts.
+enum class PolicySearch {
+  Reps,    ///< REPS on the latent weights (reusing earlier rollouts), then the variant's coordination rule.
+  Pi2Cma,  ///< PI2-CMA (learning/pi2.hpp, h = 10) on the weights, the reward as a terminal cost; no reuse.
+  CmaEs,   ///< CMA-ES (Hansen 2006): the best half by log-rank weights, CovarianceAdaptation; no reuse.
+};
+
+/// A DR-DMP variant of Tables 7.1–7.2, by the thesis' name, or a peer on the standard DMP.
 struct DrDmpVariant {
   std::string name;
   int matrices = 1;     ///< N_s
   int latent_dims = 1;  ///< Initial r.
   learning::CoordinationRule rule = learning::CoordinationRule::Fixed;
   double eta = 0.0;  ///< η of the CMU (infinity: r fixed).
+  PolicySearch search = PolicySearch::Reps;
 };
 
 /// "DR-DMP0(r)" (fixed PCA coordination; r = d is the standard DMP), "DR-DMP_CMU(r)", "DR-DMP_MCMU(Ns,r)",
-/// "IDR-DMP_CMU" and "IDR-DMP_MCMU(Ns)" (r = d, reduced by η) for `dofs` DoF.
+/// "IDR-DMP_CMU" and "IDR-DMP_MCMU(Ns)" (r = d, reduced by η) for `dofs` DoF; and the peers "PI2-CMA" and "CMA-ES"
+/// on the standard DMP's weights (r = d, fixed coordination).
 /// \throws std::invalid_argument for another name or r outside [1, dofs], N_s < 1.
 DrDmpVariant parseDrDmpVariant(const std::string& name, int dofs, double eta);
 
