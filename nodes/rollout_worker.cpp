@@ -86,6 +86,14 @@ class RolloutWorker {
       return;
     }
     if (running_) cancel_ = true;
+    if (pending_) {  // never started: its sender hears that it was replaced
+      bs::RolloutShareState replaced;
+      replaced.state = bs::RolloutShareState::CANCELLED;
+      replaced.client = pending_->client;
+      replaced.id = pending_->id;
+      replaced.text = "replaced by a newer share before it started";
+      state_.publish(replaced);
+    }
     pending_ = m;
     wake_.notify_all();
   }
@@ -125,11 +133,9 @@ class RolloutWorker {
       end.client = share->client;
       end.id = share->id;
       end.total = static_cast<std::uint32_t>(share->seeds.size());
-      {
-        const std::lock_guard<std::mutex> lock(mutex_);
-        running_ = false;
-      }
-      state_.publish(end);
+      state_.publish(end);  // before the heartbeat can say IDLE
+      const std::lock_guard<std::mutex> lock(mutex_);
+      running_ = false;
     }
   }
 
@@ -160,7 +166,7 @@ class RolloutWorker {
         task_ = br::makeRolloutTask(share.task, share.config);
         task_name_ = share.task;
         task_config_ = share.config;
-      } catch (const std::invalid_argument& e) {
+      } catch (const std::exception& e) {
         task_.reset();
         return refuse(e.what());
       }

@@ -136,9 +136,11 @@ namespace {
 
 /// PI2-CMA on the policy's weights: the episode's reward is the cost of its last step (the fold is scored once, at
 /// the end), so every step weighs the rollouts alike and the update is PI2's projected, probability-weighted average
-/// of the exploration (5.8–5.13) with the covariance adapted from the same probabilities.
+/// of the exploration (5.8–5.13) with the covariance adapted from the same probabilities. As REPS' (λ =
+/// covariance_memory), the new covariance keeps λ of the one sampled from: 12 rollouts span at most 12 of the 240
+/// directions, and PI2-CMA's own covariance would stop exploring in all the others after one update.
 learning::CoordinatedPolicy pi2CmaStep(learning::CoordinatedPolicy policy, const Eigen::MatrixXd& samples,
-                                       const Eigen::VectorXd& rewards, const Eigen::MatrixXd& basis) {
+                                       const Eigen::VectorXd& rewards, const Eigen::MatrixXd& basis, double memory) {
   learning::Pi2Parameters parameters;
   parameters.covariance_adaptation = true;
   Eigen::MatrixXd costs = Eigen::MatrixXd::Zero(samples.rows(), basis.rows());
@@ -146,7 +148,7 @@ learning::CoordinatedPolicy pi2CmaStep(learning::CoordinatedPolicy policy, const
   const learning::Pi2Update update =
       learning::pi2Update(parameters, policy.mean, policy.covariance, samples, costs, basis);
   policy.mean = update.mean;
-  policy.covariance = update.covariance;
+  policy.covariance = (1.0 - memory) * update.covariance + memory * policy.covariance;
   return policy;
 }
 
@@ -615,7 +617,7 @@ struct FoldLearner::Impl {
         if (variant.search == PolicySearch::Reps) {
           learner.update(samples, values, rewards);
         } else if (variant.search == PolicySearch::Pi2Cma) {
-          peer = pi2CmaStep(peer, samples, rewards, grid.basis());
+          peer = pi2CmaStep(peer, samples, rewards, grid.basis(), config.covariance_memory);
         } else {
           peer = cmaEsStep(peer, adaptation, samples, rewards);
         }

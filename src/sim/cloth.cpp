@@ -206,8 +206,8 @@ struct Cloth::Impl {
 
 // Bullet's anchors are soft (an impulse per iteration towards the anchor point), so a lifted cloth drags its held
 // nodes out of the gripper's grip and stretches the edges between them. After the solve, each held node takes its
-// anchor point and the gripper's velocity there: the grip is rigid, and what the anchors transferred to the gripper
-// body (its wrench) is unchanged.
+// anchor point and the gripper's velocity there: the grip is rigid. The momentum that gives the node is added to the
+// gripper's pull (its torque about the node's position before the pin, millimetres away).
 void Cloth::Impl::pinHeldNodes(double dt) noexcept {
   const btSoftBody::Node* first = &soft->m_nodes[0];
   for (int a = 0; a < soft->m_anchors.size(); ++a) {

@@ -37,7 +37,8 @@ namespace bimanual_skills::rollout {
 /// How the policy follows the rollouts.
 enum class PolicySearch {
   Reps,    ///< REPS on the latent weights (reusing earlier rollouts), then the variant's coordination rule.
-  Pi2Cma,  ///< PI2-CMA (learning/pi2.hpp, h = 10) on the weights, the reward as a terminal cost; no reuse.
+  Pi2Cma,  ///< PI2-CMA (learning/pi2.hpp, h = 10) on the weights, the reward as a terminal cost, the covariance
+           ///< memory λ as REPS'; no reuse.
   CmaEs,   ///< CMA-ES (Hansen 2006): the best half by log-rank weights, CovarianceAdaptation; no reuse.
 };
 

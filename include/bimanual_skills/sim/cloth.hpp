@@ -37,7 +37,7 @@ struct ClothParameters {
   /// Inextensibility: after each step, no free node is farther from its nearest held node (on the rest mesh) than
   /// (1 + strain_limit) times their rest distance (tethers), and structural edges longer than (1 + strain_limit)
   /// times their rest length are shortened (strain limiting, a few passes). Negative: off (Bullet's links alone
-  /// stretch a lifted cloth by 15 % and more at few iterations).
+  /// stretch a lifted cloth by 15 % and more at few iterations); the grip stays rigid either way.
   double strain_limit = 0.05;
   double step = 0.004;           ///< Cloth time step [s].
   double max_node_speed = 20.0;  ///< Divergence bound on any node's speed [m/s].

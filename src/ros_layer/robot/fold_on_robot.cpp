@@ -378,6 +378,14 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
   std::vector<Eigen::MatrixXd> coordination;
   Eigen::VectorXd weights;
   double acceleration_cost = 0.0;
+  const auto fail = [&](tasks::FoldOutcome outcome, const std::string& why) {
+    terms = tasks::FoldRewardTerms{};
+    terms.outcome = outcome;
+    terms.reward = reward_.config().failure_reward;
+    terms.r_acceleration = reward_.config().acceleration_weight * acceleration_cost;
+    reason = why;
+    for (const auto& arm : arms_) arm->client->cancelGoal();
+  };
   try {
     if (!rollout::FoldRolloutTask::decode(parameters, tasks::ClothFoldTask::kDofs, task_.config().kernels, coordination,
                                           weights)) {
@@ -390,20 +398,20 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     if (plan.outcome != tasks::FoldOutcome::Ok) throw Failure{plan.outcome, plan.reason};
     reset();
     moveToStart();
-    // The move started move_time before it ended (the clock read before it may still be the one before a reset).
-    const ros::Time began = ros::Time::now() - ros::Duration(robot_.move_time);
+    // The move took move_time (the clock read before it may still be the one before a reset; nor can a time just
+    // after a reset take move_time away: ros::Time is never negative).
+    const ros::Time moved = ros::Time::now();
     grasp(true);
     const ros::Time settled = fold(plan) + ros::Duration(task_.config().settle);
     waitUntil(settled, "the cloth settling");
     terms = observe(settled, acceleration_cost);
-    last_robot_seconds_ = (ros::Time::now() - began).toSec();
+    last_robot_seconds_ = robot_.move_time + (ros::Time::now() - moved).toSec();
   } catch (const Failure& failure) {
-    terms = tasks::FoldRewardTerms{};
-    terms.outcome = failure.outcome;
-    terms.reward = reward_.config().failure_reward;
-    terms.r_acceleration = reward_.config().acceleration_weight * acceleration_cost;
-    reason = failure.reason;
-    for (const auto& arm : arms_) arm->client->cancelGoal();
+    fail(failure.outcome, failure.reason);
+  } catch (const std::exception& e) {
+    // Anything else the ROS layer throws (a clock out of range, a transport error) fails this rollout, not the
+    // learning.
+    fail(tasks::FoldOutcome::RobotFailed, std::string("the ROS layer failed: ") + e.what());
   }
   // The measured tool paths at kPathRate of the robot's clock.
   {

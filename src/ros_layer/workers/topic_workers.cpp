@@ -13,6 +13,9 @@ namespace {
 
 /// A worker not heard for this long [s] is not alive (it publishes its state at 5 Hz).
 constexpr double kStateAge = 1.0;
+/// A worker holding a share and not heard for this long [s] is lost (stopped, hung, or its host gone), long before
+/// the dispatcher's timeout for a rollout.
+constexpr double kSilence = 3.0;
 constexpr double kConnectTimeout = 3.0;  ///< [s] to connect to a worker's topics.
 
 bool endsWith(const std::string& s, const std::string& tail) {
@@ -74,6 +77,7 @@ class TopicWorkerLink : public rollout::WorkerLink {
       active_ = message.id;
       done_ = 0;
       end_.reset();
+      last_heard_ = ros::WallTime::now();
     }
     share_.publish(message);
     return true;
@@ -90,6 +94,9 @@ class TopicWorkerLink : public rollout::WorkerLink {
     }
     if (!end) {
       if (share_.getNumSubscribers() == 0) return lost("it disconnected");
+      if ((ros::WallTime::now() - lastHeard()).toSec() > kSilence) {
+        return lost("not heard for " + std::to_string(static_cast<int>(kSilence)) + " s");
+      }
       status.state = State::Running;
       return status;
     }
@@ -128,9 +135,15 @@ class TopicWorkerLink : public rollout::WorkerLink {
   void heard(const RolloutShareStateConstPtr& m) {
     const std::lock_guard<std::mutex> lock(mutex_);
     heard_ = true;
+    last_heard_ = ros::WallTime::now();
     if (active_ == 0 || m->id != active_ || m->client != client_ || end_) return;
     done_ = m->done;
     if (terminal(m->state)) end_ = m;
+  }
+
+  ros::WallTime lastHeard() {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return last_heard_;
   }
 
   void forget() {
@@ -189,6 +202,7 @@ class TopicWorkerLink : public rollout::WorkerLink {
   std::uint64_t next_id_;
   std::mutex mutex_;  ///< Guards what heard() writes on the spinner thread.
   bool heard_ = false;
+  ros::WallTime last_heard_;  ///< When the worker was last heard (set by start() too).
   std::uint64_t active_ = 0;  ///< The share running, 0 for none.
   std::size_t done_ = 0;
   RolloutShareStateConstPtr end_;  ///< Its final state, once heard.
@@ -243,15 +257,20 @@ TopicWorkerDirectory::~TopicWorkerDirectory() {
 }
 
 void TopicWorkerDirectory::watch(const std::string& worker) {
-  const std::lock_guard<std::mutex> lock(mutex_);
-  if (state_.count(worker) != 0) return;
-  state_[worker] = node_->subscribe<RolloutShareState>(
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (state_.count(worker) != 0) return;
+  }
+  // Subscribing talks to the master: not under the lock the spinner's callbacks take.
+  ros::Subscriber subscriber = node_->subscribe<RolloutShareState>(
       worker + "/state", 16,
       [this, worker](const RolloutShareStateConstPtr&) {
         const std::lock_guard<std::mutex> lock(mutex_);
         last_state_[worker] = ros::WallTime::now();
       },
       ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay());
+  const std::lock_guard<std::mutex> lock(mutex_);
+  state_.emplace(worker, std::move(subscriber));
 }
 
 std::vector<std::string> TopicWorkerDirectory::alive() {
