@@ -296,11 +296,11 @@ class FoldLearnerNode {
     const int simulated = done_ - resumed_;
     const double eta = simulated > 0 ? elapsed / simulated * (total_ - done_) : 0.0;
     std::printf(
-        "[%s run %d] epoch %d/%d %s %d: R = %.4f (acc %.3f, color %.3f, depth %.3f, area %.2f), fold quality %.2f "
-        "%s%s%s | %d/%d rollouts, ETA %s\n",
+        "[%s run %d] epoch %d/%d %s %d: R = %.4f (acc %.3f, color %.3f, depth %.3f, goal %.3f, area %.2f), fold "
+        "quality %.2f %s%s%s | %d/%d rollouts, ETA %s\n",
         record.algorithm.c_str(), record.run + 1, record.epoch, config_.updates, br::toString(record.kind),
         record.index + 1, record.terms.reward, record.terms.r_acceleration, record.terms.r_color, record.terms.r_depth,
-        record.terms.area_ratio, record.terms.fold_quality, bt::toString(record.terms.outcome),
+        record.terms.r_goal, record.terms.area_ratio, record.terms.fold_quality, bt::toString(record.terms.outcome),
         record.reason.empty() ? "" : ": ", record.reason.c_str(), done_, total_, formatSeconds(eta).c_str());
     std::fflush(stdout);
     if (record.resumed) return;
@@ -343,9 +343,9 @@ class FoldLearnerNode {
   void onEpoch(const br::FoldEpochStats& s) {
     ROS_INFO(
         "fold_learner: %s run %d epoch %d/%d: mean reward %.4f +- %.4f (acc %.3f, color %.3f, depth %.3f, "
-        "area %.2f), r = %d, %d failed",
+        "goal %.3f, area %.2f), fold quality %.3f, r = %d, %d failed",
         s.algorithm.c_str(), s.run + 1, s.epoch, config_.updates, s.mean_reward, s.std_reward, s.r_acceleration,
-        s.r_color, s.r_depth, s.area_ratio, s.latent_dims, s.failures);
+        s.r_color, s.r_depth, s.r_goal, s.area_ratio, s.fold_quality, s.latent_dims, s.failures);
   }
 
   sensor_msgs::JointState jointState(const bt::FoldRollout& rollout, Eigen::Index sample,
@@ -449,7 +449,7 @@ class FoldLearnerNode {
         // Over the runs: the mean of the epoch's rollout rewards, its std across runs and the rollouts' std.
         const auto n = static_cast<double>(runs.size());
         double mean = 0.0, spread = 0.0, within = 0.0, acc = 0.0, color = 0.0, depth = 0.0, rho = 0.0, g = 0.0,
-               area = 0.0, dims = 0.0, failures = 0.0, quality = 0.0, quality_within = 0.0;
+               area = 0.0, goal = 0.0, mismatch = 0.0, dims = 0.0, failures = 0.0, quality = 0.0, quality_within = 0.0;
         for (const br::FoldRunResult* r : runs) {
           const br::FoldEpochStats& s = r->epochs[static_cast<std::size_t>(e)];
           mean += s.mean_reward / n;
@@ -460,6 +460,8 @@ class FoldLearnerNode {
           rho += s.fill_ratio / n;
           g += s.mean_gradient / n;
           area += s.area_ratio / n;
+          goal += s.r_goal / n;
+          mismatch += s.goal_mismatch / n;
           quality += s.fold_quality / n;
           quality_within += s.fold_quality_std / n;
           dims += s.latent_dims / n;
@@ -483,6 +485,8 @@ class FoldLearnerNode {
             .add("fill_ratio", rho)
             .add("mean_gradient", g)
             .add("area_ratio", area)
+            .add("r_goal", goal)
+            .add("goal_mismatch", mismatch)
             .add("fold_quality", quality)
             .add("fold_quality_std_within_runs", quality_within)
             .add("latent_dims", dims)
@@ -499,6 +503,7 @@ class FoldLearnerNode {
       rows.emplace_back()
           .add("experiment", "fold_policy")
           .add("algorithm", algorithm)
+          .add("reward_setting", config_.reward.setting)
           .add("initial_policy_reward", initial)
           .add("final_policy_reward", final_reward)
           .add("initial_policy_fold_quality", initial_quality)

@@ -13,6 +13,7 @@ import csv
 import json
 import math
 import os
+import sys
 from collections import defaultdict
 
 import matplotlib
@@ -31,8 +32,15 @@ from scipy import stats  # noqa: E402
 THESIS_75 = {'DR-DMP0(12)': (-2.47, -1.14), 'IDR-DMP_CMU': (-2.48, -0.91), 'IDR-DMP_MCMU(3)': (-2.57, -1.00)}
 # The fold quality a policy should reach (issue target), and the reward signals compared with q.
 Q_TARGET = 0.8
-PROXY_SIGNALS = [('reward', 1, 'reward (7.52)'), ('r_acceleration', -1, '-R_acceleration'),
-                 ('r_color', -1, '-R_color'), ('r_depth', -1, '-R_depth')]
+# Each as a function of a rollouts.csv row and the acceleration cost A = int |qdd|^2 dt (the run's R_acceleration
+# over its w_a), whatever reward the run learned on: the two named reward settings and their terms.
+PROXY_SIGNALS = [
+    ('thesis reward (7.52)', lambda r, a: -0.01 * a - (1.0 - float(r['fill_ratio'])) - float(r['mean_gradient'])),
+    ('goal reward', lambda r, a: -0.002 * a - float(r['goal_mismatch'])),
+    ('-R_acceleration', lambda r, a: -a),
+    ('-R_color (1 - rho)', lambda r, a: float(r['fill_ratio']) - 1.0),
+    ('-R_depth (gbar)', lambda r, a: -float(r['mean_gradient'])),
+    ('-goal mismatch', lambda r, a: -float(r['goal_mismatch']))]
 DOF_NAMES = ['L x', 'L y', 'L z', 'L v1', 'L v2', 'L v3', 'R x', 'R y', 'R z', 'R v1', 'R v2', 'R v3']
 
 
@@ -63,14 +71,15 @@ def learning_curve(directory, epochs):
         line, = axes[0].plot(xs, [m for m, _ in reward], marker='o', label=algorithm)
         axes[0].fill_between(xs, [m - d for m, d in reward], [m + d for m, d in reward], color=line.get_color(),
                              alpha=0.2)
-        for term, style in (('r_acceleration', ':'), ('r_color', '--'), ('r_depth', '-.')):
+        for term, style in (('r_acceleration', ':'), ('r_color', '--'), ('r_depth', '-.'), ('r_goal', '-')):
             values = [sum(float(r[term]) for r in per_epoch[e]) / len(per_epoch[e]) for e in xs]
-            axes[1].plot(xs, values, style, color=line.get_color(), label=f'{algorithm} {term}')
+            if any(values):  # a term the reward setting weighs by 0 is left out
+                axes[1].plot(xs, values, style, color=line.get_color(), label=f'{algorithm} {term}')
         q = [band(per_epoch[e], 'fold_quality', 'fold_quality_std') for e in xs]
         axes[2].plot(xs, [m for m, _ in q], marker='o', color=line.get_color(), label=algorithm)
         axes[2].fill_between(xs, [m - d for m, d in q], [m + d for m, d in q], color=line.get_color(), alpha=0.2)
     axes[0].set_xlabel('epoch (policy updates)')
-    axes[0].set_ylabel('reward (7.52)')
+    axes[0].set_ylabel(f'reward ({reward_setting(directory)} setting)')
     axes[0].set_title(f'Mean reward of the rollouts (band: {band_name})')
     axes[0].grid(True, alpha=0.3)
     axes[0].legend()
@@ -173,11 +182,12 @@ def table(directory, epochs, rollouts):
         lines += [f'Is the camera reward a proxy of the fold? Spearman\'s rho with q over the {len(finished)} finished '
                   'rollouts (penalties negated, so a good proxy has rho near 1):', '',
                   '| signal | rho | p |', '|---|---:|---:|']
-        for column, sign, label in PROXY_SIGNALS:
-            rho, p = stats.spearmanr([sign * float(r[column]) for r in finished], q)
+        weight = acceleration_weight(directory)
+        for label, signal in PROXY_SIGNALS:
+            rho, p = stats.spearmanr([signal(r, float(r['r_acceleration']) / weight) for r in finished], q)
             lines.append(f'| {label} | {rho:.3f} | {p:.1e} |')
         lines.append('')
-        proxy_scatter(directory, finished)
+        proxy_scatter(directory, finished, weight)
     lines += [f'Rollouts to reach q ≥ {Q_TARGET} (the first epoch whose rollouts\' mean q reaches it; all rollouts up '
               'to and including it):', '',
               '| algorithm | runs | reached | median rollouts | range | best epoch mean q (mean over runs) |',
@@ -217,11 +227,31 @@ def rollouts_to_target(algorithm, per_epoch, rollouts):
     return needed
 
 
-def proxy_scatter(directory, finished):
-    fig, axes = plt.subplots(1, len(PROXY_SIGNALS), figsize=(4.2 * len(PROXY_SIGNALS), 4))
+def reward_file(directory):
+    """The run's reward setting and weights (reward.txt)."""
+    with open(os.path.join(directory, 'reward.txt')) as f:
+        return dict(line.split() for line in f if line.strip())
+
+
+def reward_setting(directory):
+    return reward_file(directory)['setting']
+
+
+def acceleration_weight(directory):
+    """w_a of the run's reward, by which its R_acceleration column is weighted."""
+    weight = float(reward_file(directory)['acceleration_weight'])
+    if weight <= 0.0:
+        sys.exit(f'plot_fold_learning: {directory} learned with acceleration_weight 0: the acceleration cost is lost')
+    return weight
+
+
+def proxy_scatter(directory, finished, weight):
+    columns = (len(PROXY_SIGNALS) + 1) // 2
+    fig, axes = plt.subplots(2, columns, figsize=(4.2 * columns, 8))
+    axes = axes.ravel()
     q = np.array([float(r['fold_quality']) for r in finished])
-    for ax, (column, sign, label) in zip(axes, PROXY_SIGNALS):
-        x = np.array([sign * float(r[column]) for r in finished])
+    for ax, (label, signal) in zip(axes, PROXY_SIGNALS):
+        x = np.array([signal(r, float(r['r_acceleration']) / weight) for r in finished])
         for algorithm in sorted({r['algorithm'] for r in finished}):
             mask = np.array([r['algorithm'] == algorithm for r in finished])
             ax.scatter(x[mask], q[mask], s=6, alpha=0.5, label=algorithm)

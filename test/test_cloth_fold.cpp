@@ -182,4 +182,11 @@ TEST(FoldQuality, IdealFoldFlatClothAndInBetween) {
 
   EXPECT_THROW(bt::foldQuality(rest, rest, 19, ny, thickness), std::invalid_argument);  // sizes
   EXPECT_THROW(bt::foldQuality(rest, rest, nx, ny, 0.0), std::invalid_argument);
+
+  // idealFold() builds the same mesh, whichever way the rest patch's normal points.
+  EXPECT_TRUE(bt::idealFold(rest, nx, ny, thickness).isApprox(ideal, 1e-15));
+  Eigen::Matrix3Xd mirrored_rest = rest;
+  for (int j = 0; j < ny; ++j) mirrored_rest.col(j * nx).swap(mirrored_rest.col(j * nx + 1));  // flips the normal
+  EXPECT_GT(bt::idealFold(mirrored_rest, nx, ny, thickness).row(2).maxCoeff(), rest.row(2).maxCoeff());
+  EXPECT_THROW(bt::idealFold(rest.leftCols(nx), nx, 1, thickness), std::invalid_argument);
 }

@@ -129,6 +129,8 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_EQ(table.rollouts, 12);
   EXPECT_DOUBLE_EQ(table.covariance_memory, 0.8);
   EXPECT_DOUBLE_EQ(demo.covariance_memory, 0.0);
+  EXPECT_EQ(table.reward.setting, "thesis");
+  EXPECT_DOUBLE_EQ(table.reward.image.goal_weight, 0.0);
 
   const std::string dir = freshDirectory("files");
   std::filesystem::create_directories(dir);
@@ -153,6 +155,16 @@ TEST(FoldLearning, LearningFiles) {
       std::string::npos);
   EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nlearnin: {}\n").find("learnin"), std::string::npos);
   EXPECT_NE(message("sim: [1, 2\n").find("YAML"), std::string::npos);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nreward: {setting: best}\n").find("best"), std::string::npos);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nreward: {goal_excess_height: 0}\n").find("goal_excess"),
+            std::string::npos);
+  // A setting gives its weights; an entry beside it overrides one of them.
+  const br::FoldLearningConfig goal = br::FoldLearningConfig::fromYamlFile(
+      write("sim: " + kSource + "/config/sim.yaml\nreward: {setting: goal, acceleration_weight: 0.003}\n"));
+  EXPECT_EQ(goal.reward.setting, "goal");
+  EXPECT_DOUBLE_EQ(goal.reward.image.goal_weight, 1.0);
+  EXPECT_DOUBLE_EQ(goal.reward.image.colour_weight, 0.0);
+  EXPECT_DOUBLE_EQ(goal.reward.acceleration_weight, 0.003);
 }
 
 TEST(FoldLearning, CoordinatedPolicyDrivesTheSameMotion) {
@@ -197,7 +209,7 @@ TEST(FoldLearning, DemonstrationReward) {
   bt::ClothFoldTask task(config.task);
   bt::FoldRewardConfig reward_config = config.reward;
   reward_config.renderer = bt::rendererFor(task.simConfig());
-  bt::FoldReward reward(reward_config, 0.5 * 0.6);
+  bt::FoldReward reward(reward_config, 0.5 * 0.6, task.idealFoldVertices(), task.clothTriangles());
   const bt::FoldRollout r = task.run(task.demonstrationParameters());
   ASSERT_EQ(r.outcome, bt::FoldOutcome::Ok) << r.reason;
   std::mt19937 rng(1);
@@ -207,7 +219,8 @@ TEST(FoldLearning, DemonstrationReward) {
       "aspect %.2f\n",
       t.reward, t.r_acceleration, t.r_color, t.fill_ratio, t.r_depth, t.mean_gradient, t.area_ratio, t.aspect);
   EXPECT_EQ(t.vision, bimanual_skills::vision::VisionStatus::Ok);
-  EXPECT_NEAR(t.reward, -t.r_acceleration - t.r_color - t.r_depth, 1e-12);
+  EXPECT_NEAR(t.reward, -t.r_acceleration - t.r_color - t.r_depth - t.r_goal, 1e-12);
+  EXPECT_EQ(t.r_goal, 0.0);  // the thesis' setting
   // Folded in half: about half the flat area visible, a nearly rectangular outline.
   EXPECT_GT(t.area_ratio, 0.4);
   EXPECT_LT(t.area_ratio, 0.6);
@@ -216,6 +229,27 @@ TEST(FoldLearning, DemonstrationReward) {
   bt::FoldRollout failed = r;
   failed.outcome = bt::FoldOutcome::ControllerFailed;
   EXPECT_EQ(reward.evaluate(failed, rng).reward, config.reward.failure_reward);
+
+  // The goal term: ~0 for the ideal fold itself (only the sensor noise), about ½ for the flat cloth (half its area
+  // outside the goal, the other half one layer where two belong), the demonstration between.
+  bt::FoldReward goal(bt::rewardSetting(reward_config, "goal", "test"), 0.5 * 0.6, task.idealFoldVertices(),
+                      task.clothTriangles());
+  bt::FoldRollout ideal = r, flat = r;
+  ideal.cloth_vertices = task.idealFoldVertices();
+  flat.cloth_vertices = r.cloth_rest_vertices;
+  const bt::FoldRewardTerms at_goal = goal.evaluate(ideal, rng), at_start = goal.evaluate(flat, rng),
+                            demo = goal.evaluate(r, rng);
+  std::printf("goal mismatch: ideal %.3f (IoU %.3f), flat %.3f (IoU %.3f), demonstration %.3f (IoU %.3f)\n",
+              at_goal.goal_mismatch, at_goal.goal_iou, at_start.goal_mismatch, at_start.goal_iou, demo.goal_mismatch,
+              demo.goal_iou);
+  EXPECT_GT(at_goal.goal_iou, 0.97);
+  EXPECT_LT(at_goal.goal_mismatch, 0.15);
+  EXPECT_NEAR(at_start.goal_iou, 0.5, 0.03);
+  EXPECT_GT(at_start.goal_mismatch, 0.7);
+  EXPECT_GT(demo.goal_mismatch, at_goal.goal_mismatch);
+  EXPECT_LT(demo.goal_mismatch, at_start.goal_mismatch);
+  EXPECT_EQ(demo.r_color, 0.0);
+  EXPECT_NEAR(demo.reward, -demo.r_acceleration - demo.goal_mismatch, 1e-12);
 }
 
 TEST(FoldLearning, SameOnAnyThreadsAndResumes) {
@@ -252,7 +286,16 @@ TEST(FoldLearning, SameOnAnyThreadsAndResumes) {
   EXPECT_EQ(bimanual_skills::testing::readTextFile(resumed_dir + "/epochs.csv"),
             bimanual_skills::testing::readTextFile(serial_dir + "/epochs.csv"));
 
-  // Another seed in the same directory is refused, not mixed in.
+  // Another reward in the same directory is refused at once (its first epoch's rollouts would otherwise be reused
+  // with the rewards of the first), and so is another seed.
+  br::FoldLearningConfig other_reward = config;
+  other_reward.reward = bt::rewardSetting(config.reward, "goal", "test");
+  try {
+    br::FoldLearner(other_reward, resumed_dir);
+    ADD_FAILURE() << "a directory scored with another reward was reused";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("another reward"), std::string::npos) << e.what();
+  }
   config.seed = 6;
   EXPECT_THROW(br::FoldLearner(config, resumed_dir).learn(), std::invalid_argument);
 }

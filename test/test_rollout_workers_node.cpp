@@ -39,10 +39,10 @@ std::map<std::string, std::string> rolloutsByKey(const std::string& path, std::s
     std::vector<std::string> f;
     std::stringstream ss(all[n]);
     for (std::string field; std::getline(ss, field, ',');) f.push_back(field);
-    if (f.size() < 16) continue;
+    if (f.size() < 21) continue;
     const std::string key = f[0] + "," + f[1] + "," + f[2] + "," + f[3] + "," + f[4];
     std::string value;
-    for (std::size_t i = 5; i < 16; ++i) value += f[i] + ",";
+    for (std::size_t i = 5; i < 21; ++i) value += f[i] + ",";
     out[key] = value;
   }
   return out;

@@ -518,3 +518,85 @@ TEST(ImageReward, WrongImagesAndNoClothGiveAStatusAndTheWorstTerms) {
   bad_camera.rows = 0;
   EXPECT_THROW(bv::ImageReward(bad_camera, {}), std::invalid_argument);
 }
+
+// ---- Goal term ----
+
+// Against a goal of two stacked layers on the left half of a rectangle: the goal itself matches, the flat
+// rectangle's IoU is ½ with its shared half one layer low, cloth heaped above the goal costs by its excess height,
+// and a brute-force count gives the shifted goal's IoU.
+TEST(ImageReward, GoalTermCountsMissingPixelsAndHeightErrors) {
+  const bv::TopDownCamera camera = scene(64, 48).camera;
+  bv::ImageRewardParameters parameters;
+  parameters.goal_weight = 2.0;
+  parameters.goal_missing_height = 0.008;
+  parameters.goal_excess_height = 0.05;
+  bv::ImageReward reward(camera, parameters);
+  const float table = 1.35f, layer = 0.004f;
+  const cv::Rect left(10, 10, 20, 24), whole(10, 10, 40, 24);
+  cv::Mat goal_mask = cv::Mat::zeros(camera.rows, camera.columns, CV_8UC1);
+  goal_mask(left).setTo(255);
+  cv::Mat goal_depth(camera.rows, camera.columns, CV_32FC1, cv::Scalar(table));
+  goal_depth(left).setTo(table - 2.0f * layer);
+
+  EXPECT_EQ(reward.goalTerm(goal_depth, goal_mask).status, bv::VisionStatus::NoCloth);  // no goal yet
+  reward.setGoal(goal_mask, goal_depth);
+  ASSERT_TRUE(reward.hasGoal());
+  bv::GoalTerm term = reward.goalTerm(goal_depth, goal_mask);
+  ASSERT_EQ(term.status, bv::VisionStatus::Ok);
+  EXPECT_DOUBLE_EQ(term.iou, 1.0);
+  EXPECT_DOUBLE_EQ(term.mismatch, 0.0);
+
+  // The flat cloth: half its pixels outside the goal (e = 1), the other half 4 mm too low (e = ½).
+  cv::Mat flat_mask = cv::Mat::zeros(camera.rows, camera.columns, CV_8UC1);
+  flat_mask(whole).setTo(255);
+  cv::Mat flat_depth(camera.rows, camera.columns, CV_32FC1, cv::Scalar(table));
+  flat_depth(whole).setTo(table - layer);
+  term = reward.goalTerm(flat_depth, flat_mask);
+  EXPECT_NEAR(term.iou, 0.5, 1e-12);
+  EXPECT_NEAR(term.mismatch, 0.5 * 1.0 + 0.5 * 0.5, 1e-5);
+
+  // Heaped 25 mm above the goal: e = 25 / 50.
+  term = reward.goalTerm(goal_depth - 0.025f, goal_mask);
+  EXPECT_NEAR(term.iou, 1.0, 1e-12);
+  EXPECT_NEAR(term.mismatch, 0.5, 1e-5);
+
+  // The goal shifted by (7, 5) pixels at the goal's height: e = 1 off the intersection, 0 on it.
+  const cv::Rect shifted = left + cv::Point(7, 5);
+  cv::Mat shifted_mask = cv::Mat::zeros(camera.rows, camera.columns, CV_8UC1);
+  shifted_mask(shifted).setTo(255);
+  int both = 0, either = 0;
+  for (int v = 0; v < camera.rows; ++v) {
+    for (int u = 0; u < camera.columns; ++u) {
+      const bool a = left.contains({u, v}), b = shifted.contains({u, v});
+      both += a && b;
+      either += a || b;
+    }
+  }
+  cv::Mat shifted_depth(camera.rows, camera.columns, CV_32FC1, cv::Scalar(table));
+  shifted_depth(shifted).setTo(table - 2.0f * layer);
+  term = reward.goalTerm(shifted_depth, shifted_mask);
+  EXPECT_NEAR(term.iou, double(both) / either, 1e-12);
+  EXPECT_NEAR(term.mismatch, 1.0 - double(both) / either, 1e-12);
+
+  // A non-finite depth on shared cloth counts as a mismatch; evaluate() weighs the term by w_g.
+  cv::Mat holes = goal_depth.clone();
+  holes(cv::Rect(10, 10, 20, 12)).setTo(std::numeric_limits<float>::quiet_NaN());
+  EXPECT_NEAR(reward.goalTerm(holes, goal_mask).mismatch, 0.5, 1e-12);
+  const cv::Mat no_cloth = cv::Mat::zeros(camera.rows, camera.columns, CV_8UC1);
+  EXPECT_EQ(reward.goalTerm(goal_depth, no_cloth).status, bv::VisionStatus::NoCloth);
+  const cv::Mat table_only(camera.rows, camera.columns, CV_8UC3, cv::Scalar(143, 184, 209));
+  const bv::ImageRewardTerms seen_nothing = reward.evaluate(table_only, goal_depth);
+  EXPECT_DOUBLE_EQ(seen_nothing.r_goal, 2.0);
+
+  EXPECT_EQ(reward.goalTerm(cv::Mat(), goal_mask).status, bv::VisionStatus::WrongImageSize);
+  EXPECT_THROW(reward.setGoal(no_cloth, goal_depth), std::invalid_argument);
+  EXPECT_THROW(reward.setGoal(goal_mask, cv::Mat(camera.rows, camera.columns, CV_64FC1)), std::invalid_argument);
+  EXPECT_THROW(reward.setGoal(goal_mask.t(), goal_depth), std::invalid_argument);
+  EXPECT_THROW(reward.setGoal(goal_mask, holes), std::invalid_argument);
+  bv::ImageRewardParameters bad;
+  bad.goal_missing_height = 0.0;
+  EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
+  bad = {};
+  bad.goal_weight = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
+}

@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 #include <map>
 #include <regex>
@@ -88,8 +89,9 @@ RolloutKind kindFromString(const std::string& text, const std::string& where) {
 
 const char* const kRolloutColumns =
     "algorithm,run,epoch,kind,index,seed,outcome,reward,r_acceleration,r_color,r_depth,fill_ratio,mean_gradient,"
-    "area_ratio,aspect,fold_quality,fold_distance,fold_displacement,latent_dims,wall_seconds,reason";
-constexpr std::size_t kRolloutFields = 21;
+    "area_ratio,aspect,fold_quality,fold_distance,fold_displacement,r_goal,goal_iou,goal_mismatch,latent_dims,"
+    "wall_seconds,reason";
+constexpr std::size_t kRolloutFields = 24;
 
 double toDouble(const std::string& text, const std::string& where) {
   std::size_t used = 0;
@@ -263,12 +265,18 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
   }
   if (const YAML::Node reward = root["reward"]) {
     const std::string at = where + " reward";
-    io::checkKeys(
-        reward, at,
-        {"acceleration_weight", "colour_weight", "depth_weight", "failure_reward", "depth_noise", "colour_noise"});
+    io::checkKeys(reward, at,
+                  {"setting", "acceleration_weight", "colour_weight", "depth_weight", "goal_weight",
+                   "goal_missing_height", "goal_excess_height", "failure_reward", "depth_noise", "colour_noise"});
+    if (reward["setting"]) c.reward = tasks::rewardSetting(c.reward, io::readString(reward, "setting", at), at);
     c.reward.acceleration_weight = io::readDouble(reward, "acceleration_weight", at, c.reward.acceleration_weight);
     c.reward.image.colour_weight = io::readDouble(reward, "colour_weight", at, c.reward.image.colour_weight);
     c.reward.image.depth_weight = io::readDouble(reward, "depth_weight", at, c.reward.image.depth_weight);
+    c.reward.image.goal_weight = io::readDouble(reward, "goal_weight", at, c.reward.image.goal_weight);
+    c.reward.image.goal_missing_height =
+        io::readDouble(reward, "goal_missing_height", at, c.reward.image.goal_missing_height);
+    c.reward.image.goal_excess_height =
+        io::readDouble(reward, "goal_excess_height", at, c.reward.image.goal_excess_height);
     c.reward.failure_reward = io::readDouble(reward, "failure_reward", at, c.reward.failure_reward);
     c.reward.renderer.noise.depth_stddev =
         io::readDouble(reward, "depth_noise", at, c.reward.renderer.noise.depth_stddev);
@@ -316,6 +324,31 @@ struct FoldLearner::Impl {
   io::CsvAppender rollouts_csv, parameters_csv;
   int simulated = 0, resumed = 0;
 
+  /// The reward the directory's rollouts were scored with, DIR/reward.txt: written by the first run, compared by
+  /// the next ones (rollouts scored otherwise must not be reused).
+  void checkReward() {
+    const tasks::FoldRewardConfig& r = config.reward;
+    std::ostringstream text;
+    text << "setting " << r.setting << "\nacceleration_weight " << number(r.acceleration_weight) << "\ncolour_weight "
+         << number(r.image.colour_weight) << "\ndepth_weight " << number(r.image.depth_weight) << "\ngoal_weight "
+         << number(r.image.goal_weight) << "\ngoal_missing_height " << number(r.image.goal_missing_height)
+         << "\ngoal_excess_height " << number(r.image.goal_excess_height) << "\nfailure_reward "
+         << number(r.failure_reward) << "\ndepth_noise " << number(r.renderer.noise.depth_stddev) << "\ncolour_noise "
+         << number(r.renderer.noise.colour_stddev) << '\n';
+    const std::string path = dir + "/reward.txt";
+    if (std::ifstream in{path}) {
+      const std::string stored{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+      if (stored != text.str()) {
+        throw std::invalid_argument("fold learning: '" + dir + "' holds rollouts scored with another reward (" + path +
+                                    "): use another directory");
+      }
+      return;
+    }
+    std::ofstream out(path);
+    out << text.str();
+    if (!out.flush()) throw std::invalid_argument("fold learning: cannot write '" + path + "'");
+  }
+
   void readStored() {
     const std::string rollouts = dir + "/rollouts.csv", parameters = dir + "/rollout_parameters.csv";
     // A run killed while it wrote a record leaves a partial last line: it is dropped (and its rollout run again).
@@ -362,8 +395,11 @@ struct FoldLearner::Impl {
       rec.terms.fold_quality = toDouble(f[15], where);
       rec.terms.fold_distance = toDouble(f[16], where);
       rec.terms.fold_displacement = toDouble(f[17], where);
-      rec.wall_seconds = toDouble(f[19], where);
-      rec.reason = f[20];
+      rec.terms.r_goal = toDouble(f[18], where);
+      rec.terms.goal_iou = toDouble(f[19], where);
+      rec.terms.goal_mismatch = toDouble(f[20], where);
+      rec.wall_seconds = toDouble(f[22], where);
+      rec.reason = f[23];
       rec.resumed = true;
       const std::string k = key(rec.algorithm, rec.run, rec.epoch, rec.kind, rec.index);
       const auto w = weights.find(k);
@@ -392,8 +428,9 @@ struct FoldLearner::Impl {
          << number(t.r_acceleration) << ',' << number(t.r_color) << ',' << number(t.r_depth) << ','
          << number(t.fill_ratio) << ',' << number(t.mean_gradient) << ',' << number(t.area_ratio) << ','
          << number(t.aspect) << ',' << number(t.fold_quality) << ',' << number(t.fold_distance) << ','
-         << number(t.fold_displacement) << ',' << (rec.coordination.empty() ? 0 : rec.coordination.front().cols())
-         << ',' << number(rec.wall_seconds) << ',' << quoted(rec.reason);
+         << number(t.fold_displacement) << ',' << number(t.r_goal) << ',' << number(t.goal_iou) << ','
+         << number(t.goal_mismatch) << ',' << (rec.coordination.empty() ? 0 : rec.coordination.front().cols()) << ','
+         << number(rec.wall_seconds) << ',' << quoted(rec.reason);
     rollouts_csv.append(line.str());
     // The parameters last: a rollout counts as stored once both records are whole.
     line.str("");
@@ -487,11 +524,13 @@ struct FoldLearner::Impl {
       s.fill_ratio += rec.terms.fill_ratio;
       s.mean_gradient += rec.terms.mean_gradient;
       s.area_ratio += rec.terms.area_ratio;
+      s.r_goal += rec.terms.r_goal;
+      s.goal_mismatch += rec.terms.goal_mismatch;
       s.fold_quality += rec.terms.fold_quality;
       s.fold_quality_std += rec.terms.fold_quality * rec.terms.fold_quality;
     }
     for (double* v : {&s.r_acceleration, &s.r_color, &s.r_depth, &s.fill_ratio, &s.mean_gradient, &s.area_ratio,
-                      &s.fold_quality, &s.fold_quality_std}) {
+                      &s.r_goal, &s.goal_mismatch, &s.fold_quality, &s.fold_quality_std}) {
       *v /= finished;
     }
     // Sample standard deviation of q over the rollouts averaged (the second moment is in fold_quality_std so far).
@@ -505,7 +544,7 @@ struct FoldLearner::Impl {
   void writeEpochs(const std::vector<FoldRunResult>& finished, const FoldRunResult& current) const {
     std::ofstream csv(dir + "/epochs.csv");
     csv << "algorithm,run,epoch,latent_dims,failures,mean_reward,std_reward,r_acceleration,r_color,r_depth,"
-           "fill_ratio,mean_gradient,area_ratio,fold_quality,fold_quality_std\n";
+           "fill_ratio,mean_gradient,area_ratio,r_goal,goal_mismatch,fold_quality,fold_quality_std\n";
     std::vector<const FoldRunResult*> runs;
     for (const FoldRunResult& run : finished) runs.push_back(&run);
     runs.push_back(&current);
@@ -514,8 +553,8 @@ struct FoldLearner::Impl {
         csv << quoted(s.algorithm) << ',' << s.run << ',' << s.epoch << ',' << s.latent_dims << ',' << s.failures << ','
             << number(s.mean_reward) << ',' << number(s.std_reward) << ',' << number(s.r_acceleration) << ','
             << number(s.r_color) << ',' << number(s.r_depth) << ',' << number(s.fill_ratio) << ','
-            << number(s.mean_gradient) << ',' << number(s.area_ratio) << ',' << number(s.fold_quality) << ','
-            << number(s.fold_quality_std) << '\n';
+            << number(s.mean_gradient) << ',' << number(s.area_ratio) << ',' << number(s.r_goal) << ','
+            << number(s.goal_mismatch) << ',' << number(s.fold_quality) << ',' << number(s.fold_quality_std) << '\n';
       }
     }
   }
@@ -652,6 +691,7 @@ FoldLearner::FoldLearner(const FoldLearningConfig& config, const std::string& ou
     m.config.jobs = threads->threads();
     m.evaluator = std::move(threads);
   }
+  m.checkReward();
   m.readStored();
   m.openFiles();
   m.firstTask().task().saveDemonstration(out_dir + "/demonstration_");

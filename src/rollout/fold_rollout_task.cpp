@@ -8,7 +8,9 @@
 namespace bimanual_skills::rollout {
 
 FoldRolloutTask::FoldRolloutTask(const tasks::ClothFoldConfig& task, const tasks::FoldRewardConfig& reward)
-    : task_(task), reward_(reward, task_.simConfig().cloth.length * task_.simConfig().cloth.width) {}
+    : task_(task),
+      reward_(reward, task_.simConfig().cloth.length * task_.simConfig().cloth.width, task_.idealFoldVertices(),
+              task_.clothTriangles()) {}
 
 Eigen::VectorXd FoldRolloutTask::encode(const std::vector<Eigen::MatrixXd>& coordination,
                                         const Eigen::VectorXd& weights) {
@@ -48,8 +50,9 @@ std::vector<std::string> FoldRolloutTask::termNames() const {
 }
 
 std::vector<std::string> FoldRolloutTask::names() {
-  return {"r_acceleration", "r_color", "r_depth",      "fill_ratio",    "mean_gradient",
-          "area_ratio",     "aspect",  "fold_quality", "fold_distance", "fold_displacement"};
+  return {"r_acceleration", "r_color",  "r_depth",      "fill_ratio",    "mean_gradient",
+          "area_ratio",     "aspect",   "fold_quality", "fold_distance", "fold_displacement",
+          "r_goal",         "goal_iou", "goal_mismatch"};
 }
 
 Eigen::VectorXd FoldRolloutTask::initialParameters() const {
@@ -75,6 +78,9 @@ tasks::FoldRewardTerms FoldRolloutTask::termsOf(const RolloutResult& result) {
   t.fold_quality = result.terms[7];
   t.fold_distance = result.terms[8];
   t.fold_displacement = result.terms[9];
+  t.r_goal = result.terms[10];
+  t.goal_iou = result.terms[11];
+  t.goal_mismatch = result.terms[12];
   return t;
 }
 
@@ -105,7 +111,7 @@ RolloutResult FoldRolloutTask::resultOf(const tasks::FoldRewardTerms& t, const s
   result.reward = t.reward;
   result.terms.resize(kTerms);
   result.terms << t.r_acceleration, t.r_color, t.r_depth, t.fill_ratio, t.mean_gradient, t.area_ratio, t.aspect,
-      t.fold_quality, t.fold_distance, t.fold_displacement;
+      t.fold_quality, t.fold_distance, t.fold_displacement, t.r_goal, t.goal_iou, t.goal_mismatch;
   result.ok = t.outcome == tasks::FoldOutcome::Ok;
   result.outcome = tasks::toString(t.outcome);
   result.reason = reason;

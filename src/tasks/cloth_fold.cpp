@@ -614,4 +614,14 @@ FoldQuality ClothFoldTask::foldQualityOf(const Eigen::Matrix3Xd& vertices) const
   return foldQuality(vertices, cloth.restVertices(), p.nodes_x, p.nodes_y, p.thickness);
 }
 
+Eigen::Matrix3Xd ClothFoldTask::idealFoldVertices() const {
+  const sim::Cloth& cloth = impl_->simulation->cloth();
+  const sim::ClothParameters& p = cloth.parameters();
+  return idealFold(cloth.restVertices(), p.nodes_x, p.nodes_y, p.thickness);
+}
+
+const Eigen::Matrix3Xi& ClothFoldTask::clothTriangles() const {
+  return impl_->simulation->cloth().triangles();
+}
+
 }  // namespace bimanual_skills::tasks

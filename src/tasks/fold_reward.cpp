@@ -17,6 +17,22 @@ void FoldRewardConfig::validate(const char* where) const {
   if (!std::isfinite(failure_reward)) throw std::invalid_argument(std::string(where) + ": failure_reward not finite");
 }
 
+FoldRewardConfig rewardSetting(FoldRewardConfig config, const std::string& name, const std::string& where) {
+  if (name == "thesis") {
+    config.acceleration_weight = 0.01;
+    config.image.colour_weight = config.image.depth_weight = 1.0;
+    config.image.goal_weight = 0.0;
+  } else if (name == "goal") {
+    config.acceleration_weight = 0.002;
+    config.image.colour_weight = config.image.depth_weight = 0.0;
+    config.image.goal_weight = 1.0;
+  } else {
+    throw std::invalid_argument(where + ": unknown reward setting '" + name + "' (thesis, goal)");
+  }
+  config.setting = name;
+  return config;
+}
+
 vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim) {
   vision::ClothRendererParameters p;
   const Eigen::Vector3d top = sim.table.topCentre();
@@ -30,7 +46,8 @@ vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim) {
   return p;
 }
 
-FoldReward::FoldReward(const FoldRewardConfig& config, double flat_area)
+FoldReward::FoldReward(const FoldRewardConfig& config, double flat_area, const Eigen::Matrix3Xd& goal_vertices,
+                       const Eigen::Matrix3Xi& triangles)
     : config_(config),
       flat_area_(flat_area),
       renderer_((config.validate("fold reward"), config.renderer)),
@@ -38,6 +55,12 @@ FoldReward::FoldReward(const FoldRewardConfig& config, double flat_area)
   if (!(flat_area > 0.0) || !std::isfinite(flat_area)) {
     throw std::invalid_argument("fold reward: the flat cloth's area must be > 0");
   }
+  const vision::VisionStatus goal = renderer_.render(goal_vertices, triangles);
+  if (goal != vision::VisionStatus::Ok || renderer_.clothPixelCount() == 0) {
+    throw std::invalid_argument(std::string("fold reward: the camera does not see the goal mesh (") +
+                                vision::toString(goal) + ")");
+  }
+  image_.setGoal(renderer_.clothMask(), renderer_.depth());
 }
 
 FoldRewardTerms FoldReward::evaluate(const FoldRollout& rollout, std::mt19937& rng) {
@@ -58,6 +81,9 @@ FoldRewardTerms FoldReward::evaluateImages(FoldOutcome outcome, double accelerat
   t.vision = image.status;
   t.r_color = image.r_color;
   t.r_depth = image.r_depth;
+  t.r_goal = image.r_goal;
+  t.goal_iou = image.goal.iou;
+  t.goal_mismatch = image.goal.mismatch;
   t.fill_ratio = image.colour.fill_ratio;
   t.mean_gradient = image.depth.mean_gradient;
   t.area_ratio = facts.area_ratio;

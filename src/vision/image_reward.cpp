@@ -33,6 +33,11 @@ void ImageRewardParameters::validate(const char* where) const {
   if (border_erosion < 0 || border_erosion > 100) fail(where, "border_erosion must be in [0, 100]");
   if (!nonNegative(depth_smoothing)) fail(where, "depth_smoothing must be finite and >= 0");
   if (!nonNegative(no_cloth_gradient)) fail(where, "no_cloth_gradient must be finite and >= 0");
+  if (!nonNegative(goal_weight)) fail(where, "goal_weight must be finite and >= 0");
+  if (!(std::isfinite(goal_missing_height) && goal_missing_height > 0.0 && std::isfinite(goal_excess_height) &&
+        goal_excess_height > 0.0)) {
+    fail(where, "goal_missing_height and goal_excess_height must be finite and > 0");
+  }
 }
 
 ImageReward::ImageReward(const TopDownCamera& camera, const ImageRewardParameters& parameters)
@@ -159,6 +164,58 @@ DepthTerm ImageReward::depthTerm(const cv::Mat& depth, const cv::Mat& mask) {
   return term;
 }
 
+void ImageReward::setGoal(const cv::Mat& mask, const cv::Mat& depth) {
+  if (!fits(mask, CV_8UC1) || !fits(depth, CV_32FC1)) {
+    fail("ImageReward::setGoal", "a CV_8UC1 mask and a CV_32FC1 depth image of the camera's size are needed");
+  }
+  if (cv::countNonZero(mask) == 0) fail("ImageReward::setGoal", "the goal mask has no cloth");
+  for (int v = 0; v < camera_.rows; ++v) {
+    const unsigned char* m = mask.ptr<unsigned char>(v);
+    const float* d = depth.ptr<float>(v);
+    for (int u = 0; u < camera_.columns; ++u) {
+      if (m[u] != 0 && !std::isfinite(d[u])) fail("ImageReward::setGoal", "the goal depth is not finite on the cloth");
+    }
+  }
+  mask.copyTo(goal_mask_);
+  depth.copyTo(goal_depth_);
+  has_goal_ = true;
+}
+
+GoalTerm ImageReward::goalTerm(const cv::Mat& depth, const cv::Mat& mask) const {
+  GoalTerm term;
+  if (!fits(depth, CV_32FC1) || !fits(mask, CV_8UC1)) {
+    term.status = VisionStatus::WrongImageSize;
+    return term;
+  }
+  if (!has_goal_ || cv::countNonZero(mask) == 0) return term;  // NoCloth: the worst values.
+  const double missing = parameters_.goal_missing_height, excess = parameters_.goal_excess_height;
+  double error = 0.0;
+  int shared = 0, either = 0;
+  for (int v = 0; v < camera_.rows; ++v) {
+    const unsigned char* m = mask.ptr<unsigned char>(v);
+    const unsigned char* g = goal_mask_.ptr<unsigned char>(v);
+    const float* d = depth.ptr<float>(v);
+    const float* dg = goal_depth_.ptr<float>(v);
+    for (int u = 0; u < camera_.columns; ++u) {
+      const bool seen = m[u] != 0, goal = g[u] != 0;
+      if (!seen && !goal) continue;
+      ++either;
+      if (seen && goal) {
+        ++shared;
+        const double above = double(dg[u]) - double(d[u]);
+        const double e = std::max(-above / missing, above / excess);
+        error += std::isfinite(e) ? std::min(e, 1.0) : 1.0;
+      } else {
+        error += 1.0;
+      }
+    }
+  }
+  term.iou = double(shared) / either;
+  term.mismatch = error / either;
+  term.status = VisionStatus::Ok;
+  return term;
+}
+
 FoldFacts ImageReward::foldFacts(const cv::Mat& mask, double flat_area) {
   if (!(std::isfinite(flat_area) && flat_area > 0.0)) {
     throw std::invalid_argument("ImageReward::foldFacts: flat_area must be finite and > 0");
@@ -188,11 +245,13 @@ ImageRewardTerms ImageReward::evaluate(const cv::Mat& bgr, const cv::Mat& depth)
   } else {
     terms.colour = colourTerm(mask_);
     terms.depth = depthTerm(depth, mask_);
+    terms.goal = goalTerm(depth, mask_);
     terms.status = terms.colour.status != VisionStatus::Ok ? terms.colour.status : terms.depth.status;
   }
   const bool seen = terms.status == VisionStatus::Ok;
   terms.r_color = parameters_.colour_weight * (seen ? 1.0 - terms.colour.fill_ratio : 1.0);
   terms.r_depth = parameters_.depth_weight * (seen ? terms.depth.mean_gradient : parameters_.no_cloth_gradient);
+  terms.r_goal = parameters_.goal_weight * (seen && terms.goal.status == VisionStatus::Ok ? terms.goal.mismatch : 1.0);
   return terms;
 }
 

@@ -116,6 +116,7 @@ struct FoldEpochStats {
   double mean_reward = 0.0, std_reward = 0.0;
   /// Means over the epoch's rollouts that finished (all of them when none did).
   double r_acceleration = 0.0, r_color = 0.0, r_depth = 0.0, fill_ratio = 0.0, mean_gradient = 0.0, area_ratio = 0.0;
+  double r_goal = 0.0, goal_mismatch = 0.0;
   /// The fold's ground truth q (tasks/fold_quality.hpp): mean and sample standard deviation over the same rollouts.
   double fold_quality = 0.0, fold_quality_std = 0.0;
 };

@@ -133,6 +133,9 @@ class ClothFoldTask {
   Eigen::Isometry3d basePose(int arm) const;
   /// The fold quality of a cloth mesh of this task's cloth (world frame, its nodes in the simulation's order).
   FoldQuality foldQualityOf(const Eigen::Matrix3Xd& vertices) const;
+  /// The ideal fold of this task's cloth (idealFold(), world frame) and the cloth's triangles: the goal image's mesh.
+  Eigen::Matrix3Xd idealFoldVertices() const;
+  const Eigen::Matrix3Xi& clothTriangles() const;
 
   /// The DoF of the policy's forcing terms: 2 arms × (position + orientation vector).
   static constexpr int kDofs = 12;

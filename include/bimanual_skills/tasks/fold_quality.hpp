@@ -28,4 +28,10 @@ struct FoldQuality {
 FoldQuality foldQuality(const Eigen::Matrix3Xd& vertices, const Eigen::Matrix3Xd& rest, int nodes_x, int nodes_y,
                         double thickness);
 
+/// The ideal fold of the flat cloth `rest` (layout as foldQuality's): the staying half at rest, each node of the
+/// moving half on its mirror node, one `thickness` above it along the rest plane's upward normal (the normal whose
+/// world z is ≥ 0). foldQuality() of it is 1. What the goal image of the fold reward is rendered from.
+/// \throws std::invalid_argument as foldQuality().
+Eigen::Matrix3Xd idealFold(const Eigen::Matrix3Xd& rest, int nodes_x, int nodes_y, double thickness);
+
 }  // namespace bimanual_skills::tasks

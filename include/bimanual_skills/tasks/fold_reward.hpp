@@ -1,14 +1,16 @@
 /// \file
-/// The cloth-folding reward of thesis eq. 7.52 on a simulated rollout:
+/// The cloth-folding reward of thesis eq. 7.52 on a simulated rollout, with an optional goal term:
 ///
-///   R = −R_acceleration − R_color − R_depth                                                        (7.52)
+///   R = −R_acceleration − R_color − R_depth − R_goal                                      (7.52 when w_g = 0)
 ///
-/// R_acceleration = w_a ∫ ‖q̈_ref‖² dt over both arms (FoldRollout::acceleration_cost); R_color and R_depth are the
-/// image terms of vision::ImageReward on the final cloth rendered by a top-down camera over the table
-/// (vision::ClothRenderer, with sensor noise). A rollout that failed (IK, controller, divergence, invalid policy)
-/// gets `failure_reward`, below any reward a finished fold can reach with the default weights. Target
-/// bimanual_skills_tasks. Runs once per rollout, off the control loop: allocates (OpenCV), never throws after
-/// construction.
+/// R_acceleration = w_a ∫ ‖q̈_ref‖² dt over both arms (FoldRollout::acceleration_cost); R_color, R_depth and R_goal
+/// are the image terms of vision::ImageReward on the final cloth rendered by a top-down camera over the table
+/// (vision::ClothRenderer, with sensor noise). R_goal compares the images with the goal image: the ideal fold
+/// (tasks::idealFold) rendered once, without noise, by the same camera. Two named settings (rewardSetting()):
+/// "thesis" (7.52 with w_a = 0.01, w_c = w_d = 1, w_g = 0) and "goal" (w_a = 0.002, w_c = w_d = 0, w_g = 1). A rollout
+/// that failed (IK, controller, divergence, invalid policy) gets `failure_reward`, below any reward a finished fold can
+/// reach with the default weights. Target bimanual_skills_tasks. Runs once per rollout, off the control loop: allocates
+/// (OpenCV), never throws after construction.
 #pragma once
 
 #include "bimanual_skills/tasks/cloth_fold.hpp"
@@ -16,18 +18,24 @@
 #include "bimanual_skills/vision/image_reward.hpp"
 
 #include <random>
+#include <string>
 
 namespace bimanual_skills::tasks {
 
 struct FoldRewardConfig {
+  std::string setting = "thesis";            ///< The named setting the weights started from (for the records).
   vision::ClothRendererParameters renderer;  ///< Camera, table and noise (see rendererFor()).
   vision::ImageRewardParameters image;       ///< Segmentation and w_c, w_d.
-  double acceleration_weight = 0.01;         ///< w_a ≥ 0 [s³/rad²].
+  double acceleration_weight = 0.01;         ///< w_a ≥ 0 [s³/rad²]. image: w_c, w_d, w_g.
   double failure_reward = -3.0;              ///< Reward of a failed rollout, finite.
 
   /// Throws std::invalid_argument naming `where` and the parameter that is out of range.
   void validate(const char* where) const;
 };
+
+/// `config` with the weights of the named setting "thesis" or "goal" (see the file's comment); the other entries
+/// kept. \throws std::invalid_argument naming `where` for another name.
+FoldRewardConfig rewardSetting(FoldRewardConfig config, const std::string& name, const std::string& where);
 
 /// The camera and table of a simulation: the table top of `sim` (height, centre, extent) and a 320 × 240 camera
 /// 1.5 m above it centred on the cloth, covering 1 m of table across (3.125 mm pixels).
@@ -40,11 +48,14 @@ struct FoldRewardTerms {
   double r_acceleration = 0.0;  ///< w_a ∫ ‖q̈_ref‖² dt
   double r_color = 0.0;         ///< w_c (1 − ρ)
   double r_depth = 0.0;         ///< w_d ḡ
+  double r_goal = 0.0;          ///< w_g · goal_mismatch
   double fill_ratio = 0.0;      ///< ρ
   double mean_gradient = 0.0;   ///< ḡ [m/m]
   double area_ratio = 0.0;      ///< Visible cloth area over the flat cloth's (½ when folded in half).
   double aspect = 0.0;          ///< Long over short side of the cloth's minimum-area rectangle.
-  double reward = 0.0;          ///< (7.52), or failure_reward.
+  double goal_iou = 0.0;        ///< IoU of the seen cloth with the goal image's (vision::GoalTerm).
+  double goal_mismatch = 1.0;   ///< The goal term's mismatch in [0, 1] (vision::GoalTerm).
+  double reward = 0.0;          ///< (7.52) with R_goal, or failure_reward.
   /// The fold's ground truth from the cloth mesh (not part of the reward; fold_quality.hpp): q, its distance and
   /// displacement terms [m].
   double fold_quality = 0.0, fold_distance = 0.0, fold_displacement = 0.0;
@@ -53,8 +64,11 @@ struct FoldRewardTerms {
 /// Renders and scores rollouts. One object per thread (it holds the images).
 class FoldReward {
  public:
-  /// `flat_area` [m²] (> 0): the flat cloth's area, for the area ratio. \throws std::invalid_argument.
-  FoldReward(const FoldRewardConfig& config, double flat_area);
+  /// `flat_area` [m²] (> 0): the flat cloth's area, for the area ratio. `goal_vertices` and `triangles` (world
+  /// frame; ClothFoldTask::idealFoldVertices() and clothTriangles()): the mesh the goal image is rendered from.
+  /// \throws std::invalid_argument, also for a goal mesh the camera does not see.
+  FoldReward(const FoldRewardConfig& config, double flat_area, const Eigen::Matrix3Xd& goal_vertices,
+             const Eigen::Matrix3Xi& triangles);
 
   /// Renders the rollout's final cloth with noise drawn from `rng` and evaluates (7.52). A rollout without a
   /// cloth mesh renders the empty table.
@@ -69,6 +83,8 @@ class FoldReward {
   /// The images of the last evaluate(): colour (bgr8) and depth (32FC1, metres).
   const cv::Mat& bgr() const noexcept { return renderer_.bgr(); }
   const cv::Mat& depth() const noexcept { return renderer_.depth(); }
+  /// The goal image's cloth mask (CV_8UC1, 255 on cloth).
+  const cv::Mat& goalMask() const noexcept { return image_.goalMask(); }
 
  private:
   FoldRewardConfig config_;

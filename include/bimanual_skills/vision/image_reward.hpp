@@ -9,6 +9,18 @@
 ///   ḡ       = mean over the cloth of ‖∇d‖, d the depth [m], ∇ per metre of table (Sobel)    [m/m]
 ///   R_depth = w_d ḡ
 ///
+/// and, beyond the thesis, a goal term comparing the images with a goal image (the ideal fold rendered without
+/// noise, set with setGoal()): over the union of the seen cloth mask M and the goal's G, with Δ = d_G − d the
+/// height of the seen surface above the goal's,
+///
+///   e(pixel) = 1 where only one of M, G has cloth,   min(max(−Δ / τ_missing, Δ / τ_excess), 1) where both have,
+///   R_goal   = w_g · mean of e over M ∪ G         in [0, w_g], 0 for the goal itself,
+///
+/// which is 1 − IoU(M, G) with the shared pixels weighed by how far their height is from the goal's: cloth missing
+/// below it (τ_missing, the goal's own height above the table by default, so that a shared pixel one layer low
+/// counts ½ where two belong), or heaped above it (τ_excess: a crumpled lump, air under a layer). w_g = 0 by
+/// default: (7.52) as the thesis has it.
+///
 /// The thesis defines ρ (Fig. 7.9a: blue pixels over the pixels of the smallest rectangle containing them) and ḡ
 /// (Fig. 7.9b: the mean depth gradient as wrinkledness) but prints no weights, and (7.52) subtracts R_color while
 /// the text calls it a term that is large and negative for a non-rectangular result. We read both vision terms as
@@ -57,6 +69,9 @@ struct ImageRewardParameters {
   double depth_smoothing = 0.005;
   /// ḡ [m/m] used for R_depth when no cloth is visible (the worst case the reward can see). ≥ 0.
   double no_cloth_gradient = 1.0;
+  double goal_weight = 0.0;            ///< w_g ≥ 0 in R_goal = w_g · mismatch.
+  double goal_missing_height = 0.008;  ///< τ_missing [m] > 0 (two 4 mm layers).
+  double goal_excess_height = 0.05;    ///< τ_excess [m] > 0.
 
   /// Throws std::invalid_argument naming `where` and the parameter that is out of range.
   void validate(const char* where) const;
@@ -77,6 +92,13 @@ struct DepthTerm {
   double mean_gradient = 0.0;  ///< ḡ [m/m].
 };
 
+/// The goal term's facts.
+struct GoalTerm {
+  VisionStatus status = VisionStatus::NoCloth;  ///< NoCloth also when no goal is set.
+  double iou = 0.0;                             ///< |M ∩ G| / |M ∪ G| of the cloth mask M and the goal's mask G.
+  double mismatch = 1.0;                        ///< Mean of e over M ∪ G, in [0, 1].
+};
+
 /// How folded the cloth looks: what the folding demo reports.
 struct FoldFacts {
   VisionStatus status = VisionStatus::NoCloth;
@@ -94,10 +116,12 @@ struct ImageRewardTerms {
   VisionStatus status = VisionStatus::NoCloth;
   ColourTerm colour;
   DepthTerm depth;
+  GoalTerm goal;
   double r_color = 0.0;  ///< R_color = w_c (1 − ρ); w_c when no cloth is visible.
   double r_depth = 0.0;  ///< R_depth = w_d ḡ; w_d · no_cloth_gradient when no cloth is visible.
-  /// The vision part of (7.52): −R_color − R_depth (add −R_acceleration for the whole reward).
-  double reward() const noexcept { return -r_color - r_depth; }
+  double r_goal = 0.0;   ///< R_goal = w_g · mismatch; w_g when no cloth is visible or no goal is set.
+  /// The vision part of the reward: −R_color − R_depth − R_goal (add −R_acceleration for the whole reward).
+  double reward() const noexcept { return -r_color - r_depth - r_goal; }
 };
 
 /// Evaluates the image terms for one camera's images (size and pixel size fixed at construction).
@@ -123,10 +147,19 @@ class ImageReward {
   /// derivatives scaled by 1 / (8 s) to metres of depth per metre of table, ‖∇d‖ averaged over the eroded mask
   /// (the whole mask if erosion leaves nothing), pixels whose depth or gradient is not finite skipped.
   DepthTerm depthTerm(const cv::Mat& depth, const cv::Mat& mask);
+  /// Sets the goal: a CV_8UC1 mask (non-zero = cloth) and a CV_32FC1 depth image [m] of the camera's size, e.g.
+  /// the renderer's noise-free clothMask() and depth() of the ideal fold. Copies them.
+  /// \throws std::invalid_argument for another size or type, a mask without cloth or a non-finite goal depth on it.
+  void setGoal(const cv::Mat& mask, const cv::Mat& depth);
+  bool hasGoal() const noexcept { return has_goal_; }
+  const cv::Mat& goalMask() const noexcept { return goal_mask_; }
+  /// The goal term of a depth image (CV_32FC1 [m]) and its cloth mask (CV_8UC1) against the goal; a pixel of
+  /// non-finite depth counts as a mismatch. NoCloth without a goal or without cloth in `mask`.
+  GoalTerm goalTerm(const cv::Mat& depth, const cv::Mat& mask) const;
   /// Fold facts of a mask, `flat_area` [m²] (> 0) being the flat cloth's area (e.g. 0.5 × 0.6).
   FoldFacts foldFacts(const cv::Mat& mask, double flat_area);
 
-  /// segment(), then colourTerm() and depthTerm() on the segmented mask, and the weighted terms.
+  /// segment(), then colourTerm(), depthTerm() and goalTerm() on the segmented mask, and the weighted terms.
   ImageRewardTerms evaluate(const cv::Mat& bgr, const cv::Mat& depth);
 
  private:
@@ -135,6 +168,8 @@ class ImageReward {
   TopDownCamera camera_;
   ImageRewardParameters parameters_;
   cv::Mat hsv_, mask_, opened_, eroded_, weights_, weighted_, smoothed_, gx_, gy_;
+  cv::Mat goal_mask_, goal_depth_;
+  bool has_goal_ = false;
   std::vector<std::vector<cv::Point>> contours_;
   std::vector<cv::Point> points_;
 };

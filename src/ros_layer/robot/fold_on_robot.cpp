@@ -108,7 +108,8 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
             r.renderer.noise = reward.renderer.noise;
             return r;
           }(),
-          task_.simConfig().cloth.length * task_.simConfig().cloth.width),
+          task_.simConfig().cloth.length * task_.simConfig().cloth.width, task_.idealFoldVertices(),
+          task_.clothTriangles()),
       robot_(robot) {
   robot_.validate();
   node_ = std::make_unique<ros::NodeHandle>();
