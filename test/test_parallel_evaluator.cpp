@@ -131,7 +131,7 @@ TEST(ParallelEvaluator, BadConstruction) {
 
 /// A worker in this process that runs one rollout of its share per poll, and fails on cue.
 struct FakeWorker {
-  enum class Fault { None, DieAfter, Hang, Garbage, NanReward, WrongTerms, Refuse };
+  enum class Fault { None, DieAfter, Hang, Garbage, NanReward, WrongTerms, BadWallTime, Refuse };
   Fault fault = Fault::None;
   int after = 0;        ///< DieAfter: rollouts it finishes before it dies.
   bool poison = false;  ///< Dies on a request whose first parameter is 666 (whichever worker gets it).
@@ -184,6 +184,7 @@ class FakeLink : public br::WorkerLink {
     if (worker_.fault == F::Garbage) status.results.pop_back();
     if (worker_.fault == F::NanReward) status.results.front().reward = NAN;
     if (worker_.fault == F::WrongTerms) status.results.back().terms = Eigen::VectorXd::Zero(5);
+    if (worker_.fault == F::BadWallTime) status.results.back().wall_seconds = -1.0;
     share_.clear();
     return status;
   }
@@ -268,7 +269,7 @@ TEST(Dispatcher, SharesTheBatchAmongTheWorkersWithTheInProcessResults) {
 TEST(Dispatcher, RedispatchesTheRolloutsOfDeadHungAndGarbageWorkers) {
   const std::vector<br::RolloutRequest> requests = batch(30);
   using F = FakeWorker::Fault;
-  for (const F fault : {F::DieAfter, F::Hang, F::Garbage, F::NanReward, F::WrongTerms}) {
+  for (const F fault : {F::DieAfter, F::Hang, F::Garbage, F::NanReward, F::WrongTerms, F::BadWallTime}) {
     std::vector<FakeWorker> workers(3);
     workers[1].fault = fault;
     workers[1].after = 2;

@@ -28,6 +28,10 @@ std::string garbage(const std::vector<RolloutResult>& results, std::size_t size,
   }
   for (std::size_t k = 0; k < results.size(); ++k) {
     if (!std::isfinite(results[k].reward)) return "a non-finite reward for rollout " + std::to_string(k);
+    // Its wall time sets the share size: a clock that cannot be right is a worker that cannot be trusted.
+    if (!(results[k].wall_seconds >= 0.0 && results[k].wall_seconds < 1e7)) {
+      return "a wall time of " + std::to_string(results[k].wall_seconds) + " s for rollout " + std::to_string(k);
+    }
     if (static_cast<std::size_t>(results[k].terms.size()) != terms) {
       return std::to_string(results[k].terms.size()) + " reward terms instead of " + std::to_string(terms);
     }
