@@ -1,7 +1,8 @@
 // rostest (test/fold_learner.test): fold_learner learning a tiny fold headless. Checks that every rollout's camera
 // images, cloth mesh and tool paths reach their topics, that the results directory gets summary.json, the top-down
 // images and rollouts.csv, and that best_rollout.bag holds a replay: joint states of both arms, cloth frames, the
-// camera image. The images come with their CameraInfo, in a frame on tf.
+// camera image. The images come with their CameraInfo, in a frame on tf. ~reward:=goal replaces the learning file's
+// reward setting, and the directory records it.
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
@@ -107,6 +108,11 @@ TEST(FoldLearnerNode, PublishesEachRolloutAndWritesTheResults) {
   const std::string summary((std::istreambuf_iterator<char>(summary_file)), std::istreambuf_iterator<char>());
   EXPECT_NE(summary.find("\"fold_quality\""), std::string::npos);
   EXPECT_NE(summary.find("\"final_policy_fold_quality\""), std::string::npos);
+  EXPECT_NE(summary.find("\"reward_setting\": \"goal\""), std::string::npos);
+  std::ifstream reward_file(outDir() + "/reward.txt");
+  std::string setting;
+  std::getline(reward_file, setting);
+  EXPECT_EQ(setting, "setting goal");
   std::ifstream rollouts(outDir() + "/rollouts.csv");
   int lines = 0;
   for (std::string line; std::getline(rollouts, line);) ++lines;

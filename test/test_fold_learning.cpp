@@ -130,6 +130,7 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_DOUBLE_EQ(table.covariance_memory, 0.8);
   EXPECT_DOUBLE_EQ(demo.covariance_memory, 0.0);
   EXPECT_EQ(table.reward.setting, "thesis");
+  EXPECT_EQ(demo.reward.setting, "goal");
   EXPECT_DOUBLE_EQ(table.reward.image.goal_weight, 0.0);
 
   const std::string dir = freshDirectory("files");
@@ -230,8 +231,8 @@ TEST(FoldLearning, DemonstrationReward) {
   failed.outcome = bt::FoldOutcome::ControllerFailed;
   EXPECT_EQ(reward.evaluate(failed, rng).reward, config.reward.failure_reward);
 
-  // The goal term: ~0 for the ideal fold itself (only the sensor noise), about ½ for the flat cloth (half its area
-  // outside the goal, the other half one layer where two belong), the demonstration between.
+  // The goal term: ~0 for the ideal fold itself (only the sensor noise), about ¾ for the flat cloth (half its area
+  // outside the goal, e = 1, the other half one layer where two belong, e = ½), the demonstration between.
   bt::FoldReward goal(bt::rewardSetting(reward_config, "goal", "test"), 0.5 * 0.6, task.idealFoldVertices(),
                       task.clothTriangles());
   bt::FoldRollout ideal = r, flat = r;
@@ -298,6 +299,17 @@ TEST(FoldLearning, SameOnAnyThreadsAndResumes) {
   }
   config.seed = 6;
   EXPECT_THROW(br::FoldLearner(config, resumed_dir).learn(), std::invalid_argument);
+
+  // rollouts.csv of other columns (an older version's) is refused with that reason, not misread.
+  const std::string old_dir = freshDirectory("old_columns");
+  std::filesystem::create_directories(old_dir);
+  std::ofstream(old_dir + "/rollouts.csv") << "algorithm,run,epoch,kind,index,seed,outcome,reward\n";
+  try {
+    br::FoldLearner(config, old_dir);
+    ADD_FAILURE() << "a rollouts.csv of other columns was read";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("other columns"), std::string::npos) << e.what();
+  }
 }
 
 // A run killed with SIGKILL resumes. The kill comes when three rollouts are on disk, and the files then get a partial

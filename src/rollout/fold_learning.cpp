@@ -324,8 +324,8 @@ struct FoldLearner::Impl {
   io::CsvAppender rollouts_csv, parameters_csv;
   int simulated = 0, resumed = 0;
 
-  /// The reward the directory's rollouts were scored with, DIR/reward.txt: written by the first run, compared by
-  /// the next ones (rollouts scored otherwise must not be reused).
+  /// The reward the directory's rollouts were scored with, DIR/reward.txt: written while the directory holds no
+  /// rollout, compared once it does (rollouts scored otherwise must not be reused). After readStored().
   void checkReward() {
     const tasks::FoldRewardConfig& r = config.reward;
     std::ostringstream text;
@@ -336,9 +336,10 @@ struct FoldLearner::Impl {
          << number(r.failure_reward) << "\ndepth_noise " << number(r.renderer.noise.depth_stddev) << "\ncolour_noise "
          << number(r.renderer.noise.colour_stddev) << '\n';
     const std::string path = dir + "/reward.txt";
-    if (std::ifstream in{path}) {
-      const std::string stored{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-      if (stored != text.str()) {
+    std::ifstream in{path};
+    if (in && !stored.empty()) {
+      const std::string recorded{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+      if (recorded != text.str()) {
         throw std::invalid_argument("fold learning: '" + dir + "' holds rollouts scored with another reward (" + path +
                                     "): use another directory");
       }
@@ -372,6 +373,10 @@ struct FoldLearner::Impl {
     }
     std::ifstream r(rollouts);
     for (int n = 1; std::getline(r, line); ++n) {
+      if (n == 1 && line != kRolloutColumns) {
+        throw std::invalid_argument("fold learning: " + rollouts + " has other columns (" + line +
+                                    "), written by another version: use another directory");
+      }
       if (n == 1 || line.empty()) continue;
       const std::string where = rollouts + " line " + std::to_string(n);
       const std::vector<std::string> f = splitCsv(line);
@@ -691,8 +696,8 @@ FoldLearner::FoldLearner(const FoldLearningConfig& config, const std::string& ou
     m.config.jobs = threads->threads();
     m.evaluator = std::move(threads);
   }
-  m.checkReward();
   m.readStored();
+  m.checkReward();
   m.openFiles();
   m.firstTask().task().saveDemonstration(out_dir + "/demonstration_");
 }

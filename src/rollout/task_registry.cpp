@@ -229,7 +229,7 @@ std::unique_ptr<RolloutTask> makeFold(const std::string& config) {
 const std::vector<RolloutTaskInfo>& rolloutTasks() {
   static const std::vector<RolloutTaskInfo> tasks = {
       {"fold", "a fold learning file (config/fold_demo.yaml)",
-       "the two simulated WAMs fold the cloth, scored by eq. 7.52 (a policy: FoldRolloutTask::encode)"},
+       "the two simulated WAMs fold the cloth, scored by the file's reward (a policy: FoldRolloutTask::encode)"},
       {"quadratic", "optional YAML with dimension (10) and noise (0)",
        "-|theta|^2/n plus seeded noise, no simulation: measures the dispatch's own cost"},
       {"bottles", "optional YAML with crossing_term (true: reward 6.18; false: 6.17)",

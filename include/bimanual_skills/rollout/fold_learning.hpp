@@ -1,7 +1,7 @@
 /// \file
 /// Learning to fold the cloth (thesis Sec. 7.2.3, Table 7.5): policy search with reward-oriented dimensionality
 /// reduction over the 12-DoF coordinated DMP of both tools, each rollout executed on the simulated pair of WAMs
-/// (tasks::ClothFoldTask) and scored by (7.52) on the rendered cloth (tasks::FoldReward).
+/// (tasks::ClothFoldTask) and scored on the rendered cloth by (7.52) or the goal-image reward (tasks::FoldReward).
 ///
 /// Protocol of one run of one algorithm: the DR-DMP is fitted to the scripted demonstration (PCA coordination,
 /// 7.26–7.27; r = 12 for IDR and the standard DMP); the latent weights start at the fit with an isotropic

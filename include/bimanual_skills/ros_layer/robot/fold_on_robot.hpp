@@ -11,7 +11,7 @@
 ///     quality q; without it q is not measured (NaN).
 /// One rollout: reset, move both arms to the fold's start, grasp, run the policy's joint references (the DMPs through
 /// CLIK, tasks::ClothFoldTask::plan, identical to the in-process task's) as one trajectory goal per arm with a common
-/// start time, release, let the cloth settle, and score the camera's images with (7.52) (tasks::FoldReward). Any
+/// start time, release, let the cloth settle, and score the camera's images with the reward (tasks::FoldReward). Any
 /// failure (a goal aborted or out of tolerance, a service that fails, a timeout, no image) ends the rollout with its
 /// outcome, a reason and the failure reward; nothing hangs: every wait has a wall-clock limit. Target
 /// bimanual_skills_ros_robot. Offline: allocates; one object per thread.
