@@ -148,7 +148,7 @@ def table(directory, epochs, rollouts):
     last = min(max(per_epoch) for per_epoch in epochs.values())
     shown = sorted({0, min(5, last), min(10, last), last})
     lines = []
-    for column, title in (('mean_reward', 'Mean reward (7.52) of the rollouts'),
+    for column, title in (('mean_reward', f'Mean reward ({reward_setting(directory)} setting) of the rollouts'),
                           ('fold_quality', 'Fold quality q of the rollouts (cloth mesh)')):
         lines += [f'{title}: mean ± 95 % Student-t interval over the runs (one value per run: the mean of its '
                   'rollouts at that epoch)', '',
@@ -312,7 +312,7 @@ def filmstrip(directory, name):
         frame = last * k // 5
         top = fig.add_subplot(2, 6, k + 1)
         image = mpimg.imread(os.path.join(directory, f'{name}_top_{k}.png'))
-        top.imshow(image[:, :, ::-1] if image.ndim == 3 else image)  # OpenCV writes BGR
+        top.imshow(image)  # a PNG holds RGB (cv::imwrite converts from OpenCV's BGR)
         top.set_axis_off()
         top.set_title(f't = {times[frame]:.1f} s', fontsize=9)
         draw_oblique(fig.add_subplot(2, 6, 7 + k, projection='3d'), meshes[frame], triangles, qualities[frame],
