@@ -3,6 +3,7 @@
 // spinner that takes shares and sends the heartbeat. A thin shell around the task registry.
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "node_cli.hpp"
 
 #include <bimanual_skills/RolloutShare.h>
@@ -161,11 +162,20 @@ class RolloutWorker {
       return refuse("malformed share: " + std::to_string(share.parameters.size()) + " parameters for " +
                     std::to_string(n) + " rollouts of dimension " + std::to_string(dimension));
     }
-    if (!task_ || share.task != task_name_ || share.config != task_config_) {
+    // The learner's configuration file and this host's copy must be the same bytes: another reward, say, would give
+    // results the learner cannot tell from its own.
+    const std::string digest = bs::ros_layer::configDigest(share.config);
+    if (!share.config_digest.empty() && digest != share.config_digest) {
+      return refuse("the configuration file " + share.config + " on this host " +
+                    (digest.empty() ? std::string("cannot be read") : "has digest " + digest) +
+                    ", the dispatcher's copy " + share.config_digest + ": give both the same file");
+    }
+    if (!task_ || share.task != task_name_ || share.config != task_config_ || digest != task_digest_) {
       try {
         task_ = br::makeRolloutTask(share.task, share.config);
         task_name_ = share.task;
         task_config_ = share.config;
+        task_digest_ = digest;
       } catch (const std::exception& e) {
         task_.reset();
         return refuse(e.what());
@@ -224,7 +234,7 @@ class RolloutWorker {
   ros::NodeHandle private_node_;
   std::string only_task_;
   std::unique_ptr<br::RolloutTask> task_;  ///< On the worker's thread only.
-  std::string task_name_, task_config_;
+  std::string task_name_, task_config_, task_digest_;
   ros::Publisher state_;
   std::mutex mutex_;  ///< Guards the members below, shared by the spinner and the worker's thread.
   std::condition_variable wake_;

@@ -6,7 +6,11 @@
 // report both workers lost and their rollouts re-dispatched, and the learner must show the tool paths of the
 // workers' rollouts on ~tool_paths.
 #include "bimanual_skills/rollout/fold_learning.hpp"
+#include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "rollout_test_support.hpp"
+
+#include <bimanual_skills/RolloutShare.h>
+#include <bimanual_skills/RolloutShareState.h>
 
 #include <ros/ros.h>
 #include <visualization_msgs/MarkerArray.h>
@@ -19,6 +23,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <mutex>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -115,6 +120,67 @@ TEST(RolloutWorkers, AFaultRunLearnsExactlyAsTheFaultFreeOne) {
   EXPECT_EQ(got.size(), rows) << "no rollout written twice";
   EXPECT_EQ(got, want);
   EXPECT_EQ(lines(out + "/epochs.csv"), lines(reference + "/epochs.csv"));
+}
+
+// A share whose configuration digest is not that of the worker's copy of the file is refused with the reason; the
+// same share with the right digest runs. Talks to worker_2 (the fault run above leaves it alive and idle).
+TEST(RolloutWorkers, AWorkerRefusesAShareOfAnotherConfigurationFile) {
+  const std::string config = ::testing::TempDir() + "digest_quadratic.yaml";
+  std::ofstream(config) << "dimension: 2\n";
+  const std::string digest = bimanual_skills::ros_layer::configDigest(config);
+  ASSERT_EQ(digest.size(), 16u);
+  EXPECT_NE(digest, bimanual_skills::ros_layer::configDigest(config + ".missing"));
+  EXPECT_EQ(bimanual_skills::ros_layer::configDigest(config + ".missing"), "");
+
+  ros::NodeHandle node;
+  std::mutex mutex;
+  std::vector<bimanual_skills::RolloutShareState> ends;
+  const auto state = node.subscribe<bimanual_skills::RolloutShareState>(
+      "/rollout_workers/worker_2/state", 16, [&](const bimanual_skills::RolloutShareStateConstPtr& m) {
+        if (m->client != "digest_test") return;
+        if (m->state == bimanual_skills::RolloutShareState::REFUSED ||
+            m->state == bimanual_skills::RolloutShareState::SUCCEEDED) {
+          const std::lock_guard<std::mutex> lock(mutex);
+          ends.push_back(*m);
+        }
+      });
+  ros::Publisher share = node.advertise<bimanual_skills::RolloutShare>("/rollout_workers/worker_2/share", 4);
+  ros::AsyncSpinner spinner(1);
+  spinner.start();
+  const ros::WallTime connect_by = ros::WallTime::now() + ros::WallDuration(20.0);
+  while ((share.getNumSubscribers() == 0 || state.getNumPublishers() == 0) && ros::WallTime::now() < connect_by) {
+    ros::WallDuration(0.01).sleep();
+  }
+  ASSERT_GT(share.getNumSubscribers(), 0u) << "worker_2 is not there";
+  const auto send = [&](std::uint64_t id, const std::string& with) {
+    bimanual_skills::RolloutShare m;
+    m.client = "digest_test";
+    m.id = id;
+    m.task = "quadratic";
+    m.config = config;
+    m.config_digest = with;
+    m.dimension = 2;
+    m.parameters = {0.5, -0.5, 1.0, 1.0};
+    m.seeds = {1, 2};
+    share.publish(m);
+    const ros::WallTime by = ros::WallTime::now() + ros::WallDuration(20.0);
+    while (ros::WallTime::now() < by) {
+      {
+        const std::lock_guard<std::mutex> lock(mutex);
+        for (const bimanual_skills::RolloutShareState& e : ends) {
+          if (e.id == id) return e;
+        }
+      }
+      ros::WallDuration(0.01).sleep();
+    }
+    return bimanual_skills::RolloutShareState{};
+  };
+  const bimanual_skills::RolloutShareState refused = send(1, "0123456789abcdef");
+  EXPECT_EQ(refused.state, bimanual_skills::RolloutShareState::REFUSED);
+  EXPECT_NE(refused.text.find("digest " + digest), std::string::npos) << refused.text;
+  const bimanual_skills::RolloutShareState ran = send(2, digest);
+  EXPECT_EQ(ran.state, bimanual_skills::RolloutShareState::SUCCEEDED) << ran.text;
+  EXPECT_EQ(ran.rewards.size(), 2u);
 }
 
 int main(int argc, char** argv) {

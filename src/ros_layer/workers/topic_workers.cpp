@@ -4,6 +4,10 @@
 
 #include <ros/master.h>
 
+#include <cstdint>
+#include <cstdio>
+#include <fstream>
+#include <iterator>
 #include <stdexcept>
 #include <utility>
 
@@ -32,6 +36,7 @@ class TopicWorkerLink : public rollout::WorkerLink {
   TopicWorkerLink(ros::NodeHandle& node, std::string name, const WorkerSelection& selection)
       : name_(std::move(name)),
         selection_(selection),
+        digest_(configDigest(selection.config)),
         client_(ros::this_node::getName()),
         // Numbers start at the clock so that a restarted learner never reuses the number of a share still running.
         next_id_(ros::WallTime::now().toNSec()) {
@@ -63,6 +68,7 @@ class TopicWorkerLink : public rollout::WorkerLink {
     message.id = ++next_id_;
     message.task = selection_.task;
     message.config = selection_.config;
+    message.config_digest = digest_;
     message.dimension = share.empty() ? 0 : static_cast<std::uint32_t>(share.front().parameters.size());
     for (const rollout::RolloutRequest& r : share) {
       if (static_cast<std::uint32_t>(r.parameters.size()) != message.dimension) {
@@ -198,6 +204,7 @@ class TopicWorkerLink : public rollout::WorkerLink {
 
   std::string name_;
   WorkerSelection selection_;
+  std::string digest_;  ///< configDigest() of the configuration file, as this host reads it.
   std::string client_;
   std::uint64_t next_id_;
   std::mutex mutex_;  ///< Guards what heard() writes on the spinner thread.
@@ -212,6 +219,21 @@ class TopicWorkerLink : public rollout::WorkerLink {
 };
 
 }  // namespace
+
+std::string configDigest(const std::string& path) {
+  if (path.empty()) return {};
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return {};
+  std::uint64_t hash = 14695981039346656037ull;  // FNV-1a, 64 bits
+  for (std::istreambuf_iterator<char> c(in), end; c != end; ++c) {
+    hash ^= static_cast<unsigned char>(*c);
+    hash *= 1099511628211ull;
+  }
+  if (in.bad()) return {};
+  char text[17];
+  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(hash));
+  return text;
+}
 
 std::vector<std::string> splitWorkerNames(const std::string& text) {
   std::vector<std::string> names;

@@ -34,6 +34,11 @@ struct WorkerSelection {
   std::string config;  ///< Its configuration file, as the workers' hosts see it.
 };
 
+/// A digest of a file's bytes (64-bit FNV-1a, 16 hex digits); "" for a path that cannot be read or is empty. The
+/// dispatcher sends that of its configuration file with every share, and a worker refuses a share whose digest is
+/// not that of its own copy.
+std::string configDigest(const std::string& path);
+
 /// The worker names of a string that separates them by commas or spaces ("a,b", "[a, b]").
 std::vector<std::string> splitWorkerNames(const std::string& text);
 
