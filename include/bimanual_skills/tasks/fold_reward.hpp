@@ -25,8 +25,8 @@ namespace bimanual_skills::tasks {
 struct FoldRewardConfig {
   std::string setting = "thesis";            ///< The named setting the weights started from (for the records).
   vision::ClothRendererParameters renderer;  ///< Camera, table and noise (see rendererFor()).
-  vision::ImageRewardParameters image;       ///< Segmentation and w_c, w_d.
-  double acceleration_weight = 0.01;         ///< w_a ≥ 0 [s³/rad²]. image: w_c, w_d, w_g.
+  vision::ImageRewardParameters image;       ///< Segmentation, w_c, w_d, w_g and the goal's height scales.
+  double acceleration_weight = 0.01;         ///< w_a ≥ 0 [s³/rad²].
   double failure_reward = -3.0;              ///< Reward of a failed rollout, finite.
 
   /// Throws std::invalid_argument naming `where` and the parameter that is out of range.
@@ -83,8 +83,6 @@ class FoldReward {
   /// The images of the last evaluate(): colour (bgr8) and depth (32FC1, metres).
   const cv::Mat& bgr() const noexcept { return renderer_.bgr(); }
   const cv::Mat& depth() const noexcept { return renderer_.depth(); }
-  /// The goal image's cloth mask (CV_8UC1, 255 on cloth).
-  const cv::Mat& goalMask() const noexcept { return image_.goalMask(); }
 
  private:
   FoldRewardConfig config_;

@@ -152,7 +152,6 @@ class ImageReward {
   /// \throws std::invalid_argument for another size or type, a mask without cloth or a non-finite goal depth on it.
   void setGoal(const cv::Mat& mask, const cv::Mat& depth);
   bool hasGoal() const noexcept { return has_goal_; }
-  const cv::Mat& goalMask() const noexcept { return goal_mask_; }
   /// The goal term of a depth image (CV_32FC1 [m]) and its cloth mask (CV_8UC1) against the goal; a pixel of
   /// non-finite depth counts as a mismatch. NoCloth without a goal or without cloth in `mask`.
   GoalTerm goalTerm(const cv::Mat& depth, const cv::Mat& mask) const;
