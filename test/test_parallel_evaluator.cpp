@@ -1,8 +1,8 @@
 // The rollout evaluators. Threads: the same results in request order on any number of threads, every request
 // reported once, a task's exception and a stop request end a batch cleanly. Dispatcher (with in-process worker
 // links that die, hang, answer garbage or refuse on cue): the same results whatever the number of workers and
-// faults, no rollout lost or reported twice, workers joining between batches, clear errors when no worker is left,
-// when a rollout kills every worker or when a worker refuses. The task registry; the fold task's policy encoding.
+// faults, no rollout lost or reported twice, workers joining between and during batches, clear errors when no worker is
+// left, when a rollout kills every worker or when a worker refuses. The task registry; the fold task's policy encoding.
 #include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
@@ -306,6 +306,38 @@ TEST(Dispatcher, WorkersJoinBetweenBatches) {
   EXPECT_EQ(dispatcher.lastBatch().workers, 3u);
   EXPECT_GT(workers[2].shares, 0);
   EXPECT_EQ(results.size(), 12u);
+}
+
+TEST(Dispatcher, WorkersJoinDuringABatchAndOnesLostInItStayOut) {
+  std::vector<FakeWorker> workers(3);
+  workers[1].fault = FakeWorker::Fault::Hang;
+  auto directory = std::make_unique<FakeDirectory>(workers, 1);
+  FakeDirectory& listing = *directory;
+  br::DispatchConfig config = quickDispatch();
+  config.share = 1;
+  config.join_period = 1e-6;
+  std::vector<std::string> joined;
+  config.log = [&](const std::string& line, bool fault) {
+    if (!fault) joined.push_back(line);
+  };
+  br::Dispatcher dispatcher(std::move(directory), 2, config);
+  // w1 (hung) and w2 appear once the batch has begun.
+  const std::vector<br::RolloutResult> results = dispatcher.evaluate(
+      batch(30), [&](std::size_t, const br::RolloutResult&, br::RolloutTask*) { listing.listed_ = 3; });
+  EXPECT_EQ(results.size(), 30u);
+  EXPECT_EQ(dispatcher.lastBatch().workers, 3u) << "w1 and w2 joined the batch";
+  EXPECT_GT(workers[2].shares, 0);
+  ASSERT_EQ(dispatcher.lastBatch().lost.size(), 1u);
+  EXPECT_EQ(joined, (std::vector<std::string>{"worker w0 joined", "worker w1 joined", "worker w2 joined"}))
+      << "the hung worker, still listed, is not taken back in the batch it was lost in";
+  EXPECT_EQ(workers[1].shares, 1);
+  EXPECT_THROW(
+      {
+        br::DispatchConfig bad = quickDispatch();
+        bad.join_period = 0.0;
+        bad.validate();
+      },
+      std::invalid_argument);
 }
 
 TEST(Dispatcher, DiscoverFindsTheWorkersWithoutSendingRollouts) {

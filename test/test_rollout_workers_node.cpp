@@ -1,10 +1,10 @@
 // rostest (test/rollout_workers.test): the fault run. fold_learner learns on three rollout workers; once the first
-// rollout of the first batch is on disk this test kills worker_0 (SIGKILL) and stops worker_1 (SIGSTOP) for
-// ~stop_seconds (longer than the learner's worker timeout), then continues it. When the learner is done, its
-// results must be those of the same learning run on threads here (rollout::FoldLearner): every rollout exactly once,
-// with bit-identical rewards and reward terms, and the same learning curve (epochs.csv); its summary.json must
-// report both workers lost and their rollouts re-dispatched, and the learner must show the tool paths of the
-// workers' rollouts on ~tool_paths.
+// rollout is on disk and both worker_0 and worker_1 hold shares, this test kills worker_0 (SIGKILL) and stops
+// worker_1 (SIGSTOP) for ~stop_seconds (longer than the learner's worker timeout), then continues it. When the
+// learner is done, its results must be those of the same learning run on threads here (rollout::FoldLearner): every
+// rollout exactly once, with bit-identical rewards and reward terms, and the same learning curve (epochs.csv); its
+// summary.json must report both workers lost and their rollouts re-dispatched, and the learner must show the tool
+// paths of the workers' rollouts on ~tool_paths.
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "rollout_test_support.hpp"
@@ -84,14 +84,51 @@ TEST(RolloutWorkers, AFaultRunLearnsExactlyAsTheFaultFreeOne) {
   ASSERT_GT(killed, 0);
   ASSERT_GT(stopped, 0);
 
+  // Each worker's last state message (its 5 Hz heartbeat, or the end of a share) and when it came.
+  std::mutex state_mutex;
+  std::map<std::string, std::pair<bimanual_skills::RolloutShareState, ros::WallTime>> last_state;
+  std::vector<ros::Subscriber> states;
+  for (const std::string name : {"worker_0", "worker_1"}) {
+    states.push_back(node.subscribe<bimanual_skills::RolloutShareState>(
+        "/rollout_workers/" + name + "/state", 16, [&, name](const bimanual_skills::RolloutShareStateConstPtr& m) {
+          const std::lock_guard<std::mutex> lock(state_mutex);
+          last_state[name] = {*m, ros::WallTime::now()};
+        }));
+  }
+  // Whether the worker's last word says it holds a share with rollouts left, heard within `age` seconds.
+  const auto holding = [&](const std::string& name, double age) {
+    const std::lock_guard<std::mutex> lock(state_mutex);
+    const auto it = last_state.find(name);
+    return it != last_state.end() && it->second.first.state == bimanual_skills::RolloutShareState::RUNNING &&
+           it->second.first.done < it->second.first.total && (ros::WallTime::now() - it->second.second).toSec() < age;
+  };
+
   // Mid-batch: the first rollout is on disk, the others are running on the three workers.
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(120.0);
   while (ros::ok() && ros::WallTime::now() < deadline && lines(out + "/rollouts.csv").size() < 2) {
     ros::WallDuration(0.02).sleep();
   }
   ASSERT_GE(lines(out + "/rollouts.csv").size(), 2u) << "the learner never finished a rollout";
+  // Both faults must strike a worker holding a share (an idle one is not missed by the learner). Stop both while
+  // their heartbeats say so; if a share's end was already on its way (heard once the messages in flight are in),
+  // let them go on and try again.
+  bool caught = false;
+  while (ros::ok() && ros::WallTime::now() < deadline && !caught) {
+    if (!holding("worker_0", 0.25) || !holding("worker_1", 0.25)) {
+      ros::WallDuration(0.01).sleep();
+      continue;
+    }
+    ASSERT_EQ(::kill(killed, SIGSTOP), 0);
+    ASSERT_EQ(::kill(stopped, SIGSTOP), 0);
+    ros::WallDuration(0.3).sleep();
+    caught = holding("worker_0", 1.0) && holding("worker_1", 1.0);
+    if (!caught) {
+      ASSERT_EQ(::kill(killed, SIGCONT), 0);
+      ASSERT_EQ(::kill(stopped, SIGCONT), 0);
+    }
+  }
+  ASSERT_TRUE(caught) << "the two workers never held shares at once";
   ASSERT_EQ(::kill(killed, SIGKILL), 0);
-  ASSERT_EQ(::kill(stopped, SIGSTOP), 0);
   ros::WallDuration(stop_seconds).sleep();
   ASSERT_EQ(::kill(stopped, SIGCONT), 0);
 

@@ -50,6 +50,9 @@ void DispatchConfig::validate() const {
   if (!(poll_period > 0.0) || !std::isfinite(poll_period)) {
     throw std::invalid_argument("dispatch: poll_period must be > 0");
   }
+  if (!(join_period > 0.0) || !std::isfinite(join_period)) {
+    throw std::invalid_argument("dispatch: join_period must be > 0");
+  }
 }
 
 struct Dispatcher::Worker {
@@ -75,10 +78,15 @@ std::size_t Dispatcher::discover() {
                                   return std::find(alive.begin(), alive.end(), w->name) == alive.end();
                                 }),
                  workers_.end());
+  join(alive, {});
+  return workers_.size();
+}
+
+void Dispatcher::join(const std::vector<std::string>& alive, const std::vector<std::string>& left_out) {
   for (const std::string& name : alive) {
     const bool known = std::any_of(workers_.begin(), workers_.end(),
                                    [&](const std::unique_ptr<Worker>& w) { return w->name == name; });
-    if (known) continue;
+    if (known || std::find(left_out.begin(), left_out.end(), name) != left_out.end()) continue;
     std::unique_ptr<WorkerLink> link = directory_->connect(name);
     if (!link) continue;
     auto w = std::make_unique<Worker>();
@@ -87,7 +95,6 @@ std::size_t Dispatcher::discover() {
     workers_.push_back(std::move(w));
     if (config_.log) config_.log("worker " + name + " joined", false);
   }
-  return workers_.size();
 }
 
 std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest>& batch, const Done& done,
@@ -99,6 +106,7 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
   last_ = DispatchStats{};
   last_.rollouts = batch.size();
   std::set<std::string> took_part;
+  std::vector<std::string> left_out;  // Workers lost in this batch.
 
   std::deque<std::size_t> pending;
   for (std::size_t i = 0; i < batch.size(); ++i) pending.push_back(i);
@@ -127,6 +135,7 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
     pending.insert(pending.begin(), w.share.begin(), w.share.end());
     std::sort(pending.begin(), pending.end());
     last_.lost.push_back(w.name + ": " + why);
+    left_out.push_back(w.name);
     log("worker " + w.name + " lost (" + why + ")" +
             (w.share.empty() ? std::string()
                              : ": its " + std::to_string(w.share.size()) + " rollout(s) go to the others"),
@@ -137,7 +146,7 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
 
   try {
     discover();
-    auto waiting = Clock::now();
+    auto waiting = Clock::now(), joined = Clock::now();
     while (reported < batch.size()) {
       if (!stopping && stop && stop()) stopping = true;
       const bool busy = std::any_of(workers_.begin(), workers_.end(),
@@ -154,6 +163,10 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
         continue;
       }
       waiting = Clock::now();
+      if (secondsSince(joined) > config_.join_period) {
+        join(directory_->alive(), left_out);
+        joined = Clock::now();
+      }
 
       // Hand out shares to the idle workers.
       for (std::size_t at = 0; at < workers_.size() && !stopping && !pending.empty(); ++at) {

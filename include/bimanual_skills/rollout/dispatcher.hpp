@@ -84,13 +84,16 @@ struct DispatchConfig {
   /// A rollout given to this many workers that all failed it is a fault of the rollout: evaluate() throws.
   int max_attempts = 3;
   double poll_period = 0.002;  ///< [s] between polls of the workers.
+  /// [s] between look-ups, during a batch, for workers that joined since it began (those lost in the batch stay
+  /// out until the next one).
+  double join_period = 1.0;
   /// Events worth a line in a log: a worker joined (fault = false), a worker was lost or hung and its rollouts go
   /// to the others (fault = true).
   std::function<void(const std::string& line, bool fault)> log;
   /// Called at the end of each batch with what it took (see DispatchStats).
   std::function<void(const DispatchStats&)> batch;
 
-  /// \throws std::invalid_argument for a timeout or wait ≤ 0, max_attempts < 1 or a poll period ≤ 0.
+  /// \throws std::invalid_argument for a timeout or wait ≤ 0, max_attempts < 1 or a poll or join period ≤ 0.
   void validate() const;
 };
 
@@ -116,6 +119,9 @@ class Dispatcher : public Evaluator {
 
  private:
   struct Worker;
+  /// Connects the workers alive now that are not connected yet, except those named in `left_out`.
+  void join(const std::vector<std::string>& alive, const std::vector<std::string>& left_out);
+
   std::unique_ptr<WorkerDirectory> directory_;
   std::size_t terms_;
   DispatchConfig config_;
