@@ -90,6 +90,9 @@ const char* const kUsage =
     "  ~move_time    [s] to the start configuration (default 2), the tools coming down onto the cloth from\n"
     "                ~approach_height [m] above it (default 0.05); ~trajectory_rate points per second of the fold's\n"
     "                goals (default 100); ~robot_timeout [s] longest wall-clock wait for any interface (default 30)\n"
+    "  ~start_delay  [s] of the robot's clock from sending the fold's goals to their start (default 0.5)\n"
+    "  ~pause_service  std_srvs/SetBool holding a simulator's clock while the fold's goals travel (default\n"
+    "                bullet_sim/pause; \"\" on a robot)\n"
     "\n"
     "Writes into DIR: rollouts.csv and rollout_parameters.csv (every rollout, as it finishes), epochs.csv,\n"
     "coordination.csv (final coordination matrices), summary.json (one row per algorithm and epoch), initial.png\n"
@@ -258,12 +261,14 @@ class FoldLearnerNode {
     bs::ros_layer::FoldRobotInterfaces robot;
     robot.reset_service = parameters_.text("reset_service", robot.reset_service);
     robot.grasp_service = parameters_.text("grasp_service", robot.grasp_service);
+    robot.pause_service = parameters_.text("pause_service", robot.pause_service);
     robot.arms = parameters_.texts("arms", robot.arms);
     robot.camera = parameters_.text("camera", robot.camera);
     robot.cloth = parameters_.text("cloth_topic", robot.cloth);
     robot.move_time = parameters_.number("move_time", robot.move_time, 0.1, 60.0);
     robot.approach_height = parameters_.number("approach_height", robot.approach_height, 0.0, 0.5);
     robot.trajectory_rate = parameters_.number("trajectory_rate", robot.trajectory_rate, 1.0, 1000.0);
+    robot.start_delay = parameters_.number("start_delay", robot.start_delay, 0.0, 10.0);
     robot.timeout = parameters_.number("robot_timeout", robot.timeout, 0.1, 3600.0);
     robot.validate();
     robot_backend_ = true;

@@ -29,10 +29,13 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <future>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
+#include <utility>
 #include <vector>
 
 namespace bs = bimanual_skills;
@@ -218,6 +221,30 @@ TEST(FoldOnRobot, TheOperatorPromptWithoutAnOperatorRefuses) {
   EXPECT_FALSE(trigger.response.success);
   EXPECT_FALSE(trigger.response.message.empty());
   EXPECT_LT(std::chrono::steady_clock::now() - start, std::chrono::seconds(5));  // ~timeout 2 s
+}
+
+TEST(FoldOnRobot, BadInterfaceSettingsAreRefusedByName) {
+  using Robot = bs::ros_layer::FoldRobotInterfaces;
+  EXPECT_NO_THROW(Robot{}.validate());
+  const std::vector<std::pair<std::string, std::function<void(Robot&)>>> bad = {
+      {"move_time", [](Robot& r) { r.move_time = std::nan(""); }},
+      {"approach_height", [](Robot& r) { r.approach_height = -0.1; }},
+      {"trajectory_rate", [](Robot& r) { r.trajectory_rate = 1e6; }},
+      {"start_delay", [](Robot& r) { r.start_delay = -1.0; }},
+      {"start_delay", [](Robot& r) { r.start_delay = INFINITY; }},
+      {"timeout", [](Robot& r) { r.timeout = 0.0; }},
+      {"two arms", [](Robot& r) { r.arms = {"left"}; }},
+  };
+  for (const auto& [name, spoil] : bad) {
+    Robot robot;
+    spoil(robot);
+    try {
+      robot.validate();
+      ADD_FAILURE() << name << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
+    }
+  }
 }
 
 int main(int argc, char** argv) {

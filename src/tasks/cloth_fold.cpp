@@ -289,6 +289,9 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
     }
     const std::vector<Pose>& path = m.demonstration_paths.back();
     kinematics::GlobalIkParameters parameters;
+    // Never binding: the same attempts, hence the same start, on any machine and under any load (the default 5 ms
+    // ran out on a machine with both cores busy).
+    parameters.timeout = 1.0;
     kinematics::GlobalIkSolver solver(m.simulation->armModel(arm), parameters);
     Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
     target.translation() = path.front().position;

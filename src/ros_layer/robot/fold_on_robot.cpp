@@ -8,6 +8,7 @@
 
 #include <cv_bridge/cv_bridge.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
+#include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
 
 #include <algorithm>
@@ -137,7 +138,9 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
     (void)kinematics::forwardKinematics(task_.armModel(a), data, start);
     Eigen::Isometry3d above = data.tipPose();
     above.translation() += task_.basePose(a).linear().transpose() * Eigen::Vector3d(0.0, 0.0, robot_.approach_height);
-    kinematics::GlobalIkSolver solver(task_.armModel(a), kinematics::GlobalIkParameters{});
+    kinematics::GlobalIkParameters parameters;
+    parameters.timeout = 1.0;  // never binding: the same configuration under any load
+    kinematics::GlobalIkSolver solver(task_.armModel(a), parameters);
     arm->above_start = start;
     if (solver.solve(above, start, arm->above_start).status != kinematics::IkStatus::Converged ||
         (arm->above_start - start).cwiseAbs().maxCoeff() > 0.5) {
@@ -215,6 +218,35 @@ void FoldOnRobotTask::waitForGoal(Arm& arm, const std::string& what) {
                   arm.name + "'s " + what + " ended " + client.getState().toString() +
                       (result ? std::string(": ") + errorName(result->error_code) + " " + result->error_string : "")};
   }
+}
+
+void FoldOnRobotTask::pause(bool paused) {
+  ros::ServiceClient client = node_->serviceClient<std_srvs::SetBool>(robot_.pause_service);
+  if (!client.waitForExistence(ros::Duration(robot_.timeout))) {
+    throw Failure{tasks::FoldOutcome::RobotFailed,
+                  "no pause service " + client.getService() + " (a robot without one: the pause service \"\")"};
+  }
+  std_srvs::SetBool request;
+  request.request.data = paused;
+  if (!client.call(request) || !request.response.success) {
+    throw Failure{tasks::FoldOutcome::RobotFailed, std::string(paused ? "pausing" : "resuming") + " the simulator (" +
+                                                       client.getService() + ") failed: " + request.response.message};
+  }
+  paused_ = paused;
+  if (!paused) return;
+  // The clock messages already on their way come in: the clock here stands still for a while.
+  ros::Time seen = ros::Time::now();
+  auto since = std::chrono::steady_clock::now();
+  waitFor(
+      [&] {
+        const ros::Time now = ros::Time::now();
+        if (now != seen) {
+          seen = now;
+          since = std::chrono::steady_clock::now();
+        }
+        return std::chrono::steady_clock::now() - since > std::chrono::milliseconds(30);
+      },
+      "the simulator's clock (standing still after the pause)");
 }
 
 void FoldOnRobotTask::waitUntil(const ros::Time& time, const char* what) {
@@ -305,12 +337,23 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
     }
     arm.client->sendGoal(goal);
   }
-  // Until the release, unless an arm's goal fails first (waitForGoal then reports why).
-  const ros::Time release = start + ros::Duration(plan.release * plan.dt);
   const auto failed = [](const Arm& arm) {
     const actionlib::SimpleClientGoalState state = arm.client->getState();
     return !arm.client->isServerConnected() || (state.isDone() && state != actionlib::SimpleClientGoalState::SUCCEEDED);
   };
+  if (paused_) {
+    // Both controllers have the goals (or one refused it) before the clock goes on.
+    const auto answered = [&failed](const Arm& arm) {
+      return failed(arm) || arm.client->getState() != actionlib::SimpleClientGoalState::PENDING;
+    };
+    waitFor([&] { return answered(*arms_[0]) && answered(*arms_[1]); }, "the arms' controllers (the fold's goals)");
+    for (const auto& arm : arms_) {
+      if (failed(*arm)) waitForGoal(*arm, "fold trajectory");
+    }
+    pause(false);
+  }
+  // Until the release, unless an arm's goal fails first (waitForGoal then reports why).
+  const ros::Time release = start + ros::Duration(plan.release * plan.dt);
   waitFor([&] { return failed(*arms_[0]) || failed(*arms_[1]) || ros::Time::now() >= release; },
           "the robot's clock (the fold's release)");
   for (const auto& arm : arms_) {
@@ -402,6 +445,9 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     // The move took move_time (the clock read before it may still be the one before a reset; nor can a time just
     // after a reset take move_time away: ros::Time is never negative).
     const ros::Time moved = ros::Time::now();
+    // A simulator stands still from the grasp until both arms have the fold's goals: the cloth is held for exactly
+    // start_delay before the fold, however long the messages take.
+    if (!robot_.pause_service.empty()) pause(true);
     grasp(true);
     const ros::Time settled = fold(plan) + ros::Duration(task_.config().settle);
     waitUntil(settled, "the cloth settling");
@@ -413,6 +459,14 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     // Anything else the ROS layer throws (a clock out of range, a transport error) fails this rollout, not the
     // learning.
     fail(tasks::FoldOutcome::RobotFailed, std::string("the ROS layer failed: ") + e.what());
+  }
+  if (paused_) {  // a failure while the simulator stood still: it goes on (best effort)
+    try {
+      pause(false);
+    } catch (const Failure&) {
+    } catch (const std::exception&) {
+    }
+    paused_ = false;
   }
   // The measured tool paths at kPathRate of the robot's clock.
   {

@@ -8,7 +8,10 @@
 ///   - the grippers: a bimanual_skills/ClothGrasp service (bullet_sim's ~grasp);
 ///   - the camera: colour (bgr8) and depth (32FC1, metres) sensor_msgs/Image with their sensor_msgs/CameraInfo;
 ///   - optionally the cloth's ground truth (sensor_msgs/PointCloud2 of its nodes, bullet_sim's ~cloth) for the fold
-///     quality q; without it q is not measured (NaN).
+///     quality q; without it q is not measured (NaN);
+///   - a simulator also offers a std_srvs/SetBool pause (bullet_sim's ~pause): its clock is held from the grasp
+///     while the fold's goals travel, so that a clock many times faster than the wall cannot outrun them on a loaded
+///     machine, and the cloth is held for start_delay exactly.
 /// One rollout: reset, move both arms to the fold's start, grasp, run the policy's joint references (the DMPs through
 /// CLIK, tasks::ClothFoldTask::plan, identical to the in-process task's) as one trajectory goal per arm with a common
 /// start time, release, let the cloth settle, and score the camera's images with the reward (tasks::FoldReward). Any
@@ -39,16 +42,22 @@ namespace bimanual_skills::ros_layer {
 
 /// Where the robot's interfaces are and how long a rollout may wait for them (fold_learner's ~ros_* parameters).
 struct FoldRobotInterfaces {
-  std::string reset_service = "bullet_sim/reset";     ///< std_srvs/Trigger
-  std::string grasp_service = "bullet_sim/grasp";     ///< bimanual_skills/ClothGrasp
+  std::string reset_service = "bullet_sim/reset";  ///< std_srvs/Trigger
+  std::string grasp_service = "bullet_sim/grasp";  ///< bimanual_skills/ClothGrasp
+  /// std_srvs/SetBool pausing a simulator's clock while the fold's goals travel; "" on a robot (its clock is the
+  /// wall's, and start_delay is their time on the way).
+  std::string pause_service = "bullet_sim/pause";
   std::vector<std::string> arms = {"left", "right"};  ///< Namespaces of the arms' actions and states, left first.
   std::string camera = "camera";           ///< CAMERA/image_raw, CAMERA/camera_info, CAMERA/depth/image_raw, ...
   std::string cloth = "bullet_sim/cloth";  ///< Ground truth of the cloth; "" when the robot has none.
   double move_time = 2.0;                  ///< To the fold's start configuration [s of the robot's clock].
   double approach_height = 0.05;           ///< The tools come down onto the cloth from this far above their start [m].
   double trajectory_rate = 100.0;          ///< Points per second of the fold's trajectory goals.
-  double start_delay = 0.5;  ///< From sending the fold's goals to their common start [s of the robot's clock].
-  double timeout = 30.0;     ///< Longest wall-clock wait for any one interface [s].
+  /// From sending the fold's goals to their common start [s of the robot's clock]; with a pause service the clock
+  /// stands still from the grasp until both controllers have accepted them. A controller that gets its goal after the
+  /// start skips the points already past (control_msgs' rule), which the path tolerance then fails.
+  double start_delay = 0.5;
+  double timeout = 30.0;  ///< Longest wall-clock wait for any one interface [s].
 
   /// \throws std::invalid_argument naming the field that is out of range.
   void validate() const;
@@ -85,6 +94,8 @@ class FoldOnRobotTask : public rollout::RolloutTask {
   /// Runs the fold and opens the grippers; returns the time they opened at (as planned).
   ros::Time fold(const tasks::FoldPlan& plan);
   void waitUntil(const ros::Time& time, const char* what);
+  /// Pauses or resumes the simulator's clock (pause_service); pausing waits until the clock stands still here.
+  void pause(bool paused);
   void waitForGoal(Arm& arm, const std::string& what);
   tasks::FoldRewardTerms observe(const ros::Time& after, double acceleration_cost);
   template <typename Done>
@@ -103,6 +114,7 @@ class FoldOnRobotTask : public rollout::RolloutTask {
   sensor_msgs::CameraInfoConstPtr info_;
   sensor_msgs::PointCloud2ConstPtr cloth_;
   double last_tracking_error_ = 0.0, last_robot_seconds_ = 0.0;
+  bool paused_ = false;  ///< Whether this task paused the simulator (and must resume it).
 };
 
 }  // namespace bimanual_skills::ros_layer
