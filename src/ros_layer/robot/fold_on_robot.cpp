@@ -164,11 +164,25 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
   }
   spinner_ = std::make_unique<ros::AsyncSpinner>(2, &queue_);
   spinner_->start();
+  // No destructor runs for an object whose constructor throws: the spinner must stop before the arms its callbacks
+  // write into go.
   try {
-    waitFor([this] { return arms_[0]->client->isServerConnected() && arms_[1]->client->isServerConnected(); },
-            "the arms' follow_joint_trajectory actions");
-  } catch (const Failure& f) {
-    throw std::runtime_error("fold on the robot: " + f.reason);
+    try {
+      waitFor([this] { return arms_[0]->client->isServerConnected() && arms_[1]->client->isServerConnected(); },
+              "the arms' follow_joint_trajectory actions");
+    } catch (const Failure& f) {
+      throw std::runtime_error("fold on the robot: " + f.reason);
+    }
+    // A pause service named but absent would fail every rollout after a timeout: refused once, here.
+    if (!robot_.pause_service.empty() &&
+        !ros::service::waitForService(node_->resolveName(robot_.pause_service), ros::Duration(robot_.timeout))) {
+      throw std::runtime_error("fold on the robot: no pause service " + node_->resolveName(robot_.pause_service) +
+                               " within " + std::to_string(robot_.timeout) +
+                               " s (a simulator's std_srvs/SetBool; on a robot set the pause service to \"\")");
+    }
+  } catch (...) {
+    spinner_->stop();
+    throw;
   }
 }
 

@@ -66,8 +66,9 @@ struct FoldRobotInterfaces {
 class FoldOnRobotTask : public rollout::RolloutTask {
  public:
   /// Builds the task (the policy's encoding and references as rollout::FoldRolloutTask), connects to the
-  /// interfaces and waits up to `robot.timeout` for the actions. \throws std::invalid_argument for a bad
-  /// configuration, std::runtime_error when an action server does not appear.
+  /// interfaces and waits up to `robot.timeout` for the actions and the pause service. \throws
+  /// std::invalid_argument for a bad configuration, std::runtime_error when an action server or the pause service
+  /// (if one is named) does not appear.
   FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks::FoldRewardConfig& reward,
                   const FoldRobotInterfaces& robot);
   ~FoldOnRobotTask() override;
