@@ -47,6 +47,7 @@
 #include <fstream>
 #include <functional>
 #include <future>
+#include <iomanip>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -508,6 +509,7 @@ class BulletSimNode {
   void publishState(bool force_cloth) {
     Snapshot& s = snapshots_->writeSlot();
     s.time = diverged_ ? divergence_time_ : simulation_->time();
+    published_time_ = s.time;
     if (!diverged_) {
       Eigen::Index offset = 0;
       for (const auto& arm : arms_) {
@@ -544,6 +546,7 @@ class BulletSimNode {
     diverged_ = false;
     cloth_diverged_ = false;
     next_marker_time_ = 0.0;
+    published_time_ = 0.0;
     time_.store(0.0);
     pacer_->reanchor();
   }
@@ -746,7 +749,10 @@ class BulletSimNode {
       pacer_->reanchor();
       req->success = true;
       std::ostringstream message;
-      message << (pause ? "paused" : "running") << " at t = " << simulation_->time() << " s";
+      // The time of the last states and /clock published (a cycle publishes, then steps), to the microsecond: a
+      // client may read it back (ros_layer::FoldOnRobotTask waits for its clock to get there).
+      message << (pause ? "paused" : "running") << " at t = " << std::fixed << std::setprecision(6) << published_time_
+              << " s";
       req->message = message.str();
       return true;
     });
@@ -978,6 +984,7 @@ class BulletSimNode {
   std::atomic<int> cloth_divergence_{0};
   Eigen::Matrix3Xi cloth_triangles_;  ///< Constant; copied for the publisher thread.
   double divergence_time_ = 0.0, next_marker_time_ = 0.0, next_diverged_publish_ = 0.0;
+  double published_time_ = 0.0;  ///< Of the last states handed to the publisher (loop thread only).
   std::atomic<long> cycles_{0}, control_allocation_cycles_{0}, control_allocations_{0}, physics_allocation_cycles_{0};
   std::atomic<long> rejected_commands_{0}, lockstep_timeouts_{0};
   double last_diagnostics_wall_ = 0.0, last_diagnostics_time_ = 0.0;

@@ -136,8 +136,10 @@ struct FakeWorker {
   int after = 0;        ///< DieAfter: rollouts it finishes before it dies.
   bool poison = false;  ///< Dies on a request whose first parameter is 666 (whichever worker gets it).
   bool dead = false;
+  bool unreachable = false;  ///< Listed alive, but connect() fails.
   ToyTask task;
   int shares = 0;
+  int connects = 0;  ///< connect() calls.
 };
 
 class FakeLink : public br::WorkerLink {
@@ -208,7 +210,10 @@ class FakeDirectory : public br::WorkerDirectory {
     return names;
   }
   std::unique_ptr<br::WorkerLink> connect(const std::string& name) override {
-    return std::make_unique<FakeLink>(name, workers_.at(std::stoul(name.substr(1))));
+    FakeWorker& worker = workers_.at(std::stoul(name.substr(1)));
+    ++worker.connects;
+    if (worker.unreachable) return nullptr;
+    return std::make_unique<FakeLink>(name, worker);
   }
   std::string where() const override { return "among the fakes"; }
   std::size_t listed_;
@@ -331,6 +336,15 @@ TEST(Dispatcher, WorkersJoinDuringABatchAndOnesLostInItStayOut) {
   EXPECT_EQ(joined, (std::vector<std::string>{"worker w0 joined", "worker w1 joined", "worker w2 joined"}))
       << "the hung worker, still listed, is not taken back in the batch it was lost in";
   EXPECT_EQ(workers[1].shares, 1);
+
+  // A worker listed alive that cannot be reached is tried once per batch, not at every look-up (each can take
+  // seconds over ROS).
+  std::vector<FakeWorker> others(2);
+  others[1].unreachable = true;
+  br::Dispatcher again(std::make_unique<FakeDirectory>(others, 2), 2, config);
+  EXPECT_EQ(again.evaluate(batch(30)).size(), 30u);
+  EXPECT_EQ(others[1].connects, 1);
+  EXPECT_EQ(again.lastBatch().workers, 1u);
   EXPECT_THROW(
       {
         br::DispatchConfig bad = quickDispatch();

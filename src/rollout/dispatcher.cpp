@@ -72,23 +72,31 @@ Dispatcher::Dispatcher(std::unique_ptr<WorkerDirectory> directory, std::size_t t
 Dispatcher::~Dispatcher() = default;
 
 std::size_t Dispatcher::discover() {
+  std::vector<std::string> unreachable;
+  return lookUp(unreachable);
+}
+
+std::size_t Dispatcher::lookUp(std::vector<std::string>& left_out) {
   const std::vector<std::string> alive = directory_->alive();
   workers_.erase(std::remove_if(workers_.begin(), workers_.end(),
                                 [&](const std::unique_ptr<Worker>& w) {
                                   return std::find(alive.begin(), alive.end(), w->name) == alive.end();
                                 }),
                  workers_.end());
-  join(alive, {});
+  join(alive, left_out);
   return workers_.size();
 }
 
-void Dispatcher::join(const std::vector<std::string>& alive, const std::vector<std::string>& left_out) {
+void Dispatcher::join(const std::vector<std::string>& alive, std::vector<std::string>& left_out) {
   for (const std::string& name : alive) {
     const bool known = std::any_of(workers_.begin(), workers_.end(),
                                    [&](const std::unique_ptr<Worker>& w) { return w->name == name; });
     if (known || std::find(left_out.begin(), left_out.end(), name) != left_out.end()) continue;
     std::unique_ptr<WorkerLink> link = directory_->connect(name);
-    if (!link) continue;
+    if (!link) {
+      left_out.push_back(name);  // tried once per look-up round: connecting can take seconds
+      continue;
+    }
     auto w = std::make_unique<Worker>();
     w->name = name;
     w->link = std::move(link);
@@ -145,7 +153,7 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
   };
 
   try {
-    discover();
+    lookUp(left_out);
     auto waiting = Clock::now(), joined = Clock::now();
     while (reported < batch.size()) {
       if (!stopping && stop && stop()) stopping = true;

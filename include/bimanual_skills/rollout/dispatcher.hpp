@@ -84,8 +84,8 @@ struct DispatchConfig {
   /// A rollout given to this many workers that all failed it is a fault of the rollout: evaluate() throws.
   int max_attempts = 3;
   double poll_period = 0.002;  ///< [s] between polls of the workers.
-  /// [s] between look-ups, during a batch, for workers that joined since it began (those lost in the batch stay
-  /// out until the next one).
+  /// [s] between look-ups, during a batch, for workers that joined since it began. Those lost in the batch, or that
+  /// could not be reached, stay out until the next one (unless no worker is left).
   double join_period = 1.0;
   /// Events worth a line in a log: a worker joined (fault = false), a worker was lost or hung and its rollouts go
   /// to the others (fault = true).
@@ -119,8 +119,11 @@ class Dispatcher : public Evaluator {
 
  private:
   struct Worker;
-  /// Connects the workers alive now that are not connected yet, except those named in `left_out`.
-  void join(const std::vector<std::string>& alive, const std::vector<std::string>& left_out);
+  /// discover() with `left_out` (see join()).
+  std::size_t lookUp(std::vector<std::string>& left_out);
+  /// Connects the workers alive now that are not connected yet, except those named in `left_out`, and adds those
+  /// that could not be reached to it.
+  void join(const std::vector<std::string>& alive, std::vector<std::string>& left_out);
 
   std::unique_ptr<WorkerDirectory> directory_;
   std::size_t terms_;

@@ -14,6 +14,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -238,7 +239,8 @@ void FoldOnRobotTask::pause(bool paused) {
   ros::ServiceClient client = node_->serviceClient<std_srvs::SetBool>(robot_.pause_service);
   if (!client.waitForExistence(ros::Duration(robot_.timeout))) {
     throw Failure{tasks::FoldOutcome::RobotFailed,
-                  "no pause service " + client.getService() + " (a robot without one: the pause service \"\")"};
+                  "no pause service " + client.getService() +
+                      " (is the simulator running? on a robot the pause service is \"\")"};
   }
   std_srvs::SetBool request;
   request.request.data = paused;
@@ -248,19 +250,39 @@ void FoldOnRobotTask::pause(bool paused) {
   }
   paused_ = paused;
   if (!paused) return;
-  // The clock messages already on their way come in: the clock here stands still for a while.
+  // The clock here must have reached the paused time before the fold's start is counted from it. bullet_sim says
+  // when it stopped ("paused at t = 12.300000 s"); a simulator that does not is taken to have stopped once its clock
+  // has stood still here for 0.2 s.
+  double at = 0.0;
+  const bool told = std::sscanf(request.response.message.c_str(), "paused at t = %lf s", &at) == 1 && std::isfinite(at);
   ros::Time seen = ros::Time::now();
   auto since = std::chrono::steady_clock::now();
   waitFor(
       [&] {
         const ros::Time now = ros::Time::now();
+        if (told && now.toSec() >= at - 1e-6) return true;
         if (now != seen) {
           seen = now;
           since = std::chrono::steady_clock::now();
         }
-        return std::chrono::steady_clock::now() - since > std::chrono::milliseconds(30);
+        return std::chrono::steady_clock::now() - since > std::chrono::milliseconds(200);
       },
-      "the simulator's clock (standing still after the pause)");
+      "the simulator's clock (after the pause)");
+}
+
+void FoldOnRobotTask::resumeAfterFailure() noexcept {
+  if (!paused_) return;
+  paused_ = false;
+  try {
+    // A simulator that is gone is not waited for (the rollout has failed already).
+    const std::string name = node_->resolveName(robot_.pause_service);
+    if (!ros::service::exists(name, false)) return;
+    ros::ServiceClient client = node_->serviceClient<std_srvs::SetBool>(name);
+    std_srvs::SetBool request;
+    request.request.data = false;
+    (void)client.call(request);
+  } catch (const std::exception&) {  // best effort: the next rollout resumes it first anyway
+  }
 }
 
 void FoldOnRobotTask::waitUntil(const ros::Time& time, const char* what) {
@@ -454,6 +476,9 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     const tasks::FoldPlan plan = task_.plan(coordination, weights);
     acceleration_cost = plan.acceleration_cost;
     if (plan.outcome != tasks::FoldOutcome::Ok) throw Failure{plan.outcome, plan.reason};
+    // A simulator left paused (a learner stopped while it stood still) goes on first: paused, it publishes no
+    // states and every rollout would fail.
+    if (!robot_.pause_service.empty()) pause(false);
     reset();
     moveToStart();
     // The move took move_time (the clock read before it may still be the one before a reset; nor can a time just
@@ -474,14 +499,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     // learning.
     fail(tasks::FoldOutcome::RobotFailed, std::string("the ROS layer failed: ") + e.what());
   }
-  if (paused_) {  // a failure while the simulator stood still: it goes on (best effort)
-    try {
-      pause(false);
-    } catch (const Failure&) {
-    } catch (const std::exception&) {
-    }
-    paused_ = false;
-  }
+  resumeAfterFailure();  // a failure while the simulator stood still: it goes on
   // The measured tool paths at kPathRate of the robot's clock.
   {
     const std::lock_guard<std::mutex> lock(mutex_);

@@ -95,8 +95,11 @@ class FoldOnRobotTask : public rollout::RolloutTask {
   /// Runs the fold and opens the grippers; returns the time they opened at (as planned).
   ros::Time fold(const tasks::FoldPlan& plan);
   void waitUntil(const ros::Time& time, const char* what);
-  /// Pauses or resumes the simulator's clock (pause_service); pausing waits until the clock stands still here.
+  /// Pauses or resumes the simulator's clock (pause_service); pausing waits until the clock here has reached the
+  /// paused time.
   void pause(bool paused);
+  /// After a failed rollout: resumes a simulator this task paused, if it is still there, without waiting for it.
+  void resumeAfterFailure() noexcept;
   void waitForGoal(Arm& arm, const std::string& what);
   tasks::FoldRewardTerms observe(const ros::Time& after, double acceleration_cost);
   template <typename Done>
