@@ -1,12 +1,19 @@
-// The cloth-folding task on the simulated WAMs: the demonstration folds the cloth, rollouts are repeatable, and bad
-// or wild policies end with a reason instead of a crash.
+// The cloth-folding task on the simulated WAMs: the demonstration folds the cloth, rollouts are repeatable, the
+// policy's goal weights move where the fold ends, bad or wild policies end with a reason instead of a crash; the
+// fold quality's ground truth; the camera's fold reward ranks hand-made folds as their quality does.
 #include "bimanual_skills/tasks/cloth_fold.hpp"
+#include "bimanual_skills/tasks/fold_quality.hpp"
+#include "bimanual_skills/tasks/fold_reward.hpp"
+#include "bimanual_skills/vision/synthetic_cloth.hpp"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <string>
+#include <utility>
+#include <vector>
 
 namespace bt = bimanual_skills::tasks;
 
@@ -35,7 +42,10 @@ double foldedFraction(const bt::FoldRollout& r, double centre_x, double table_to
 
 TEST(ClothFold, TheDemonstrationFoldsTheClothRepeatably) {
   bt::ClothFoldTask task(config());
-  EXPECT_EQ(task.parameterCount(), 240);
+  EXPECT_EQ(task.parameterCount(), 12 * 21);  // 20 kernels' weights and the goal's per DoF
+  bt::ClothFoldConfig weights_only = config();
+  weights_only.policy = bt::FoldPolicy::Weights;
+  EXPECT_EQ(bt::ClothFoldTask(weights_only).parameterCount(), 12 * 20);
   const Eigen::VectorXd theta = task.demonstrationParameters();
   const bt::FoldRollout first = task.run(theta);
   ASSERT_EQ(first.outcome, bt::FoldOutcome::Ok) << first.reason;
@@ -99,8 +109,45 @@ TEST(ClothFold, ParametersRoundTrip) {
   for (int arm = 0; arm < 2; ++arm) {
     EXPECT_EQ(dmps[arm].positionWeights(), task.demonstration()[arm].positionWeights());
     EXPECT_EQ(dmps[arm].orientationWeights(), task.demonstration()[arm].orientationWeights());
+    EXPECT_EQ(dmps[arm].goal().position, task.demonstration()[arm].goal().position);
   }
   EXPECT_THROW(task.dmps(Eigen::VectorXd::Zero(3)), std::invalid_argument);
+}
+
+// A policy's goal weights move where the tools end, and so the release and the fold: the left tool's goal moved
+// 4 cm towards the near edge (x) and the right one's 3 cm up (z) end there, the DMPs of dmps() have those goals, and
+// the fold differs.
+TEST(ClothFold, GoalWeightsMoveWhereTheToolsEndAndTheFold) {
+  bt::ClothFoldTask task(config());
+  const int n = task.policyBasisSize(), k = task.config().kernels;
+  ASSERT_EQ(n, k + 1);
+  Eigen::VectorXd theta = task.demonstrationParameters();
+  const double forcing_per_metre = task.dmpParameters().alpha_z * task.dmpParameters().beta_z;
+  theta[0 * n + k] = -0.04 * forcing_per_metre;  // left arm, position x
+  theta[8 * n + k] = 0.03 * forcing_per_metre;   // right arm, position z
+  const bt::FoldRollout base = task.run(task.demonstrationParameters());
+  const bt::FoldRollout moved = task.run(theta);
+  ASSERT_EQ(base.outcome, bt::FoldOutcome::Ok) << base.reason;
+  ASSERT_EQ(moved.outcome, bt::FoldOutcome::Ok) << moved.reason;
+  // The commanded tool positions at the end of the movement (before the release), sampled at path_rate.
+  const auto at_release = [&](const bt::FoldRollout& r, int arm) {
+    const double t = task.config().hold_before + task.config().duration + 0.5 * task.config().hold_after;
+    Eigen::Index i = 0;
+    while (i + 1 < r.path_times.size() && r.path_times[i] < t) ++i;
+    return Eigen::Vector3d(r.commanded_path[static_cast<std::size_t>(arm)].col(i));
+  };
+  const Eigen::Vector3d left = at_release(moved, 0) - at_release(base, 0);
+  const Eigen::Vector3d right = at_release(moved, 1) - at_release(base, 1);
+  EXPECT_NEAR(left.x(), -0.04, 0.005);
+  EXPECT_NEAR(left.z(), 0.0, 0.005);
+  EXPECT_NEAR(right.z(), 0.03, 0.005);
+  EXPECT_NEAR(right.x(), 0.0, 0.005);
+  const auto dmps = task.dmps(theta);
+  EXPECT_NEAR((dmps[0].goal().position - task.demonstration()[0].goal().position).x(), -0.04, 1e-12);
+  EXPECT_NEAR((dmps[1].goal().position - task.demonstration()[1].goal().position).z(), 0.03, 1e-12);
+  std::printf("fold quality %.3f with the demonstration's goals, %.3f with the moved ones\n", base.fold.q,
+              moved.fold.q);
+  EXPECT_GT(std::abs(moved.fold.q - base.fold.q), 0.02);
 }
 
 TEST(ClothFold, BadAndWildPoliciesEndWithAReason) {
@@ -189,4 +236,48 @@ TEST(FoldQuality, IdealFoldFlatClothAndInBetween) {
   for (int j = 0; j < ny; ++j) mirrored_rest.col(j * nx).swap(mirrored_rest.col(j * nx + 1));  // flips the normal
   EXPECT_GT(bt::idealFold(mirrored_rest, nx, ny, thickness).row(2).maxCoeff(), rest.row(2).maxCoeff());
   EXPECT_THROW(bt::idealFold(rest.leftCols(nx), nx, 1, thickness), std::invalid_argument);
+}
+
+// The camera's fold reward ranks a hand-made set of folds as their fold quality q does: the cloth left flat, folded
+// along lines 12 and 6 cm beyond its middle (the top layer short of the near edge), folded in the middle and
+// dragged 4 cm, folded 2 cm beyond the middle, folded in the middle (the ideal), each rendered with sensor noise
+// against the flat cloth's own noisy image.
+TEST(FoldReward, RanksHandMadeFoldsAsTheirQuality) {
+  namespace bv = bimanual_skills::vision;
+  const double table = 0.15, thickness = 0.004;
+  const bv::ClothMesh flat = bv::flatCloth(0.5, 0.6, 20, 24, Eigen::Vector3d(0.5, 0.0, table + thickness));
+  bt::FoldRewardConfig config = bt::rewardSetting({}, "fold", "test");
+  config.renderer.camera = bv::TopDownCamera::covering(320, 240, 1.0, Eigen::Vector2d(0.5, 0.0), table + 1.5);
+  config.renderer.table.height = table;
+  const Eigen::Matrix3Xd ideal = bt::idealFold(flat.vertices, 20, 24, thickness);
+  bt::FoldReward reward(config, 0.3, ideal, flat.triangles);
+  std::vector<std::pair<std::string, Eigen::Matrix3Xd>> folds = {{"flat", flat.vertices}};
+  const auto folded = [&](double beyond) { return bv::foldCloth(flat, 0.5 + beyond, 0.5 * thickness).vertices; };
+  folds.emplace_back("fold line 12 cm out", folded(0.12));
+  folds.emplace_back("fold line 6 cm out", folded(0.06));
+  Eigen::Matrix3Xd dragged = folded(0.0);
+  dragged.row(0).array() -= 0.04;
+  folds.emplace_back("dragged 4 cm", dragged);
+  folds.emplace_back("fold line 2 cm out", folded(0.02));
+  folds.emplace_back("ideal", folded(0.0));
+  std::vector<double> q, r;
+  std::mt19937 rng(4);
+  for (const auto& [name, vertices] : folds) {
+    bt::FoldRollout rollout;
+    rollout.cloth_vertices = vertices;
+    rollout.cloth_triangles = flat.triangles;
+    rollout.cloth_rest_vertices = flat.vertices;
+    rollout.fold = bt::foldQuality(vertices, flat.vertices, 20, 24, thickness);
+    const bt::FoldRewardTerms terms = reward.evaluate(rollout, rng);
+    std::printf("%-22s q %6.3f  reward %7.4f  (edge %.3f, single %.3f, length %.3f m)\n", name.c_str(), rollout.fold.q,
+                terms.reward, terms.fold_edge, terms.fold_single, terms.fold_length);
+    q.push_back(rollout.fold.q);
+    r.push_back(terms.reward);
+  }
+  for (std::size_t i = 1; i < q.size(); ++i) {
+    ASSERT_GT(q[i], q[i - 1]) << folds[i].first << ": the set is not in order of q";
+    EXPECT_GT(r[i], r[i - 1]) << folds[i].first << " does not score above " << folds[i - 1].first;
+  }
+  EXPECT_NEAR(r.front(), -1.0, 0.05);  // the flat cloth: mismatch 1
+  EXPECT_GT(r.back(), -0.1);           // the ideal fold: mismatch near 0 (the crease and the noise)
 }

@@ -354,6 +354,65 @@ TEST(DrDmp, FitWithFullDimensionReproducesTheDmp) {
   EXPECT_THROW(bp::DrDmp::fit(scaled, {demonstration}, 0.01, 2), std::invalid_argument);
 }
 
+// The goal weights w_g of DrDmpParameters::goal_offsets are a goal moved through a first-order filter: with one
+// matrix, the DR-DMP whose latent DoF each end in w_g follows, to rounding, the DR-DMP without them whose goal is
+// g + (1 − x) Ω w_g / (α_z β_z) at every step; the grid's last basis column is 1 − x; fit() leaves the goal weights 0
+// and the kernels' weights as without them.
+TEST(DrDmp, GoalWeightsMoveTheGoalThroughTheCoordination) {
+  std::mt19937 rng(12);
+  constexpr int d = 5, r = 3, n = 10;
+  bp::DrDmpParameters plain;
+  plain.dmp.kernels = n;
+  bp::DrDmpParameters with_goals = plain;
+  with_goals.goal_offsets = true;
+  EXPECT_EQ(with_goals.basisSize(), n + 1);
+  const Eigen::MatrixXd omega = orthonormal(d, r, rng);
+  const Eigen::VectorXd kernels = 30.0 * randomMatrix(r * n, 1, rng), goal_weights = 40.0 * randomMatrix(r, 1, rng);
+  Eigen::VectorXd w(r * (n + 1));
+  for (int j = 0; j < r; ++j) {
+    w.segment(j * (n + 1), n) = kernels.segment(j * n, n);
+    w[j * (n + 1) + n] = goal_weights[j];
+  }
+  const Eigen::VectorXd start = randomMatrix(d, 1, rng), goal = randomMatrix(d, 1, rng);
+  const bp::DrDmp moved(with_goals, {omega}, w, start, goal, 1.5);
+  const Eigen::VectorXd offset = omega * goal_weights / (plain.dmp.alpha_z * plain.dmp.beta_z);
+  const double x07 = std::exp(-plain.dmp.alpha_x * 0.7 / 1.5);
+  EXPECT_LT((moved.goalOffset(0.7) - (1.0 - x07) * offset).cwiseAbs().maxCoeff(), 1e-12);
+  const bp::DrDmp reference(plain, {omega}, kernels, start, goal, 1.5);
+  bp::DrDmpState state = moved.initialState(), expected = reference.initialState();
+  for (int k = 0; k < 300; ++k) {
+    expected.dmp.goal = goal + (1.0 - expected.dmp.x) * offset;
+    ASSERT_EQ(moved.step(state, 0.01), bp::DmpStatus::Success);
+    ASSERT_EQ(reference.step(expected, 0.01), bp::DmpStatus::Success);
+  }
+  EXPECT_LT((state.dmp.y - expected.dmp.y).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_LT((state.dmp.y - goal - offset).cwiseAbs().maxCoeff(), 0.02);  // it went to the moved goal
+  EXPECT_GT(offset.norm(), 0.1);
+
+  const bl::CoordinationGrid grid = moved.grid(0.01, 50);
+  ASSERT_EQ(grid.kernels(), n + 1);
+  for (int k = 0; k < 50; ++k) {
+    EXPECT_NEAR(grid.basis()(k, n), 1.0 - std::exp(-plain.dmp.alpha_x * 0.01 * k / 1.5), 1e-15);
+  }
+  EXPECT_EQ(grid.basis().leftCols(n), reference.grid(0.01, 50).basis());
+  EXPECT_EQ(bp::DrDmp(plain, {omega}, kernels, start, goal, 1.5).goalOffset(0.3), Eigen::VectorXd::Zero(d));
+  EXPECT_THROW(bp::DrDmp(with_goals, {omega}, kernels, start, goal, 1.5), std::invalid_argument);
+
+  Eigen::MatrixXd demonstration(151, d);
+  for (int i = 0; i < 151; ++i) {
+    const double s = i / 150.0;
+    for (int j = 0; j < d; ++j) demonstration(i, j) = (j + 1) * 0.2 * s * s * (3.0 - 2.0 * s) + 0.1 * std::sin(4.0 * s);
+  }
+  const bp::DrDmpFit fit_plain = bp::DrDmp::fit(plain, {demonstration}, 0.01, r);
+  const bp::DrDmpFit fit_goals = bp::DrDmp::fit(with_goals, {demonstration}, 0.01, r);
+  const Eigen::VectorXd fitted = fit_goals.dmp.weights();
+  ASSERT_EQ(fitted.size(), r * (n + 1));
+  for (int j = 0; j < r; ++j) {
+    EXPECT_EQ(fitted[j * (n + 1) + n], 0.0);
+    EXPECT_EQ(fitted.segment(j * (n + 1), n), fit_plain.dmp.weights().segment(j * n, n));
+  }
+}
+
 TEST(CoordinatedReps, FixedCoordinationIsReps) {
   std::mt19937 rng(9);
   const bl::CoordinationGrid grid = dmpGrid(3, 4, 1, 20);

@@ -27,9 +27,10 @@ Eigen::MatrixXd latentMatrix(const DrDmpParameters& parameters, const std::vecto
           "DrDmp: coordination matrices must be finite, all d x r with 1 <= r <= d (d = " + std::to_string(dofs) + ")");
     }
   }
-  const int n = parameters.dmp.kernels;
+  const int n = parameters.basisSize();
   if (weights.size() != r * n || !weights.allFinite()) {
-    throw std::invalid_argument("DrDmp: needs r*kernels = " + std::to_string(r * n) + " finite latent weights");
+    throw std::invalid_argument("DrDmp: needs r*" + std::string(parameters.goal_offsets ? "(kernels + 1)" : "kernels") +
+                                " = " + std::to_string(r * n) + " finite latent weights");
   }
   return Eigen::Map<const RowMajorMatrix>(weights.data(), r, n);
 }
@@ -77,10 +78,13 @@ DrDmpFit DrDmp::fit(const DrDmpParameters& parameters, const std::vector<Eigen::
   const double duration = dt * static_cast<double>(samples - 1);
   const int steps = static_cast<int>(samples - 1);
   const int n = parameters.dmp.kernels;
-  // A model with the right sizes gives the grid; its coordination is replaced below.
+  // A model of the kernels alone gives the grid of the fit (the demonstrations reach their own goal: goal weights
+  // 0); its coordination is replaced below.
+  DrDmpParameters kernels_only = parameters;
+  kernels_only.goal_offsets = false;
   std::vector<Eigen::MatrixXd> coordination(static_cast<std::size_t>(parameters.matrices),
                                             Eigen::MatrixXd::Identity(d, latent_dims));
-  const DrDmp shape(parameters, coordination, Eigen::VectorXd::Zero(latent_dims * n), start, goal, duration);
+  const DrDmp shape(kernels_only, coordination, Eigen::VectorXd::Zero(latent_dims * n), start, goal, duration);
   const learning::CoordinationGrid grid = shape.grid(dt, steps);
   const auto count = static_cast<Eigen::Index>(forcing.size());
   Eigen::MatrixXd all(d, count * steps);
@@ -94,11 +98,12 @@ DrDmpFit DrDmp::fit(const DrDmpParameters& parameters, const std::vector<Eigen::
   }
   learning::alignCoordinationMatrices(coordination);
   singular_values = learning::pcaCoordination(all, latent_dims).singular_values;
-  Eigen::MatrixXd latent(count, latent_dims * n);
+  const int basis = parameters.basisSize();
+  Eigen::MatrixXd latent = Eigen::MatrixXd::Zero(count, latent_dims * basis);
   for (Eigen::Index k = 0; k < count; ++k) {
-    latent.row(k) =
-        learning::fitLatentWeights(grid, coordination, forcing[static_cast<std::size_t>(k)], parameters.ridge)
-            .transpose();
+    const Eigen::VectorXd fitted =
+        learning::fitLatentWeights(grid, coordination, forcing[static_cast<std::size_t>(k)], parameters.ridge);
+    for (int j = 0; j < latent_dims; ++j) latent.row(k).segment(j * basis, n) = fitted.segment(j * n, n).transpose();
   }
   const Eigen::VectorXd mean = latent.colwise().mean().transpose();
   return {DrDmp(parameters, coordination, mean, start, goal, duration), latent, singular_values,
@@ -108,6 +113,16 @@ DrDmpFit DrDmp::fit(const DrDmpParameters& parameters, const std::vector<Eigen::
 Eigen::VectorXd DrDmp::weights() const {
   const RowMajorMatrix rows = weights_;
   return Eigen::Map<const Eigen::VectorXd>(rows.data(), rows.size());
+}
+
+Eigen::VectorXd DrDmp::goalOffset(double t) const {
+  if (!parameters_.goal_offsets) return Eigen::VectorXd::Zero(dofs());
+  Eigen::VectorXd a(matrices());
+  activations(t, a);
+  Eigen::MatrixXd blended(dofs(), latentDims());
+  learning::blendCoordination(coordination_, a, blended);
+  const double x = std::exp(-parameters_.dmp.alpha_x * t / duration());
+  return (1.0 - x) * blended * weights_.col(kernels()) / (parameters_.dmp.alpha_z * parameters_.dmp.beta_z);
 }
 
 DrDmp DrDmp::withWeights(const Eigen::VectorXd& weights) const {
@@ -120,11 +135,12 @@ DrDmp DrDmp::withCoordination(const std::vector<Eigen::MatrixXd>& coordination, 
 
 learning::CoordinationGrid DrDmp::grid(double dt, int steps) const {
   if (steps < 1 || !(dt > 0.0)) throw std::invalid_argument("DrDmp::grid: needs steps >= 1 and dt > 0");
-  Eigen::MatrixXd basis(steps, kernels()), activation(steps, matrices());
-  Eigen::VectorXd g(kernels()), a(matrices());
+  Eigen::MatrixXd basis(steps, basisSize()), activation(steps, matrices());
+  Eigen::VectorXd g(basisSize()), a(matrices());
   for (int k = 0; k < steps; ++k) {
-    const double t = k * dt;
-    shape_.basis(std::exp(-parameters_.dmp.alpha_x * t / duration()), g);
+    const double t = k * dt, x = std::exp(-parameters_.dmp.alpha_x * t / duration());
+    shape_.basis(x, g.head(kernels()));
+    if (parameters_.goal_offsets) g[kernels()] = 1.0 - x;
     activations(t, a);
     basis.row(k) = g.transpose();
     activation.row(k) = a.transpose();
@@ -137,7 +153,7 @@ DrDmpState DrDmp::initialState() const {
   state.dmp = shape_.initialState();
   state.exploration = Eigen::VectorXd::Zero(dofs());
   state.forcing = Eigen::VectorXd::Zero(dofs());
-  state.basis = Eigen::VectorXd::Zero(kernels());
+  state.basis = Eigen::VectorXd::Zero(basisSize());
   state.latent = Eigen::VectorXd::Zero(latentDims());
   state.activations = Eigen::VectorXd::Zero(matrices());
   state.blended = Eigen::MatrixXd::Zero(dofs(), latentDims());
@@ -149,13 +165,14 @@ void DrDmp::activations(double t, Eigen::Ref<Eigen::VectorXd> out) const noexcep
 }
 
 DmpStatus DrDmp::step(DrDmpState& state, double dt) const noexcept {
-  if (state.exploration.size() != dofs() || state.forcing.size() != dofs() || state.basis.size() != kernels() ||
+  if (state.exploration.size() != dofs() || state.forcing.size() != dofs() || state.basis.size() != basisSize() ||
       state.latent.size() != latentDims() || state.activations.size() != matrices() || state.blended.rows() != dofs() ||
       state.blended.cols() != latentDims() || !state.exploration.allFinite() || !std::isfinite(state.dmp.x) ||
       !std::isfinite(state.dmp.t)) {
     return DmpStatus::InvalidInput;
   }
-  shape_.basis(state.dmp.x, state.basis);
+  shape_.basis(state.dmp.x, state.basis.head(kernels()));
+  if (parameters_.goal_offsets) state.basis[kernels()] = 1.0 - state.dmp.x;
   state.latent.noalias() = weights_ * state.basis;
   activations(state.dmp.t, state.activations);
   learning::blendCoordination(coordination_, state.activations, state.blended);

@@ -28,16 +28,16 @@ Eigen::VectorXd FoldRolloutTask::encode(const std::vector<Eigen::MatrixXd>& coor
   return out;
 }
 
-bool FoldRolloutTask::decode(const Eigen::VectorXd& parameters, int dofs, int kernels,
+bool FoldRolloutTask::decode(const Eigen::VectorXd& parameters, int dofs, int basis,
                              std::vector<Eigen::MatrixXd>& coordination, Eigen::VectorXd& weights) {
   if (parameters.size() < 2 || !std::isfinite(parameters[0]) || !std::isfinite(parameters[1])) return false;
   const double ns = parameters[0], r = parameters[1];
   if (ns != std::floor(ns) || r != std::floor(r) || ns < 1 || ns > 20 || r < 1 || r > dofs) return false;
   const auto matrices = static_cast<Eigen::Index>(ns), latent = static_cast<Eigen::Index>(r);
-  if (parameters.size() != 2 + latent * kernels + matrices * dofs * latent) return false;
-  weights = parameters.segment(2, latent * kernels);
+  if (parameters.size() != 2 + latent * basis + matrices * dofs * latent) return false;
+  weights = parameters.segment(2, latent * basis);
   coordination.clear();
-  Eigen::Index at = 2 + latent * kernels;
+  Eigen::Index at = 2 + latent * basis;
   for (Eigen::Index s = 0; s < matrices; ++s) {
     coordination.push_back(Eigen::Map<const Eigen::MatrixXd>(parameters.data() + at, dofs, latent));
     at += dofs * latent;
@@ -50,9 +50,9 @@ std::vector<std::string> FoldRolloutTask::termNames() const {
 }
 
 std::vector<std::string> FoldRolloutTask::names() {
-  return {"r_acceleration", "r_color",  "r_depth",      "fill_ratio",    "mean_gradient",
-          "area_ratio",     "aspect",   "fold_quality", "fold_distance", "fold_displacement",
-          "r_goal",         "goal_iou", "goal_mismatch"};
+  return {"r_acceleration", "r_color",      "r_depth",       "fill_ratio",        "mean_gradient", "area_ratio",
+          "aspect",         "fold_quality", "fold_distance", "fold_displacement", "r_goal",        "goal_iou",
+          "goal_mismatch",  "r_fold",       "fold_mismatch", "fold_edge",         "fold_single",   "fold_length"};
 }
 
 Eigen::VectorXd FoldRolloutTask::initialParameters() const {
@@ -81,6 +81,11 @@ tasks::FoldRewardTerms FoldRolloutTask::termsOf(const RolloutResult& result) {
   t.r_goal = result.terms[10];
   t.goal_iou = result.terms[11];
   t.goal_mismatch = result.terms[12];
+  t.r_fold = result.terms[13];
+  t.fold_mismatch = result.terms[14];
+  t.fold_edge = result.terms[15];
+  t.fold_single = result.terms[16];
+  t.fold_length = result.terms[17];
   return t;
 }
 
@@ -93,13 +98,13 @@ tasks::FoldRewardTerms FoldRolloutTask::score(const tasks::FoldRollout& rollout,
 RolloutResult FoldRolloutTask::run(const Eigen::VectorXd& parameters, std::uint32_t seed) {
   std::vector<Eigen::MatrixXd> coordination;
   Eigen::VectorXd weights;
-  if (decode(parameters, tasks::ClothFoldTask::kDofs, task_.config().kernels, coordination, weights)) {
+  if (decode(parameters, tasks::ClothFoldTask::kDofs, task_.policyBasisSize(), coordination, weights)) {
     last_ = task_.run(coordination, weights, seed);
   } else {
     last_ = tasks::FoldRollout{};
     last_.outcome = tasks::FoldOutcome::InvalidPolicy;
     last_.reason = "the parameters do not encode a coordinated policy of 12 DoF and " +
-                   std::to_string(task_.config().kernels) + " kernels";
+                   std::to_string(task_.policyBasisSize()) + " weights per latent DoF";
   }
   last_terms_ = score(last_, seed);
   return resultOf(last_terms_, last_.reason, last_.actual_path);
@@ -111,7 +116,8 @@ RolloutResult FoldRolloutTask::resultOf(const tasks::FoldRewardTerms& t, const s
   result.reward = t.reward;
   result.terms.resize(kTerms);
   result.terms << t.r_acceleration, t.r_color, t.r_depth, t.fill_ratio, t.mean_gradient, t.area_ratio, t.aspect,
-      t.fold_quality, t.fold_distance, t.fold_displacement, t.r_goal, t.goal_iou, t.goal_mismatch;
+      t.fold_quality, t.fold_distance, t.fold_displacement, t.r_goal, t.goal_iou, t.goal_mismatch, t.r_fold,
+      t.fold_mismatch, t.fold_edge, t.fold_single, t.fold_length;
   result.ok = t.outcome == tasks::FoldOutcome::Ok;
   result.outcome = tasks::toString(t.outcome);
   result.reason = reason;

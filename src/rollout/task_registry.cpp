@@ -148,7 +148,7 @@ class PlanarViaPointRollout : public RolloutTask {
   RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override {
     std::vector<Eigen::MatrixXd> coordination;
     Eigen::VectorXd weights;
-    if (!FoldRolloutTask::decode(parameters, task_.dofs(), dmp_->kernels(), coordination, weights) ||
+    if (!FoldRolloutTask::decode(parameters, task_.dofs(), dmp_->basisSize(), coordination, weights) ||
         static_cast<int>(coordination.size()) != dmp_->matrices() || !parameters.allFinite()) {
       return invalidPolicy(2, "the parameters do not encode a finite coordinated policy of " +
                                   std::to_string(task_.dofs()) + " DoF, " + std::to_string(dmp_->kernels()) +

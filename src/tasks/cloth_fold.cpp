@@ -33,22 +33,20 @@ constexpr double kDemonstrationRate = 100.0;
 
 /// The coordinated forcing terms of both arms: a 12-DoF DR-DMP whose own transformation system is not used.
 /// Null, with `reason`, when the policy does not fit.
-std::unique_ptr<primitives::DrDmp> makeForcing(const std::vector<Eigen::MatrixXd>& coordination,
-                                               const Eigen::VectorXd& latent_weights,
-                                               const primitives::DmpParameters& dmp, int kernels, double duration,
-                                               std::string& reason) {
+std::unique_ptr<primitives::DrDmp> makeForcing(const ClothFoldTask& task,
+                                               const std::vector<Eigen::MatrixXd>& coordination,
+                                               const Eigen::VectorXd& latent_weights, std::string& reason) {
   bool finite = latent_weights.allFinite();
   for (const Eigen::MatrixXd& omega : coordination) finite = finite && omega.allFinite();
   try {
     if (!finite) throw std::invalid_argument("non-finite coordination or weights");
-    primitives::DrDmpParameters parameters;
-    parameters.dmp = dmp;
-    parameters.matrices = static_cast<int>(coordination.size());
+    if (coordination.empty()) throw std::invalid_argument("no coordination matrix");
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(ClothFoldTask::kDofs);
-    return std::make_unique<primitives::DrDmp>(parameters, coordination, latent_weights, zero, zero, duration);
+    return std::make_unique<primitives::DrDmp>(task.forcingParameters(static_cast<int>(coordination.size())),
+                                               coordination, latent_weights, zero, zero, task.config().duration);
   } catch (const std::invalid_argument& e) {
-    reason = std::string("the coordinated policy does not fit 12 DoF and ") + std::to_string(kernels) +
-             " kernels: " + e.what();
+    reason = std::string("the coordinated policy does not fit 12 DoF and ") + std::to_string(task.policyBasisSize()) +
+             " weights per latent DoF: " + e.what();
     return nullptr;
   }
 }
@@ -142,6 +140,17 @@ const char* toString(FoldOutcome outcome) noexcept {
   return "Unknown";
 }
 
+const char* toString(FoldPolicy policy) noexcept {
+  return policy == FoldPolicy::Weights ? "weights" : "goals";
+}
+
+FoldPolicy foldPolicyFromString(const std::string& text, const std::string& where) {
+  for (const FoldPolicy policy : {FoldPolicy::Weights, FoldPolicy::WeightsAndGoals}) {
+    if (text == toString(policy)) return policy;
+  }
+  throw std::invalid_argument(where + ": unknown policy '" + text + "' (weights, goals)");
+}
+
 FoldOutcome foldOutcomeFromString(const std::string& text, const std::string& where) {
   for (const FoldOutcome outcome :
        {FoldOutcome::Ok, FoldOutcome::InvalidPolicy, FoldOutcome::GraspFailed, FoldOutcome::IkFailed,
@@ -208,9 +217,10 @@ struct ClothFoldTask::Impl {
     const double y = centre.y() + side * (0.5 * sim_config.cloth.width - 0.01);
     const double lift = 0.015;
     const int samples = static_cast<int>(std::lround(config.duration * kDemonstrationRate)) + 1;
+    const double lag = arm == 1 ? config.demo_lag : 0.0;
     std::vector<Pose> path;
     for (int k = 0; k < samples; ++k) {
-      double s = static_cast<double>(k) / (samples - 1);
+      double s = std::clamp((static_cast<double>(k) / (samples - 1) - lag) / (1.0 - lag), 0.0, 1.0);
       s = s * s * s * (10.0 + s * (-15.0 + 6.0 * s));  // minimum jerk
       const double angle = M_PI * s;
       Pose pose;
@@ -234,6 +244,8 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
       !(config.path_rate > 0.0)) {
     throw std::invalid_argument("cloth fold: kernels >= 2, positive duration, limits and path rate, holds >= 0");
   }
+  if (!(config.demo_lag >= 0.0 && config.demo_lag < 0.9))
+    throw std::invalid_argument("cloth fold: demo_lag in [0, 0.9)");
   m.sim_config = sim::SimConfig::fromYamlFile(config.sim_config);
   if (!m.sim_config.has_cloth) throw std::invalid_argument("cloth fold: '" + config.sim_config + "' has no cloth");
   m.simulation = std::make_unique<sim::BimanualSimulation>(m.sim_config);
@@ -316,7 +328,19 @@ const sim::SimConfig& ClothFoldTask::simConfig() const noexcept {
 }
 
 int ClothFoldTask::parameterCount() const noexcept {
-  return 2 * 6 * impl_->config.kernels;
+  return kDofs * policyBasisSize();
+}
+
+int ClothFoldTask::policyBasisSize() const noexcept {
+  return impl_->config.kernels + (impl_->config.policy == FoldPolicy::WeightsAndGoals ? 1 : 0);
+}
+
+primitives::DrDmpParameters ClothFoldTask::forcingParameters(int matrices) const {
+  primitives::DrDmpParameters parameters;
+  parameters.dmp = dmpParameters();
+  parameters.matrices = matrices;
+  parameters.goal_offsets = impl_->config.policy == FoldPolicy::WeightsAndGoals;
+  return parameters;
 }
 
 const std::vector<CartesianDmp>& ClothFoldTask::demonstration() const noexcept {
@@ -324,13 +348,13 @@ const std::vector<CartesianDmp>& ClothFoldTask::demonstration() const noexcept {
 }
 
 Eigen::VectorXd ClothFoldTask::demonstrationParameters() const {
-  const int k = impl_->config.kernels;
-  Eigen::VectorXd theta(parameterCount());
+  const int k = impl_->config.kernels, n = policyBasisSize();
+  Eigen::VectorXd theta = Eigen::VectorXd::Zero(parameterCount());  // goal weights 0: the demonstration's goal
   for (int arm = 0; arm < 2; ++arm) {
     const CartesianDmp& d = impl_->demonstration[static_cast<std::size_t>(arm)];
     for (int row = 0; row < 3; ++row) {
-      theta.segment((arm * 6 + row) * k, k) = d.positionWeights().row(row).transpose();
-      theta.segment((arm * 6 + 3 + row) * k, k) = d.orientationWeights().row(row).transpose();
+      theta.segment((arm * 6 + row) * n, k) = d.positionWeights().row(row).transpose();
+      theta.segment((arm * 6 + 3 + row) * n, k) = d.orientationWeights().row(row).transpose();
     }
   }
   return theta;
@@ -373,16 +397,33 @@ std::vector<CartesianDmp> ClothFoldTask::dmps(const Eigen::VectorXd& theta) cons
     throw std::invalid_argument("cloth fold: " + std::to_string(parameterCount()) + " parameters expected, got " +
                                 std::to_string(theta.size()));
   }
-  const int k = impl_->config.kernels;
+  const int k = impl_->config.kernels, n = policyBasisSize();
+  const bool goals = n > k;
   std::vector<CartesianDmp> out;
   for (int arm = 0; arm < 2; ++arm) {
     const CartesianDmp& d = impl_->demonstration[static_cast<std::size_t>(arm)];
+    const primitives::DmpParameters& p = d.parameters();
     Eigen::MatrixXd position(3, k), orientation(3, k);
+    Eigen::Vector3d position_offset = Eigen::Vector3d::Zero(), vector_offset = Eigen::Vector3d::Zero();
     for (int row = 0; row < 3; ++row) {
-      position.row(row) = theta.segment((arm * 6 + row) * k, k).transpose();
-      orientation.row(row) = theta.segment((arm * 6 + 3 + row) * k, k).transpose();
+      position.row(row) = theta.segment((arm * 6 + row) * n, k).transpose();
+      orientation.row(row) = theta.segment((arm * 6 + 3 + row) * n, k).transpose();
+      if (goals) {
+        position_offset[row] = theta[(arm * 6 + row) * n + k] / (p.alpha_z * p.beta_z);
+        vector_offset[row] = theta[(arm * 6 + 3 + row) * n + k] / (p.alpha_z * p.beta_z);
+      }
     }
-    out.emplace_back(d.parameters(), d.encoding(), position, orientation, d.start(), d.goal(), d.duration());
+    // The goal the constant forcing makes (DrDmpParameters::goal_offsets): the position moved, and the orientation
+    // vector v = vec(q_s⁻¹ ∗ g) moved and rebuilt as q_s ∗ (√(1 − ‖v‖²), v).
+    Pose goal = d.goal();
+    goal.position += position_offset;
+    Eigen::Vector3d v =
+        primitives::relativeQuaternionVector(d.start().orientation, d.goal().orientation) + vector_offset;
+    if (v.norm() > 1.0) v.normalize();
+    goal.orientation = d.start().orientation *
+                       Eigen::Quaterniond(std::sqrt(std::max(0.0, 1.0 - v.squaredNorm())), v.x(), v.y(), v.z());
+    goal.orientation.normalize();
+    out.emplace_back(p, d.encoding(), position, orientation, d.start(), goal, d.duration());
   }
   return out;
 }
@@ -407,8 +448,7 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   Impl& m = *impl_;
   FoldRollout out;
   const auto wall_start = std::chrono::steady_clock::now();
-  std::unique_ptr<primitives::DrDmp> forcing =
-      makeForcing(coordination, latent_weights, dmpParameters(), m.config.kernels, m.config.duration, out.reason);
+  std::unique_ptr<primitives::DrDmp> forcing = makeForcing(*this, coordination, latent_weights, out.reason);
   if (!forcing) {
     out.outcome = FoldOutcome::InvalidPolicy;
     return out;
@@ -555,8 +595,7 @@ FoldPlan ClothFoldTask::plan(const std::vector<Eigen::MatrixXd>& coordination,
   FoldPlan out;
   const sim::BimanualSimulation& simulation = *m.simulation;
   out.dt = simulation.stepSize();
-  std::unique_ptr<primitives::DrDmp> forcing =
-      makeForcing(coordination, latent_weights, dmpParameters(), m.config.kernels, m.config.duration, out.reason);
+  std::unique_ptr<primitives::DrDmp> forcing = makeForcing(*this, coordination, latent_weights, out.reason);
   if (!forcing) {
     out.outcome = FoldOutcome::InvalidPolicy;
     return out;

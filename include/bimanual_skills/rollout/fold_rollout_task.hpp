@@ -17,18 +17,20 @@ class FoldRolloutTask : public RolloutTask {
   /// \throws std::invalid_argument as ClothFoldTask and FoldReward.
   FoldRolloutTask(const tasks::ClothFoldConfig& task, const tasks::FoldRewardConfig& reward);
 
-  /// A coordinated policy as one vector: [N_s, r, ω (r × kernels, latent DoF by latent DoF), vec(Ω_1), …,
+  /// A coordinated policy as one vector: [N_s, r, ω (r × n, latent DoF by latent DoF), vec(Ω_1), …,
   /// vec(Ω_Ns)] with each Ω_s (12 × r) column by column.
   static Eigen::VectorXd encode(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& weights);
-  /// The inverse of encode(); false when `parameters` holds no policy of `dofs` DoF and `kernels` kernels.
-  static bool decode(const Eigen::VectorXd& parameters, int dofs, int kernels,
-                     std::vector<Eigen::MatrixXd>& coordination, Eigen::VectorXd& weights);
+  /// The inverse of encode(); false when `parameters` holds no policy of `dofs` DoF and `basis` weights per latent
+  /// DoF (n: ClothFoldTask::policyBasisSize(), the kernels and the goal's weight).
+  static bool decode(const Eigen::VectorXd& parameters, int dofs, int basis, std::vector<Eigen::MatrixXd>& coordination,
+                     Eigen::VectorXd& weights);
 
   /// r_acceleration, r_color, r_depth, fill_ratio, mean_gradient, area_ratio, aspect, fold_quality, fold_distance,
-  /// fold_displacement, r_goal, goal_iou, goal_mismatch (tasks::FoldRewardTerms).
+  /// fold_displacement, r_goal, goal_iou, goal_mismatch, r_fold, fold_mismatch, fold_edge, fold_single,
+  /// fold_length (tasks::FoldRewardTerms).
   std::vector<std::string> termNames() const override;
   static std::vector<std::string> names();
-  static constexpr std::size_t kTerms = 13;
+  static constexpr std::size_t kTerms = 18;
   /// The demonstration: one coordination matrix Ω = I, the demonstration's weights.
   Eigen::VectorXd initialParameters() const override;
   /// The terms of a result of run() (e.g. one that ran on a rollout worker); the vision status is not part of it.

@@ -8,6 +8,7 @@
 
 #include "bimanual_skills/kinematics/clik.hpp"
 #include "bimanual_skills/primitives/cartesian_dmp.hpp"
+#include "bimanual_skills/primitives/dr_dmp.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 #include "bimanual_skills/tasks/fold_quality.hpp"
 
@@ -20,6 +21,15 @@
 #include <vector>
 
 namespace bimanual_skills::tasks {
+
+/// What the fold's policy parameters are: the thesis' forcing-term weights alone (the DMPs end where the
+/// demonstration ends), or also a goal offset per latent DoF through the same coordination matrices
+/// (primitives::DrDmpParameters::goal_offsets), so that learning can move where the tools put the cloth down.
+enum class FoldPolicy { Weights, WeightsAndGoals };
+/// "weights" (the thesis) and "goals".
+const char* toString(FoldPolicy policy) noexcept;
+/// The inverse of toString(). \throws std::invalid_argument naming `where` for an unknown name.
+FoldPolicy foldPolicyFromString(const std::string& text, const std::string& where);
 
 struct ClothFoldConfig {
   std::string sim_config;                                    ///< Simulation file with a cloth (config/sim.yaml).
@@ -38,6 +48,10 @@ struct ClothFoldConfig {
   /// The scripted demonstration (deliberately imperfect, as a first kinesthetic attempt would be): the far corners
   /// are carried on arcs of radius `demo_reach` × the cloth's half length and put down `demo_drop` above the table.
   double demo_reach = 0.85, demo_lift = 0.6, demo_drop = 0.06;
+  /// The right arm's lag in the scripted demonstration, a fraction of `duration` in [0, 0.9): it starts that much
+  /// later and makes the same arc in the time left (0: both arms together).
+  double demo_lag = 0.0;
+  FoldPolicy policy = FoldPolicy::WeightsAndGoals;
   /// Instead of the scripted demonstration: one Cartesian DMP file per arm (left, right; primitives/dmp_yaml.hpp,
   /// quaternion-vector encoding, `kernels` kernels), e.g. those saveDemonstration() wrote, run over `duration`.
   std::vector<std::string> demonstration_files;
@@ -99,15 +113,23 @@ class ClothFoldTask {
   ClothFoldTask(const ClothFoldTask&) = delete;
   ClothFoldTask& operator=(const ClothFoldTask&) = delete;
 
-  /// Policy parameters: per arm (left, right), position weights (3 × kernels, row by row) then orientation weights.
+  /// Policy parameters of run(theta): per arm (left, right), per DoF (position x, y, z, then orientation vector),
+  /// policyBasisSize() values each: the kernels' weights, then (FoldPolicy::WeightsAndGoals) the goal's weight.
   int parameterCount() const noexcept;
+  /// Policy weights per (latent) DoF: kernels, plus one goal weight with FoldPolicy::WeightsAndGoals.
+  int policyBasisSize() const noexcept;
+  /// The DR-DMP parameters of the policy's forcing terms with `matrices` coordination matrices (the DMPs' kernels
+  /// and transformation system, goal offsets as config().policy says).
+  primitives::DrDmpParameters forcingParameters(int matrices) const;
   /// Writes the demonstration's DMPs as DMP files (primitives/dmp_yaml.hpp), `prefix` + "left.yaml" and
   /// + "right.yaml"; ClothFoldConfig::demonstration_files reads them back. \throws std::invalid_argument.
   void saveDemonstration(const std::string& prefix) const;
   /// The demonstration's two Cartesian DMPs (world frame) and their parameter vector.
   const std::vector<primitives::CartesianDmp>& demonstration() const noexcept;
   Eigen::VectorXd demonstrationParameters() const;
-  /// The two DMPs with the demonstration's start, goal and duration and the weights `theta`.
+  /// The two DMPs with the demonstration's start and duration, the weights `theta`, and the goal theta's goal weights
+  /// move it to (position + w_g / (α_z β_z), orientation vector likewise): where run(theta) takes the tools in the
+  /// end (run() moves the goal there gradually, primitives::DrDmpParameters::goal_offsets).
   /// \throws std::invalid_argument for a wrong size.
   std::vector<primitives::CartesianDmp> dmps(const Eigen::VectorXd& theta) const;
 
