@@ -1,10 +1,12 @@
 // Incremental locally weighted regression: a noisy 1-D function, and the thesis' use (Sec. 2.3.1): learning
 // n(q, q̇) = u − M(q_d) q̈_d along a task on a simulated WAM, then controlling with it instead of C q̇ + G + F_f.
+// Spearman's rank correlation against scipy and its bootstrap interval.
 #include "test_support.hpp"
 
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/learning/locally_weighted_regression.hpp"
+#include "bimanual_skills/learning/rank_correlation.hpp"
 #include "bimanual_skills/learning/student_t.hpp"
 #include "testing/no_alloc_guard.hpp"
 
@@ -145,4 +147,37 @@ TEST(StudentT, QuantilesAndIntervals) {
   EXPECT_NEAR(m.half_width, 2.776 * std::sqrt(2.5 / 5.0), 1e-12);
   EXPECT_EQ(bl::meanInterval95({7.0}).half_width, 0.0);
   EXPECT_THROW(bl::meanInterval95({}), std::invalid_argument);
+}
+
+// Ranks with ties and Spearman's ρ against scipy.stats.rankdata and spearmanr; the bootstrap interval holds the
+// estimate, is seeded, and narrows with more pairs.
+TEST(RankCorrelation, SpearmanAgainstScipyAndItsBootstrap) {
+  EXPECT_EQ(bl::ranks({3, 1, 4, 1, 5, 9, 2, 6}), (std::vector<double>{4, 1.5, 5, 1.5, 6, 8, 3, 7}));
+  EXPECT_NEAR(bl::spearman({1, 2, 3, 4, 5}, {5, 6, 7, 8, 7}), 0.8207826816681233, 1e-14);
+  EXPECT_NEAR(bl::spearman({0.3, 0.1, 0.4, 0.1, 0.5, 0.9, 0.2, 0.6}, {2, 7, 1, 8, 2, 8, 1, 8}), 0.19885368120992467,
+              1e-14);
+  EXPECT_DOUBLE_EQ(bl::spearman({1, 2, 3}, {-1, -5, -9}), -1.0);
+  EXPECT_DOUBLE_EQ(bl::spearman({1, 2, 3}, {4, 4, 4}), 0.0);
+  EXPECT_THROW(bl::spearman({1, 2}, {1, 2, 3}), std::invalid_argument);
+  EXPECT_THROW(bl::spearman({1}, {1}), std::invalid_argument);
+  EXPECT_THROW(bl::spearman({1, NAN}, {1, 2}), std::invalid_argument);
+
+  std::mt19937 rng(3);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::vector<double> x, y;
+  for (int i = 0; i < 200; ++i) {
+    x.push_back(noise(rng));
+    y.push_back(x.back() + noise(rng));
+  }
+  const bl::BootstrapInterval all = bl::bootstrapSpearman(x, y, 1000, 7);
+  EXPECT_EQ(all.estimate, bl::spearman(x, y));
+  EXPECT_LT(all.low, all.estimate);
+  EXPECT_GT(all.high, all.estimate);
+  const bl::BootstrapInterval again = bl::bootstrapSpearman(x, y, 1000, 7);
+  EXPECT_EQ(again.low, all.low);
+  EXPECT_EQ(again.high, all.high);
+  const bl::BootstrapInterval few = bl::bootstrapSpearman(std::vector<double>(x.begin(), x.begin() + 20),
+                                                          std::vector<double>(y.begin(), y.begin() + 20), 1000, 7);
+  EXPECT_GT(few.high - few.low, all.high - all.low);
+  EXPECT_THROW(bl::bootstrapSpearman(x, y, 10, 7), std::invalid_argument);
 }

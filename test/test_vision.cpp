@@ -12,6 +12,7 @@
 #include <limits>
 #include <random>
 #include <stdexcept>
+#include <utility>
 #include <vector>
 
 namespace bv = bimanual_skills::vision;
@@ -598,5 +599,94 @@ TEST(ImageReward, GoalTermCountsMissingPixelsAndHeightErrors) {
   EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
   bad = {};
   bad.goal_weight = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
+}
+
+// ---- Fold term ----
+
+// Against a flat cloth of 40 × 24 pixels one layer thick, drawn by hand: the flat cloth's edges, fold line, table
+// depth and thickness are found; the ideal fold (the near 20 columns, two layers) scores 0, the flat cloth 1, and a
+// fold dragged 3 pixels over its near edge or 4 away from it, one whose top layer stops 6 pixels short, and one
+// missing half its rows score their widths by the term's weights exactly.
+TEST(ImageReward, FoldTermMeasuresTheFoldAgainstTheFlatCloth) {
+  const bv::TopDownCamera camera = scene(64, 48).camera;
+  const double s = camera.pixel_size;
+  bv::ImageRewardParameters parameters;
+  parameters.fold_weight = 2.0;
+  parameters.fold_smoothing = 0.0;
+  bv::ImageReward reward(camera, parameters);
+  const float table = 1.35f, layer = 0.004f;
+  // Cloth drawn as columns [u0, u1) of rows [10, 34), each column `layers` thick.
+  const auto image = [&](int u0, int u1, int thin_until, int rows = 24) {
+    cv::Mat bgr(camera.rows, camera.columns, CV_8UC3, cv::Scalar(143, 184, 209));
+    cv::Mat depth(camera.rows, camera.columns, CV_32FC1, cv::Scalar(table));
+    const cv::Rect cloth(u0, 10, u1 - u0, rows);
+    bgr(cloth).setTo(cv::Scalar(184, 60, 26));
+    depth(cloth).setTo(table - 2.0f * layer);
+    if (thin_until > u0) depth(cv::Rect(u0, 10, thin_until - u0, rows)).setTo(table - layer);
+    return std::make_pair(bgr, depth);
+  };
+  EXPECT_THROW(reward.setFlat(cv::Mat(camera.rows, camera.columns, CV_8UC3, cv::Scalar(143, 184, 209)),
+                              cv::Mat(camera.rows, camera.columns, CV_32FC1, cv::Scalar(table))),
+               std::invalid_argument);  // no cloth
+  const auto [flat_bgr, flat_depth] = image(10, 50, 50);
+  EXPECT_THROW(reward.setFlat(flat_bgr, cv::Mat(camera.rows, camera.columns, CV_32FC1, cv::Scalar(table + 0.01f))),
+               std::invalid_argument);  // the cloth below the table
+  EXPECT_THROW(reward.setFlat(flat_bgr.t(), flat_depth), std::invalid_argument);
+  EXPECT_FALSE(reward.hasFlat());
+  EXPECT_EQ(reward.foldTerm(flat_depth, reward.mask()).status, bv::VisionStatus::NoCloth);
+  reward.setFlat(flat_bgr, flat_depth);
+  ASSERT_TRUE(reward.hasFlat());
+  const bv::FlatCloth& flat = reward.flat();
+  EXPECT_EQ(flat.near_column, 10);
+  EXPECT_EQ(flat.far_column, 50);
+  EXPECT_EQ(flat.first_row, 10);
+  EXPECT_EQ(flat.last_row, 33);
+  EXPECT_DOUBLE_EQ(flat.fold_column(), 30.0);
+  EXPECT_NEAR(flat.table_depth, table, 1e-6);
+  EXPECT_NEAR(flat.thickness, layer, 1e-6);
+
+  const double flat_error = parameters.fold_single_weight * 20 * s + parameters.fold_length_weight * 20 * s;
+  const auto term = [&](const std::pair<cv::Mat, cv::Mat>& images) {
+    EXPECT_EQ(reward.segment(images.first), bv::VisionStatus::Ok);
+    return reward.foldTerm(images.second, reward.mask());
+  };
+  bv::FoldTerm t = term(image(10, 30, 0));  // the ideal fold
+  ASSERT_EQ(t.status, bv::VisionStatus::Ok);
+  EXPECT_NEAR(t.mismatch, 0.0, 1e-12);
+  t = term(image(10, 50, 50));  // still flat
+  EXPECT_NEAR(t.single, 20 * s, 1e-12);
+  EXPECT_NEAR(t.length, 20 * s, 1e-12);
+  EXPECT_NEAR(t.mismatch, 1.0, 1e-12);
+  t = term(image(7, 27, 0));  // dragged over the near edge
+  EXPECT_NEAR(t.edge, 3 * s, 1e-12);
+  EXPECT_NEAR(t.single, 0.0, 1e-12);
+  EXPECT_NEAR(t.length, 0.0, 1e-12);
+  EXPECT_NEAR(t.error, parameters.fold_edge_weight * 3 * s, 1e-12);
+  t = term(image(14, 34, 0));  // dragged away from the near edge: the same
+  EXPECT_NEAR(t.edge, 4 * s, 1e-12);
+  EXPECT_NEAR(t.error, parameters.fold_edge_weight * 4 * s, 1e-12);
+  t = term(image(10, 30, 16));  // the top layer 6 columns short
+  EXPECT_NEAR(t.single, 6 * s, 1e-12);
+  EXPECT_NEAR(t.mismatch, parameters.fold_single_weight * 6 * s / flat_error, 1e-12);
+  t = term(image(10, 30, 0, 12));  // half the rows bare: each counts twice the flat cloth's error
+  EXPECT_NEAR(t.mismatch, 1.0, 1e-12);
+  // evaluate() weighs it by w_f; without cloth in view it is twice the flat cloth's, without a flat cloth unknown (1).
+  const auto [ideal_bgr, ideal_depth] = image(10, 30, 0);
+  EXPECT_NEAR(reward.evaluate(ideal_bgr, ideal_depth).r_fold, 0.0, 1e-12);
+  const cv::Mat table_only(camera.rows, camera.columns, CV_8UC3, cv::Scalar(143, 184, 209));
+  EXPECT_DOUBLE_EQ(reward.evaluate(table_only, ideal_depth).r_fold, 4.0);
+  reward.clearFlat();
+  EXPECT_DOUBLE_EQ(reward.evaluate(ideal_bgr, ideal_depth).r_fold, 2.0);
+  EXPECT_EQ(reward.foldTerm(cv::Mat(), reward.mask()).status, bv::VisionStatus::WrongImageSize);
+
+  bv::ImageRewardParameters bad;
+  bad.layer_threshold = 1.0;
+  EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
+  bad = {};
+  bad.fold_single_weight = bad.fold_length_weight = 0.0;
+  EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
+  bad = {};
+  bad.fold_edge_weight = std::nan("");
   EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
 }

@@ -18,16 +18,18 @@ void FoldRewardConfig::validate(const char* where) const {
 }
 
 FoldRewardConfig rewardSetting(FoldRewardConfig config, const std::string& name, const std::string& where) {
-  if (name == "thesis") {
+  config.image.colour_weight = config.image.depth_weight = config.image.goal_weight = config.image.fold_weight = 0.0;
+  if (name == "fold") {
+    config.acceleration_weight = 0.001;
+    config.image.fold_weight = 1.0;
+  } else if (name == "thesis") {
     config.acceleration_weight = 0.01;
     config.image.colour_weight = config.image.depth_weight = 1.0;
-    config.image.goal_weight = 0.0;
   } else if (name == "goal") {
     config.acceleration_weight = 0.002;
-    config.image.colour_weight = config.image.depth_weight = 0.0;
     config.image.goal_weight = 1.0;
   } else {
-    throw std::invalid_argument(where + ": unknown reward setting '" + name + "' (thesis, goal)");
+    throw std::invalid_argument(where + ": unknown reward setting '" + name + "' (fold, thesis, goal)");
   }
   config.setting = name;
   return config;
@@ -51,6 +53,7 @@ FoldReward::FoldReward(const FoldRewardConfig& config, double flat_area, const E
     : config_(config),
       flat_area_(flat_area),
       renderer_((config.validate("fold reward"), config.renderer)),
+      flat_renderer_(config.renderer),
       image_(config.renderer.camera, config.image) {
   if (!(flat_area > 0.0) || !std::isfinite(flat_area)) {
     throw std::invalid_argument("fold reward: the flat cloth's area must be > 0");
@@ -65,11 +68,27 @@ FoldReward::FoldReward(const FoldRewardConfig& config, double flat_area, const E
 
 FoldRewardTerms FoldReward::evaluate(const FoldRollout& rollout, std::mt19937& rng) {
   renderer_.render(rollout.cloth_vertices, rollout.cloth_triangles, rng);
+  // The flat cloth after the reset: the rollout's cloth at rest, drawn after the final images so that those stay
+  // what the same seed gave before the fold term existed.
+  image_.clearFlat();
+  if (rollout.cloth_rest_vertices.cols() > 0 &&
+      flat_renderer_.render(rollout.cloth_rest_vertices, rollout.cloth_triangles, rng) == vision::VisionStatus::Ok) {
+    try {
+      image_.setFlat(flat_renderer_.bgr(), flat_renderer_.depth());
+    } catch (const std::invalid_argument&) {
+      // No flat cloth in view: the fold term is unknown (ImageReward::evaluate).
+    }
+  }
   FoldRewardTerms t = evaluateImages(rollout.outcome, rollout.acceleration_cost, renderer_.bgr(), renderer_.depth());
   t.fold_quality = rollout.fold.q;
   t.fold_distance = rollout.fold.distance;
   t.fold_displacement = rollout.fold.displacement;
   return t;
+}
+
+void FoldReward::observeFlat(const cv::Mat& bgr, const cv::Mat& depth) {
+  image_.clearFlat();
+  image_.setFlat(bgr, depth);
 }
 
 FoldRewardTerms FoldReward::evaluateImages(FoldOutcome outcome, double acceleration_cost, const cv::Mat& bgr,
@@ -84,6 +103,11 @@ FoldRewardTerms FoldReward::evaluateImages(FoldOutcome outcome, double accelerat
   t.r_goal = image.r_goal;
   t.goal_iou = image.goal.iou;
   t.goal_mismatch = image.goal.mismatch;
+  t.r_fold = image.r_fold;
+  t.fold_mismatch = image.fold.mismatch;
+  t.fold_edge = image.fold.edge;
+  t.fold_single = image.fold.single;
+  t.fold_length = image.fold.length;
   t.fill_ratio = image.colour.fill_ratio;
   t.mean_gradient = image.depth.mean_gradient;
   t.area_ratio = facts.area_ratio;

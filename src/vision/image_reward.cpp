@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace bimanual_skills::vision {
 
@@ -38,6 +39,12 @@ void ImageRewardParameters::validate(const char* where) const {
         goal_excess_height > 0.0)) {
     fail(where, "goal_missing_height and goal_excess_height must be finite and > 0");
   }
+  if (!nonNegative(fold_weight) || !nonNegative(fold_edge_weight) || !nonNegative(fold_single_weight) ||
+      !nonNegative(fold_length_weight) || !(fold_single_weight + fold_length_weight > 0.0)) {
+    fail(where, "fold weights must be finite and >= 0, fold_single_weight + fold_length_weight > 0");
+  }
+  if (!(std::isfinite(layer_threshold) && layer_threshold > 1.0)) fail(where, "layer_threshold must be > 1");
+  if (!nonNegative(fold_smoothing)) fail(where, "fold_smoothing must be finite and >= 0");
 }
 
 ImageReward::ImageReward(const TopDownCamera& camera, const ImageRewardParameters& parameters)
@@ -54,6 +61,8 @@ ImageReward::ImageReward(const TopDownCamera& camera, const ImageRewardParameter
   smoothed_.create(rows, columns, CV_32FC1);
   gx_.create(rows, columns, CV_32FC1);
   gy_.create(rows, columns, CV_32FC1);
+  height_.create(rows, columns, CV_32FC1);
+  smoothed_height_.create(rows, columns, CV_32FC1);
   points_.reserve(4 * static_cast<std::size_t>(rows + columns));
   mask_.setTo(0);
 }
@@ -216,6 +225,124 @@ GoalTerm ImageReward::goalTerm(const cv::Mat& depth, const cv::Mat& mask) const 
   return term;
 }
 
+namespace {
+
+/// The median of `values` (not empty); reorders them.
+double median(std::vector<float>& values) {
+  const auto middle = values.begin() + static_cast<std::ptrdiff_t>(values.size() / 2);
+  std::nth_element(values.begin(), middle, values.end());
+  return *middle;
+}
+
+}  // namespace
+
+void ImageReward::setFlat(const cv::Mat& bgr, const cv::Mat& depth) {
+  const char* const where = "ImageReward::setFlat";
+  if (!fits(bgr, CV_8UC3) || !fits(depth, CV_32FC1)) {
+    fail(where, "a CV_8UC3 colour and a CV_32FC1 depth image of the camera's size are needed");
+  }
+  if (segment(bgr) != VisionStatus::Ok) fail(where, "no cloth in the flat cloth's image");
+  // The table: a band from 1 to 4 cm around the cloth.
+  const auto pixels = [&](double metres) {
+    return std::max(1, static_cast<int>(std::lround(metres / camera_.pixel_size)));
+  };
+  cv::Mat outer, inner;
+  cv::dilate(mask_, outer, cv::Mat(), cv::Point(-1, -1), pixels(0.04));
+  cv::dilate(mask_, inner, cv::Mat(), cv::Point(-1, -1), pixels(0.01));
+  cv::erode(mask_, eroded_, cv::Mat(), cv::Point(-1, -1), 2, cv::BORDER_CONSTANT, cv::Scalar(0));
+  std::vector<float> table, cloth;
+  FlatCloth flat;
+  flat.near_column = camera_.columns;
+  flat.first_row = camera_.rows;
+  flat.far_column = flat.last_row = -1;
+  for (int v = 0; v < camera_.rows; ++v) {
+    const unsigned char* m = mask_.ptr<unsigned char>(v);
+    const unsigned char* o = outer.ptr<unsigned char>(v);
+    const unsigned char* i = inner.ptr<unsigned char>(v);
+    const unsigned char* e = eroded_.ptr<unsigned char>(v);
+    const float* d = depth.ptr<float>(v);
+    for (int u = 0; u < camera_.columns; ++u) {
+      if (m[u] != 0) {
+        flat.near_column = std::min(flat.near_column, u);
+        flat.far_column = std::max(flat.far_column, u + 1);
+        flat.first_row = std::min(flat.first_row, v);
+        flat.last_row = std::max(flat.last_row, v);
+      }
+      if (!std::isfinite(d[u])) continue;
+      if (o[u] != 0 && i[u] == 0) table.push_back(d[u]);
+      if (e[u] != 0) cloth.push_back(d[u]);
+    }
+  }
+  if (table.empty()) fail(where, "no table around the flat cloth");
+  if (cloth.empty()) fail(where, "the flat cloth has no pixel of finite depth away from its edge");
+  flat.table_depth = median(table);
+  flat.thickness = flat.table_depth - median(cloth);
+  if (!(flat.thickness > 0.0)) fail(where, "the flat cloth is not above the table");
+  if (flat.far_column - flat.near_column < 2) fail(where, "the flat cloth is narrower than two pixels");
+  flat_ = flat;
+  has_flat_ = true;
+}
+
+FoldTerm ImageReward::foldTerm(const cv::Mat& depth, const cv::Mat& mask) {
+  FoldTerm term;
+  if (!fits(depth, CV_32FC1) || !fits(mask, CV_8UC1)) {
+    term.status = VisionStatus::WrongImageSize;
+    return term;
+  }
+  if (!has_flat_) return term;  // NoCloth: mismatch 1.
+  const ImageRewardParameters& p = parameters_;
+  const double s = camera_.pixel_size, uc = flat_.fold_column();
+  const int u0 = flat_.near_column, u1 = flat_.far_column, goal_end = static_cast<int>(std::ceil(uc));
+  const double flat_error = p.fold_single_weight * (uc - u0) * s + p.fold_length_weight * (u1 - uc) * s;
+  term.mismatch = 2.0;
+  if (cv::countNonZero(mask) == 0) return term;  // NoCloth: worse than the flat cloth.
+  // Height above the table on the cloth, smoothed.
+  for (int v = 0; v < camera_.rows; ++v) {
+    const unsigned char* m = mask.ptr<unsigned char>(v);
+    const float* d = depth.ptr<float>(v);
+    float* h = height_.ptr<float>(v);
+    for (int u = 0; u < camera_.columns; ++u) {
+      const double above = flat_.table_depth - double(d[u]);
+      h[u] = m[u] != 0 && std::isfinite(above) ? static_cast<float>(std::max(0.0, above)) : 0.0f;
+    }
+  }
+  const cv::Mat* height = &height_;
+  if (p.fold_smoothing > 0.0) {
+    const double sigma = p.fold_smoothing / s;
+    cv::GaussianBlur(height_, smoothed_height_, cv::Size(0, 0), sigma, sigma, cv::BORDER_REPLICATE);
+    height = &smoothed_height_;
+  }
+  const double layer = p.layer_threshold * flat_.thickness;
+  double edge = 0.0, single = 0.0, length = 0.0, empty = 0.0;
+  for (int v = flat_.first_row; v <= flat_.last_row; ++v) {
+    const unsigned char* m = mask.ptr<unsigned char>(v);
+    const float* h = height->ptr<float>(v);
+    int a = -1, b = -1, thin = 0;
+    for (int u = 0; u < camera_.columns; ++u) {
+      if (m[u] == 0) continue;
+      if (a < 0) a = u;
+      b = u + 1;
+      if (u >= u0 && u < goal_end && h[u] < layer) ++thin;
+    }
+    if (a < 0) {
+      empty += 1.0;
+      continue;
+    }
+    edge += std::abs(a - u0) * s;
+    single += thin * s;
+    length += std::abs((b - a) - (uc - u0)) * s;
+  }
+  const double rows = flat_.last_row - flat_.first_row + 1;
+  term.edge = edge / rows;
+  term.single = single / rows;
+  term.length = length / rows;
+  term.error = p.fold_edge_weight * term.edge + p.fold_single_weight * term.single +
+               p.fold_length_weight * term.length + 2.0 * flat_error * empty / rows;
+  term.mismatch = term.error / flat_error;
+  term.status = VisionStatus::Ok;
+  return term;
+}
+
 FoldFacts ImageReward::foldFacts(const cv::Mat& mask, double flat_area) {
   if (!(std::isfinite(flat_area) && flat_area > 0.0)) {
     throw std::invalid_argument("ImageReward::foldFacts: flat_area must be finite and > 0");
@@ -246,12 +373,15 @@ ImageRewardTerms ImageReward::evaluate(const cv::Mat& bgr, const cv::Mat& depth)
     terms.colour = colourTerm(mask_);
     terms.depth = depthTerm(depth, mask_);
     terms.goal = goalTerm(depth, mask_);
+    terms.fold = foldTerm(depth, mask_);
     terms.status = terms.colour.status != VisionStatus::Ok ? terms.colour.status : terms.depth.status;
   }
   const bool seen = terms.status == VisionStatus::Ok;
   terms.r_color = parameters_.colour_weight * (seen ? 1.0 - terms.colour.fill_ratio : 1.0);
   terms.r_depth = parameters_.depth_weight * (seen ? terms.depth.mean_gradient : parameters_.no_cloth_gradient);
   terms.r_goal = parameters_.goal_weight * (seen && terms.goal.status == VisionStatus::Ok ? terms.goal.mismatch : 1.0);
+  // Without a flat cloth the fold term is unknown (1); without cloth in view, worse than the flat cloth (2).
+  terms.r_fold = parameters_.fold_weight * (!has_flat_ ? 1.0 : seen ? terms.fold.mismatch : 2.0);
   return terms;
 }
 

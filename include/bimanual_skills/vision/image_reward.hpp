@@ -21,6 +21,20 @@
 /// counts ½ where two belong), or heaped above it (τ_excess: a crumpled lump, air under a layer). w_g = 0 by
 /// default: (7.52) as the thesis has it.
 ///
+/// And a fold term that needs nothing but the camera: the flat cloth as the camera sees it after the reset
+/// (setFlat()) gives the table's depth d_T, the cloth's thickness h_0, its near and far edges u_0, u_1 along the
+/// image's u axis (the fold axis: the half at larger u is folded onto the half at smaller u) and the fold line
+/// u_c = (u_0 + u_1)/2. Along each image row the flat cloth covers, with a, b the first and last cloth column of the
+/// final image and s the pixel size,
+///   edge   = |a − u_0| s                               (the staying half dragged: its near edge moved)
+///   single = s · #{u_0 ≤ u < u_c: cloth of height < θ h_0 above the table}    (one layer where two belong)
+///   length = |(b − a) − (u_c − u_0)| s                  (the folded cloth longer or shorter than half the flat one)
+///   E      = mean over the rows of w_e edge + w_s single + w_l length      [m]   (a row without cloth: 2 E_flat)
+///   R_fold = w_f · E / E_flat,   E_flat = w_s (u_c − u_0) s + w_l (u_1 − u_c) s   (the flat cloth's E)
+/// so R_fold = 0 for the ideal fold and w_f for the cloth left flat. The weights are a linear model of 1 − q (the
+/// fold quality of tasks/fold_quality.hpp) fitted by non-negative least squares on scripted folds of many kinds;
+/// docs/RESULTS.md ("A camera reward that ranks folds") has the fit and the test on folds it was not fitted to.
+///
 /// The thesis defines ρ (Fig. 7.9a: blue pixels over the pixels of the smallest rectangle containing them) and ḡ
 /// (Fig. 7.9b: the mean depth gradient as wrinkledness) but prints no weights, and (7.52) subtracts R_color while
 /// the text calls it a term that is large and negative for a non-rectangular result. We read both vision terms as
@@ -72,6 +86,13 @@ struct ImageRewardParameters {
   double goal_weight = 0.0;            ///< w_g ≥ 0 in R_goal = w_g · mismatch.
   double goal_missing_height = 0.008;  ///< τ_missing [m] > 0 (two 4 mm layers).
   double goal_excess_height = 0.05;    ///< τ_excess [m] > 0.
+  double fold_weight = 0.0;            ///< w_f ≥ 0 in R_fold = w_f · E / E_flat.
+  double fold_edge_weight = 5.5;       ///< w_e ≥ 0.
+  double fold_single_weight = 1.4;     ///< w_s ≥ 0 (w_s + w_l > 0).
+  double fold_length_weight = 4.5;     ///< w_l ≥ 0.
+  double layer_threshold = 1.5;        ///< θ > 1: cloth thinner than θ h_0 above the table is one layer.
+  /// σ [m of table] of the Gaussian smoothing of the height map against sensor noise before θ is applied; ≥ 0.
+  double fold_smoothing = 0.003;
 
   /// Throws std::invalid_argument naming `where` and the parameter that is out of range.
   void validate(const char* where) const;
@@ -99,6 +120,26 @@ struct GoalTerm {
   double mismatch = 1.0;                        ///< Mean of e over M ∪ G, in [0, 1].
 };
 
+/// The flat cloth as setFlat() measured it.
+struct FlatCloth {
+  double table_depth = 0.0;         ///< d_T [m]: median depth of the table in a band 1–4 cm around the cloth.
+  double thickness = 0.0;           ///< h_0 [m]: median height of the cloth above the table.
+  int near_column = 0;              ///< u_0: the cloth's first column.
+  int far_column = 0;               ///< u_1: one past its last column.
+  int first_row = 0, last_row = 0;  ///< The rows the cloth covers (inclusive).
+  double fold_column() const noexcept { return 0.5 * (near_column + far_column); }  ///< u_c
+};
+
+/// The fold term's facts (widths are means over the flat cloth's rows).
+struct FoldTerm {
+  VisionStatus status = VisionStatus::NoCloth;  ///< NoCloth also when no flat cloth is set.
+  double edge = 0.0;                            ///< [m]
+  double single = 0.0;                          ///< [m]
+  double length = 0.0;                          ///< [m]
+  double error = 0.0;                           ///< E [m]
+  double mismatch = 1.0;                        ///< E / E_flat: 0 the ideal fold, 1 the flat cloth.
+};
+
 /// How folded the cloth looks: what the folding demo reports.
 struct FoldFacts {
   VisionStatus status = VisionStatus::NoCloth;
@@ -117,11 +158,13 @@ struct ImageRewardTerms {
   ColourTerm colour;
   DepthTerm depth;
   GoalTerm goal;
+  FoldTerm fold;
   double r_color = 0.0;  ///< R_color = w_c (1 − ρ); w_c when no cloth is visible.
   double r_depth = 0.0;  ///< R_depth = w_d ḡ; w_d · no_cloth_gradient when no cloth is visible.
   double r_goal = 0.0;   ///< R_goal = w_g · mismatch; w_g when no cloth is visible or no goal is set.
-  /// The vision part of the reward: −R_color − R_depth − R_goal (add −R_acceleration for the whole reward).
-  double reward() const noexcept { return -r_color - r_depth - r_goal; }
+  double r_fold = 0.0;   ///< R_fold = w_f · E / E_flat; 2 w_f when no cloth is visible, w_f without a flat cloth.
+  /// The vision part of the reward: −R_color − R_depth − R_goal − R_fold (add −R_acceleration for the whole reward).
+  double reward() const noexcept { return -r_color - r_depth - r_goal - r_fold; }
 };
 
 /// Evaluates the image terms for one camera's images (size and pixel size fixed at construction).
@@ -155,10 +198,22 @@ class ImageReward {
   /// The goal term of a depth image (CV_32FC1 [m]) and its cloth mask (CV_8UC1) against the goal; a pixel of
   /// non-finite depth counts as a mismatch. NoCloth without a goal or without cloth in `mask`.
   GoalTerm goalTerm(const cv::Mat& depth, const cv::Mat& mask) const;
+  /// Measures the flat cloth (FlatCloth) from a colour (CV_8UC3) and a depth image (CV_32FC1 [m]) of the camera's
+  /// size taken after the reset: the fold term's reference. \throws std::invalid_argument for images of another
+  /// size or type, no cloth, no table around it, or a cloth that is not above the table.
+  void setFlat(const cv::Mat& bgr, const cv::Mat& depth);
+  bool hasFlat() const noexcept { return has_flat_; }
+  /// Forgets the flat cloth: the fold term is unknown until the next setFlat().
+  void clearFlat() noexcept { has_flat_ = false; }
+  const FlatCloth& flat() const noexcept { return flat_; }
+  /// The fold term of a depth image (CV_32FC1 [m]) and its cloth mask (CV_8UC1) against the flat cloth; a pixel of
+  /// non-finite depth counts as one layer. NoCloth without a flat cloth or without cloth in `mask` (mismatch 2).
+  FoldTerm foldTerm(const cv::Mat& depth, const cv::Mat& mask);
   /// Fold facts of a mask, `flat_area` [m²] (> 0) being the flat cloth's area (e.g. 0.5 × 0.6).
   FoldFacts foldFacts(const cv::Mat& mask, double flat_area);
 
-  /// segment(), then colourTerm(), depthTerm() and goalTerm() on the segmented mask, and the weighted terms.
+  /// segment(), then colourTerm(), depthTerm(), goalTerm() and foldTerm() on the segmented mask, and the weighted
+  /// terms.
   ImageRewardTerms evaluate(const cv::Mat& bgr, const cv::Mat& depth);
 
  private:
@@ -169,6 +224,9 @@ class ImageReward {
   cv::Mat hsv_, mask_, opened_, eroded_, weights_, weighted_, smoothed_, gx_, gy_;
   cv::Mat goal_mask_, goal_depth_;
   bool has_goal_ = false;
+  cv::Mat height_, smoothed_height_;
+  FlatCloth flat_;
+  bool has_flat_ = false;
   std::vector<std::vector<cv::Point>> contours_;
   std::vector<cv::Point> points_;
 };

@@ -402,36 +402,59 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
   return release;
 }
 
-tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double acceleration_cost) {
+struct FoldOnRobotTask::Camera {
+  cv_bridge::CvImageConstPtr bgr, metres;
+  sensor_msgs::PointCloud2ConstPtr cloth;
+};
+
+FoldOnRobotTask::Camera FoldOnRobotTask::cameraImages(const ros::Time& after, bool with_cloth) {
   sensor_msgs::ImageConstPtr image, depth;
   sensor_msgs::CameraInfoConstPtr info;
-  sensor_msgs::PointCloud2ConstPtr cloth;
+  Camera out;
+  with_cloth = with_cloth && !robot_.cloth.empty();
   waitFor(
       [&] {
         const std::lock_guard<std::mutex> lock(mutex_);
         image = image_;
         depth = depth_;
         info = info_;
-        cloth = cloth_;
+        out.cloth = cloth_;
         const auto fresh = [&](const auto& m) { return m && m->header.stamp >= after; };
-        return fresh(image) && fresh(depth) && fresh(info) && (robot_.cloth.empty() || fresh(cloth));
+        return fresh(image) && fresh(depth) && fresh(info) && (!with_cloth || fresh(out.cloth));
       },
-      "the camera " + robot_.camera + (robot_.cloth.empty() ? "" : " and the cloth " + robot_.cloth));
+      "the camera " + robot_.camera + (with_cloth ? " and the cloth " + robot_.cloth : ""));
+  if (!with_cloth) out.cloth = nullptr;
   const vision::TopDownCamera& camera = reward_.config().renderer.camera;
   if (static_cast<int>(info->width) != camera.columns || static_cast<int>(info->height) != camera.rows) {
     throw Failure{tasks::FoldOutcome::RobotFailed,
                   "the camera's images are " + std::to_string(info->width) + " x " + std::to_string(info->height) +
                       ", the reward's camera " + std::to_string(camera.columns) + " x " + std::to_string(camera.rows)};
   }
-  cv_bridge::CvImageConstPtr bgr, metres;
   try {
-    bgr = cv_bridge::toCvShare(image, "bgr8");
-    metres = cv_bridge::toCvShare(depth, "32FC1");
+    out.bgr = cv_bridge::toCvShare(image, "bgr8");
+    out.metres = cv_bridge::toCvShare(depth, "32FC1");
   } catch (const cv_bridge::Exception& e) {
     throw Failure{tasks::FoldOutcome::RobotFailed, std::string("unreadable camera image: ") + e.what()};
   }
+  return out;
+}
+
+void FoldOnRobotTask::observeFlat(const ros::Time& after) {
+  const Camera camera = cameraImages(after, false);
+  try {
+    reward_.observeFlat(camera.bgr->image, camera.metres->image);
+  } catch (const std::invalid_argument& e) {
+    throw Failure{tasks::FoldOutcome::RobotFailed, std::string("the camera does not show the flat cloth after the "
+                                                               "reset: ") +
+                                                       e.what()};
+  }
+}
+
+tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double acceleration_cost) {
+  const Camera camera = cameraImages(after, true);
+  const sensor_msgs::PointCloud2ConstPtr& cloth = camera.cloth;
   tasks::FoldRewardTerms terms =
-      reward_.evaluateImages(tasks::FoldOutcome::Ok, acceleration_cost, bgr->image, metres->image);
+      reward_.evaluateImages(tasks::FoldOutcome::Ok, acceleration_cost, camera.bgr->image, camera.metres->image);
   terms.fold_quality = terms.fold_distance = terms.fold_displacement = std::numeric_limits<double>::quiet_NaN();
   if (cloth) {
     try {  // a cloud without x, y, z or of another cloth is the robot's fault, not the learner's
@@ -467,11 +490,11 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     for (const auto& arm : arms_) arm->client->cancelGoal();
   };
   try {
-    if (!rollout::FoldRolloutTask::decode(parameters, tasks::ClothFoldTask::kDofs, task_.config().kernels, coordination,
-                                          weights)) {
+    if (!rollout::FoldRolloutTask::decode(parameters, tasks::ClothFoldTask::kDofs, task_.policyBasisSize(),
+                                          coordination, weights)) {
       throw Failure{tasks::FoldOutcome::InvalidPolicy,
                     "the parameters do not encode a coordinated policy of 12 DoF and " +
-                        std::to_string(task_.config().kernels) + " kernels"};
+                        std::to_string(task_.policyBasisSize()) + " weights per latent DoF"};
     }
     const tasks::FoldPlan plan = task_.plan(coordination, weights);
     acceleration_cost = plan.acceleration_cost;
@@ -480,6 +503,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     // states and every rollout would fail.
     if (!robot_.pause_service.empty()) pause(false);
     reset();
+    observeFlat(ros::Time::now());
     moveToStart();
     // The move took move_time (the clock read before it may still be the one before a reset; nor can a time just
     // after a reset take move_time away: ros::Time is never negative).

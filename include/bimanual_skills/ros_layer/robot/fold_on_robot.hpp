@@ -12,9 +12,10 @@
 ///   - a simulator also offers a std_srvs/SetBool pause (bullet_sim's ~pause): its clock is held from the grasp
 ///     while the fold's goals travel, so that a clock many times faster than the wall cannot outrun them on a loaded
 ///     machine, and the cloth is held for start_delay exactly.
-/// One rollout: reset, move both arms to the fold's start, grasp, run the policy's joint references (the DMPs through
-/// CLIK, tasks::ClothFoldTask::plan, identical to the in-process task's) as one trajectory goal per arm with a common
-/// start time, release, let the cloth settle, and score the camera's images with the reward (tasks::FoldReward). Any
+/// One rollout: reset, take the camera's images of the flat cloth (the fold reward's reference), move both arms to
+/// the fold's start, grasp, run the policy's joint references (the DMPs through CLIK, tasks::ClothFoldTask::plan,
+/// identical to the in-process task's) as one trajectory goal per arm with a common start time, release, let the
+/// cloth settle, and score the camera's images with the reward (tasks::FoldReward). Any
 /// failure (a goal aborted or out of tolerance, a service that fails, a timeout, no image) ends the rollout with its
 /// outcome, a reason and the failure reward; nothing hangs: every wait has a wall-clock limit. Target
 /// bimanual_skills_ros_robot. Offline: allocates; one object per thread.
@@ -101,6 +102,12 @@ class FoldOnRobotTask : public rollout::RolloutTask {
   /// After a failed rollout: resumes a simulator this task paused, if it is still there, without waiting for it.
   void resumeAfterFailure() noexcept;
   void waitForGoal(Arm& arm, const std::string& what);
+  /// The camera's colour and depth images (and the cloth's cloud, if the robot has one and `with_cloth`) stamped at
+  /// `after` or later, checked against the reward's camera.
+  struct Camera;
+  Camera cameraImages(const ros::Time& after, bool with_cloth);
+  /// The flat cloth after the reset: the fold reward's reference.
+  void observeFlat(const ros::Time& after);
   tasks::FoldRewardTerms observe(const ros::Time& after, double acceleration_cost);
   template <typename Done>
   void waitFor(const Done& done, const std::string& what);

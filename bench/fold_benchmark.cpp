@@ -1,0 +1,336 @@
+// The cloth fold's ground truth against what the camera rewards make of it, and the best fold there is:
+//
+//   fold_benchmark --experiment folds|ceiling|all --seed S --out DIR [--quick] [--count N] [--config FILE]
+//                  [--jobs N]
+//
+// folds: N clearly different folds (default 30), each the noise-free scripted demonstration of a fold drawn with the
+//   seed: reach, lift, release height, duration and a late right arm (tasks::ClothFoldConfig's demo_*). Each is run
+//   once and scored by every named reward setting on the same rendered images; the fold quality q of the cloth mesh
+//   (tasks/fold_quality.hpp) is the ground truth. Writes DIR/folds.csv (a row per fold, as each finishes), the
+//   camera's images of each fold (DIR/folds/NN_*.png: colour, and depth as 16-bit PNG in units of 0.1 mm), and
+//   Spearman's rank correlation of each setting's reward with q (bootstrap interval over the folds) in
+//   summary.json and tables.md (scripts/plot_fold_benchmark.py).
+// ceiling: q_max, the best fold a search with a large budget and the ground truth itself finds: CMA-ES on q over the
+//   scripted demonstration's reach, lift, release height and duration (60 generations of 10), then CMA-ES on q over
+//   the 12 goal offsets of the learner's policy from the best of those (120 generations of 12): 2040 rollouts.
+//   Writes DIR/ceiling.csv (every rollout, as each generation finishes) and q_max in summary.json.
+// The learning file (--config, default config/fold_demo.yaml) gives the simulation, the controllers, the camera's
+// noise and the reward's settings; only the demonstration (and, in the ceiling's second stage, the goals) changes.
+#include "bimanual_skills/learning/covariance_adaptation.hpp"
+#include "bimanual_skills/learning/gaussian.hpp"
+#include "bimanual_skills/learning/rank_correlation.hpp"
+#include "bimanual_skills/parallel/parallel_for.hpp"
+#include "bimanual_skills/rollout/fold_learning.hpp"
+#include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "cli/package_share.hpp"
+#include "experiment_cli.hpp"
+#include "parallel_runs.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace bs = bimanual_skills;
+namespace br = bimanual_skills::rollout;
+namespace bt = bimanual_skills::tasks;
+
+namespace {
+
+using Options = bs::bench::ExperimentOptions;
+
+/// The reward settings every fold is scored by, the learning file's first.
+std::vector<std::string> rewardSettings() {
+  return {"fold", "thesis", "goal"};
+}
+
+/// One scripted fold of the set.
+struct FoldDraw {
+  double reach = 0.0, lift = 0.0, drop = 0.0, duration = 0.0, lag = 0.0;
+};
+
+/// Fold `index` of the set of `seed`: reach 0–1.1 (the arc's end, × the cloth's half length before the fold line),
+/// lift 0.1–0.7, release height 0–0.3 m, duration 2.5–5 s, and in a third of the folds the right arm 10–40 % late.
+FoldDraw drawFold(std::uint32_t seed, int index) {
+  std::seed_seq sequence{seed, 0xf01du, static_cast<std::uint32_t>(index)};
+  std::mt19937 rng(sequence);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  FoldDraw d;
+  d.reach = 1.1 * unit(rng);
+  d.lift = 0.1 + 0.6 * unit(rng);
+  d.drop = 0.3 * unit(rng);
+  d.duration = 2.5 + 2.5 * unit(rng);
+  const double late = unit(rng), lag = 0.1 + 0.3 * unit(rng);
+  d.lag = late < 1.0 / 3.0 ? lag : 0.0;
+  return d;
+}
+
+/// The learning file's task with the scripted demonstration `d`.
+bt::ClothFoldConfig withDemonstration(bt::ClothFoldConfig task, const FoldDraw& d) {
+  task.demonstration_files.clear();
+  task.demo_reach = d.reach;
+  task.demo_lift = d.lift;
+  task.demo_drop = d.drop;
+  task.duration = d.duration;
+  task.demo_lag = d.lag;
+  return task;
+}
+
+/// Writes a colour image and a depth image (CV_32FC1 [m]) as DIR/NAME.png and DIR/NAME_depth.png (uint16, 0.1 mm).
+void writeImages(const std::string& dir, const std::string& name, const cv::Mat& bgr, const cv::Mat& depth) {
+  cv::imwrite(dir + "/" + name + ".png", bgr);
+  cv::Mat tenths;
+  depth.convertTo(tenths, CV_16U, 1e4);
+  cv::imwrite(dir + "/" + name + "_depth.png", tenths);
+}
+
+struct FoldResult {
+  FoldDraw draw;
+  bt::FoldOutcome outcome = bt::FoldOutcome::Ok;
+  std::string reason;
+  bt::FoldQuality fold;
+  double acceleration_cost = 0.0;
+  std::vector<bt::FoldRewardTerms> terms;  ///< Per reward setting.
+};
+
+void foldsExperiment(const Options& options, const br::FoldLearningConfig& config, int count,
+                     std::vector<bs::bench::JsonRow>& rows) {
+  const std::string image_dir = options.out + "/folds";
+  std::filesystem::create_directories(image_dir);
+  const std::vector<std::string> settings = rewardSettings();
+  std::ofstream csv(options.out + "/folds.csv");
+  csv << "index,reach,lift,drop,duration,lag,outcome,fold_quality,fold_distance,fold_displacement,acceleration_cost";
+  for (const std::string& s : settings) {
+    csv << ',' << s << "_reward," << s << "_r_acceleration," << s << "_r_color," << s << "_r_depth," << s << "_r_goal,"
+        << s << "_goal_mismatch," << s << "_r_fold";
+  }
+  csv << ",fold_mismatch,fold_edge,fold_single,fold_length,reason\n";
+  std::vector<FoldResult> results(static_cast<std::size_t>(count));
+  std::printf("fold_benchmark folds: %d scripted folds of seed %u on %d threads\n", count, options.seed, options.jobs);
+  bs::bench::parallelRuns(
+      count, options.jobs,
+      [&](int i) {
+        FoldResult& r = results[static_cast<std::size_t>(i)];
+        r.draw = drawFold(options.seed, i);
+        bt::ClothFoldTask fold(withDemonstration(config.task, r.draw));
+        const bt::FoldRollout rollout = fold.run(fold.demonstrationParameters());
+        r.outcome = rollout.outcome;
+        r.reason = rollout.reason;
+        r.fold = rollout.fold;
+        r.acceleration_cost = rollout.acceleration_cost;
+        const std::uint32_t noise_seed = options.seed * 1000u + static_cast<std::uint32_t>(i);
+        for (const std::string& name : settings) {
+          const bt::FoldRewardConfig reward_config = bt::rewardSetting(config.reward, name, "fold_benchmark");
+          bt::FoldReward reward(reward_config, fold.simConfig().cloth.length * fold.simConfig().cloth.width,
+                                fold.idealFoldVertices(), fold.clothTriangles());
+          std::seed_seq sequence{noise_seed, 0x5eedu};
+          std::mt19937 rng(sequence);
+          r.terms.push_back(reward.evaluate(rollout, rng));
+          if (&name == &settings.front()) {
+            char stem[32];
+            std::snprintf(stem, sizeof stem, "%02d_final", i);
+            writeImages(image_dir, stem, reward.bgr(), reward.depth());
+          }
+        }
+        // The flat cloth as the camera sees it after the reset.
+        bs::vision::ClothRenderer renderer(config.reward.renderer);
+        std::seed_seq flat_sequence{noise_seed, 0xf1a7u};
+        std::mt19937 flat_rng(flat_sequence);
+        renderer.render(rollout.cloth_rest_vertices, rollout.cloth_triangles, flat_rng);
+        char stem[32];
+        std::snprintf(stem, sizeof stem, "%02d_flat", i);
+        writeImages(image_dir, stem, renderer.bgr(), renderer.depth());
+      },
+      [&](int i) {
+        const FoldResult& r = results[static_cast<std::size_t>(i)];
+        std::printf("  fold %2d: reach %.2f lift %.2f drop %.3f duration %.2f lag %.2f  q %6.3f  %s\n", i, r.draw.reach,
+                    r.draw.lift, r.draw.drop, r.draw.duration, r.draw.lag, r.fold.q, bt::toString(r.outcome));
+        std::fflush(stdout);
+        csv << i << ',' << r.draw.reach << ',' << r.draw.lift << ',' << r.draw.drop << ',' << r.draw.duration << ','
+            << r.draw.lag << ',' << bt::toString(r.outcome) << ',' << r.fold.q << ',' << r.fold.distance << ','
+            << r.fold.displacement << ',' << r.acceleration_cost;
+        for (const bt::FoldRewardTerms& t : r.terms) {
+          csv << ',' << t.reward << ',' << t.r_acceleration << ',' << t.r_color << ',' << t.r_depth << ',' << t.r_goal
+              << ',' << t.goal_mismatch << ',' << t.r_fold;
+        }
+        const bt::FoldRewardTerms& t = r.terms.front();
+        csv << ',' << t.fold_mismatch << ',' << t.fold_edge << ',' << t.fold_single << ',' << t.fold_length << ",\""
+            << r.reason << "\"\n"
+            << std::flush;
+        rows.emplace_back()
+            .add("experiment", "folds")
+            .add("index", i)
+            .add("fold_quality", r.fold.q)
+            .add("outcome", bt::toString(r.outcome));
+      });
+  // How each reward ranks the folds that finished: Spearman's ρ with q and its bootstrap interval over the folds.
+  std::vector<double> q;
+  std::vector<std::vector<double>> signals(settings.size() + 1);
+  for (const FoldResult& r : results) {
+    if (r.outcome != bt::FoldOutcome::Ok) continue;
+    q.push_back(r.fold.q);
+    for (std::size_t s = 0; s < settings.size(); ++s) signals[s].push_back(r.terms[s].reward);
+    signals.back().push_back(-r.terms.front().fold_mismatch);
+  }
+  std::printf("fold_benchmark folds: %zu of %d folds finished; Spearman's rho with q (95 %% bootstrap interval):\n",
+              q.size(), count);
+  for (std::size_t s = 0; s <= settings.size() && q.size() >= 2; ++s) {
+    const std::string name = s < settings.size() ? settings[s] + " reward" : "fold image term (-E/E_flat)";
+    const bs::learning::BootstrapInterval rho = bs::learning::bootstrapSpearman(signals[s], q, 10000, options.seed);
+    std::printf("  %-30s %6.3f [%6.3f, %6.3f]\n", name.c_str(), rho.estimate, rho.low, rho.high);
+    rows.emplace_back()
+        .add("experiment", "ranking")
+        .add("signal", name)
+        .add("folds", static_cast<int>(q.size()))
+        .add("spearman", rho.estimate)
+        .add("spearman_low", rho.low)
+        .add("spearman_high", rho.high)
+        .add("bootstrap_resamples", rho.resamples);
+  }
+}
+
+/// The scripted fold of a point of the unit box: reach 0–1.2, lift 0.1–0.8, release height 0–0.3 m, duration
+/// 2.5–5 s (coordinates clamped into the box).
+FoldDraw scriptedFold(const Eigen::VectorXd& x) {
+  const Eigen::VectorXd u = x.cwiseMax(0.0).cwiseMin(1.0);
+  FoldDraw d;
+  d.reach = 1.2 * u[0];
+  d.lift = 0.1 + 0.7 * u[1];
+  d.drop = 0.3 * u[2];
+  d.duration = 2.5 + 2.5 * u[3];
+  return d;
+}
+
+void ceilingExperiment(const Options& options, const br::FoldLearningConfig& config,
+                       std::vector<bs::bench::JsonRow>& rows) {
+  const int population[2] = {options.quick ? 4 : 10, options.quick ? 4 : 12};
+  const int generations[2] = {options.quick ? 2 : 60, options.quick ? 2 : 120};
+  std::ofstream csv(options.out + "/ceiling.csv");
+  csv << "stage,generation,index,reach,lift,drop,duration";
+  for (int i = 0; i < bt::ClothFoldTask::kDofs; ++i) csv << ",goal_" << i;
+  csv << ",outcome,fold_quality\n";
+  std::mt19937 rng(options.seed);
+  bs::learning::GaussianSampler sampler;
+  double best_q = -std::numeric_limits<double>::infinity();
+  FoldDraw best_fold;
+  Eigen::VectorXd best_goals = Eigen::VectorXd::Zero(bt::ClothFoldTask::kDofs);
+  int evaluated = 0;
+  std::printf("fold_benchmark ceiling: CMA-ES on q, seed %u, %d + %d rollouts on %d threads\n", options.seed,
+              population[0] * generations[0], population[1] * generations[1], options.jobs);
+  for (int stage = 0; stage < 2; ++stage) {
+    // Stage 0: the scripted fold's 4 parameters in the unit box, from its middle; stage 1: the 12 goal offsets [m]
+    // of the best scripted fold's policy, from 0.
+    const Eigen::Index dims = stage == 0 ? 4 : bt::ClothFoldTask::kDofs;
+    Eigen::VectorXd mean = stage == 0 ? Eigen::VectorXd::Constant(dims, 0.5) : Eigen::VectorXd::Zero(dims);
+    const double sigma = stage == 0 ? 0.25 : 0.04;
+    bs::learning::CovarianceAdaptation adaptation =
+        bs::learning::CovarianceAdaptation::start(sigma * sigma * Eigen::MatrixXd::Identity(dims, dims));
+    const FoldDraw base = best_fold;
+    std::vector<std::unique_ptr<bt::ClothFoldTask>> tasks(static_cast<std::size_t>(options.jobs));
+    for (int g = 0; g < generations[stage]; ++g) {
+      Eigen::MatrixXd samples =
+          sampler.draw(mean, bs::learning::choleskyFactor(adaptation.covariance()), population[stage], rng);
+      if (stage == 0) samples = samples.cwiseMax(0.0).cwiseMin(1.0);  // the box: evaluated and recombined clamped
+      std::vector<bt::FoldRollout> results(static_cast<std::size_t>(population[stage]));
+      std::vector<FoldDraw> draws(results.size(), base);
+      bs::parallel::parallelFor(results.size(), options.jobs, [&](int worker, std::size_t k) {
+        const Eigen::VectorXd x = samples.row(static_cast<Eigen::Index>(k)).transpose();
+        if (stage == 0) {
+          draws[k] = scriptedFold(x);
+          bt::ClothFoldTask task(withDemonstration(config.task, draws[k]));
+          results[k] = task.run(task.demonstrationParameters());
+          return;
+        }
+        std::unique_ptr<bt::ClothFoldTask>& task = tasks[static_cast<std::size_t>(worker)];
+        if (!task) task = std::make_unique<bt::ClothFoldTask>(withDemonstration(config.task, base));
+        Eigen::VectorXd theta = task->demonstrationParameters();
+        const int n = task->policyBasisSize(), kernels = task->config().kernels;
+        const double forcing = task->dmpParameters().alpha_z * task->dmpParameters().beta_z;
+        for (int dof = 0; dof < bt::ClothFoldTask::kDofs; ++dof) theta[dof * n + kernels] = forcing * x[dof];
+        results[k] = task->run(theta);
+      });
+      Eigen::VectorXd q(population[stage]);
+      for (std::size_t k = 0; k < results.size(); ++k) {
+        const bt::FoldRollout& r = results[k];
+        q[static_cast<Eigen::Index>(k)] = r.fold.q;
+        const Eigen::VectorXd goals = stage == 0
+                                          ? Eigen::VectorXd::Zero(bt::ClothFoldTask::kDofs)
+                                          : Eigen::VectorXd(samples.row(static_cast<Eigen::Index>(k)).transpose());
+        csv << stage << ',' << g << ',' << k << ',' << draws[k].reach << ',' << draws[k].lift << ',' << draws[k].drop
+            << ',' << draws[k].duration;
+        for (Eigen::Index i = 0; i < goals.size(); ++i) csv << ',' << goals[i];
+        csv << ',' << bt::toString(r.outcome) << ',' << r.fold.q << '\n';
+        if (r.outcome == bt::FoldOutcome::Ok && r.fold.q > best_q) {
+          best_q = r.fold.q;
+          best_fold = draws[k];
+          best_goals = goals;
+        }
+      }
+      csv << std::flush;
+      evaluated += population[stage];
+      mean = bs::learning::cmaEsStep(mean, adaptation, samples, q);
+      if (g % 10 == 9 || g + 1 == generations[stage]) {
+        std::printf("  stage %d generation %3d: best q of the generation %.3f, q_max so far %.3f (%d rollouts)\n",
+                    stage, g + 1, q.maxCoeff(), best_q, evaluated);
+        std::fflush(stdout);
+      }
+    }
+  }
+  std::printf(
+      "fold_benchmark ceiling: q_max = %.3f (reach %.3f, lift %.3f, release height %.3f m, duration %.2f s, "
+      "goal offsets |%.3f| m)\n",
+      best_q, best_fold.reach, best_fold.lift, best_fold.drop, best_fold.duration, best_goals.norm());
+  bs::bench::JsonRow& row = rows.emplace_back();
+  row.add("experiment", "ceiling")
+      .add("q_max", best_q)
+      .add("rollouts", evaluated)
+      .add("reach", best_fold.reach)
+      .add("lift", best_fold.lift)
+      .add("drop", best_fold.drop)
+      .add("duration", best_fold.duration);
+  for (Eigen::Index i = 0; i < best_goals.size(); ++i) row.add("goal_" + std::to_string(i), best_goals[i]);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string config_path;
+  long count = 0;
+  bs::bench::ExperimentProgram program;
+  program.name = "fold_benchmark";
+  program.description =
+      "The cloth fold's ground truth (the fold quality q of the simulated mesh) against the camera rewards, on a\n"
+      "set of clearly different scripted folds (folds); and q_max, the best fold a large search on q finds (ceiling).";
+  program.experiments = {"folds", "ceiling", "all"};
+  program.with_jobs = true;
+  program.extra = [&](bs::cli::CommandLine& line) {
+    line.option("--config", "FILE", "fold learning file (default: config/fold_demo.yaml)", &config_path);
+    line.option("--count", "N", "folds of the folds experiment (default 30; 4 with --quick)", &count, 1, 10000);
+  };
+  const Options options = bs::bench::parseExperimentOptions(argc, argv, program);
+  try {
+    if (config_path.empty()) config_path = bs::cli::packageFile("config/fold_demo.yaml");
+    const br::FoldLearningConfig config = br::withSimulationRenderer(br::FoldLearningConfig::fromYamlFile(config_path));
+    std::filesystem::create_directories(options.out);
+    std::vector<bs::bench::JsonRow> rows;
+    if (options.experiment != "ceiling") {
+      foldsExperiment(options, config, count > 0 ? static_cast<int>(count) : (options.quick ? 4 : 30), rows);
+    }
+    if (options.experiment != "folds") ceilingExperiment(options, config, rows);
+    bs::bench::writeSummaryJson(options, "fold_benchmark", rows);
+    bs::bench::runPlotScript("fold_benchmark", "plot_fold_benchmark.py", options.out);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "fold_benchmark: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}
