@@ -44,24 +44,29 @@ namespace vision = bimanual_skills::vision;
 namespace {
 
 const char* const kUsage =
-    "usage: rosrun bimanual_skills fold_learner [_config:=FILE] [_out:=DIR] [_reward:=thesis|goal] [_jobs:=N]\n"
+    "usage: rosrun bimanual_skills fold_learner [_config:=FILE] [_out:=DIR] [_reward:=fold|thesis|goal] [_jobs:=N]\n"
+    "                                          [_policy:=goals|weights] [_covariance_memory:=L]\n"
     "                                          [_replay_best:=true|false]\n"
     "                                          [_worker_namespace:=NS | _workers:=NAME,NAME,...] [_worker_timeout:=S]\n"
     "                                          [_backend:=sim|ros [robot interface parameters]]\n"
     "\n"
     "Two simulated WAMs learn to fold a cloth (thesis Sec. 7.2.3, Table 7.5): DR-DMP policies over both tools,\n"
     "executed by CLIK and computed-torque control on the Bullet simulation, scored on rendered top-down colour and\n"
-    "depth images (eq. 7.52, or the goal-image reward), improved by REPS with reward-oriented dimensionality\n"
-    "reduction. Rollouts run in\n"
-    "parallel, are written to DIR as they finish, and a restarted run resumes where it stopped.\n"
+    "depth images (the fold reward against the flat cloth the camera saw, or eq. 7.52), improved by REPS with\n"
+    "reward-oriented dimensionality reduction. Rollouts run in parallel, are written to DIR as they finish, and a\n"
+    "restarted run resumes where it stopped.\n"
     "\n"
     "Parameters (private):\n"
     "  ~config       learning file (default: the package's config/fold_demo.yaml; config/fold_table75.yaml is\n"
     "                the full Table 7.5 setting)\n"
     "  ~out          results directory (default: fold_learning in the working directory)\n"
-    "  ~reward       the reward's named setting instead of the learning file's: thesis (eq. 7.52) or goal (the\n"
-    "                final images against the ideal fold's; docs/RESULTS.md says why), with that setting's weights\n"
+    "  ~reward       the reward's named setting instead of the learning file's: fold (the final images against\n"
+    "                the flat cloth the camera saw after the reset), thesis (eq. 7.52) or goal (against the ideal\n"
+    "                fold's image, simulation only; docs/RESULTS.md compares them), with that setting's weights\n"
     "                (the file's reward weights are not used). Not with workers, which read the learning file\n"
+    "  ~policy       goals or weights (the thesis' DR-DMP: its folds end where the demonstration ends) instead of\n"
+    "                the learning file's task policy; ~covariance_memory in [0, 1) instead of its (0: the thesis'\n"
+    "                REPS update). Not with workers either\n"
     "  ~jobs         rollouts in parallel (default: the learning file's, 0 = one per core)\n"
     "  ~replay_best  after learning, replay the best rollout on the topics in a loop until shut down (default\n"
     "                false: exit when done)\n"
@@ -130,12 +135,21 @@ class FoldLearnerNode {
     out_ = parameters_.text("out", "fold_learning");
     replay_best_ = parameters_.boolean("replay_best", false);
     config_ = br::FoldLearningConfig::fromYamlFile(config_path_);
-    const std::string reward = parameters_.has("reward") ? parameters_.text("reward", "", {"thesis", "goal"}) : "";
+    const std::string reward =
+        parameters_.has("reward") ? parameters_.text("reward", "", {"fold", "thesis", "goal"}) : "";
     if (!reward.empty()) config_.reward = bt::rewardSetting(config_.reward, reward, "fold_learner ~reward");
+    // The ablations of the learning file's setting (docs/RESULTS.md): the thesis' weights-only policy, its REPS.
+    const bool ablated = parameters_.has("policy") || parameters_.has("covariance_memory");
+    if (parameters_.has("policy")) {
+      config_.task.policy = bt::foldPolicyFromString(parameters_.text("policy", "", {"goals", "weights"}), "~policy");
+    }
+    config_.covariance_memory = parameters_.number("covariance_memory", config_.covariance_memory, 0.0, 0.999);
     config_.jobs = parameters_.integer("jobs", config_.jobs, 0, 1024);
     std::unique_ptr<br::Evaluator> evaluator = makeDispatcher();
-    if (evaluator && !reward.empty()) {
-      throw std::invalid_argument("~reward is not for rollout workers: they read the learning file, set it there");
+    if (evaluator && (!reward.empty() || ablated)) {
+      throw std::invalid_argument(
+          "~reward, ~policy and ~covariance_memory are not for rollout workers: they read the learning file, set "
+          "them there");
     }
     if (parameters_.text("backend", "sim", {"sim", "ros"}) == "ros") {
       if (evaluator) throw std::invalid_argument("~backend ros runs the rollouts on the robot, not on workers");
@@ -170,8 +184,8 @@ class FoldLearnerNode {
     scene_publisher_.publish(bs::nodes::tableMarker(table_, ros::Time::now()));
     camera_frame_.sendTransform(bs::ros_layer::cameraTransform(learner_->config().reward.renderer.camera, "world",
                                                                kCameraFrame, ros::Time::now()));
-    total_ = config_.repetitions + static_cast<int>(config_.algorithms.size()) * config_.runs *
-                                       ((config_.updates + 1) * config_.rollouts + 2);
+    total_ = config_.repetitions + static_cast<int>(config_.algorithms.size()) * config_.runs * (config_.updates + 1) *
+                                       (config_.rollouts + 1);
   }
 
   void run() {
@@ -211,18 +225,18 @@ class FoldLearnerNode {
         "  roslaunch bimanual_skills fold.launch replay:=%s/best_rollout.bag\n",
         out_.c_str(), best->algorithm.c_str(), best->run + 1, best->epoch, br::toString(best->kind), best->index,
         best->terms.reward, out_.c_str());
-    // The fold's ground truth (the cloth mesh, not the camera): each run's first and last epoch, mean ± standard
-    // error over the epoch's rollouts, and its mean policy before and after.
+    // The fold's ground truth (the cloth mesh, not the camera): each run's noise-free policy before and after the
+    // learning, what a user gets; and its exploring rollouts (mean ± standard error) in the first and last epoch.
     for (const br::FoldRunResult& r : result.runs) {
       if (r.epochs.empty()) continue;
       const br::FoldEpochStats &first = r.epochs.front(), &last = r.epochs.back();
       const double root = std::sqrt(static_cast<double>(config_.rollouts));
       std::printf(
-          "fold_learner: %s run %d: fold quality %.3f ± %.3f → %.3f ± %.3f (epoch %d → %d, mean ± "
-          "standard error of its rollouts); mean policy %.3f → %.3f\n",
-          r.algorithm.c_str(), r.run + 1, first.fold_quality, first.fold_quality_std / root, last.fold_quality,
-          last.fold_quality_std / root, first.epoch, last.epoch, r.initial_policy.terms.fold_quality,
-          r.final_policy.terms.fold_quality);
+          "fold_learner: %s run %d: the noise-free policy folds with fold quality %.3f → %.3f (epoch %d → %d); its "
+          "exploring rollouts %.3f ± %.3f → %.3f ± %.3f\n",
+          r.algorithm.c_str(), r.run + 1, r.initial_policy.terms.fold_quality, r.final_policy.terms.fold_quality,
+          first.epoch, last.epoch, first.fold_quality, first.fold_quality_std / root, last.fold_quality,
+          last.fold_quality_std / root);
     }
     std::fflush(stdout);
     if (replay_best_) replayLoop(*best, replay);
@@ -311,11 +325,11 @@ class FoldLearnerNode {
     const int simulated = done_ - resumed_;
     const double eta = simulated > 0 ? elapsed / simulated * (total_ - done_) : 0.0;
     std::printf(
-        "[%s run %d] epoch %d/%d %s %d: R = %.4f (acc %.3f, color %.3f, depth %.3f, goal %.3f, area %.2f), fold "
+        "[%s run %d] epoch %d/%d %s %d: R = %.4f (acc %.3f, color %.3f, depth %.3f, goal %.3f, fold %.3f), fold "
         "quality %.2f %s%s%s | %d/%d rollouts, ETA %s\n",
         record.algorithm.c_str(), record.run + 1, record.epoch, config_.updates, br::toString(record.kind),
         record.index + 1, record.terms.reward, record.terms.r_acceleration, record.terms.r_color, record.terms.r_depth,
-        record.terms.r_goal, record.terms.area_ratio, record.terms.fold_quality, bt::toString(record.terms.outcome),
+        record.terms.r_goal, record.terms.r_fold, record.terms.fold_quality, bt::toString(record.terms.outcome),
         record.reason.empty() ? "" : ": ", record.reason.c_str(), done_, total_, formatSeconds(eta).c_str());
     std::fflush(stdout);
     if (record.resumed) return;
@@ -358,9 +372,9 @@ class FoldLearnerNode {
   void onEpoch(const br::FoldEpochStats& s) {
     ROS_INFO(
         "fold_learner: %s run %d epoch %d/%d: mean reward %.4f +- %.4f (acc %.3f, color %.3f, depth %.3f, "
-        "goal %.3f, area %.2f), fold quality %.3f, r = %d, %d failed",
+        "goal %.3f, fold %.3f), fold quality %.3f, r = %d, %d failed",
         s.algorithm.c_str(), s.run + 1, s.epoch, config_.updates, s.mean_reward, s.std_reward, s.r_acceleration,
-        s.r_color, s.r_depth, s.r_goal, s.area_ratio, s.fold_quality, s.latent_dims, s.failures);
+        s.r_color, s.r_depth, s.r_goal, s.r_fold, s.fold_quality, s.latent_dims, s.failures);
   }
 
   sensor_msgs::JointState jointState(const bt::FoldRollout& rollout, Eigen::Index sample,
@@ -464,7 +478,8 @@ class FoldLearnerNode {
         // Over the runs: the mean of the epoch's rollout rewards, its std across runs and the rollouts' std.
         const auto n = static_cast<double>(runs.size());
         double mean = 0.0, spread = 0.0, within = 0.0, acc = 0.0, color = 0.0, depth = 0.0, rho = 0.0, g = 0.0,
-               area = 0.0, goal = 0.0, mismatch = 0.0, dims = 0.0, failures = 0.0, quality = 0.0, quality_within = 0.0;
+               area = 0.0, goal = 0.0, mismatch = 0.0, fold = 0.0, fold_mismatch = 0.0, dims = 0.0, failures = 0.0,
+               quality = 0.0, quality_within = 0.0;
         for (const br::FoldRunResult* r : runs) {
           const br::FoldEpochStats& s = r->epochs[static_cast<std::size_t>(e)];
           mean += s.mean_reward / n;
@@ -477,6 +492,8 @@ class FoldLearnerNode {
           area += s.area_ratio / n;
           goal += s.r_goal / n;
           mismatch += s.goal_mismatch / n;
+          fold += s.r_fold / n;
+          fold_mismatch += s.fold_mismatch / n;
           quality += s.fold_quality / n;
           quality_within += s.fold_quality_std / n;
           dims += s.latent_dims / n;
@@ -502,6 +519,8 @@ class FoldLearnerNode {
             .add("area_ratio", area)
             .add("r_goal", goal)
             .add("goal_mismatch", mismatch)
+            .add("r_fold", fold)
+            .add("fold_mismatch", fold_mismatch)
             .add("fold_quality", quality)
             .add("fold_quality_std_within_runs", quality_within)
             .add("latent_dims", dims)
@@ -519,6 +538,8 @@ class FoldLearnerNode {
           .add("experiment", "fold_policy")
           .add("algorithm", algorithm)
           .add("reward_setting", config_.reward.setting)
+          .add("policy", bt::toString(config_.task.policy))
+          .add("covariance_memory", config_.covariance_memory)
           .add("initial_policy_reward", initial)
           .add("final_policy_reward", final_reward)
           .add("initial_policy_fold_quality", initial_quality)

@@ -47,3 +47,24 @@ def mean_ci(values):
         return m, 0.0
     s = (sum((v - m) ** 2 for v in values) / (n - 1)) ** 0.5
     return m, t975(n - 1) * s / n ** 0.5
+
+
+def holm(pvalues):
+    """Holm's step-down adjustment of the p-values of the tests behind one claim (same order as given): the k-th
+    smallest p is multiplied by (m - k + 1), and the adjusted values are made monotone; none exceeds 1."""
+    order = sorted(range(len(pvalues)), key=lambda i: pvalues[i])
+    adjusted = [0.0] * len(pvalues)
+    running = 0.0
+    for rank, i in enumerate(order):
+        running = max(running, min(1.0, (len(pvalues) - rank) * pvalues[i]))
+        adjusted[i] = running
+    return adjusted
+
+
+def bootstrap_mean_ci(values, resamples=10000, seed=1):
+    """Mean of `values` (independent units, e.g. runs) and its percentile bootstrap 95 % interval."""
+    import random
+    rng = random.Random(seed)
+    n = len(values)
+    means = sorted(sum(values[rng.randrange(n)] for _ in range(n)) / n for _ in range(resamples))
+    return sum(values) / n, means[int(0.025 * (resamples - 1))], means[int(0.975 * (resamples - 1))]

@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
-"""Plots of a fold_learner run: reads DIR/epochs.csv, DIR/coordination.csv and DIR/summary.json, writes
-DIR/learning_curve.png (per algorithm and epoch, the mean over runs of the rollouts' mean reward with their standard
-deviation as a band, the reward terms, and the fold quality q from the cloth mesh), DIR/coordination.png (the final
-coordination matrices, thesis Fig. 7.9d) and DIR/table75.md (the measured Table 7.5 next to the thesis'); and, from
+"""Plots of a fold_learner run: reads DIR/epochs.csv, DIR/rollouts.csv, DIR/coordination.csv and DIR/summary.json,
+writes DIR/learning_curve.png (per algorithm and epoch: the fold quality q of the noise-free policy, the headline,
+and of the exploring rollouts, their reward and its terms; bands: 95 % Student-t intervals over the runs),
+DIR/coordination.png (the final coordination matrices, thesis Fig. 7.9d), DIR/proxy.png and DIR/table75.md (the
+learned policies, the rollouts to q >= 0.8, tests with Holm's correction, the reward against q run by run, the
+measured Table 7.5 next to the thesis'); and, from
 DIR/NAME_frames.csv, NAME_triangles.csv and NAME_top_K.png that fold_learner writes for the initial and the final
 policy, DIR/filmstrip_NAME.png (six moments: the top-down camera above, an oblique view below, q under each) and
 DIR/NAME.gif (the oblique view of the whole rollout).
@@ -25,7 +27,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 from PIL import Image  # noqa: E402
-from plot_common import mean_ci, output_directory  # noqa: E402
+from plot_common import bootstrap_mean_ci, holm, mean_ci, output_directory  # noqa: E402
 from scipy import stats  # noqa: E402
 
 # Thesis Table 7.5: mean reward of the rollouts at epoch 1 and epoch 15 (3 runs).
@@ -35,9 +37,11 @@ Q_TARGET = 0.8
 # Each as a function of a rollouts.csv row and the acceleration cost A = int |qdd|^2 dt (the run's R_acceleration
 # over its w_a), whatever reward the run learned on: the two named reward settings and their terms.
 PROXY_SIGNALS = [
+    ('fold reward (default)', lambda r, a: -0.001 * a - float(r['fold_mismatch'])),
     ('thesis reward (7.52)', lambda r, a: -0.01 * a - (1.0 - float(r['fill_ratio'])) - float(r['mean_gradient'])),
     ('goal reward', lambda r, a: -0.002 * a - float(r['goal_mismatch'])),
     ('-R_acceleration', lambda r, a: -a),
+    ('-fold mismatch E/E_flat', lambda r, a: -float(r['fold_mismatch'])),
     ('-R_color (1 - rho)', lambda r, a: float(r['fill_ratio']) - 1.0),
     ('-R_depth (gbar)', lambda r, a: -float(r['mean_gradient'])),
     ('-goal mismatch', lambda r, a: -float(r['goal_mismatch']))]
@@ -62,41 +66,42 @@ def band(rows, column, spread):
 
 
 def learning_curve(directory, epochs):
-    fig, axes = plt.subplots(1, 3, figsize=(17, 4.5))
+    fig, axes = plt.subplots(1, 4, figsize=(22, 4.5))
     runs = max(len(rows) for per_epoch in epochs.values() for rows in per_epoch.values())
     band_name = f'95 % t-interval over {runs} runs' if runs > 1 else 'the rollouts\' std'
     for algorithm, per_epoch in epochs.items():
         xs = sorted(per_epoch)
-        reward = [band(per_epoch[e], 'mean_reward', 'std_reward') for e in xs]
-        line, = axes[0].plot(xs, [m for m, _ in reward], marker='o', label=algorithm)
-        axes[0].fill_between(xs, [m - d for m, d in reward], [m + d for m, d in reward], color=line.get_color(),
-                             alpha=0.2)
-        for term, style in (('r_acceleration', ':'), ('r_color', '--'), ('r_depth', '-.'), ('r_goal', '-')):
-            values = [sum(float(r[term]) for r in per_epoch[e]) / len(per_epoch[e]) for e in xs]
-            if any(values):  # a term the reward setting weighs by 0 is left out
-                axes[1].plot(xs, values, style, color=line.get_color(), label=f'{algorithm} {term}')
+        policy = [mean_ci([float(r['policy_fold_quality']) for r in per_epoch[e]]) for e in xs]
+        line, = axes[0].plot(xs, [m for m, _ in policy], marker='o', label=algorithm)
+        color = line.get_color()
+        axes[0].fill_between(xs, [m - d for m, d in policy], [m + d for m, d in policy], color=color, alpha=0.2)
         q = [band(per_epoch[e], 'fold_quality', 'fold_quality_std') for e in xs]
-        axes[2].plot(xs, [m for m, _ in q], marker='o', color=line.get_color(), label=algorithm)
-        axes[2].fill_between(xs, [m - d for m, d in q], [m + d for m, d in q], color=line.get_color(), alpha=0.2)
-    axes[0].set_xlabel('epoch (policy updates)')
-    axes[0].set_ylabel(f'reward ({reward_setting(directory)} setting)')
-    axes[0].set_title(f'Mean reward of the rollouts (band: {band_name})')
-    axes[0].grid(True, alpha=0.3)
-    axes[0].legend()
-    axes[1].set_xlabel('epoch (policy updates)')
-    axes[1].set_ylabel('penalty')
-    axes[1].set_title('Reward terms (mean over the rollouts that finished)')
-    axes[1].grid(True, alpha=0.3)
-    axes[1].legend(fontsize=7)
-    axes[2].set_xlabel('epoch (policy updates)')
-    axes[2].set_ylabel('fold quality q (1: ideal fold, 0: flat)')
-    axes[2].set_title(f'Fold quality q from the cloth mesh (band: {band_name})', fontsize=10)
-    axes[2].grid(True, alpha=0.3)
-    axes[2].legend()
+        axes[1].plot(xs, [m for m, _ in q], marker='o', color=color, label=algorithm)
+        axes[1].fill_between(xs, [m - d for m, d in q], [m + d for m, d in q], color=color, alpha=0.2)
+        reward = [band(per_epoch[e], 'mean_reward', 'std_reward') for e in xs]
+        axes[2].plot(xs, [m for m, _ in reward], marker='o', color=color, label=algorithm)
+        axes[2].fill_between(xs, [m - d for m, d in reward], [m + d for m, d in reward], color=color, alpha=0.2)
+        for term, style in (('r_acceleration', ':'), ('r_color', '--'), ('r_depth', '-.'), ('r_goal', '-'),
+                            ('r_fold', '-')):
+            values = [sum(float(r[term]) for r in per_epoch[e]) / len(per_epoch[e]) for e in xs]
+            if any(values) and max(values) < 10.0:  # terms the setting weighs by 0, and failed rollouts' blow-ups
+                axes[3].plot(xs, values, style, color=color, label=f'{algorithm} {term}')
+    for ax in axes[:2]:
+        ax.axhline(Q_TARGET, color='grey', lw=0.8, ls='--')
+        ax.set_ylabel('fold quality q (1: ideal fold, 0: flat)')
+    axes[0].set_title(f'The noise-free policy\'s fold quality q (band: {band_name})', fontsize=10)
+    axes[1].set_title(f'The exploring rollouts\' mean q, failures included (band: {band_name})', fontsize=10)
+    axes[2].set_ylabel(f'reward ({reward_setting(directory)} setting)')
+    axes[2].set_title(f'Mean reward of the rollouts (band: {band_name})', fontsize=10)
+    axes[3].set_ylabel('penalty')
+    axes[3].set_title('Reward terms (mean over the rollouts)', fontsize=10)
     for ax in axes:
+        ax.set_xlabel('epoch (policy updates)')
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     fig.tight_layout()
-    fig.savefig(os.path.join(directory, 'learning_curve.png'), dpi=100)
+    fig.savefig(os.path.join(directory, 'learning_curve.png'), dpi=90)
     plt.close(fig)
 
 
@@ -140,18 +145,103 @@ def interval(values):
     return f'{m:.3f} ± {d:.3f}' if len(values) > 1 else f'{m:.3f}'
 
 
+def runs_of(per_epoch):
+    return sorted({int(r['run']) for rows in per_epoch.values() for r in rows})
+
+
+def policy_quality(per_epoch, run, epoch):
+    for r in per_epoch[epoch]:
+        if int(r['run']) == run:
+            return float(r['policy_fold_quality'])
+    return math.nan
+
+
+def rollouts_to_target(per_epoch, rollouts_per_epoch, target=Q_TARGET):
+    """Per run, the exploring rollouts drawn before the first noise-free policy with q >= target (the policy of epoch
+    e follows e updates of `rollouts_per_epoch`); math.inf for a run that never reaches it."""
+    needed = []
+    for run in runs_of(per_epoch):
+        reached = [e for e in sorted(per_epoch) if policy_quality(per_epoch, run, e) >= target]
+        needed.append(reached[0] * rollouts_per_epoch if reached else math.inf)
+    return needed
+
+
+def per_run_spearman(rollouts, signal, weight):
+    """Spearman's rho of `signal` with q over each run's exploring rollouts (failures included): one value per run."""
+    values = []
+    for key in sorted({(r['algorithm'], r['run']) for r in rollouts}):
+        rows = [r for r in rollouts if (r['algorithm'], r['run']) == key]
+        x = [signal(r, float(r['r_acceleration']) / weight) for r in rows]
+        q = [float(r['fold_quality']) for r in rows]
+        if len(rows) > 2 and len(set(x)) > 1 and len(set(q)) > 1:
+            values.append(stats.spearmanr(x, q)[0])
+    return values
+
+
+def fmt_rollouts(n):
+    return 'never' if math.isinf(n) else f'{n:.0f}'
+
+
+def learned_policies(epochs, rollouts_per_epoch, reference=None):
+    """Markdown lines: the noise-free policies before and after, the rollouts to q >= Q_TARGET, and the tests of the
+    reference algorithm (IDR-DMP_CMU when there) against each other one, Holm-corrected per claim."""
+    last = {a: max(per_epoch) for a, per_epoch in epochs.items()}
+    lines = [f'The noise-free policy, what the learning gives a user: its fold quality q before the first and after '
+             f'the last update (mean ± 95 % Student-t interval over the runs), the runs whose final policy reaches q '
+             f'≥ {Q_TARGET}, and the exploring rollouts drawn before the policy first reached it (median over the '
+             'runs, a run that never did counted as never):', '',
+             '| algorithm | runs | initial q | final q | final reward | final q ≥ 0.8 | rollouts to q ≥ 0.8, median '
+             '(range) |', '|---|---:|---:|---:|---:|---:|---|']
+    needed = {}
+    for algorithm, per_epoch in epochs.items():
+        first = [float(r['policy_fold_quality']) for r in per_epoch[0]]
+        final = [float(r['policy_fold_quality']) for r in per_epoch[last[algorithm]]]
+        reward = [float(r['policy_reward']) for r in per_epoch[last[algorithm]]]
+        needed[algorithm] = rollouts_to_target(per_epoch, rollouts_per_epoch)
+        reached = sorted(n for n in needed[algorithm] if not math.isinf(n))
+        span = f' ({reached[0]:.0f}–{reached[-1]:.0f})' if reached else ''
+        lines.append(f'| {algorithm} | {len(final)} | {interval(first)} | **{interval(final)}** | {interval(reward)} | '
+                     f'{sum(q >= Q_TARGET for q in final)}/{len(final)} | '
+                     f'{fmt_rollouts(np.median(needed[algorithm]))}{span} |')
+    lines.append('')
+    names = list(epochs)
+    reference = reference if reference in epochs else ('IDR-DMP_CMU' if 'IDR-DMP_CMU' in epochs else names[0])
+    others = [a for a in names if a != reference]
+    if not others or min(len(v) for v in needed.values()) < 2:
+        return lines
+    tests = []
+    for other in others:
+        u = stats.mannwhitneyu(needed[reference], needed[other], alternative='less')
+        x = [float(r['policy_fold_quality']) for r in epochs[reference][last[reference]]]
+        y = [float(r['policy_fold_quality']) for r in epochs[other][last[other]]]
+        welch = stats.ttest_ind(x, y, equal_var=False)
+        tests.append((other, u.pvalue, np.mean(x) - np.mean(y), welch.pvalue))
+    fewer = holm([t[1] for t in tests])
+    better = holm([t[3] for t in tests])
+    lines += [f'{reference} against each other algorithm, two claims, each tested against the {len(others)} others '
+              'with Holm\'s correction: it reaches q ≥ 0.8 in fewer rollouts (Mann–Whitney U, one-sided; "never" '
+              'ranks last), and its final policy folds differently (Welch\'s t, two-sided):', '',
+              '| against | fewer rollouts: p | Holm | final q difference | p | Holm |', '|---|---:|---:|---:|---:|---:|']
+    for (other, p_u, diff, p_w), h_u, h_w in zip(tests, fewer, better):
+        lines.append(f'| {other} | {p_u:.3g} | {h_u:.3g} | {diff:+.3f} | {p_w:.3g} | {h_w:.3g} |')
+    lines.append('')
+    return lines
+
+
 def table(directory, epochs, rollouts):
-    """table75.md: per algorithm, the rollouts' mean reward and fold quality at a few epochs (mean ± 95 % t-interval
-    over the runs), Welch's test between the algorithms at the last epoch, Spearman's rho between the camera reward,
-    its terms and q over every rollout, and the rollouts each run needed to reach q >= Q_TARGET."""
+    """table75.md: the learned noise-free policies and the tests behind the claims (learned_policies()); the
+    exploring rollouts' mean reward and q at a few epochs (mean ± 95 % t-interval over the runs, failures counted);
+    how the camera reward and its terms follow q within each run (Spearman, bootstrap over the runs)."""
     summary = json.load(open(os.path.join(directory, 'summary.json')))
+    rollouts_per_epoch = max(int(r['index']) for r in rollouts if r['kind'] == 'sample') + 1
+    lines = learned_policies(epochs, rollouts_per_epoch)
     last = min(max(per_epoch) for per_epoch in epochs.values())
     shown = sorted({0, min(5, last), min(10, last), last})
-    lines = []
-    for column, title in (('mean_reward', f'Mean reward ({reward_setting(directory)} setting) of the rollouts'),
-                          ('fold_quality', 'Fold quality q of the rollouts (cloth mesh)')):
+    for column, title in (('mean_reward', f'Mean reward ({reward_setting(directory)} setting) of the exploring '
+                                          'rollouts'),
+                          ('fold_quality', 'Fold quality q of the exploring rollouts (cloth mesh)')):
         lines += [f'{title}: mean ± 95 % Student-t interval over the runs (one value per run: the mean of its '
-                  'rollouts at that epoch)', '',
+                  'rollouts at that epoch, failed ones included)', '',
                   '| algorithm | runs | ' + ' | '.join(f'epoch {e}' for e in shown) + ' | final r |' +
                   (' thesis epoch 1 → 15 |' if column == 'mean_reward' else ''),
                   '|---|---:|' + '---:|' * (len(shown) + 1) + ('---|' if column == 'mean_reward' else '')]
@@ -162,69 +252,29 @@ def table(directory, epochs, rollouts):
             extra = (f' {thesis[0]} → {thesis[1]} |' if thesis else ' |') if column == 'mean_reward' else ''
             lines.append(f'| {algorithm} | {len(per_epoch[last])} | ' + ' | '.join(cells) + f' | {dims:.1f} |' + extra)
         lines.append('')
-    names = list(epochs)
-    if len(names) > 1:
-        lines += [f'Welch\'s t-test at epoch {last} (two-sided; difference of the first minus the second):', '',
-                  '| pair | reward difference | p | q difference | p |', '|---|---:|---:|---:|---:|']
-        for i, a in enumerate(names):
-            for b in names[i + 1:]:
-                cells = []
-                for column in ('mean_reward', 'fold_quality'):
-                    x = [float(r[column]) for r in epochs[a][last]]
-                    y = [float(r[column]) for r in epochs[b][last]]
-                    p = stats.ttest_ind(x, y, equal_var=False).pvalue if min(len(x), len(y)) > 1 else math.nan
-                    cells += [f'{np.mean(x) - np.mean(y):+.3f}', f'{p:.3f}']
-                lines.append(f'| {a} vs {b} | ' + ' | '.join(cells) + ' |')
+    samples = [r for r in rollouts if r['kind'] == 'sample']
+    weight = acceleration_weight(directory)
+    per_run = [(label, per_run_spearman(samples, signal, weight)) for label, signal in PROXY_SIGNALS]
+    if per_run and per_run[0][1]:
+        runs = len(per_run[0][1])
+        lines += [f'Does the reward follow the fold? Spearman\'s rho of each signal with q over the exploring rollouts '
+                  f'of each run (failures included), the mean over the {runs} runs and its bootstrap 95 % interval '
+                  '(resampling runs); penalties negated, so a good proxy has rho near 1:', '',
+                  '| signal | mean rho over the runs | 95 % interval |', '|---|---:|---|']
+        for label, values in per_run:
+            if values:
+                m, lo, hi = bootstrap_mean_ci(values)
+                lines.append(f'| {label} | {m:.3f} | [{lo:.3f}, {hi:.3f}] |')
         lines.append('')
-    finished = [r for r in rollouts if r['outcome'] == 'Ok' and r['kind'] == 'sample']
-    if len(finished) > 2:
-        q = [float(r['fold_quality']) for r in finished]
-        lines += [f'Is the camera reward a proxy of the fold? Spearman\'s rho with q over the {len(finished)} finished '
-                  'rollouts (penalties negated, so a good proxy has rho near 1):', '',
-                  '| signal | rho | p |', '|---|---:|---:|']
-        weight = acceleration_weight(directory)
-        for label, signal in PROXY_SIGNALS:
-            rho, p = stats.spearmanr([signal(r, float(r['r_acceleration']) / weight) for r in finished], q)
-            lines.append(f'| {label} | {rho:.3f} | {p:.1e} |')
-        lines.append('')
-        proxy_scatter(directory, finished, weight)
-    lines += [f'Rollouts to reach q ≥ {Q_TARGET} (the first epoch whose rollouts\' mean q reaches it; all rollouts up '
-              'to and including it):', '',
-              '| algorithm | runs | reached | median rollouts | range | best epoch mean q (mean over runs) |',
-              '|---|---:|---:|---:|---|---:|']
-    for algorithm, per_epoch in epochs.items():
-        needed = rollouts_to_target(algorithm, per_epoch, rollouts)
-        reached = sorted(n for n in needed if n is not None)
-        best = [max(float(r['fold_quality']) for e in per_epoch for r in per_epoch[e] if int(r['run']) == run)
-                for run in sorted({int(r['run']) for rows in per_epoch.values() for r in rows})]
-        median = np.median([n if n is not None else math.inf for n in needed])
-        median = 'never' if math.isinf(median) else f'{median:.0f}'
-        span = f'{reached[0]}–{reached[-1]}' if reached else '–'
-        lines.append(f'| {algorithm} | {len(needed)} | {len(reached)} | {median} | {span} | '
-                     f'{np.mean(best):.3f} |')
+        proxy_scatter(directory, [r for r in samples if r['outcome'] == 'Ok'], weight)
     for r in summary['results']:
         if r.get('experiment') == 'repetitions':
-            lines.append('')
             lines.append(f"Initial policy over {r['repetitions']} noise-free repetitions: R = {r['mean_reward']:.3f} ± "
                          f"{r['std_reward']:.3f}, rho = {r['fill_ratio']:.3f} ± {r['fill_ratio_std']:.3f}, "
                          f"gbar = {r['mean_gradient']:.3f} ± {r['mean_gradient_std']:.3f} (thesis: R_color 0.799 ± "
                          f"0.088, R_depth 0.473 ± 0.029; std over the repetitions)")
     with open(os.path.join(directory, 'table75.md'), 'w') as f:
         f.write('\n'.join(lines) + '\n')
-
-
-def rollouts_to_target(algorithm, per_epoch, rollouts):
-    """Per run, the number of sampled rollouts up to the first epoch whose mean q reaches Q_TARGET (None: never)."""
-    needed = []
-    for run in sorted({int(r['run']) for rows in per_epoch.values() for r in rows}):
-        reached = [e for e in sorted(per_epoch) for r in per_epoch[e]
-                   if int(r['run']) == run and float(r['fold_quality']) >= Q_TARGET]
-        if not reached:
-            needed.append(None)
-            continue
-        needed.append(sum(1 for r in rollouts if r['algorithm'] == algorithm and int(r['run']) == run
-                          and r['kind'] == 'sample' and int(r['epoch']) <= reached[0]))
-    return needed
 
 
 def reward_file(directory):
@@ -286,15 +336,15 @@ def read_frames(directory, name):
     return times, qualities, meshes, triangles
 
 
-def draw_oblique(ax, mesh, triangles, q, t):
-    """The cloth seen from the front left and above, its triangles shaded by height."""
+def draw_oblique(ax, mesh, triangles, q, t, centre):
+    """The cloth seen from the front left and above, its triangles shaded by height; `centre` the flat cloth's."""
     polygons = mesh[triangles]
     heights = polygons[:, :, 2].mean(axis=1)
     collection = Poly3DCollection(polygons, facecolors=plt.cm.viridis(np.clip((heights - 0.15) / 0.25, 0, 1)),
                                   edgecolors='none')
     ax.add_collection3d(collection)
-    ax.set_xlim(0.2, 0.8)
-    ax.set_ylim(-0.35, 0.35)
+    ax.set_xlim(centre[0] - 0.3, centre[0] + 0.3)
+    ax.set_ylim(centre[1] - 0.35, centre[1] + 0.35)
     ax.set_zlim(0.1, 0.5)
     ax.view_init(elev=30, azim=-120)
     ax.set_axis_off()
@@ -306,6 +356,7 @@ def filmstrip(directory, name):
     if frames is None:
         return False
     times, qualities, meshes, triangles = frames
+    centre = meshes[0][:, :2].mean(axis=0)
     last = len(meshes) - 1
     fig = plt.figure(figsize=(16, 5.6))
     for k in range(6):
@@ -316,7 +367,7 @@ def filmstrip(directory, name):
         top.set_axis_off()
         top.set_title(f't = {times[frame]:.1f} s', fontsize=9)
         draw_oblique(fig.add_subplot(2, 6, 7 + k, projection='3d'), meshes[frame], triangles, qualities[frame],
-                     times[frame])
+                     times[frame], centre)
     fig.suptitle(f'The {name} policy: the reward\'s top-down camera (above) and an oblique view (below), with the '
                  f'fold quality q', fontsize=11)
     fig.tight_layout()
@@ -327,7 +378,7 @@ def filmstrip(directory, name):
     for frame in range(0, len(meshes), 2):
         fig = plt.figure(figsize=(4.8, 3.6))
         draw_oblique(fig.add_subplot(1, 1, 1, projection='3d'), meshes[frame], triangles, qualities[frame],
-                     times[frame])
+                     times[frame], centre)
         fig.tight_layout()
         fig.canvas.draw()
         images.append(Image.frombuffer('RGBA', fig.canvas.get_width_height(), fig.canvas.buffer_rgba()).convert('RGB'))

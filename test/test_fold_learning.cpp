@@ -124,14 +124,25 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_TRUE(std::filesystem::exists(demo.task.sim_config));
   const br::FoldLearningConfig table = br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_table75.yaml");
   EXPECT_EQ(table.algorithms.size(), 5u);
-  EXPECT_EQ(table.runs, 5);
+  EXPECT_EQ(table.runs, 10);
   EXPECT_EQ(table.updates, 15);
   EXPECT_EQ(table.rollouts, 12);
-  EXPECT_DOUBLE_EQ(table.covariance_memory, 0.8);
-  EXPECT_DOUBLE_EQ(demo.covariance_memory, 0.0);
-  EXPECT_EQ(table.reward.setting, "thesis");
-  EXPECT_EQ(demo.reward.setting, "goal");
-  EXPECT_DOUBLE_EQ(table.reward.image.goal_weight, 0.0);
+  // make demo learns as Table 7.5 does: the same faulty demonstration, policy, reward and search settings.
+  for (const br::FoldLearningConfig* c : {&demo, &table}) {
+    EXPECT_DOUBLE_EQ(c->covariance_memory, 0.8);
+    EXPECT_EQ(c->reward.setting, "fold");
+    EXPECT_DOUBLE_EQ(c->reward.image.fold_weight, 1.0);
+    EXPECT_DOUBLE_EQ(c->reward.image.goal_weight, 0.0);
+    EXPECT_EQ(c->task.policy, bt::FoldPolicy::WeightsAndGoals);
+    EXPECT_DOUBLE_EQ(c->task.demo_reach, 0.85);
+    EXPECT_DOUBLE_EQ(c->goal_stddev, 0.03);
+    EXPECT_DOUBLE_EQ(c->eta, 500.0);
+  }
+  const br::FoldLearningConfig ablation =
+      br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_ablation.yaml");
+  EXPECT_EQ(ablation.algorithms, std::vector<std::string>{"IDR-DMP_CMU"});
+  EXPECT_EQ(ablation.runs, table.runs);
+  EXPECT_DOUBLE_EQ(ablation.initial_stddev, table.initial_stddev);
 
   const std::string dir = freshDirectory("files");
   std::filesystem::create_directories(dir);
@@ -159,6 +170,11 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nreward: {setting: best}\n").find("best"), std::string::npos);
   EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nreward: {goal_excess_height: 0}\n").find("goal_excess"),
             std::string::npos);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\ntask: {policy: both}\n").find("both"), std::string::npos);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nlearning: {goal_stddev: 0}\n").find("goal_stddev"),
+            std::string::npos);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\ntask: {demo_lag: 0.95}\n").find("demo_lag"),
+            std::string::npos);
   // A setting gives its weights; an entry beside it overrides one of them.
   const br::FoldLearningConfig goal = br::FoldLearningConfig::fromYamlFile(
       write("sim: " + kSource + "/config/sim.yaml\nreward: {setting: goal, acceleration_weight: 0.003}\n"));
@@ -174,16 +190,16 @@ TEST(FoldLearning, CoordinatedPolicyDrivesTheSameMotion) {
   const Eigen::VectorXd theta = task.demonstrationParameters();
   const bt::FoldRollout plain = task.run(theta);
   ASSERT_EQ(plain.outcome, bt::FoldOutcome::Ok) << plain.reason;
-  // The same forcing terms through a random orthonormal Ω and ω = Ωᵀ θ (per kernel), blended from two equal
-  // matrices: the commanded tool paths (kinematic: DMP and CLIK only) agree to rounding.
+  // The same forcing terms (and goals) through a random orthonormal Ω and ω = Ωᵀ θ (per kernel), blended from two
+  // equal matrices: the commanded tool paths (kinematic: DMP and CLIK only) agree to rounding.
   std::mt19937 rng(3);
   std::normal_distribution<double> normal;
   Eigen::MatrixXd a(12, 12);
   for (Eigen::Index i = 0; i < a.size(); ++i) a.data()[i] = normal(rng);
   const Eigen::MatrixXd omega = Eigen::HouseholderQR<Eigen::MatrixXd>(a).householderQ();
-  const int k = task.config().kernels;
+  const int k = task.policyBasisSize();  // the kernels' weights and the goal's
   const Eigen::MatrixXd full = Eigen::Map<const Eigen::MatrixXd>(theta.data(), k, 12).transpose();
-  const Eigen::MatrixXd latent = omega.transpose() * full;  // r × kernels
+  const Eigen::MatrixXd latent = omega.transpose() * full;  // r × (kernels + 1)
   Eigen::VectorXd w(12 * k);
   for (int j = 0; j < 12; ++j) w.segment(j * k, k) = latent.row(j).transpose();
   const bt::FoldRollout coordinated = task.run({omega, omega}, w);
@@ -208,7 +224,7 @@ TEST(FoldLearning, CoordinatedPolicyDrivesTheSameMotion) {
 TEST(FoldLearning, DemonstrationReward) {
   const br::FoldLearningConfig config = smallConfig();
   bt::ClothFoldTask task(config.task);
-  bt::FoldRewardConfig reward_config = config.reward;
+  bt::FoldRewardConfig reward_config = bt::rewardSetting(config.reward, "thesis", "test");
   reward_config.renderer = bt::rendererFor(task.simConfig());
   bt::FoldReward reward(reward_config, 0.5 * 0.6, task.idealFoldVertices(), task.clothTriangles());
   const bt::FoldRollout r = task.run(task.demonstrationParameters());
@@ -251,6 +267,23 @@ TEST(FoldLearning, DemonstrationReward) {
   EXPECT_LT(demo.goal_mismatch, at_start.goal_mismatch);
   EXPECT_EQ(demo.r_color, 0.0);
   EXPECT_NEAR(demo.reward, -demo.r_acceleration - demo.goal_mismatch, 1e-12);
+
+  // The fold term (the learning's default) against the flat cloth the camera saw: ~0 for the ideal fold, 1 for the
+  // cloth left flat, the demonstration between; its terms are what the record holds.
+  EXPECT_EQ(config.reward.setting, "fold");
+  bt::FoldReward fold(bt::rewardSetting(reward_config, "fold", "test"), 0.5 * 0.6, task.idealFoldVertices(),
+                      task.clothTriangles());
+  const bt::FoldRewardTerms fold_ideal = fold.evaluate(ideal, rng), fold_flat = fold.evaluate(flat, rng),
+                            fold_demo = fold.evaluate(r, rng);
+  std::printf("fold mismatch: ideal %.3f, flat %.3f, demonstration %.3f (q %.3f)\n", fold_ideal.fold_mismatch,
+              fold_flat.fold_mismatch, fold_demo.fold_mismatch, r.fold.q);
+  EXPECT_LT(fold_ideal.fold_mismatch, 0.1);
+  EXPECT_NEAR(fold_flat.fold_mismatch, 1.0, 0.05);
+  EXPECT_GT(fold_demo.fold_mismatch, fold_ideal.fold_mismatch);
+  EXPECT_LT(fold_demo.fold_mismatch, fold_flat.fold_mismatch);
+  EXPECT_NEAR(fold_demo.reward, -fold_demo.r_acceleration - fold_demo.r_fold, 1e-12);
+  EXPECT_EQ(fold_demo.r_fold, fold_demo.fold_mismatch);
+  EXPECT_NEAR(fold_demo.r_acceleration, 0.001 * r.acceleration_cost, 1e-12);
 }
 
 TEST(FoldLearning, SameOnAnyThreadsAndResumes) {
@@ -373,6 +406,21 @@ TEST(FoldLearning, FailedRolloutsGetTheFailureRewardAndTheLearningGoesOn) {
   }
   EXPECT_EQ(failed_rows, failures + (result.runs[0].initial_policy.terms.outcome != bt::FoldOutcome::Ok) +
                              (result.runs[0].final_policy.terms.outcome != bt::FoldOutcome::Ok));
+  // Every mean counts the failed rollouts: the epoch's q is the mean over all its samples, failed ones with the q
+  // of the cloth they left, and its reward the mean with their failure rewards.
+  for (const br::FoldEpochStats& s : result.runs[0].epochs) {
+    double q = 0.0, reward = 0.0;
+    int samples = 0;
+    for (const bimanual_skills::testing::CsvRow& row : bimanual_skills::testing::readCsv(dir + "/rollouts.csv")) {
+      if (row.at("kind") != "sample" || std::stoi(row.at("epoch")) != s.epoch) continue;
+      q += bimanual_skills::testing::csvNumber(row, "fold_quality");
+      reward += bimanual_skills::testing::csvNumber(row, "reward");
+      ++samples;
+    }
+    ASSERT_EQ(samples, config.rollouts);
+    EXPECT_NEAR(s.fold_quality, q / samples, 1e-12) << "epoch " << s.epoch;
+    EXPECT_NEAR(s.mean_reward, reward / samples, 1e-12) << "epoch " << s.epoch;
+  }
 }
 
 TEST(FoldLearning, DemonstrationDmpFilesGiveTheSameRollout) {

@@ -196,3 +196,27 @@ TEST(CovarianceAdaptation, MovesIntoNewCoordinatesAndRejectsBadInput) {
       std::invalid_argument);
   EXPECT_NO_THROW(state.update(m, m, Eigen::MatrixXd::Zero(2, 2), Eigen::Vector2d(0.5, 0.5)));
 }
+
+TEST(CovarianceAdaptation, CmaEsWeightsAndGenerationsFindAQuadraticsOptimum) {
+  // Log-rank weights of the best half (Hansen 2006): for 4 samples μ = 2, w ∝ ln 2.5 − ln 1, ln 2.5 − ln 2.
+  const Eigen::VectorXd w = bl::cmaEsWeights(Eigen::Vector4d(0.3, 0.9, -1.0, 0.5));
+  const double a = std::log(2.5), b = std::log(2.5) - std::log(2.0);
+  EXPECT_NEAR(w[1], a / (a + b), 1e-15);
+  EXPECT_NEAR(w[3], b / (a + b), 1e-15);
+  EXPECT_EQ(w[0], 0.0);
+  EXPECT_EQ(w[2], 0.0);
+  EXPECT_THROW(bl::cmaEsWeights(Eigen::VectorXd()), std::invalid_argument);
+  EXPECT_THROW(bl::cmaEsWeights(Eigen::Vector2d(1.0, NAN)), std::invalid_argument);
+  // CMA-ES on r(θ) = −‖θ − θ*‖² in 10-D from 3 away, 12 samples per generation: it converges.
+  constexpr int n = 10;
+  const Eigen::VectorXd target = Eigen::VectorXd::Constant(n, 1.0);
+  std::mt19937 rng(2);
+  bl::GaussianSampler sampler;
+  Eigen::VectorXd mean = Eigen::VectorXd::Zero(n);
+  bl::CovarianceAdaptation state = bl::CovarianceAdaptation::start(0.25 * Eigen::MatrixXd::Identity(n, n));
+  for (int generation = 0; generation < 300; ++generation) {
+    const Eigen::MatrixXd samples = sampler.draw(mean, bl::choleskyFactor(state.covariance()), 12, rng);
+    mean = bl::cmaEsStep(mean, state, samples, -(samples.rowwise() - target.transpose()).rowwise().squaredNorm());
+  }
+  EXPECT_LT((mean - target).norm(), 1e-4);
+}

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <vector>
 
 namespace bimanual_skills::learning {
 
@@ -75,6 +76,28 @@ void CovarianceAdaptation::moveTo(const Eigen::MatrixXd& sample_map, const Eigen
   shape = covariance / (step_size * step_size);
   step_path = sample_map * step_path;
   shape_path = sample_map * shape_path;
+}
+
+Eigen::VectorXd cmaEsWeights(const Eigen::VectorXd& rewards) {
+  const Eigen::Index k = rewards.size(), best = std::max<Eigen::Index>(1, k / 2);
+  if (k < 1 || !rewards.allFinite()) throw std::invalid_argument("cmaEsWeights: needs finite rewards");
+  std::vector<Eigen::Index> order(static_cast<std::size_t>(k));
+  for (Eigen::Index i = 0; i < k; ++i) order[static_cast<std::size_t>(i)] = i;
+  std::stable_sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return rewards[a] > rewards[b]; });
+  Eigen::VectorXd weights = Eigen::VectorXd::Zero(k);
+  for (Eigen::Index rank = 0; rank < best; ++rank) {
+    weights[order[static_cast<std::size_t>(rank)]] =
+        std::log(static_cast<double>(best) + 0.5) - std::log(static_cast<double>(rank) + 1.0);
+  }
+  return weights / weights.sum();
+}
+
+Eigen::VectorXd cmaEsStep(const Eigen::VectorXd& mean, CovarianceAdaptation& adaptation, const Eigen::MatrixXd& samples,
+                          const Eigen::VectorXd& rewards) {
+  const Eigen::VectorXd weights = cmaEsWeights(rewards);
+  const Eigen::VectorXd next = samples.transpose() * weights;
+  adaptation.update(mean, next, samples, weights);
+  return next;
 }
 
 }  // namespace bimanual_skills::learning

@@ -89,9 +89,9 @@ RolloutKind kindFromString(const std::string& text, const std::string& where) {
 
 const char* const kRolloutColumns =
     "algorithm,run,epoch,kind,index,seed,outcome,reward,r_acceleration,r_color,r_depth,fill_ratio,mean_gradient,"
-    "area_ratio,aspect,fold_quality,fold_distance,fold_displacement,r_goal,goal_iou,goal_mismatch,latent_dims,"
-    "wall_seconds,reason";
-constexpr std::size_t kRolloutFields = 24;
+    "area_ratio,aspect,fold_quality,fold_distance,fold_displacement,r_goal,goal_iou,goal_mismatch,r_fold,fold_mismatch,"
+    "fold_edge,fold_single,fold_length,latent_dims,wall_seconds,reason";
+constexpr std::size_t kRolloutFields = 29;
 
 double toDouble(const std::string& text, const std::string& where) {
   std::size_t used = 0;
@@ -154,27 +154,6 @@ learning::CoordinatedPolicy pi2CmaStep(learning::CoordinatedPolicy policy, const
   return policy;
 }
 
-/// CMA-ES (Hansen 2006, (μ/μ_w, λ)): the new mean is the log-rank weighted mean of the best half of the batch, and
-/// the covariance and step size follow CovarianceAdaptation from the same weights.
-learning::CoordinatedPolicy cmaEsStep(learning::CoordinatedPolicy policy, learning::CovarianceAdaptation& adaptation,
-                                      const Eigen::MatrixXd& samples, const Eigen::VectorXd& rewards) {
-  const Eigen::Index k = rewards.size(), best = std::max<Eigen::Index>(1, k / 2);
-  std::vector<Eigen::Index> order(static_cast<std::size_t>(k));
-  for (Eigen::Index i = 0; i < k; ++i) order[static_cast<std::size_t>(i)] = i;
-  std::stable_sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return rewards[a] > rewards[b]; });
-  Eigen::VectorXd weights = Eigen::VectorXd::Zero(k);
-  for (Eigen::Index rank = 0; rank < best; ++rank) {
-    weights[order[static_cast<std::size_t>(rank)]] =
-        std::log(static_cast<double>(best) + 0.5) - std::log(static_cast<double>(rank) + 1.0);
-  }
-  weights /= weights.sum();
-  const Eigen::VectorXd mean = samples.transpose() * weights;
-  adaptation.update(policy.mean, mean, samples, weights);
-  policy.mean = mean;
-  policy.covariance = adaptation.covariance();
-  return policy;
-}
-
 }  // namespace
 
 DrDmpVariant parseDrDmpVariant(const std::string& name, int dofs, double eta) {
@@ -225,6 +204,7 @@ void FoldLearningConfig::validate() const {
   if (!(epsilon > 0.0) || !(eta > 1.0) || !(initial_stddev > 0.0) || !std::isfinite(initial_stddev)) {
     throw std::invalid_argument("fold learning: epsilon > 0, eta > 1 and a finite initial_stddev > 0");
   }
+  if (!(goal_stddev > 0.0 && goal_stddev <= 1.0)) throw std::invalid_argument("fold learning: goal_stddev in (0, 1] m");
   if (!(covariance_memory >= 0.0 && covariance_memory < 1.0)) {
     throw std::invalid_argument("fold learning: covariance_memory in [0, 1)");
   }
@@ -247,7 +227,7 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     const std::string at = where + " task";
     io::checkKeys(task, at,
                   {"kernels", "duration", "ik_method", "max_ik_error", "max_tracking_error", "demo_reach", "demo_lift",
-                   "demo_drop", "demonstration"});
+                   "demo_drop", "demo_lag", "demonstration", "policy"});
     if (task["kernels"]) c.task.kernels = io::readInt(task, "kernels", at);
     c.task.duration = io::readDouble(task, "duration", at, c.task.duration);
     if (task["ik_method"]) c.task.ik_method = io::readString(task, "ik_method", at);
@@ -256,6 +236,9 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     c.task.demo_reach = io::readDouble(task, "demo_reach", at, c.task.demo_reach);
     c.task.demo_lift = io::readDouble(task, "demo_lift", at, c.task.demo_lift);
     c.task.demo_drop = io::readDouble(task, "demo_drop", at, c.task.demo_drop);
+    c.task.demo_lag = io::readDouble(task, "demo_lag", at, c.task.demo_lag);
+    if (!(c.task.demo_lag >= 0.0 && c.task.demo_lag < 0.9)) io::fail(at + ": 'demo_lag' must be in [0, 0.9)");
+    if (task["policy"]) c.task.policy = tasks::foldPolicyFromString(io::readString(task, "policy", at), at);
     if (const YAML::Node files = task["demonstration"]) {
       if (!files.IsSequence() || files.size() != 2)
         io::fail(at + ": 'demonstration' must list two DMP files (left, right)");
@@ -265,14 +248,16 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
   }
   if (const YAML::Node reward = root["reward"]) {
     const std::string at = where + " reward";
-    io::checkKeys(reward, at,
-                  {"setting", "acceleration_weight", "colour_weight", "depth_weight", "goal_weight",
-                   "goal_missing_height", "goal_excess_height", "failure_reward", "depth_noise", "colour_noise"});
+    io::checkKeys(
+        reward, at,
+        {"setting", "acceleration_weight", "colour_weight", "depth_weight", "goal_weight", "goal_missing_height",
+         "goal_excess_height", "fold_weight", "failure_reward", "depth_noise", "colour_noise"});
     if (reward["setting"]) c.reward = tasks::rewardSetting(c.reward, io::readString(reward, "setting", at), at);
     c.reward.acceleration_weight = io::readDouble(reward, "acceleration_weight", at, c.reward.acceleration_weight);
     c.reward.image.colour_weight = io::readDouble(reward, "colour_weight", at, c.reward.image.colour_weight);
     c.reward.image.depth_weight = io::readDouble(reward, "depth_weight", at, c.reward.image.depth_weight);
     c.reward.image.goal_weight = io::readDouble(reward, "goal_weight", at, c.reward.image.goal_weight);
+    c.reward.image.fold_weight = io::readDouble(reward, "fold_weight", at, c.reward.image.fold_weight);
     c.reward.image.goal_missing_height =
         io::readDouble(reward, "goal_missing_height", at, c.reward.image.goal_missing_height);
     c.reward.image.goal_excess_height =
@@ -287,7 +272,7 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     const std::string at = where + " learning";
     io::checkKeys(learning, at,
                   {"algorithms", "runs", "updates", "rollouts", "reuse", "epsilon", "eta", "initial_stddev",
-                   "covariance_memory", "repetitions", "seed", "jobs"});
+                   "goal_stddev", "covariance_memory", "repetitions", "seed", "jobs"});
     if (const YAML::Node algorithms = learning["algorithms"]) {
       if (!algorithms.IsSequence()) io::fail(at + ": 'algorithms' must be a list of names");
       c.algorithms.clear();
@@ -300,6 +285,7 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     c.epsilon = io::readDouble(learning, "epsilon", at, c.epsilon);
     c.eta = io::readDouble(learning, "eta", at, c.eta);
     c.initial_stddev = io::readDouble(learning, "initial_stddev", at, c.initial_stddev);
+    c.goal_stddev = io::readDouble(learning, "goal_stddev", at, c.goal_stddev);
     c.covariance_memory = io::readDouble(learning, "covariance_memory", at, c.covariance_memory);
     if (learning["repetitions"]) c.repetitions = io::readInt(learning, "repetitions", at);
     if (learning["seed"]) {
@@ -332,9 +318,10 @@ struct FoldLearner::Impl {
     text << "setting " << r.setting << "\nacceleration_weight " << number(r.acceleration_weight) << "\ncolour_weight "
          << number(r.image.colour_weight) << "\ndepth_weight " << number(r.image.depth_weight) << "\ngoal_weight "
          << number(r.image.goal_weight) << "\ngoal_missing_height " << number(r.image.goal_missing_height)
-         << "\ngoal_excess_height " << number(r.image.goal_excess_height) << "\nfailure_reward "
-         << number(r.failure_reward) << "\ndepth_noise " << number(r.renderer.noise.depth_stddev) << "\ncolour_noise "
-         << number(r.renderer.noise.colour_stddev) << '\n';
+         << "\ngoal_excess_height " << number(r.image.goal_excess_height) << "\nfold_weight "
+         << number(r.image.fold_weight) << "\nfailure_reward " << number(r.failure_reward) << "\ndepth_noise "
+         << number(r.renderer.noise.depth_stddev) << "\ncolour_noise " << number(r.renderer.noise.colour_stddev)
+         << '\n';
     const std::string path = dir + "/reward.txt";
     std::ifstream in{path};
     if (in && !stored.empty()) {
@@ -403,8 +390,13 @@ struct FoldLearner::Impl {
       rec.terms.r_goal = toDouble(f[18], where);
       rec.terms.goal_iou = toDouble(f[19], where);
       rec.terms.goal_mismatch = toDouble(f[20], where);
-      rec.wall_seconds = toDouble(f[22], where);
-      rec.reason = f[23];
+      rec.terms.r_fold = toDouble(f[21], where);
+      rec.terms.fold_mismatch = toDouble(f[22], where);
+      rec.terms.fold_edge = toDouble(f[23], where);
+      rec.terms.fold_single = toDouble(f[24], where);
+      rec.terms.fold_length = toDouble(f[25], where);
+      rec.wall_seconds = toDouble(f[27], where);
+      rec.reason = f[28];
       rec.resumed = true;
       const std::string k = key(rec.algorithm, rec.run, rec.epoch, rec.kind, rec.index);
       const auto w = weights.find(k);
@@ -434,8 +426,10 @@ struct FoldLearner::Impl {
          << number(t.fill_ratio) << ',' << number(t.mean_gradient) << ',' << number(t.area_ratio) << ','
          << number(t.aspect) << ',' << number(t.fold_quality) << ',' << number(t.fold_distance) << ','
          << number(t.fold_displacement) << ',' << number(t.r_goal) << ',' << number(t.goal_iou) << ','
-         << number(t.goal_mismatch) << ',' << (rec.coordination.empty() ? 0 : rec.coordination.front().cols()) << ','
-         << number(rec.wall_seconds) << ',' << quoted(rec.reason);
+         << number(t.goal_mismatch) << ',' << number(t.r_fold) << ',' << number(t.fold_mismatch) << ','
+         << number(t.fold_edge) << ',' << number(t.fold_single) << ',' << number(t.fold_length) << ','
+         << (rec.coordination.empty() ? 0 : rec.coordination.front().cols()) << ',' << number(rec.wall_seconds) << ','
+         << quoted(rec.reason);
     rollouts_csv.append(line.str());
     // The parameters last: a rollout counts as stored once both records are whole.
     line.str("");
@@ -507,7 +501,7 @@ struct FoldLearner::Impl {
     s.epoch = epoch;
     s.latent_dims = latent_dims;
     double sum = 0.0, squares = 0.0;
-    int samples = 0, finished = 0;
+    int samples = 0;
     for (const FoldRolloutRecord& rec : batch) {
       if (rec.kind != RolloutKind::Sample) continue;
       ++samples;
@@ -519,10 +513,16 @@ struct FoldLearner::Impl {
     s.std_reward = samples > 1
                        ? std::sqrt(std::max(0.0, (squares - samples * s.mean_reward * s.mean_reward) / (samples - 1)))
                        : 0.0;
-    const bool only_finished = s.failures < samples;
     for (const FoldRolloutRecord& rec : batch) {
-      if (rec.kind != RolloutKind::Sample || (only_finished && rec.terms.outcome != tasks::FoldOutcome::Ok)) continue;
-      ++finished;
+      if (rec.kind != RolloutKind::Policy) continue;
+      s.policy_reward = rec.terms.reward;
+      s.policy_fold_quality = rec.terms.fold_quality;
+      s.policy_failed = rec.terms.outcome != tasks::FoldOutcome::Ok;
+    }
+    // Every sample counts, failures included with the terms measured on the cloth they left (a rollout stopped
+    // before the fold left it flat: q = 0).
+    for (const FoldRolloutRecord& rec : batch) {
+      if (rec.kind != RolloutKind::Sample) continue;
       s.r_acceleration += rec.terms.r_acceleration;
       s.r_color += rec.terms.r_color;
       s.r_depth += rec.terms.r_depth;
@@ -531,17 +531,19 @@ struct FoldLearner::Impl {
       s.area_ratio += rec.terms.area_ratio;
       s.r_goal += rec.terms.r_goal;
       s.goal_mismatch += rec.terms.goal_mismatch;
+      s.r_fold += rec.terms.r_fold;
+      s.fold_mismatch += rec.terms.fold_mismatch;
       s.fold_quality += rec.terms.fold_quality;
       s.fold_quality_std += rec.terms.fold_quality * rec.terms.fold_quality;
     }
     for (double* v : {&s.r_acceleration, &s.r_color, &s.r_depth, &s.fill_ratio, &s.mean_gradient, &s.area_ratio,
-                      &s.r_goal, &s.goal_mismatch, &s.fold_quality, &s.fold_quality_std}) {
-      *v /= finished;
+                      &s.r_goal, &s.goal_mismatch, &s.r_fold, &s.fold_mismatch, &s.fold_quality, &s.fold_quality_std}) {
+      *v /= samples;
     }
-    // Sample standard deviation of q over the rollouts averaged (the second moment is in fold_quality_std so far).
-    s.fold_quality_std = finished > 1 ? std::sqrt(std::max(0.0, (s.fold_quality_std - s.fold_quality * s.fold_quality) *
-                                                                    finished / (finished - 1.0)))
-                                      : 0.0;
+    // Sample standard deviation of q (the second moment is in fold_quality_std so far).
+    s.fold_quality_std = samples > 1 ? std::sqrt(std::max(0.0, (s.fold_quality_std - s.fold_quality * s.fold_quality) *
+                                                                   samples / (samples - 1.0)))
+                                     : 0.0;
     return s;
   }
 
@@ -549,7 +551,9 @@ struct FoldLearner::Impl {
   void writeEpochs(const std::vector<FoldRunResult>& finished, const FoldRunResult& current) const {
     std::ofstream csv(dir + "/epochs.csv");
     csv << "algorithm,run,epoch,latent_dims,failures,mean_reward,std_reward,r_acceleration,r_color,r_depth,"
-           "fill_ratio,mean_gradient,area_ratio,r_goal,goal_mismatch,fold_quality,fold_quality_std\n";
+           "fill_ratio,mean_gradient,area_ratio,r_goal,goal_mismatch,r_fold,fold_mismatch,fold_quality,fold_quality_"
+           "std,"
+           "policy_reward,policy_fold_quality,policy_failed\n";
     std::vector<const FoldRunResult*> runs;
     for (const FoldRunResult& run : finished) runs.push_back(&run);
     runs.push_back(&current);
@@ -559,7 +563,9 @@ struct FoldLearner::Impl {
             << number(s.mean_reward) << ',' << number(s.std_reward) << ',' << number(s.r_acceleration) << ','
             << number(s.r_color) << ',' << number(s.r_depth) << ',' << number(s.fill_ratio) << ','
             << number(s.mean_gradient) << ',' << number(s.area_ratio) << ',' << number(s.r_goal) << ','
-            << number(s.goal_mismatch) << ',' << number(s.fold_quality) << ',' << number(s.fold_quality_std) << '\n';
+            << number(s.goal_mismatch) << ',' << number(s.r_fold) << ',' << number(s.fold_mismatch) << ','
+            << number(s.fold_quality) << ',' << number(s.fold_quality_std) << ',' << number(s.policy_reward) << ','
+            << number(s.policy_fold_quality) << ',' << (s.policy_failed ? 1 : 0) << '\n';
       }
     }
   }
@@ -584,9 +590,7 @@ struct FoldLearner::Impl {
     const auto start = Clock::now();
     const DrDmpVariant variant = parseDrDmpVariant(algorithm, tasks::ClothFoldTask::kDofs, config.eta);
     const tasks::ClothFoldTask& task = firstTask().task();
-    primitives::DrDmpParameters parameters;
-    parameters.dmp = task.dmpParameters();
-    parameters.matrices = variant.matrices;
+    const primitives::DrDmpParameters parameters = task.forcingParameters(variant.matrices);
     const Eigen::MatrixXd demonstration = task.demonstrationTrajectory();
     const primitives::DrDmpFit fit =
         primitives::DrDmp::fit(parameters, {demonstration}, task.demonstrationStep(), variant.latent_dims, 0.0);
@@ -599,11 +603,14 @@ struct FoldLearner::Impl {
     reps.rule = variant.rule;
     reps.update.eta = variant.eta;
     const Eigen::VectorXd mean = fit.dmp.weights();
-    learning::CoordinatedPolicy initial{
-        fit.dmp.coordination(),
-        mean,
-        config.initial_stddev * config.initial_stddev * Eigen::MatrixXd::Identity(mean.size(), mean.size()),
-        {}};
+    // σ per kernel weight, and per goal weight the forcing α_z β_z goal_stddev that moves the goal by goal_stddev.
+    const int basis = parameters.basisSize(), kernels = parameters.dmp.kernels;
+    Eigen::VectorXd variances = Eigen::VectorXd::Constant(mean.size(), config.initial_stddev * config.initial_stddev);
+    const double goal_forcing = parameters.dmp.alpha_z * parameters.dmp.beta_z * config.goal_stddev;
+    for (Eigen::Index j = 0; basis > kernels && j < mean.size() / basis; ++j) {
+      variances[j * basis + kernels] = goal_forcing * goal_forcing;
+    }
+    learning::CoordinatedPolicy initial{fit.dmp.coordination(), mean, variances.asDiagonal(), {}};
     learning::CoordinatedReps learner(reps, grid, initial, fit.excitation);
     // The peers keep their own policy on the standard DMP's weights (the coordination stays the fitted one).
     learning::CoordinatedPolicy peer = initial;
@@ -636,12 +643,13 @@ struct FoldLearner::Impl {
       const Eigen::MatrixXd factor = learning::choleskyFactor(policy.covariance);
       std::vector<FoldRolloutRecord> batch;
       Eigen::MatrixXd samples(config.rollouts, policy.mean.size());
-      if (epoch == 0) batch.push_back(record(epoch, RolloutKind::Policy, 0, policy.mean));
+      // The noise-free mean policy of every epoch (what a user of the learning gets at that point; not an
+      // exploration rollout and not used by the update).
+      batch.push_back(record(epoch, RolloutKind::Policy, 0, policy.mean));
       for (int k = 0; k < config.rollouts; ++k) {
         samples.row(k) = sampler.draw(policy.mean, factor, rng).transpose();
         batch.push_back(record(epoch, RolloutKind::Sample, k, samples.row(k).transpose()));
       }
-      if (epoch == config.updates) batch.push_back(record(epoch, RolloutKind::Policy, 0, policy.mean));
       evaluate(batch);
       Eigen::VectorXd rewards(config.rollouts);
       std::vector<Eigen::MatrixXd> values;
@@ -649,7 +657,8 @@ struct FoldLearner::Impl {
         if (rec.terms.outcome == tasks::FoldOutcome::Ok && rec.terms.reward > result.best.terms.reward) {
           result.best = rec;
         }
-        if (rec.kind == RolloutKind::Policy) (epoch == 0 ? result.initial_policy : result.final_policy) = rec;
+        if (rec.kind == RolloutKind::Policy && epoch == 0) result.initial_policy = rec;
+        if (rec.kind == RolloutKind::Policy && epoch == config.updates) result.final_policy = rec;
         if (rec.kind != RolloutKind::Sample) continue;
         rewards[rec.index] = rec.terms.reward;
         values.push_back(learning::coordinatedValues(grid, policy.coordination, rec.weights));
@@ -663,7 +672,8 @@ struct FoldLearner::Impl {
         } else if (variant.search == PolicySearch::Pi2Cma) {
           peer = pi2CmaStep(peer, samples, rewards, grid.basis(), config.covariance_memory);
         } else {
-          peer = cmaEsStep(peer, adaptation, samples, rewards);
+          peer.mean = learning::cmaEsStep(peer.mean, adaptation, samples, rewards);
+          peer.covariance = adaptation.covariance();
         }
       }
     }
@@ -723,7 +733,7 @@ FoldLearningResult FoldLearner::learn() {
       rec.kind = RolloutKind::Repetition;
       rec.index = k;
       rec.coordination = {Eigen::MatrixXd::Identity(tasks::ClothFoldTask::kDofs, tasks::ClothFoldTask::kDofs)};
-      rec.weights = task.demonstrationParameters();
+      rec.weights = task.demonstrationParameters();  // the latent weights of Ω = I
       rec.seed = static_cast<std::uint32_t>(rng());
       batch.push_back(rec);
     }

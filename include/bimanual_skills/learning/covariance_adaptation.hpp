@@ -43,4 +43,15 @@ struct CovarianceAdaptation {
   void moveTo(const Eigen::MatrixXd& sample_map, const Eigen::MatrixXd& covariance);
 };
 
+/// CMA-ES's recombination weights of a batch (Hansen 2006, (μ/μ_w, λ)), rewards maximised: the best μ = max(1, λ/2)
+/// samples get w ∝ ln(μ + ½) − ln(rank), the others 0; Σ w = 1. Ties keep the batch's order.
+/// \throws std::invalid_argument for no rewards or non-finite ones.
+Eigen::VectorXd cmaEsWeights(const Eigen::VectorXd& rewards);
+
+/// One CMA-ES generation: the new mean Σ w_k θ_k with cmaEsWeights(rewards), and `adaptation` updated from the same
+/// weights (its covariance() is the next search distribution's). Returns the new mean. \throws
+/// std::invalid_argument as CovarianceAdaptation::update().
+Eigen::VectorXd cmaEsStep(const Eigen::VectorXd& mean, CovarianceAdaptation& adaptation, const Eigen::MatrixXd& samples,
+                          const Eigen::VectorXd& rewards);
+
 }  // namespace bimanual_skills::learning

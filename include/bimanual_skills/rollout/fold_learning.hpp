@@ -7,8 +7,8 @@
 /// 7.26–7.27; r = 12 for IDR and the standard DMP); the latent weights start at the fit with an isotropic
 /// covariance; each epoch e = 0 … updates draws `rollouts` latent weight vectors, evaluates them in parallel, and
 /// (e < updates) updates the policy with REPS (reusing the previous epoch's rollouts) and, for the CMU variants, the
-/// coordination matrices (Alg. 7.2, η for IDR). The mean policy is also executed without exploration before the
-/// first and after the last update.
+/// coordination matrices (Alg. 7.2, η for IDR). Each epoch also executes the mean policy without exploration (what
+/// the learning would hand a user at that point; the updates do not use it).
 ///
 /// The demonstration's DMPs are written as DIR/demonstration_left.yaml and demonstration_right.yaml (DMP files; a
 /// learning file's `task: {demonstration: [left.yaml, right.yaml]}` starts from them instead of the scripted fold).
@@ -60,15 +60,20 @@ DrDmpVariant parseDrDmpVariant(const std::string& name, int dofs, double eta);
 
 struct FoldLearningConfig {
   tasks::ClothFoldConfig task;
-  tasks::FoldRewardConfig reward;  ///< Its renderer's camera and table follow the task's simulation file.
+  /// Its renderer's camera and table follow the task's simulation file. The "fold" setting unless a file says
+  /// otherwise.
+  tasks::FoldRewardConfig reward = tasks::rewardSetting({}, "fold", "fold learning");
   std::vector<std::string> algorithms = {"IDR-DMP_CMU"};
   int runs = 1;
   int updates = 8;
-  int rollouts = 12;               ///< Per epoch.
-  int reuse = 12;                  ///< Rollouts of the previous epochs reused by REPS.
-  double epsilon = 0.5;            ///< REPS KL bound.
-  double eta = 50.0;               ///< IDR: σ_1/σ_r beyond which the last latent DoF is dropped.
-  double initial_stddev = 5.0;     ///< Of each latent weight at the start.
+  int rollouts = 12;            ///< Per epoch.
+  int reuse = 12;               ///< Rollouts of the previous epochs reused by REPS.
+  double epsilon = 0.5;         ///< REPS KL bound.
+  double eta = 50.0;            ///< IDR: σ_1/σ_r beyond which the last latent DoF is dropped.
+  double initial_stddev = 5.0;  ///< Of each latent kernel weight at the start.
+  /// Of each latent goal weight at the start, as the goal displacement it makes [m] (tasks::FoldPolicy
+  /// WeightsAndGoals; Ω is orthonormal, so each DoF's goal moves with this deviation too).
+  double goal_stddev = 0.03;
   double covariance_memory = 0.0;  ///< λ of CoordinatedRepsParameters in [0, 1) (0: the thesis' REPS update).
   int repetitions = 0;             ///< Noise-free repetitions of the initial policy (varying only the sensors' noise).
   std::uint32_t seed = 1;
@@ -88,7 +93,7 @@ FoldLearningConfig withSimulationRenderer(FoldLearningConfig config);
 /// What a rollout was.
 enum class RolloutKind {
   Sample,      ///< Drawn from the policy (exploration).
-  Policy,      ///< The mean policy without exploration (before the first and after the last update).
+  Policy,      ///< The mean policy without exploration (one per epoch, before its update).
   Repetition,  ///< The initial mean policy again, another sensor-noise seed (the reward's variance).
 };
 const char* toString(RolloutKind kind) noexcept;
@@ -114,11 +119,14 @@ struct FoldEpochStats {
   int latent_dims = 0;  ///< r of the policy the epoch's rollouts were drawn from.
   int failures = 0;
   double mean_reward = 0.0, std_reward = 0.0;
-  /// Means over the epoch's rollouts that finished (all of them when none did).
+  /// Means over the epoch's rollouts, failed ones included (with what their cloth showed).
   double r_acceleration = 0.0, r_color = 0.0, r_depth = 0.0, fill_ratio = 0.0, mean_gradient = 0.0, area_ratio = 0.0;
-  double r_goal = 0.0, goal_mismatch = 0.0;
+  double r_goal = 0.0, goal_mismatch = 0.0, r_fold = 0.0, fold_mismatch = 0.0;
   /// The fold's ground truth q (tasks/fold_quality.hpp): mean and sample standard deviation over the same rollouts.
   double fold_quality = 0.0, fold_quality_std = 0.0;
+  /// The noise-free mean policy the epoch's rollouts were drawn around: its reward and q, and whether it failed.
+  double policy_reward = 0.0, policy_fold_quality = 0.0;
+  bool policy_failed = false;
 };
 
 struct FoldRunResult {
