@@ -24,6 +24,8 @@ PACKAGES=(
   libopencv-dev libcv-bridge-dev librosbag-dev python3-rosbag
   # trajectory actions (actionlib), with the Python modules for rostopic/axclient
   libactionlib-dev libactionlib-msgs-dev python3-actionlib python3-actionlib-msgs
+  # teaching by hand: rviz interactive markers (teach_demonstration)
+  libinteractive-markers-dev
   # build and test
   cmake g++ make colcon python3-colcon-ros python3-colcon-cmake python3-colcon-test-result python3-colcon-bash
   libgtest-dev googletest libbenchmark-dev

@@ -2,11 +2,14 @@
 // stays unit, the unit-quaternion DMP follows a rotation of more than π where the quaternion-vector encoding cannot,
 // goal changes while running, the clamp of ‖v‖ > 1, bad input, allocation-free steps, and the log/exp maps against
 // Eigen's angle-axis.
+// The demonstration recorder trims, resamples and fits what a person taught.
 #include "bimanual_skills/primitives/cartesian_dmp.hpp"
+#include "bimanual_skills/primitives/demonstration_recorder.hpp"
 #include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -293,4 +296,59 @@ TEST(CartesianDmp, StepsDoNotAllocate) {
     NoAllocGuard guard;
     for (int k = 0; k < 200; ++k) EXPECT_EQ(dmp.step(state, kDt), bp::DmpStatus::Success);
   }
+}
+
+// A taught demonstration of two tools, sampled at irregular times with a duplicate and a reordered message among
+// them: the still parts are trimmed, the recorder keeps the movement, and the DMPs fitted to it reproduce each
+// tool's path; a recording in which nothing moved is refused.
+TEST(DemonstrationRecorder, TrimsResamplesAndFitsWhatWasTaught) {
+  bp::DemonstrationRecorder recorder(2);
+  const auto pose = [](int tool, double t) {
+    const double s = std::clamp((t - 0.5) / 2.0, 0.0, 1.0), m = s * s * s * (10.0 + s * (-15.0 + 6.0 * s));
+    bp::Pose p;
+    p.position = Eigen::Vector3d(0.8 - 0.3 * m, tool == 0 ? 0.3 : -0.3, 0.2 + 0.15 * std::sin(M_PI * m));
+    p.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI - 0.4 * std::sin(M_PI * m), Eigen::Vector3d::UnitY()));
+    return p;
+  };
+  double t = 0.0;
+  int k = 0;
+  while (t < 3.0) {
+    ASSERT_TRUE(recorder.add(t, {pose(0, t), pose(1, t)}));
+    EXPECT_FALSE(recorder.add(t, {pose(0, t), pose(1, t)}));          // duplicate
+    EXPECT_FALSE(recorder.add(t - 0.002, {pose(0, t), pose(1, t)}));  // reordered
+    t += 0.004 + 0.002 * ((k++ * 7) % 5) / 4.0;                       // 4–6 ms apart
+  }
+  EXPECT_FALSE(recorder.add(t, {pose(0, t)}));  // one pose for two tools
+  bp::Pose bad = pose(0, t);
+  bad.position.x() = NAN;
+  EXPECT_FALSE(recorder.add(t, {bad, pose(1, t)}));
+  const std::vector<std::vector<bp::Pose>> paths = recorder.resampled(0.01, 0.002);
+  ASSERT_EQ(paths.size(), 2u);
+  // The movement (0.5 s to 2.5 s, its first and last 2 mm slow) and none of the still parts around it.
+  const double taught = 0.01 * (paths[0].size() - 1);
+  EXPECT_GT(taught, 1.5);
+  EXPECT_LT(taught, 2.0);
+  bp::DmpParameters parameters;
+  parameters.kernels = 20;
+  const std::vector<bp::CartesianDmp> dmps = recorder.fit(parameters, 0.01, 0.002);
+  ASSERT_EQ(dmps.size(), 2u);
+  for (int tool = 0; tool < 2; ++tool) {
+    const bp::CartesianDmp& dmp = dmps[static_cast<std::size_t>(tool)];
+    EXPECT_NEAR(dmp.duration(), taught, 1e-9);
+    EXPECT_LT((dmp.start().position - paths[tool].front().position).norm(), 1e-9);
+    EXPECT_LT((dmp.start().position - pose(tool, 0.0).position).norm(), 0.004);
+    EXPECT_LT((dmp.goal().position - pose(tool, 3.0).position).norm(), 0.005);
+    bp::CartesianDmpState state = dmp.initialState();
+    double worst = 0.0;
+    for (std::size_t i = 1; i < paths[tool].size(); ++i) {
+      ASSERT_NE(dmp.step(state, 0.01), bp::DmpStatus::InvalidInput);
+      worst = std::max(worst, (state.position.y - paths[tool][i].position).norm());
+    }
+    EXPECT_LT(worst, 0.01) << "tool " << tool;
+  }
+  EXPECT_THROW(recorder.resampled(0.0, 0.002), std::invalid_argument);
+  bp::DemonstrationRecorder idle(1);
+  for (int i = 0; i < 100; ++i) idle.add(0.01 * i, {pose(0, 0.0)});
+  EXPECT_THROW(idle.resampled(0.01, 0.002), std::invalid_argument);
+  EXPECT_THROW(bp::DemonstrationRecorder(0), std::invalid_argument);
 }

@@ -202,7 +202,8 @@ void ArmControllerInterface::onCommand(const trajectory_msgs::JointTrajectory::C
   const double duration = waypoints.times[waypoints.times.size() - 1];
   const auto points = waypoints.times.size();
   sendTrajectory(std::move(waypoints), settings_.default_tolerances, 0);
-  ROS_INFO("%s: tracking %ld points over %.2f s", owner_.c_str(), static_cast<long>(points), duration);
+  // DEBUG: a teleoperation streams many (joint_trajectory_controller logs none either).
+  ROS_DEBUG("%s: tracking %ld points over %.2f s", owner_.c_str(), static_cast<long>(points), duration);
 }
 
 void ArmControllerInterface::onGoal(GoalHandle goal) {
