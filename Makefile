@@ -1,5 +1,6 @@
 # bimanual_skills: the two commands.
-#   make demo   install what is missing, build, and let the two simulated WAMs learn to fold a cloth (build/fold_demo)
+#   make demo   install what is missing, build, and let the two simulated WAMs learn to fold a cloth from a faulty
+#               demonstration (build/fold_demo)
 #   make test   install what is missing, build, run every gtest and rostest; non-zero exit on any failure
 # Also: make build, make bench (kinematics, dynamics/control, primitives, policy-update and vision benchmarks), make format, make deps.
 
@@ -25,8 +26,9 @@ build: deps
 # rollouts already in build/fold_demo (delete it to start over).
 FOLD_DEMO := $(CURDIR)/build/fold_demo
 demo: build
-	@echo "make demo: two simulated WAMs learn to fold a cloth: IDR-DMP_CMU with REPS, 1 run x 8 updates x 12 rollouts"
-	@echo "           on the Bullet simulation (config/fold_demo.yaml), results in $(FOLD_DEMO)"
+	@echo "make demo: two simulated WAMs learn to fold a cloth better than they were shown: IDR-DMP_CMU with REPS from a"
+	@echo "           faulty demonstration, 1 run x 15 updates x 12 rollouts on the Bullet simulation (config/fold_demo.yaml),"
+	@echo "           results in $(FOLD_DEMO)"
 	set -o pipefail; source install/setup.bash && bash scripts/fold_demo.sh $(CURDIR)/config/fold_demo.yaml \
 	  $(FOLD_DEMO) 2>&1 | tee build/fold_demo.log
 	/usr/bin/python3 scripts/plot_fold_learning.py $(FOLD_DEMO)
@@ -35,8 +37,9 @@ demo: build
 	  if [ ! -s "$(FOLD_DEMO)/$$f" ]; then echo "make demo: FAILED: $(FOLD_DEMO)/$$f is missing (see build/fold_demo.log)"; exit 1; fi; done
 	@if grep -q FATAL build/fold_demo.log; then echo "make demo: FAILED (see build/fold_demo.log)"; exit 1; fi
 	@grep "fold quality .* →" build/fold_demo.log | sed 's/^fold_learner: /make demo: /'
-	@echo "make demo: done. In $(FOLD_DEMO): learning_curve.png (reward and fold quality per epoch), filmstrip_initial.png"
-	@echo "           and filmstrip_final.png, initial.gif and final.gif (the initial and the learned fold), coordination.png,"
+	@echo "make demo: done. In $(FOLD_DEMO): learning_curve.png (the noise-free policy's fold quality, the rollouts' reward"
+	@echo "           and q per epoch), filmstrip_initial.png and filmstrip_final.png, initial.gif and final.gif (the"
+	@echo "           demonstration and the learned fold), coordination.png,"
 	@echo "           summary.json, epochs.csv, rollouts.csv, table75.md, best_rollout.bag. Replay the best rollout in rviz:"
 	@echo "             source install/setup.bash && roslaunch bimanual_skills fold.launch replay:=$(FOLD_DEMO)/best_rollout.bag"
 

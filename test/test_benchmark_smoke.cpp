@@ -1,5 +1,5 @@
 // Smoke test of the experiment programs (ik_benchmark, ps_benchmark, dr_benchmark, rollout_benchmark,
-// workspace_benchmark) in --quick
+// workspace_benchmark, fold_benchmark) in --quick
 // mode: they run, write summary.json with every field, CSV, PNG and tables.md, reject bad arguments with exit code 2
 // (--help: usage, 0), dr_benchmark writes the same results with any number of jobs, and rollout_benchmark (its own
 // ROS master and rollout_worker processes) gets from the workers the results of the threads, bit for bit (else it
@@ -19,6 +19,8 @@
 #include <sstream>
 #include <string>
 #include <tuple>
+#include <utility>
+#include <vector>
 
 namespace fs = std::filesystem;
 
@@ -336,4 +338,35 @@ TEST(WorkspaceBenchmarkSmoke, QuickRunWritesEveryOutput) {
       runQuietly(std::string(WORKSPACE_BENCHMARK) + " --experiment fig39 --step 0.001 --seed 1 --out " + out.string()),
       2);
   fs::remove_all(out);
+}
+
+TEST(FoldBenchmarkSmoke, QuickRunWritesEveryOutputTheSameOnAnyNumberOfJobs) {
+  const fs::path one = fs::temp_directory_path() / "bimanual_skills_fold_benchmark_jobs1";
+  const fs::path two = fs::temp_directory_path() / "bimanual_skills_fold_benchmark_jobs2";
+  fs::remove_all(one);
+  fs::remove_all(two);
+  for (const auto& [out, jobs] : {std::pair{one, 1}, std::pair{two, 2}}) {
+    ASSERT_EQ(runQuietly(std::string(FOLD_BENCHMARK) + " --experiment all --seed 2 --quick --jobs " +
+                         std::to_string(jobs) + " --out " + out.string()),
+              0);
+  }
+  for (const char* file : {"folds.csv", "ceiling.csv", "ranking.png", "folds.png", "tables.md", "folds/00_final.png",
+                           "folds/00_final_depth.png", "folds/00_flat.png"}) {
+    EXPECT_TRUE(fs::exists(one / file)) << file;
+  }
+  EXPECT_EQ(readTextFile(one / "folds.csv"), readTextFile(two / "folds.csv"));
+  EXPECT_EQ(readTextFile(one / "ceiling.csv"), readTextFile(two / "ceiling.csv"));
+  const std::string summary = readTextFile(one / "summary.json");
+  for (const char* field : {"\"experiment\": \"ranking\"", "\"signal\": \"fold reward\"", "\"spearman\"",
+                            "\"spearman_low\"", "\"experiment\": \"ceiling\"", "\"q_max\"", "\"seed\": 2"}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field;
+  }
+  const std::vector<CsvRow> folds = readCsv(one / "folds.csv");
+  ASSERT_EQ(folds.size(), 4u);
+  for (const CsvRow& row : folds) {
+    EXPECT_EQ(row.at("outcome"), "Ok");
+    EXPECT_GE(csvNumber(row, "fold_mismatch"), 0.0);
+    EXPECT_EQ(csvNumber(row, "fold_r_fold"), csvNumber(row, "fold_mismatch"));  // the fold setting's weight is 1
+  }
+  EXPECT_NE(runQuietly(std::string(FOLD_BENCHMARK) + " --experiment folds --count 0 --out " + one.string()), 0);
 }
