@@ -32,6 +32,7 @@
 #include <deque>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <string>
 #include <vector>
@@ -203,21 +204,39 @@ class FoldLearnerNode {
       ROS_INFO("fold_learner: %zu worker(s) lost and %zu rollout(s) re-dispatched over the learning", workers_lost_,
                redispatched_);
     }
-    writeSummary(result);
     const br::FoldRunResult* best_run = &result.runs.front();
     for (const br::FoldRunResult& r : result.runs) {
       if (r.final_policy.terms.reward > best_run->final_policy.terms.reward) best_run = &r;
     }
-    writeImage(result.runs.front().initial_policy, "initial");
-    writeImage(best_run->final_policy, "final");
-    writeFilmstrip(result.runs.front().initial_policy, "initial");
-    writeFilmstrip(best_run->final_policy, "final");
     const br::FoldRolloutRecord* best = &result.runs.front().best;
     for (const br::FoldRunResult& r : result.runs) {
       if (r.best.terms.reward > best->terms.reward) best = &r.best;
     }
-    const bt::FoldRollout replay = learner_->replay(*best, 20.0);
-    writeBag(*best, replay);
+    bt::FoldRollout replay;
+    if (robot_backend_) {
+      // The robot's own pictures: what its camera sent (no simulated replay).
+      for (const auto& [record, name] :
+           {std::pair{&result.runs.front().initial_policy, "initial"}, std::pair{&best_run->final_policy, "final"}}) {
+        if (const bt::FoldRollout* r = recordingOf(*record); r != nullptr && !r->camera_colour.empty()) {
+          writeRecorded(*r, name);
+        } else {
+          ROS_WARN("fold_learner: no %s pictures: that rollout was read from disk or failed before its images", name);
+        }
+      }
+      const auto found = recordings_.find("best");
+      if (found != recordings_.end()) {
+        replay = found->second;
+        writeBag(*best, replay);
+      }
+    } else {
+      writeImage(result.runs.front().initial_policy, "initial");
+      writeImage(best_run->final_policy, "final");
+      writeFilmstrip(result.runs.front().initial_policy, "initial");
+      writeFilmstrip(best_run->final_policy, "final");
+      replay = learner_->replay(*best, 20.0);
+      writeBag(*best, replay);
+    }
+    writeSummary(result);  // last: a finished run's mark
     std::printf(
         "fold_learner: results in %s: summary.json, epochs.csv, rollouts.csv, initial.png, final.png, "
         "initial_frames.csv, final_frames.csv (the filmstrips' data), best_rollout.bag\n"
@@ -334,13 +353,21 @@ class FoldLearnerNode {
     std::fflush(stdout);
     if (record.resumed) return;
     const ros::Time now = ros::Time::now();
-    // The cloth, images and arms of a rollout simulated here; a rollout worker's answer has its tool paths only.
+    // The cloth, images and arms of a rollout simulated here, or what a robot sent; a rollout worker's answer has
+    // its tool paths only.
+    const bool robot = !rollout.camera_colour.empty();
+    if (robot) keepRecording(record, rollout);
     if (rollout.cloth_vertices.cols() > 0) {
       cloth_publisher_.publish(bs::nodes::clothMarker(rollout.cloth_vertices, rollout.cloth_triangles, now));
+    }
+    if (robot) {
+      publishImages(now, rollout.camera_colour.back(), rollout.camera_depth.back());
+    } else if (rollout.cloth_vertices.cols() > 0) {
       publishImages(now, reward.bgr(), reward.depth());
-      if (!rollout.joint_path.empty() && rollout.joint_path.front().cols() > 0) {
-        joint_publisher_.publish(jointState(rollout, rollout.joint_path.front().cols() - 1, now));
-      }
+    }
+    if ((robot || rollout.cloth_vertices.cols() > 0) && !rollout.joint_path.empty() &&
+        rollout.joint_path.front().cols() > 0) {
+      joint_publisher_.publish(jointState(rollout, rollout.joint_path.front().cols() - 1, now));
     }
     if (rollout.actual_path.empty()) return;
     // The paths of the last rollouts, coloured by reward from the worst (red) to the best (green) shown.
@@ -388,16 +415,58 @@ class FoldLearnerNode {
     return js;
   }
 
-  void writeImage(const br::FoldRolloutRecord& record, const std::string& name) {
-    const bt::FoldRollout rollout = learner_->replay(record, 0.0);
-    cv::Mat bgr, depth;
-    learner_->score(rollout, record.seed, bgr, depth);
-    cv::imwrite(out_ + "/" + name + ".png", bgr);
+  /// A robot's rollouts: what they sent, for the pictures and the bag of the initial policy, each final policy and the
+  /// best rollout (the robot's frames are not on disk: a resumed run has none of the rollouts read back).
+  static std::string recordKey(const br::FoldRolloutRecord& r) {
+    return r.algorithm + '|' + std::to_string(r.run) + '|' + std::to_string(r.epoch) + '|' + br::toString(r.kind) +
+           '|' + std::to_string(r.index);
+  }
+
+  void keepRecording(const br::FoldRolloutRecord& record, const bt::FoldRollout& rollout) {
+    const bool policy = record.kind == br::RolloutKind::Policy;
+    if (policy && (record.epoch == 0 || record.epoch == config_.updates)) recordings_[recordKey(record)] = rollout;
+    if (record.terms.outcome == bt::FoldOutcome::Ok && record.terms.reward > best_recorded_reward_) {
+      best_recorded_reward_ = record.terms.reward;
+      recordings_["best"] = rollout;
+    }
+  }
+
+  /// The recording of a record's rollout, or null (a rollout read from disk).
+  const bt::FoldRollout* recordingOf(const br::FoldRolloutRecord& record) const {
+    const auto found = recordings_.find(recordKey(record));
+    return found == recordings_.end() ? nullptr : &found->second;
+  }
+
+  void writeDepth(const cv::Mat& depth, const std::string& name) const {
     cv::Mat shown;
     double lo = 0.0, hi = 0.0;
     cv::minMaxLoc(depth, &lo, &hi);
     depth.convertTo(shown, CV_8U, hi > lo ? -255.0 / (hi - lo) : 0.0, hi > lo ? 255.0 * hi / (hi - lo) : 0.0);
     cv::imwrite(out_ + "/depth_" + name + ".png", shown);
+  }
+
+  /// The robot's pictures of a rollout: NAME.png and depth_NAME.png (the images scored), and the filmstrip's data as
+  /// writeFilmstrip() writes it (the camera's images nearest six moments; the cloth frames when the robot has them).
+  void writeRecorded(const bt::FoldRollout& r, const std::string& name) {
+    cv::imwrite(out_ + "/" + name + ".png", r.camera_colour.back());
+    writeDepth(r.camera_depth.back(), name);
+    if (!r.cloth_frames.empty()) writeFrames(r, name);
+    const Eigen::VectorXd& t = r.camera_times;
+    for (int moment = 0; moment < 6; ++moment) {
+      const double at = t[0] + (t[t.size() - 1] - t[0]) * moment / 5.0;
+      Eigen::Index nearest = 0;
+      (t.array() - at).abs().minCoeff(&nearest);
+      cv::imwrite(out_ + "/" + name + "_top_" + std::to_string(moment) + ".png",
+                  r.camera_colour[static_cast<std::size_t>(nearest)]);
+    }
+  }
+
+  void writeImage(const br::FoldRolloutRecord& record, const std::string& name) {
+    const bt::FoldRollout rollout = learner_->replay(record, 0.0);
+    cv::Mat bgr, depth;
+    learner_->score(rollout, record.seed, bgr, depth);
+    cv::imwrite(out_ + "/" + name + ".png", bgr);
+    writeDepth(depth, name);
   }
 
   /// What scripts/plot_fold_learning.py turns into DIR/filmstrip_NAME.png and DIR/NAME.gif: the rollout's cloth
@@ -406,6 +475,18 @@ class FoldLearnerNode {
   void writeFilmstrip(const br::FoldRolloutRecord& record, const std::string& name) {
     bt::FoldRollout rollout = learner_->replay(record, 20.0);
     if (rollout.cloth_frames.empty()) return;
+    writeFrames(rollout, name);
+    const std::size_t last = rollout.cloth_frames.size() - 1;
+    for (int moment = 0; moment < 6; ++moment) {
+      rollout.cloth_vertices = rollout.cloth_frames[last * static_cast<std::size_t>(moment) / 5];
+      cv::Mat bgr, depth;
+      learner_->score(rollout, record.seed, bgr, depth);
+      cv::imwrite(out_ + "/" + name + "_top_" + std::to_string(moment) + ".png", bgr);
+    }
+  }
+
+  /// NAME_frames.csv (t, q, then x y z of every node of each cloth frame) and NAME_triangles.csv.
+  void writeFrames(const bt::FoldRollout& rollout, const std::string& name) const {
     const bs::sim::ClothParameters& cloth = cloth_;
     std::ofstream frames(out_ + "/" + name + "_frames.csv");
     frames.precision(6);
@@ -424,15 +505,10 @@ class FoldLearnerNode {
       triangles << rollout.cloth_triangles(0, t) << ',' << rollout.cloth_triangles(1, t) << ','
                 << rollout.cloth_triangles(2, t) << '\n';
     }
-    const std::size_t last = rollout.cloth_frames.size() - 1;
-    for (int moment = 0; moment < 6; ++moment) {
-      rollout.cloth_vertices = rollout.cloth_frames[last * static_cast<std::size_t>(moment) / 5];
-      cv::Mat bgr, depth;
-      learner_->score(rollout, record.seed, bgr, depth);
-      cv::imwrite(out_ + "/" + name + "_top_" + std::to_string(moment) + ".png", bgr);
-    }
   }
 
+  /// best_rollout.bag: the rollout's joints, cloth, tool paths and camera images on the node's topics. A simulated
+  /// rollout's images are rendered at its end (`best` gives the noise's seed); a robot's are the ones it sent.
   void writeBag(const br::FoldRolloutRecord& best, const bt::FoldRollout& rollout) {
     rosbag::Bag bag(out_ + "/best_rollout.bag", rosbag::bagmode::Write);
     const std::string ns = private_node_.getNamespace();
@@ -446,7 +522,6 @@ class FoldLearnerNode {
       const ros::Time t(kBagStart + rollout.cloth_times[static_cast<Eigen::Index>(k)]);
       bag.write(ns + "/cloth", t, bs::nodes::clothMarker(rollout.cloth_frames[k], rollout.cloth_triangles, t));
     }
-    const ros::Time end(kBagStart + rollout.simulated_seconds);
     visualization_msgs::MarkerArray paths;
     for (std::size_t arm = 0; arm < rollout.actual_path.size(); ++arm) {
       visualization_msgs::Marker m =
@@ -455,16 +530,25 @@ class FoldLearnerNode {
       paths.markers.push_back(m);
     }
     bag.write(ns + "/tool_paths", begin, paths);
-    cv::Mat bgr, depth;
-    learner_->score(rollout, best.seed, bgr, depth);
-    std_msgs::Header header;
-    header.stamp = end;
-    header.frame_id = kCameraFrame;
     const vision::TopDownCamera& camera = learner_->config().reward.renderer.camera;
-    bag.write(ns + "/camera/image_raw", end, cv_bridge::CvImage(header, "bgr8", bgr).toImageMsg());
-    bag.write(ns + "/camera/camera_info", end, bs::ros_layer::cameraInfo(camera, header));
-    bag.write(ns + "/camera/depth/image_raw", end, cv_bridge::CvImage(header, "32FC1", depth).toImageMsg());
-    bag.write(ns + "/camera/depth/camera_info", end, bs::ros_layer::cameraInfo(camera, header));
+    const auto image = [&](double t, const cv::Mat& bgr, const cv::Mat& depth) {
+      std_msgs::Header header;
+      header.stamp = ros::Time(kBagStart + std::max(0.0, t));
+      header.frame_id = kCameraFrame;
+      bag.write(ns + "/camera/image_raw", header.stamp, cv_bridge::CvImage(header, "bgr8", bgr).toImageMsg());
+      bag.write(ns + "/camera/camera_info", header.stamp, bs::ros_layer::cameraInfo(camera, header));
+      bag.write(ns + "/camera/depth/image_raw", header.stamp, cv_bridge::CvImage(header, "32FC1", depth).toImageMsg());
+      bag.write(ns + "/camera/depth/camera_info", header.stamp, bs::ros_layer::cameraInfo(camera, header));
+    };
+    if (!rollout.camera_colour.empty()) {
+      for (std::size_t k = 0; k < rollout.camera_colour.size(); ++k) {
+        image(rollout.camera_times[static_cast<Eigen::Index>(k)], rollout.camera_colour[k], rollout.camera_depth[k]);
+      }
+    } else {
+      cv::Mat bgr, depth;
+      learner_->score(rollout, best.seed, bgr, depth);
+      image(rollout.simulated_seconds, bgr, depth);
+    }
     bag.close();
   }
 
@@ -588,7 +672,12 @@ class FoldLearnerNode {
   void replayLoop(const br::FoldRolloutRecord& best, const bt::FoldRollout& rollout) {
     ROS_INFO("fold_learner: replaying the best rollout until shut down");
     cv::Mat bgr, depth;
-    learner_->score(rollout, best.seed, bgr, depth);
+    if (rollout.camera_colour.empty()) {
+      learner_->score(rollout, best.seed, bgr, depth);
+    } else {  // a robot's: the images its camera sent
+      bgr = rollout.camera_colour.back();
+      depth = rollout.camera_depth.back();
+    }
     std_msgs::Header header;
     header.stamp = ros::Time::now();
     header.frame_id = kCameraFrame;
@@ -643,6 +732,8 @@ class FoldLearnerNode {
   std::chrono::steady_clock::time_point start_;
   int done_ = 0, resumed_ = 0, total_ = 0;
   bool dispatching_ = false, robot_backend_ = false;
+  std::map<std::string, bt::FoldRollout> recordings_;  ///< A robot's rollouts kept for the pictures (keepRecording)
+  double best_recorded_reward_ = -std::numeric_limits<double>::infinity();
   std::string workers_where_;
   std::size_t workers_lost_ = 0, redispatched_ = 0;
 };

@@ -351,10 +351,26 @@ def draw_oblique(ax, mesh, triangles, q, t, centre):
     ax.set_title(f't = {t:.1f} s, q = {q:.2f}', fontsize=9)
 
 
+def camera_filmstrip(directory, name):
+    """A robot run without the cloth's ground truth: the camera's six images only."""
+    fig, axes = plt.subplots(1, 6, figsize=(16, 2.9))
+    for k, ax in enumerate(axes):
+        ax.imshow(mpimg.imread(os.path.join(directory, f'{name}_top_{k}.png')))
+        ax.set_axis_off()
+    fig.suptitle(f'The {name} policy: the camera\'s images over the rollout', fontsize=11)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, f'filmstrip_{name}.png'), dpi=90)
+    plt.close(fig)
+    return f'filmstrip_{name}.png'
+
+
 def filmstrip(directory, name):
+    """filmstrip_NAME.png and NAME.gif from the rollout's frames; what it wrote ('' for nothing)."""
     frames = read_frames(directory, name)
     if frames is None:
-        return False
+        if os.path.exists(os.path.join(directory, f'{name}_top_0.png')):
+            return camera_filmstrip(directory, name)
+        return ''
     times, qualities, meshes, triangles = frames
     centre = meshes[0][:, :2].mean(axis=0)
     last = len(meshes) - 1
@@ -385,7 +401,7 @@ def filmstrip(directory, name):
         plt.close(fig)
     images[0].save(os.path.join(directory, f'{name}.gif'), save_all=True, append_images=images[1:], duration=100,
                    loop=0)
-    return True
+    return f'filmstrip_{name}.png, {name}.gif'
 
 
 def main():
@@ -394,7 +410,7 @@ def main():
     learning_curve(directory, epochs)
     coordination(directory)
     table(directory, epochs, read_rollouts(directory))
-    written = [f'filmstrip_{n}.png, {n}.gif' for n in ('initial', 'final') if filmstrip(directory, n)]
+    written = [w for w in (filmstrip(directory, n) for n in ('initial', 'final')) if w]
     print(f'plot_fold_learning: wrote {directory}/learning_curve.png, coordination.png, table75.md, proxy.png'
           + ''.join(', ' + w for w in written))
 

@@ -66,7 +66,7 @@ TEST(FoldLearnerNode, PublishesEachRolloutAndWritesTheResults) {
       "/fold_learner/tool_paths", 10, [&](const visualization_msgs::MarkerArrayConstPtr&) { ++paths; });
   const std::string bag_path = outDir() + "/best_rollout.bag";
   const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(200.0);
-  // The bag is written last, after summary.json and the images.
+  // summary.json is written last, after the images and the bag.
   while (ros::ok() && ros::WallTime::now() < deadline &&
          !(std::filesystem::exists(bag_path) && std::filesystem::exists(outDir() + "/summary.json") && images > 0)) {
     ros::spinOnce();

@@ -2,7 +2,8 @@
 // 1. fold_learner _backend:=ros learns 1 update x 4 rollouts: every rollout ends with a finite reward and an outcome,
 //    a finished one scored by the fold reward on the camera's images against the flat cloth it saw after the reset
 //    (mismatch strictly inside (0, 1)),
-//    the camera topics carry bgr8 and 32FC1 images with their CameraInfo, the trajectory actions report success.
+//    the camera topics carry bgr8 and 32FC1 images with their CameraInfo, the trajectory actions report success;
+//    the learner's pictures of its final policy (final.png, final_top_K.png) are images the camera sent, not renders.
 // 2. A rollout of a FoldOnRobotTask here, with bullet_sim killed (SIGKILL) while the fold's trajectories run, ends
 //    as a failed rollout with a reason within the task's timeouts; the next one fails at once too, and neither hangs.
 // 3. operator_prompt (the hardware's scene reset) with nobody at its terminal refuses the reset with a reason.
@@ -16,6 +17,7 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <std_srvs/Trigger.h>
+#include <opencv2/imgcodecs.hpp>
 
 #include <gtest/gtest.h>
 
@@ -32,6 +34,9 @@
 #include <fstream>
 #include <functional>
 #include <future>
+#include <map>
+#include <mutex>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -61,6 +66,14 @@ std::vector<std::string> splitCsv(const std::string& line) {
   return cells;
 }
 
+/// A hash of an image's pixels (its rows, without padding).
+std::size_t pixelHash(const unsigned char* data, std::size_t step, int rows, std::size_t row_bytes) {
+  std::string pixels;
+  pixels.reserve(row_bytes * static_cast<std::size_t>(rows));
+  for (int r = 0; r < rows; ++r) pixels.append(reinterpret_cast<const char*>(data) + step * r, row_bytes);
+  return std::hash<std::string>{}(pixels);
+}
+
 std::string configPath() {
   std::string path;
   ros::param::get("~config", path);
@@ -72,11 +85,16 @@ std::string configPath() {
 TEST(FoldOnRobot, LearnsThroughTheTrajectoryActionsTheGripperAndTheCamera) {
   ros::NodeHandle node;
   std::atomic<int> images{0}, depths{0}, infos{0}, bad_images{0};
+  std::mutex hashes_mutex;
+  std::set<std::size_t> image_hashes;  // of every colour image the camera sent
   const auto image_sub =
-      node.subscribe<sensor_msgs::Image>("/camera/image_raw", 10, [&](const sensor_msgs::ImageConstPtr& m) {
+      node.subscribe<sensor_msgs::Image>("/camera/image_raw", 100, [&](const sensor_msgs::ImageConstPtr& m) {
         ++images;
         if (m->encoding != "bgr8" || m->width != 320 || m->height != 240 || m->header.frame_id != "top_down_camera")
           ++bad_images;
+        const std::size_t hash = pixelHash(m->data.data(), m->step, static_cast<int>(m->height), 3 * m->width);
+        const std::lock_guard<std::mutex> lock(hashes_mutex);
+        image_hashes.insert(hash);
       });
   const auto depth_sub =
       node.subscribe<sensor_msgs::Image>("/camera/depth/image_raw", 10, [&](const sensor_msgs::ImageConstPtr& m) {
@@ -151,6 +169,21 @@ TEST(FoldOnRobot, LearnsThroughTheTrajectoryActionsTheGripperAndTheCamera) {
   // Per successful rollout and arm: the move to the start and the fold (the first rollout's may come before these
   // subscriptions connect: the learner starts beside this test).
   EXPECT_GE(succeeded, 4 * (ok - 1));
+  // The robot's pictures are its camera's images: the final policy's scored image and its filmstrip, which moves.
+  const std::lock_guard<std::mutex> lock(hashes_mutex);
+  std::map<std::string, std::size_t> picture_hashes;
+  for (const std::string name : {"final", "final_top_0", "final_top_5"}) {
+    const cv::Mat picture = cv::imread(out + "/" + name + ".png", cv::IMREAD_COLOR);
+    ASSERT_FALSE(picture.empty()) << out << "/" << name << ".png";
+    const std::size_t hash =
+        pixelHash(picture.data, picture.step, picture.rows, static_cast<std::size_t>(3 * picture.cols));
+    EXPECT_EQ(image_hashes.count(hash), 1U) << name << ".png is not an image the camera sent";
+    picture_hashes[name] = hash;
+  }
+  EXPECT_NE(picture_hashes["final_top_0"], picture_hashes["final"]) << "the filmstrip starts before the fold's end";
+  EXPECT_EQ(picture_hashes["final_top_5"], picture_hashes["final"]) << "the filmstrip ends on the image scored";
+  EXPECT_TRUE(std::filesystem::exists(out + "/depth_final.png"));
+  EXPECT_TRUE(std::filesystem::exists(out + "/best_rollout.bag"));
 }
 
 // Before the simulator is killed below: its actions are up, a pause service of another name is not.

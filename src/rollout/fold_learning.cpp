@@ -482,6 +482,8 @@ struct FoldLearner::Impl {
           if (!observer.rollout) return;
           if (fold) {
             observer.rollout(rec, fold->lastRollout(), fold->reward());
+          } else if (const auto* recorded = dynamic_cast<const RecordedFoldTask*>(task)) {
+            observer.rollout(rec, recorded->lastRecording(), firstTask().reward());
           } else {
             tasks::FoldRollout paths;
             paths.actual_path = FoldRolloutTask::toolPaths(result);

@@ -666,4 +666,8 @@ const Eigen::Matrix3Xi& ClothFoldTask::clothTriangles() const {
   return impl_->simulation->cloth().triangles();
 }
 
+const Eigen::Matrix3Xd& ClothFoldTask::clothRestVertices() const {
+  return impl_->simulation->cloth().restVertices();
+}
+
 }  // namespace bimanual_skills::tasks

@@ -149,7 +149,8 @@ struct FoldLearningResult {
 /// Hooks for a user interface (a ROS node, a console). Called from one thread at a time, in completion order.
 struct FoldLearningObserver {
   /// A rollout finished. One that ran on a rollout worker has only its actual tool paths in `rollout` (no mesh, no
-  /// images in `reward`); one read from disk has neither.
+  /// images in `reward`); one on a robot (a RecordedFoldTask) what the robot sent (its camera's images in
+  /// `rollout.camera_*`, not in `reward`); one read from disk has neither.
   std::function<void(const FoldRolloutRecord& record, const tasks::FoldRollout& rollout,
                      const tasks::FoldReward& reward)>
       rollout;

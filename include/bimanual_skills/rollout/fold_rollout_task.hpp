@@ -12,6 +12,15 @@
 
 namespace bimanual_skills::rollout {
 
+/// A task that runs the fold elsewhere (a robot through its interfaces) and keeps what its last rollout received:
+/// the robot's joint and tool paths, its camera's images and, where the robot has one, the cloth's ground truth.
+class RecordedFoldTask {
+ public:
+  virtual ~RecordedFoldTask() = default;
+  /// The last rollout as received (tasks::FoldRollout's joint_path, actual_path, path_times, camera_*, cloth_*).
+  virtual const tasks::FoldRollout& lastRecording() const = 0;
+};
+
 class FoldRolloutTask : public RolloutTask {
  public:
   /// \throws std::invalid_argument as ClothFoldTask and FoldReward.

@@ -14,6 +14,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <opencv2/core.hpp>
 
 #include <cstdint>
 #include <memory>
@@ -87,6 +88,11 @@ struct FoldRollout {
   Eigen::Matrix3Xd cloth_vertices;                            ///< Final cloth mesh (world frame).
   Eigen::Matrix3Xi cloth_triangles;
   Eigen::Matrix3Xd cloth_rest_vertices;
+  /// A robot's rollout: the images its camera sent at moments of the rollout (colour bgr8, depth 32FC1 [m]), the last
+  /// the ones the reward scored, and their times [s since the grasp]. Empty for a simulated rollout, whose images are
+  /// rendered from its meshes.
+  std::vector<cv::Mat> camera_colour, camera_depth;
+  Eigen::VectorXd camera_times;
   FoldQuality fold;  ///< The final cloth's fold quality (ground truth, fold_quality.hpp).
   double simulated_seconds = 0.0, wall_seconds = 0.0;
 };
@@ -158,6 +164,8 @@ class ClothFoldTask {
   /// The ideal fold of this task's cloth (idealFold(), world frame) and the cloth's triangles: the goal image's mesh.
   Eigen::Matrix3Xd idealFoldVertices() const;
   const Eigen::Matrix3Xi& clothTriangles() const;
+  /// The flat cloth at rest (world frame): what foldQualityOf() measures against.
+  const Eigen::Matrix3Xd& clothRestVertices() const;
 
   /// The DoF of the policy's forcing terms: 2 arms × (position + orientation vector).
   static constexpr int kDofs = 12;

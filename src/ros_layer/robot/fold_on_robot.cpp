@@ -78,6 +78,30 @@ void FoldRobotInterfaces::validate() const {
   if (!(timeout > 0.0) || !std::isfinite(timeout)) fail("timeout must be finite and > 0");
 }
 
+namespace {
+
+/// The cloth's nodes of a point cloud with float x, y, z fields; false for a cloud without them.
+bool cloudVertices(const sensor_msgs::PointCloud2& cloud, Eigen::Matrix3Xd& vertices) {
+  try {
+    vertices.resize(3, static_cast<Eigen::Index>(cloud.width) * cloud.height);
+    sensor_msgs::PointCloud2ConstIterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z");
+    for (Eigen::Index i = 0; i < vertices.cols(); ++i, ++x, ++y, ++z) vertices.col(i) << *x, *y, *z;
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
+}
+
+/// Appends a camera frame at time t to a recording.
+void addFrame(tasks::FoldRollout& recording, double t, const cv::Mat& bgr, const cv::Mat& depth) {
+  recording.camera_colour.push_back(bgr);
+  recording.camera_depth.push_back(depth);
+  recording.camera_times.conservativeResize(recording.camera_times.size() + 1);
+  recording.camera_times[recording.camera_times.size() - 1] = t;
+}
+
+}  // namespace
+
 /// A failed step of a rollout: how it ended and why.
 struct FoldOnRobotTask::Failure {
   tasks::FoldOutcome outcome;
@@ -124,10 +148,42 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
     };
   };
   image_sub_ = node_->subscribe<sensor_msgs::Image>(camera + "image_raw", 2, keep(image_));
-  depth_sub_ = node_->subscribe<sensor_msgs::Image>(camera + "depth/image_raw", 2, keep(depth_));
+  // While a rollout records: a colour and depth pair of one stamp every kImagePeriod (the depth image comes second).
+  depth_sub_ = node_->subscribe<sensor_msgs::Image>(
+      camera + "depth/image_raw", 2, [this](const sensor_msgs::ImageConstPtr& depth) {
+        sensor_msgs::ImageConstPtr image;
+        double t = 0.0;
+        {
+          const std::lock_guard<std::mutex> lock(mutex_);
+          depth_ = depth;
+          t = (depth->header.stamp - record_start_).toSec();
+          if (!recording_frames_ || !image_ || image_->header.stamp != depth->header.stamp || t < next_image_) return;
+          next_image_ = t + kImagePeriod;
+          image = image_;
+        }
+        try {
+          cv::Mat bgr = cv_bridge::toCvCopy(image, "bgr8")->image, metres = cv_bridge::toCvCopy(depth, "32FC1")->image;
+          const std::lock_guard<std::mutex> lock(mutex_);
+          if (recording_frames_) addFrame(recording_, t, bgr, metres);  // still this rollout's
+        } catch (const cv_bridge::Exception&) {
+          // An image of another encoding: observe() fails the rollout with the reason.
+        }
+      });
   info_sub_ = node_->subscribe<sensor_msgs::CameraInfo>(camera + "camera_info", 2, keep(info_));
   if (!robot_.cloth.empty()) {
-    cloth_sub_ = node_->subscribe<sensor_msgs::PointCloud2>(robot_.cloth, 2, keep(cloth_));
+    cloth_sub_ = node_->subscribe<sensor_msgs::PointCloud2>(
+        robot_.cloth, 2, [this](const sensor_msgs::PointCloud2ConstPtr& cloud) {
+          const std::lock_guard<std::mutex> lock(mutex_);
+          cloth_ = cloud;
+          const double t = (cloud->header.stamp - record_start_).toSec();
+          if (!recording_frames_ || t < next_cloth_) return;
+          next_cloth_ = t + kClothPeriod;
+          Eigen::Matrix3Xd vertices;
+          if (!cloudVertices(*cloud, vertices)) return;
+          recording_.cloth_frames.push_back(vertices);
+          recording_.cloth_times.conservativeResize(recording_.cloth_times.size() + 1);
+          recording_.cloth_times[recording_.cloth_times.size() - 1] = t;
+        });
   }
   for (int a = 0; a < 2; ++a) {
     auto arm = std::make_unique<Arm>();
@@ -354,6 +410,9 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
       arm->positions.clear();
       arm->max_error = 0.0;
     }
+    recording_frames_ = true;
+    record_start_ = start;
+    next_image_ = next_cloth_ = -std::numeric_limits<double>::infinity();
   }
   for (int a = 0; a < 2; ++a) {
     Arm& arm = *arms_[static_cast<std::size_t>(a)];
@@ -457,10 +516,9 @@ tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double a
       reward_.evaluateImages(tasks::FoldOutcome::Ok, acceleration_cost, camera.bgr->image, camera.metres->image);
   terms.fold_quality = terms.fold_distance = terms.fold_displacement = std::numeric_limits<double>::quiet_NaN();
   if (cloth) {
+    Eigen::Matrix3Xd vertices;
     try {  // a cloud without x, y, z or of another cloth is the robot's fault, not the learner's
-      Eigen::Matrix3Xd vertices(3, static_cast<Eigen::Index>(cloth->width) * cloth->height);
-      sensor_msgs::PointCloud2ConstIterator<float> x(*cloth, "x"), y(*cloth, "y"), z(*cloth, "z");
-      for (Eigen::Index i = 0; i < vertices.cols(); ++i, ++x, ++y, ++z) vertices.col(i) << *x, *y, *z;
+      if (!cloudVertices(*cloth, vertices)) throw std::invalid_argument("no float fields x, y, z");
       const tasks::FoldQuality fold = task_.foldQualityOf(vertices);
       terms.fold_quality = fold.q;
       terms.fold_distance = fold.distance;
@@ -468,13 +526,25 @@ tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double a
     } catch (const std::exception& e) {
       throw Failure{tasks::FoldOutcome::RobotFailed, "unusable cloth cloud " + robot_.cloth + ": " + e.what()};
     }
+    const std::lock_guard<std::mutex> lock(mutex_);
+    recording_.cloth_vertices = vertices;
   }
+  // The images scored close the recording.
+  const std::lock_guard<std::mutex> lock(mutex_);
+  recording_frames_ = false;
+  addFrame(recording_, (camera.bgr->header.stamp - record_start_).toSec(), camera.bgr->image.clone(),
+           camera.metres->image.clone());
   return terms;
 }
 
 rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, std::uint32_t /*seed*/) {
   const auto wall_start = std::chrono::steady_clock::now();
   last_tracking_error_ = last_robot_seconds_ = 0.0;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    recording_ = tasks::FoldRollout{};
+    recording_frames_ = false;
+  }
   tasks::FoldRewardTerms terms;
   std::string reason;
   std::vector<Eigen::Matrix3Xd> paths;
@@ -537,16 +607,31 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     const std::vector<double>& times = arms_[0]->times;
     const double period = samples > 1 ? (times[samples - 1] - times[0]) / static_cast<double>(samples - 1) : 1.0;
     const auto stride = static_cast<std::size_t>(std::max(1.0, std::round(1.0 / (kPathRate * period))));
+    const auto thinned = static_cast<Eigen::Index>(samples > 0 ? (samples + stride - 1) / stride : 0);
+    recording_.path_times.resize(thinned);
+    for (std::size_t k = 0; k < samples; k += stride) {
+      recording_.path_times[static_cast<Eigen::Index>(k / stride)] = times[k] - record_start_.toSec();
+    }
     for (int a = 0; a < 2 && samples > 0; ++a) {
       const Arm& arm = *arms_[static_cast<std::size_t>(a)];
       kinematics::ChainData data(task_.armModel(a));
-      Eigen::Matrix3Xd path(3, static_cast<Eigen::Index>((samples + stride - 1) / stride));
+      Eigen::Matrix3Xd path(3, thinned);
+      Eigen::MatrixXd joints(arm.positions.front().size(), thinned);
       for (std::size_t k = 0; k < samples; k += stride) {
         (void)kinematics::forwardKinematics(task_.armModel(a), data, arm.positions[k]);
         path.col(static_cast<Eigen::Index>(k / stride)) = task_.basePose(a) * data.tipPose().translation();
+        joints.col(static_cast<Eigen::Index>(k / stride)) = arm.positions[k];
       }
       paths.push_back(path);
+      recording_.joint_path.push_back(joints);
     }
+    recording_frames_ = false;
+    recording_.outcome = terms.outcome;
+    recording_.reason = reason;
+    recording_.actual_path = paths;
+    recording_.cloth_triangles = task_.clothTriangles();
+    recording_.cloth_rest_vertices = task_.clothRestVertices();
+    if (recording_.cloth_vertices.cols() > 0) recording_.fold = task_.foldQualityOf(recording_.cloth_vertices);
   }
   rollout::RolloutResult result = rollout::FoldRolloutTask::resultOf(terms, reason, paths);
   result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();

@@ -23,6 +23,7 @@
 
 #include "bimanual_skills/FollowJointTrajectoryAction.h"
 #include "bimanual_skills/JointTrajectoryControllerState.h"
+#include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
 #include "bimanual_skills/tasks/cloth_fold.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
@@ -64,7 +65,7 @@ struct FoldRobotInterfaces {
   void validate() const;
 };
 
-class FoldOnRobotTask : public rollout::RolloutTask {
+class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFoldTask {
  public:
   /// Builds the task (the policy's encoding and references as rollout::FoldRolloutTask), connects to the
   /// interfaces and waits up to `robot.timeout` for the actions and the pause service. \throws
@@ -85,6 +86,11 @@ class FoldOnRobotTask : public rollout::RolloutTask {
   /// The robot's clock time the last rollout took from the start of the move to the start to its images (0 for a
   /// failed one) [s].
   double lastRobotSeconds() const noexcept { return last_robot_seconds_; }
+  /// What the last rollout received, times from the fold's start: the measured joints and tool paths, the camera's
+  /// images every kImagePeriod of the robot's clock from the fold's start to the images scored (those last), and the
+  /// cloth's ground truth every kClothPeriod (when the robot has it).
+  const tasks::FoldRollout& lastRecording() const override { return recording_; }
+  static constexpr double kImagePeriod = 0.25, kClothPeriod = 0.05;  ///< [s of the robot's clock]
 
  private:
   struct Arm;
@@ -124,6 +130,11 @@ class FoldOnRobotTask : public rollout::RolloutTask {
   sensor_msgs::ImageConstPtr image_, depth_;
   sensor_msgs::CameraInfoConstPtr info_;
   sensor_msgs::PointCloud2ConstPtr cloth_;
+  /// While a rollout records (from the fold's start, `record_start_`, to its images): the frames received.
+  bool recording_frames_ = false;
+  ros::Time record_start_;
+  double next_image_ = 0.0, next_cloth_ = 0.0;
+  tasks::FoldRollout recording_;
   double last_tracking_error_ = 0.0, last_robot_seconds_ = 0.0;
   bool paused_ = false;  ///< Whether this task paused the simulator (and must resume it).
 };
