@@ -10,6 +10,10 @@
 //               rollout per share and adaptive shares, as a fraction of a 1 s rollout; Table 7.3's planar DR-DMP
 //               task (cheap rollouts) on two workers; and on the fold with one rollout per share, the batch's time
 //               minus the rollouts' own (as the worker timed them).
+//   threads:    the learning's fold rollouts on N threads of this process, no ROS (--threads, default 1,2,4,8,16;
+//               one thread always, first):
+//               rollouts/s, the speed-up over one thread and the efficiency (speed-up / N), each thread's task built
+//               before the timing, and whether every result equals the one-thread result bit for bit.
 // Writes DIR/summary.json, DIR/rollout_benchmark.csv, and (scripts/plot_rollout_benchmark.py) DIR/throughput.png
 // and DIR/tables.md.
 #include "bimanual_skills/realtime/clock.hpp"
@@ -22,6 +26,7 @@
 
 #include <ros/ros.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -151,22 +156,22 @@ bool identical(const std::vector<br::RolloutResult>& a, const std::vector<br::Ro
   return true;
 }
 
-std::vector<int> parseCounts(const std::string& text) {
+std::vector<int> parseCounts(const std::string& option, const std::string& text) {
   std::vector<int> out;
   std::stringstream ss(text);
   for (std::string item; std::getline(ss, item, ',');) {
     const int n = std::atoi(item.c_str());
-    if (n < 1 || n > 64) throw std::invalid_argument("--workers: '" + item + "' is not a count in [1, 64]");
+    if (n < 1 || n > 64) throw std::invalid_argument(option + ": '" + item + "' is not a count in [1, 64]");
     out.push_back(n);
   }
-  if (out.empty()) throw std::invalid_argument("--workers: no count");
+  if (out.empty()) throw std::invalid_argument(option + ": no count");
   return out;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string config, workers_text = "1,2,4", external;  // config: empty until resolved (config/fold_demo.yaml)
+  std::string config, workers_text = "1,2,4", threads_text = "1,2,4,8,16", external;  // config: (config/fold_demo.yaml)
   long rollouts = 0;
   bs::bench::ExperimentProgram program;
   program.name = "rollout_benchmark";
@@ -174,12 +179,14 @@ int main(int argc, char** argv) {
       "Rollouts on threads of one process against rollout_worker nodes (topics): throughput of fold rollouts on 1\n"
       "and 2 threads and on 1, 2, 4 workers, and of cheap rollouts (circle, 0.3 ms, in batches of 50) on one thread\n"
       "and on 1 and 2 workers; and the dispatch's own cost per rollout. Starts its own ROS master when none answers\n"
-      "at ROS_MASTER_URI, and its own workers.";
-  program.experiments = {"throughput", "overhead", "all"};
+      "at ROS_MASTER_URI, and its own workers. threads: the fold rollouts on N threads of this process (no ROS),\n"
+      "speed-up and efficiency per N, results checked identical.";
+  program.experiments = {"throughput", "overhead", "threads", "all"};
   program.extra = [&](bs::cli::CommandLine& line) {
     line.option("--config", "FILE", "fold learning file of the fold rollouts (default: config/fold_demo.yaml)",
                 &config);
     line.option("--workers", "LIST", "worker counts of the throughput experiment (default 1,2,4)", &workers_text);
+    line.option("--threads", "LIST", "thread counts of the threads experiment (default 1,2,4,8,16)", &threads_text);
     line.option("--rollouts", "N", "fold rollouts per batch (default 16; 4 with --quick)", &rollouts, 1, 100000);
     line.option("--worker-namespace", "NS",
                 "throughput also on the rollout workers already running under NS (e.g. on other hosts; they read "
@@ -187,9 +194,10 @@ int main(int argc, char** argv) {
                 &external);
   };
   const bs::bench::ExperimentOptions options = bs::bench::parseExperimentOptions(argc, argv, program);
-  std::vector<int> worker_counts;
+  std::vector<int> worker_counts, thread_counts;
   try {
-    worker_counts = parseCounts(workers_text);
+    worker_counts = parseCounts("--workers", workers_text);
+    thread_counts = parseCounts("--threads", threads_text);
   } catch (const std::invalid_argument& e) {
     std::fprintf(stderr, "rollout_benchmark: %s (see --help)\n", e.what());
     return 2;
@@ -199,12 +207,16 @@ int main(int argc, char** argv) {
     const int n = rollouts > 0 ? static_cast<int>(rollouts) : (options.quick ? 4 : 16);
     std::filesystem::create_directories(options.out);
     const std::string log = options.out + "/ros.log";
-    const std::unique_ptr<bs::bench::Child> master = bs::bench::ensureMaster(log, "rollout_benchmark");
-    int ros_argc = 1;
-    ros::init(ros_argc, argv, "rollout_benchmark",
-              ros::init_options::AnonymousName | ros::init_options::NoSigintHandler);
-    std::printf("rollout_benchmark: seed %u, %d fold rollouts per batch (%s), worker logs in %s\n", options.seed, n,
-                config.c_str(), log.c_str());
+    const bool with_ros = options.experiment != "threads";  // the threads experiment needs no master
+    std::unique_ptr<bs::bench::Child> master;
+    if (with_ros) {
+      master = bs::bench::ensureMaster(log, "rollout_benchmark");
+      int ros_argc = 1;
+      ros::init(ros_argc, argv, "rollout_benchmark",
+                ros::init_options::AnonymousName | ros::init_options::NoSigintHandler);
+    }
+    std::printf("rollout_benchmark: seed %u, %d fold rollouts per batch (%s)%s\n", options.seed, n, config.c_str(),
+                with_ros ? (", worker logs in " + log).c_str() : "");
 
     std::vector<bs::bench::JsonRow> rows;
     std::ofstream csv(options.out + "/rollout_benchmark.csv");
@@ -234,10 +246,37 @@ int main(int argc, char** argv) {
 
     const Batch fold = makeBatch("fold", config, n, options.seed);
     const std::size_t fold_terms = br::makeRolloutTask("fold", config)->termNames().size();
-    const Timing one_thread = onThreads(fold, 1);
-    record("throughput", "fold", "threads", 1, "-", n, one_thread.seconds, true);
     bool all_identical = true;
-    if (options.experiment != "overhead") {
+    if (options.experiment == "threads" || options.experiment == "all") {
+      // Enough rollouts for every thread count to keep its threads busy to the end: 4 per thread of the largest.
+      const int largest = *std::max_element(thread_counts.begin(), thread_counts.end());
+      const Batch batch = makeBatch("fold", config, std::max(n, 4 * largest), options.seed);
+      // One thread first: the reference of the speed-ups and of the results.
+      std::vector<int> counts{1};
+      for (const int threads : thread_counts)
+        if (threads != 1) counts.push_back(threads);
+      std::vector<br::RolloutResult> reference;
+      double one = 0.0;
+      for (const int threads : counts) {
+        br::ParallelEvaluator evaluator([&] { return br::makeRolloutTask(batch.task, batch.config); }, threads);
+        const Timing t = inBatches(batch, 0, evaluator);
+        if (reference.empty()) reference = t.results;
+        const bool same = identical(t.results, reference);
+        all_identical = all_identical && same;
+        const int size = static_cast<int>(batch.requests.size());
+        if (threads == 1) one = t.seconds;
+        record("threads", "fold", "threads", threads, "-", size, t.seconds, same);
+        rows.back()
+            .add("speedup", one / t.seconds)
+            .add("efficiency", one / t.seconds / threads)
+            .add("hardware_threads", static_cast<int>(std::thread::hardware_concurrency()));
+        std::printf("  threads    x%-2d speed-up %.2f over one thread, efficiency %.2f\n", threads, one / t.seconds,
+                    one / t.seconds / threads);
+      }
+    }
+    const Timing one_thread = with_ros ? onThreads(fold, 1) : Timing{};
+    if (with_ros) record("throughput", "fold", "threads", 1, "-", n, one_thread.seconds, true);
+    if (with_ros && options.experiment != "overhead") {
       const Timing two = onThreads(fold, 2);
       record("throughput", "fold", "threads", 2, "-", n, two.seconds, identical(two.results, one_thread.results));
       all_identical = all_identical && identical(two.results, one_thread.results);
@@ -279,7 +318,7 @@ int main(int argc, char** argv) {
             .add("ms_per_batch", 1000.0 * t.seconds * kPerBatch / size);
       }
     }
-    if (options.experiment != "throughput") {
+    if (with_ros && options.experiment != "throughput") {
       const int quadratic_rollouts = options.quick ? 100 : 1000;
       const Batch quadratic = makeBatch("quadratic", "", quadratic_rollouts, options.seed);
       const Timing local = onThreads(quadratic, 1);

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Plots of rollout_benchmark: DIR/throughput.png (fold and cheap circle rollouts per second on threads and on
-rollout workers, relative to one thread) and DIR/tables.md, from DIR/summary.json. Usage: plot_rollout_benchmark.py
-DIR"""
+rollout workers, relative to one thread), DIR/threads.png (the fold's speed-up and efficiency on N threads) and
+DIR/tables.md, from DIR/summary.json. Usage: plot_rollout_benchmark.py DIR"""
 import json
 import os
 import sys
@@ -19,6 +19,7 @@ def main():
     rows = summary["results"]
     throughput = [r for r in rows if r["experiment"] == "throughput"]
     overhead = [r for r in rows if r["experiment"] == "overhead"]
+    threads = [r for r in rows if r["experiment"] == "threads"]
     lines = ["# rollout_benchmark (seed %d%s)" % (summary["seed"], ", quick" if summary["quick"] else ""), ""]
     tasks = [t for t in ("fold", "circle") if any(r["task"] == t for r in throughput)]
     if tasks:
@@ -65,6 +66,28 @@ def main():
             lines.append("| %s | %s | %d | %.3f | %.3f | %s |" % (
                 r["task"], r["share"], r["rollouts"], r["ms_per_rollout"], r["dispatch_ms_per_rollout"], cost))
         lines.append("")
+    if threads:
+        cores = threads[0]["hardware_threads"]
+        lines += ["The learning's fold rollouts on N threads, no ROS (%d hardware threads):" % cores, "",
+                  "| threads | rollouts | s | rollouts/s | speed-up | efficiency | same results |",
+                  "|---:|---:|---:|---:|---:|---:|---|"]
+        for r in threads:
+            lines.append("| %d | %d | %.2f | %.3f | %.2f× | %.2f | %s |" % (
+                r["count"], r["rollouts"], r["seconds"], r["rollouts_per_second"], r["speedup"], r["efficiency"],
+                "yes" if r["identical"] else "NO"))
+        lines.append("")
+        fig, ax = plt.subplots(figsize=(5.5, 3.8))
+        counts = [r["count"] for r in threads]
+        ax.plot(counts, [r["speedup"] for r in threads], "o-", label="speed-up over one thread")
+        ax.plot(counts, counts, ":", color="grey", label="ideal")
+        ax.axvline(cores, color="tab:red", lw=0.8, label="hardware threads")
+        ax.set_xlabel("threads")
+        ax.set_ylabel("speed-up")
+        ax.set_title("Fold rollouts on N threads (%d hardware threads)" % cores)
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(os.path.join(out, "threads.png"), dpi=120)
     with open(os.path.join(out, "tables.md"), "w") as f:
         f.write("\n".join(lines))
     return 0

@@ -282,6 +282,27 @@ TEST(RolloutBenchmarkSmoke, WorkersGiveTheResultsOfThreads) {
   fs::remove_all(out);
 }
 
+TEST(RolloutBenchmarkSmoke, ThreadsGiveTheResultsOfOneThreadWithoutAMaster) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_rollout_benchmark_threads_smoke";
+  fs::remove_all(out);
+  // No ROS master at this URI: the threads experiment needs none.
+  ASSERT_EQ(runQuietly("ROS_MASTER_URI=http://localhost:1 " + std::string(ROLLOUT_BENCHMARK) +
+                       " --experiment threads --threads 2 --rollouts 2 --seed 3 --quick --out " + out.string()),
+            0);
+  const std::string summary = readTextFile(out / "summary.json");
+  for (const char* field : {"\"experiment\": \"threads\"", "\"count\": 1", "\"count\": 2", "\"speedup\"",
+                            "\"efficiency\"", "\"identical\": true"}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field;
+  }
+  EXPECT_EQ(summary.find("\"identical\": false"), std::string::npos);
+  EXPECT_NE(readTextFile(out / "tables.md").find("speed-up"), std::string::npos);
+  EXPECT_TRUE(fs::exists(out / "threads.png"));
+  EXPECT_EQ(
+      runQuietly(std::string(ROLLOUT_BENCHMARK) + " --experiment threads --threads 1,0 --seed 1 --out " + out.string()),
+      2);
+  fs::remove_all(out);
+}
+
 TEST(WorkspaceBenchmarkSmoke, QuickRunWritesEveryOutput) {
   const fs::path out = fs::temp_directory_path() / "bimanual_skills_workspace_benchmark_smoke";
   fs::remove_all(out);
