@@ -13,9 +13,11 @@
 //   threads:    the learning's fold rollouts on N threads of this process, no ROS (--threads, default 1,2,4,8,16;
 //               one thread always, first):
 //               rollouts/s, the speed-up over one thread and the efficiency (speed-up / N), each thread's task built
-//               before the timing, and whether every result equals the one-thread result bit for bit.
+//               before the timing, and whether every result equals the one-thread result bit for bit; beside it the
+//               rollouts' own time (timed inside each) and the machine's speed-up on arithmetic in registers.
 // Writes DIR/summary.json, DIR/rollout_benchmark.csv, and (scripts/plot_rollout_benchmark.py) DIR/throughput.png
 // and DIR/tables.md.
+#include "bimanual_skills/parallel/parallel_for.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
@@ -28,6 +30,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -68,6 +71,21 @@ struct Timing {
     return results.empty() ? 0.0 : 1000.0 * (seconds - busy) / static_cast<double>(results.size());
   }
 };
+
+/// The machine's own scaling, the ceiling of any program's: `chunks` equal pieces of arithmetic in registers (a
+/// dependent chain: no memory, no allocation, nothing shared) on `threads` threads [s].
+double arithmeticSeconds(int chunks, int threads) {
+  std::vector<double> sink(static_cast<std::size_t>(chunks));
+  const auto start = Clock::now();
+  bs::parallel::parallelFor(sink.size(), threads, [&](int, std::size_t i) {
+    double x = 1.0 + static_cast<double>(i);
+    for (long k = 0; k < 40'000'000; ++k) x = x * 0.999999 + 1e-6;
+    sink[i] = x;
+  });
+  const double seconds = secondsSince(start);
+  if (!std::isfinite(sink.front())) throw std::logic_error("the arithmetic's chain diverged");
+  return seconds;
+}
 
 /// Times `evaluate` on the requests of `b` in consecutive batches of `per_batch` (all at once for 0).
 Timing inBatches(const Batch& b, std::size_t per_batch, br::Evaluator& evaluator) {
@@ -256,7 +274,7 @@ int main(int argc, char** argv) {
       for (const int threads : thread_counts)
         if (threads != 1) counts.push_back(threads);
       std::vector<br::RolloutResult> reference;
-      double one = 0.0;
+      double one = 0.0, arithmetic_one = 0.0;
       for (const int threads : counts) {
         br::ParallelEvaluator evaluator([&] { return br::makeRolloutTask(batch.task, batch.config); }, threads);
         const Timing t = inBatches(batch, 0, evaluator);
@@ -264,14 +282,27 @@ int main(int argc, char** argv) {
         const bool same = identical(t.results, reference);
         all_identical = all_identical && same;
         const int size = static_cast<int>(batch.requests.size());
-        if (threads == 1) one = t.seconds;
+        // The rollouts' own time (each timed inside its thread): growing with N is contention (memory, the
+        // allocator, the clock), where a constant one with a lower speed-up would be the scheduling's.
+        double inside = 0.0;
+        for (const br::RolloutResult& r : t.results) inside += r.wall_seconds;
+        inside /= static_cast<double>(size);
+        const double arithmetic = arithmeticSeconds(4 * largest, threads);
+        if (threads == 1) {
+          one = t.seconds;
+          arithmetic_one = arithmetic;
+        }
         record("threads", "fold", "threads", threads, "-", size, t.seconds, same);
         rows.back()
             .add("speedup", one / t.seconds)
             .add("efficiency", one / t.seconds / threads)
+            .add("ms_inside_rollout", 1000.0 * inside)
+            .add("arithmetic_speedup", arithmetic_one / arithmetic)
             .add("hardware_threads", static_cast<int>(std::thread::hardware_concurrency()));
-        std::printf("  threads    x%-2d speed-up %.2f over one thread, efficiency %.2f\n", threads, one / t.seconds,
-                    one / t.seconds / threads);
+        std::printf(
+            "  threads    x%-2d speed-up %.2f over one thread, efficiency %.2f, %.1f ms inside a rollout; the "
+            "machine's arithmetic %.2f\n",
+            threads, one / t.seconds, one / t.seconds / threads, 1000.0 * inside, arithmetic_one / arithmetic);
       }
     }
     const Timing one_thread = with_ros ? onThreads(fold, 1) : Timing{};

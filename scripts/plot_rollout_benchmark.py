@@ -69,20 +69,22 @@ def main():
     if threads:
         cores = threads[0]["hardware_threads"]
         lines += ["The learning's fold rollouts on N threads, no ROS (%d hardware threads):" % cores, "",
-                  "| threads | rollouts | s | rollouts/s | speed-up | efficiency | same results |",
-                  "|---:|---:|---:|---:|---:|---:|---|"]
+                  "| threads | rollouts | s | rollouts/s | speed-up | efficiency | ms inside a rollout | "
+                  "machine's arithmetic speed-up | same results |",
+                  "|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
         for r in threads:
-            lines.append("| %d | %d | %.2f | %.3f | %.2f× | %.2f | %s |" % (
+            lines.append("| %d | %d | %.2f | %.3f | %.2f× | %.2f | %.1f | %.2f× | %s |" % (
                 r["count"], r["rollouts"], r["seconds"], r["rollouts_per_second"], r["speedup"], r["efficiency"],
-                "yes" if r["identical"] else "NO"))
+                r["ms_inside_rollout"], r["arithmetic_speedup"], "yes" if r["identical"] else "NO"))
         lines.append("")
         fig, ax = plt.subplots(figsize=(5.5, 3.8))
         counts = [r["count"] for r in threads]
-        ax.plot(counts, [r["speedup"] for r in threads], "o-", label="speed-up over one thread")
+        ax.plot(counts, [r["speedup"] for r in threads], "o-", label="fold rollouts")
+        ax.plot(counts, [r["arithmetic_speedup"] for r in threads], "s--", label="arithmetic in registers (the machine)")
         ax.plot(counts, counts, ":", color="grey", label="ideal")
         ax.axvline(cores, color="tab:red", lw=0.8, label="hardware threads")
         ax.set_xlabel("threads")
-        ax.set_ylabel("speed-up")
+        ax.set_ylabel("speed-up over one thread")
         ax.set_title("Fold rollouts on N threads (%d hardware threads)" % cores)
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)

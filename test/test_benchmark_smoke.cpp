@@ -291,7 +291,7 @@ TEST(RolloutBenchmarkSmoke, ThreadsGiveTheResultsOfOneThreadWithoutAMaster) {
             0);
   const std::string summary = readTextFile(out / "summary.json");
   for (const char* field : {"\"experiment\": \"threads\"", "\"count\": 1", "\"count\": 2", "\"speedup\"",
-                            "\"efficiency\"", "\"identical\": true"}) {
+                            "\"efficiency\"", "\"arithmetic_speedup\"", "\"identical\": true"}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field;
   }
   EXPECT_EQ(summary.find("\"identical\": false"), std::string::npos);
