@@ -9,7 +9,11 @@ DIR/NAME_frames.csv, NAME_triangles.csv and NAME_top_K.png that fold_learner wri
 policy, DIR/filmstrip_NAME.png (six moments: the top-down camera above, an oblique view below, q under each) and
 DIR/NAME.gif (the oblique view of the whole rollout).
 
-Usage: plot_fold_learning.py DIR
+With --beside LABEL=OTHER (repeatable), table75.md also compares the final policies of OTHER runs (each a
+fold_learner run of one algorithm with one setting changed, e.g. LABEL "weights only" for _policy:=weights) with the
+same algorithm in DIR: an ablation table, one claim per column, Holm-corrected over the ablations.
+
+Usage: plot_fold_learning.py DIR [--beside LABEL=OTHER ...]
 """
 import csv
 import json
@@ -27,7 +31,7 @@ from mpl_toolkits.mplot3d.art3d import Poly3DCollection  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 from PIL import Image  # noqa: E402
-from plot_common import bootstrap_mean_ci, holm, mean_ci, output_directory  # noqa: E402
+from plot_common import bootstrap_mean_ci, holm, mean_ci  # noqa: E402
 from scipy import stats  # noqa: E402
 
 # Thesis Table 7.5: mean reward of the rollouts at epoch 1 and epoch 15 (3 runs).
@@ -233,13 +237,50 @@ def learned_policies(epochs, rollouts_per_epoch, reference=None):
     return lines
 
 
-def table(directory, epochs, rollouts):
+def ablations(epochs, rollouts_per_epoch, beside):
+    """Markdown lines: each ablation run's (LABEL, epochs of one algorithm) final noise-free policy against the same
+    algorithm in `epochs`, with Welch's t on the final q and Mann-Whitney U on the rollouts to q >= Q_TARGET (both
+    two-sided), each claim Holm-corrected over the ablations."""
+    rows, tests = [], []
+    for label, other in beside:
+        if len(other) != 1:
+            sys.exit(f'plot_fold_learning: the ablation {label!r} has {len(other)} algorithms; one is compared')
+        algorithm, per_epoch = next(iter(other.items()))
+        if algorithm not in epochs:
+            sys.exit(f'plot_fold_learning: the ablation {label!r} learned with {algorithm}, which the run does not have')
+        reference = epochs[algorithm]
+        final = [float(r['policy_fold_quality']) for r in per_epoch[max(per_epoch)]]
+        base = [float(r['policy_fold_quality']) for r in reference[max(reference)]]
+        needed = rollouts_to_target(per_epoch, rollouts_per_epoch)
+        base_needed = rollouts_to_target(reference, rollouts_per_epoch)
+        dims = np.mean([float(r['latent_dims']) for r in per_epoch[max(per_epoch)]])
+        rows.append((f'{algorithm}, {label}', final, needed, dims))
+        tests.append((np.mean(final) - np.mean(base), stats.ttest_ind(final, base, equal_var=False).pvalue,
+                      stats.mannwhitneyu(needed, base_needed, alternative='two-sided').pvalue))
+    if not rows:
+        return []
+    welch = holm([t[1] for t in tests])
+    mann = holm([t[2] for t in tests])
+    lines = ['Ablations: one setting changed, the same algorithm, runs and budget; their final noise-free policy and the '
+             'rollouts to q ≥ 0.8 against the same algorithm above (Welch\'s t on the final q, Mann–Whitney U on the '
+             f'rollouts, both two-sided, each Holm-corrected over the {len(rows)} ablations):', '',
+             '| setting | runs | final q | final q ≥ 0.8 | rollouts to q ≥ 0.8, median | final r | q difference | p | '
+             'Holm | rollouts: p | Holm |', '|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|']
+    for (name, final, needed, dims), (diff, p_w, p_u), h_w, h_u in zip(rows, tests, welch, mann):
+        lines.append(f'| {name} | {len(final)} | {interval(final)} | {sum(q >= Q_TARGET for q in final)}/{len(final)} '
+                     f'| {fmt_rollouts(np.median(needed))} | {dims:.1f} | {diff:+.3f} | {p_w:.3g} | {h_w:.3g} | '
+                     f'{p_u:.3g} | {h_u:.3g} |')
+    lines.append('')
+    return lines
+
+
+def table(directory, epochs, rollouts, beside=()):
     """table75.md: the learned noise-free policies and the tests behind the claims (learned_policies()); the
     exploring rollouts' mean reward and q at a few epochs (mean ± 95 % t-interval over the runs, failures counted);
     how the camera reward and its terms follow q within each run (Spearman, bootstrap over the runs)."""
     summary = json.load(open(os.path.join(directory, 'summary.json')))
     rollouts_per_epoch = max(int(r['index']) for r in rollouts if r['kind'] == 'sample') + 1
-    lines = learned_policies(epochs, rollouts_per_epoch)
+    lines = learned_policies(epochs, rollouts_per_epoch) + ablations(epochs, rollouts_per_epoch, beside)
     last = min(max(per_epoch) for per_epoch in epochs.values())
     shown = sorted({0, min(5, last), min(10, last), last})
     for column, title in (('mean_reward', f'Mean reward ({reward_setting(directory)} setting) of the exploring '
@@ -409,12 +450,31 @@ def filmstrip(directory, name):
     return f'filmstrip_{name}.png, {name}.gif'
 
 
+def arguments():
+    """DIR and the --beside LABEL=OTHER pairs of the command line (usage: the module's doc)."""
+    args = sys.argv[1:]
+    if args in (['-h'], ['--help']):
+        print(__doc__)
+        sys.exit(0)
+    if not args or args[0].startswith('-') or len(args) % 2 == 0:
+        print(__doc__, file=sys.stderr)
+        sys.exit(2)
+    beside = []
+    for flag, value in zip(args[1::2], args[2::2]):
+        label, _, other = value.rpartition('=')
+        if flag != '--beside' or not label or not other:
+            print(f'plot_fold_learning: expected --beside LABEL=OTHER, got {flag} {value}\n{__doc__}', file=sys.stderr)
+            sys.exit(2)
+        beside.append((label, read_epochs(os.path.join(other, 'epochs.csv'))))
+    return args[0], beside
+
+
 def main():
-    directory = output_directory(__doc__)
+    directory, beside = arguments()
     epochs = read_epochs(os.path.join(directory, 'epochs.csv'))
     learning_curve(directory, epochs)
     coordination(directory)
-    table(directory, epochs, read_rollouts(directory))
+    table(directory, epochs, read_rollouts(directory), beside)
     written = [w for w in (filmstrip(directory, n) for n in ('initial', 'final')) if w]
     print(f'plot_fold_learning: wrote {directory}/learning_curve.png, coordination.png, table75.md, proxy.png'
           + ''.join(', ' + w for w in written))

@@ -104,6 +104,13 @@ TEST(FoldLearnerNode, PublishesEachRolloutAndWritesTheResults) {
        {"learning_curve.png", "filmstrip_initial.png", "filmstrip_final.png", "initial.gif", "final.gif"}) {
     EXPECT_TRUE(std::filesystem::exists(outDir() + "/" + file)) << file;
   }
+  // An ablation beside it (here the run itself): a row per ablation in table75.md; a malformed one is refused.
+  const std::string plot = "/usr/bin/python3 " + std::string(PLOT_FOLD_LEARNING) + " " + outDir();
+  ASSERT_EQ(std::system((plot + " --beside 'the same run=" + outDir() + "' > /dev/null 2>&1").c_str()), 0);
+  std::ifstream table_file(outDir() + "/table75.md");
+  const std::string table((std::istreambuf_iterator<char>(table_file)), std::istreambuf_iterator<char>());
+  EXPECT_NE(table.find(", the same run | 1 |"), std::string::npos) << table;
+  EXPECT_NE(std::system((plot + " --beside nolabel > /dev/null 2>&1").c_str()), 0);
   std::ifstream summary_file(outDir() + "/summary.json");
   const std::string summary((std::istreambuf_iterator<char>(summary_file)), std::istreambuf_iterator<char>());
   EXPECT_NE(summary.find("\"fold_quality\""), std::string::npos);
