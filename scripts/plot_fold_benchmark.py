@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Plots of fold_benchmark: reads DIR/folds.csv, DIR/summary.json and DIR/folds/NN_final.png, writes
 DIR/ranking.png (each reward setting's reward of every fold against the fold's quality q, with Spearman's rho and its
-bootstrap interval), DIR/folds.png (the camera's image of each fold at the end, in order of q) and DIR/tables.md.
+bootstrap interval), DIR/folds.png (the camera's image of each fold at the end, in order of q) and DIR/tables.md;
+from DIR/ceiling.csv (the ceiling experiment), DIR/ceiling.png (every rollout's q and the best so far, per stage of
+the search) and q_max in DIR/tables.md. Either experiment's files may be missing.
 
 Usage: plot_fold_benchmark.py DIR
 """
@@ -91,28 +93,70 @@ def contact_sheet(directory, folds):
     plt.close(fig)
 
 
+def ceiling(directory):
+    """ceiling.png: q of every rollout of the search and the best so far; returns the tables.md lines of q_max."""
+    with open(os.path.join(directory, 'ceiling.csv')) as f:
+        rows = list(csv.DictReader(f))
+    if not rows:
+        return []
+    q = [float(r['fold_quality']) if r['outcome'] == 'Ok' else float('nan') for r in rows]
+    best, running = [], float('-inf')
+    for value in q:
+        running = max(running, value) if value == value else running
+        best.append(running)
+    fig, ax = plt.subplots(figsize=(7, 4))
+    first = [i for i, r in enumerate(rows) if r['stage'] == '1']
+    ax.plot(range(len(q)), q, '.', ms=2, alpha=0.4, label='each rollout')
+    ax.plot(range(len(q)), best, '-', color='C3', label=f'best so far: q_max = {best[-1]:.3f}')
+    if first:
+        ax.axvline(first[0], color='grey', ls='--', lw=1)
+        ax.text(first[0], 0.04, ' stage 2: the 12 goals of its best fold', color='grey',
+                transform=ax.get_xaxis_transform())
+        ax.text(0, 0.12, ' stage 1: reach, lift, release, duration', color='grey', transform=ax.get_xaxis_transform())
+    ax.set_xlabel('rollout')
+    ax.set_ylabel('fold quality q')
+    ax.set_title('The ceiling: CMA-ES on q itself (the ground truth)')
+    ax.grid(alpha=0.3)
+    ax.legend(loc='center right')
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, 'ceiling.png'), dpi=100)
+    plt.close(fig)
+    return [f'\nq_max = {best[-1]:.3f}: the best of {len(rows)} rollouts of a search on q itself (ceiling.png).\n']
+
+
 def main():
     directory = output_directory(__doc__)
     summary = read_summary(directory)
+    lines = []
+    if os.path.exists(os.path.join(directory, 'folds.csv')):
+        lines += folds_tables(directory, summary)
+    if os.path.exists(os.path.join(directory, 'ceiling.csv')):
+        lines += ceiling(directory)
+    with open(os.path.join(directory, 'tables.md'), 'w') as f:
+        f.write(''.join(lines))
+
+
+def folds_tables(directory, summary):
+    """ranking.png, folds.png and the tables.md lines of the folds experiment."""
     rho = {r['signal']: r for r in summary['results'] if r.get('experiment') == 'ranking'}
     folds = read_folds(directory)
     if not folds:
-        return
+        return []
     ranking(directory, folds, rho)
     contact_sheet(directory, folds)
-    with open(os.path.join(directory, 'tables.md'), 'w') as f:
-        f.write(f"Spearman's rho of each reward with the fold quality q over {len(folds)} scripted folds "
-                f"(seed {summary['seed']}; 95 % bootstrap interval over the folds):\n\n")
-        f.write('| signal | Spearman with q | 95 % interval |\n|---|---:|---|\n')
-        for r in rho.values():
-            f.write(f"| {r['signal']} | {r['spearman']:.3f} | [{r['spearman_low']:.3f}, {r['spearman_high']:.3f}] |\n")
-        q = [float(r['fold_quality']) for r in folds]
-        f.write(f'\nq of the folds: {min(q):.3f} to {max(q):.3f}.\n')
-        f.write('\nFrom (7.52) to the fold reward, one factor at a time (the same images; interval: bootstrap over the '
-                'folds):\n\n| reward | Spearman with q | 95 % interval |\n|---|---:|---|\n')
-        for label, signal in ABLATION:
-            rho, low, high = bootstrap_spearman([signal(r) for r in folds], q, resamples=2000)
-            f.write(f'| {label} | {rho:.3f} | [{low:.3f}, {high:.3f}] |\n')
+    lines = [f"Spearman's rho of each reward with the fold quality q over {len(folds)} scripted folds "
+             f"(seed {summary['seed']}; 95 % bootstrap interval over the folds):\n\n",
+             '| signal | Spearman with q | 95 % interval |\n|---|---:|---|\n']
+    for r in rho.values():
+        lines.append(f"| {r['signal']} | {r['spearman']:.3f} | [{r['spearman_low']:.3f}, {r['spearman_high']:.3f}] |\n")
+    q = [float(r['fold_quality']) for r in folds]
+    lines.append(f'\nq of the folds: {min(q):.3f} to {max(q):.3f}.\n')
+    lines.append('\nFrom (7.52) to the fold reward, one factor at a time (the same images; interval: bootstrap over the '
+                 'folds):\n\n| reward | Spearman with q | 95 % interval |\n|---|---:|---|\n')
+    for label, signal in ABLATION:
+        value, low, high = bootstrap_spearman([signal(r) for r in folds], q, resamples=2000)
+        lines.append(f'| {label} | {value:.3f} | [{low:.3f}, {high:.3f}] |\n')
+    return lines
 
 
 if __name__ == '__main__':
