@@ -26,6 +26,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -102,7 +103,8 @@ const char* const kUsage =
     "\n"
     "Writes into DIR: rollouts.csv and rollout_parameters.csv (every rollout, as it finishes), epochs.csv,\n"
     "coordination.csv (final coordination matrices), summary.json (one row per algorithm and epoch), initial.png\n"
-    "and final.png (top-down camera images of the initial and the best final policy, with depth_*.png), and\n"
+    "and final.png (top-down camera images of the initial and the best final policy, with depth_*.png),\n"
+    "final_runs/ALGORITHM_run_K.png (every run's final policy; not with _backend:=ros), and\n"
     "best_rollout.bag (replay: roslaunch bimanual_skills fold.launch replay:=DIR/best_rollout.bag).\n"
     "\n"
     "Topics: /joint_states (sensor_msgs/JointState: the last rollout's final pose, or the replay), ~cloth\n"
@@ -231,6 +233,7 @@ class FoldLearnerNode {
     } else {
       writeImage(result.runs.front().initial_policy, "initial");
       writeImage(best_run->final_policy, "final");
+      writeRunImages(result);
       writeFilmstrip(result.runs.front().initial_policy, "initial");
       writeFilmstrip(best_run->final_policy, "final");
       replay = learner_->replay(*best, 20.0);
@@ -467,6 +470,22 @@ class FoldLearnerNode {
     learner_->score(rollout, record.seed, bgr, depth);
     cv::imwrite(out_ + "/" + name + ".png", bgr);
     writeDepth(depth, name);
+  }
+
+  /// The camera's final image of every run's final policy, DIR/final_runs/ALGORITHM_run_K.png (the algorithm's name
+  /// with characters other than letters, digits, '-' and '_' as '_'): what each run learned, stalls included.
+  void writeRunImages(const br::FoldLearningResult& result) {
+    std::filesystem::create_directories(out_ + "/final_runs");
+    for (const br::FoldRunResult& run : result.runs) {
+      std::string name = run.algorithm;
+      for (char& c : name) {
+        if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
+      }
+      const bt::FoldRollout rollout = learner_->replay(run.final_policy, 0.0);
+      cv::Mat bgr, depth;
+      learner_->score(rollout, run.final_policy.seed, bgr, depth);
+      cv::imwrite(out_ + "/final_runs/" + name + "_run_" + std::to_string(run.run) + ".png", bgr);
+    }
   }
 
   /// What scripts/plot_fold_learning.py turns into DIR/filmstrip_NAME.png and DIR/NAME.gif: the rollout's cloth

@@ -7,7 +7,8 @@ learned policies, the rollouts to q >= 0.8, tests with Holm's correction, the re
 measured Table 7.5 next to the thesis'); and, from
 DIR/NAME_frames.csv, NAME_triangles.csv and NAME_top_K.png that fold_learner writes for the initial and the final
 policy, DIR/filmstrip_NAME.png (six moments: the top-down camera above, an oblique view below, q under each) and
-DIR/NAME.gif (the oblique view of the whole rollout).
+DIR/NAME.gif (the oblique view of the whole rollout); from DIR/final_runs/, DIR/final_runs.png (every run's final
+policy as the camera saw it, with its q).
 
 With --beside LABEL=OTHER (repeatable), table75.md also compares the final policies of OTHER runs (each a
 fold_learner run of one algorithm with one setting changed, e.g. LABEL "weights only" for _policy:=weights) with the
@@ -19,6 +20,7 @@ import csv
 import json
 import math
 import os
+import re
 import sys
 from collections import defaultdict
 
@@ -469,6 +471,37 @@ def arguments():
     return args[0], beside
 
 
+def runs_sheet(directory, epochs):
+    """DIR/final_runs.png from the camera's final image of every run's final policy (DIR/final_runs/, written by
+    fold_learner's simulation backend): a row per algorithm, a column per run, each titled with its q."""
+    folder = os.path.join(directory, 'final_runs')
+    if not os.path.isdir(folder):
+        return ''
+    rows = [(a, per_epoch) for a, per_epoch in epochs.items()]
+    columns = max(len(runs_of(per_epoch)) for _, per_epoch in rows)
+    fig, axes = plt.subplots(len(rows), columns, figsize=(1.6 * columns, 1.5 * len(rows) + 0.5), squeeze=False)
+    for i, (algorithm, per_epoch) in enumerate(rows):
+        name = re.sub(r'[^A-Za-z0-9_-]', '_', algorithm)
+        for j in range(columns):
+            ax = axes[i][j]
+            ax.axis('off')
+            runs = runs_of(per_epoch)
+            if j >= len(runs):
+                continue
+            path = os.path.join(folder, f'{name}_run_{runs[j]}.png')
+            if not os.path.exists(path):
+                continue
+            ax.imshow(mpimg.imread(path))
+            q = policy_quality(per_epoch, runs[j], max(per_epoch))
+            ax.set_title(f'{algorithm}\nrun {runs[j]}: q {q:.2f}' if j == 0 else f'run {runs[j]}: q {q:.2f}',
+                         fontsize=7, color='C3' if q < Q_TARGET else 'black')
+    fig.suptitle('The final noise-free policy of every run: the camera\'s last image, q (red: below 0.8)', fontsize=9)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, 'final_runs.png'), dpi=90)
+    plt.close(fig)
+    return ', final_runs.png'
+
+
 def main():
     directory, beside = arguments()
     epochs = read_epochs(os.path.join(directory, 'epochs.csv'))
@@ -477,7 +510,7 @@ def main():
     table(directory, epochs, read_rollouts(directory), beside)
     written = [w for w in (filmstrip(directory, n) for n in ('initial', 'final')) if w]
     print(f'plot_fold_learning: wrote {directory}/learning_curve.png, coordination.png, table75.md, proxy.png'
-          + ''.join(', ' + w for w in written))
+          + ''.join(', ' + w for w in written) + runs_sheet(directory, epochs))
 
 
 if __name__ == '__main__':

@@ -92,16 +92,17 @@ TEST(FoldLearnerNode, PublishesEachRolloutAndWritesTheResults) {
   EXPECT_NEAR(camera_frame.transform.translation.z, 1.65, 1e-9);  // 1.5 m above the table top (0.15 m)
   EXPECT_EQ(last_cloth.type, visualization_msgs::Marker::TRIANGLE_LIST);
   EXPECT_GT(last_cloth.points.size(), 300u);
-  for (const char* file : {"summary.json", "epochs.csv", "rollouts.csv", "initial.png", "final.png",
-                           "initial_frames.csv", "final_frames.csv", "final_top_5.png"}) {
+  for (const char* file :
+       {"summary.json", "epochs.csv", "rollouts.csv", "initial.png", "final.png", "initial_frames.csv",
+        "final_frames.csv", "final_top_5.png", "final_runs/IDR-DMP_CMU_run_0.png"}) {
     EXPECT_TRUE(std::filesystem::exists(outDir() + "/" + file)) << file;
   }
   // make demo's pictures: the filmstrips and animations of the initial and the final policy.
   ASSERT_EQ(
       std::system(("/usr/bin/python3 " + std::string(PLOT_FOLD_LEARNING) + " " + outDir() + " > /dev/null").c_str()),
       0);
-  for (const char* file :
-       {"learning_curve.png", "filmstrip_initial.png", "filmstrip_final.png", "initial.gif", "final.gif"}) {
+  for (const char* file : {"learning_curve.png", "filmstrip_initial.png", "filmstrip_final.png", "initial.gif",
+                           "final.gif", "final_runs.png"}) {
     EXPECT_TRUE(std::filesystem::exists(outDir() + "/" + file)) << file;
   }
   // An ablation beside it (here the run itself): a row per ablation in table75.md; a malformed one is refused.
