@@ -104,7 +104,7 @@ const char* const kUsage =
     "Writes into DIR: rollouts.csv and rollout_parameters.csv (every rollout, as it finishes), epochs.csv,\n"
     "coordination.csv (final coordination matrices), summary.json (one row per algorithm and epoch), initial.png\n"
     "and final.png (top-down camera images of the initial and the best final policy, with depth_*.png),\n"
-    "final_runs/ALGORITHM_run_K.png (every run's final policy; not with _backend:=ros), and\n"
+    "final_runs/ALGORITHM_run_K.png and _depth.png (every run's final policy; not with _backend:=ros), and\n"
     "best_rollout.bag (replay: roslaunch bimanual_skills fold.launch replay:=DIR/best_rollout.bag).\n"
     "\n"
     "Topics: /joint_states (sensor_msgs/JointState: the last rollout's final pose, or the replay), ~cloth\n"
@@ -472,8 +472,9 @@ class FoldLearnerNode {
     writeDepth(depth, name);
   }
 
-  /// The camera's final image of every run's final policy, DIR/final_runs/ALGORITHM_run_K.png (the algorithm's name
-  /// with characters other than letters, digits, '-' and '_' as '_'): what each run learned, stalls included.
+  /// The camera's final images of every run's final policy, DIR/final_runs/ALGORITHM_run_K.png and
+  /// ALGORITHM_run_K_depth.png (16-bit, depth in units of 0.1 mm), the algorithm's name with characters other than
+  /// letters, digits, '-' and '_' as '_': what each run learned, stalls included.
   void writeRunImages(const br::FoldLearningResult& result) {
     std::filesystem::create_directories(out_ + "/final_runs");
     for (const br::FoldRunResult& run : result.runs) {
@@ -484,7 +485,11 @@ class FoldLearnerNode {
       const bt::FoldRollout rollout = learner_->replay(run.final_policy, 0.0);
       cv::Mat bgr, depth;
       learner_->score(rollout, run.final_policy.seed, bgr, depth);
-      cv::imwrite(out_ + "/final_runs/" + name + "_run_" + std::to_string(run.run) + ".png", bgr);
+      const std::string path = out_ + "/final_runs/" + name + "_run_" + std::to_string(run.run);
+      cv::imwrite(path + ".png", bgr);
+      cv::Mat tenths;
+      depth.convertTo(tenths, CV_16U, 1e4);
+      cv::imwrite(path + "_depth.png", tenths);
     }
   }
 

@@ -132,8 +132,8 @@ TEST(RolloutWorkers, AFaultRunLearnsExactlyAsTheFaultFreeOne) {
   ros::WallDuration(stop_seconds).sleep();
   ASSERT_EQ(::kill(stopped, SIGCONT), 0);
 
-  // The bag is the learner's last file.
-  while (ros::ok() && ros::WallTime::now() < deadline && !std::filesystem::exists(out + "/best_rollout.bag")) {
+  // summary.json is the learner's last file (after the pictures and the bag).
+  while (ros::ok() && ros::WallTime::now() < deadline && !std::filesystem::exists(out + "/summary.json")) {
     ros::WallDuration(0.1).sleep();
   }
   ASSERT_TRUE(std::filesystem::exists(out + "/summary.json")) << "the learner did not finish";
