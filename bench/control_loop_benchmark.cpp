@@ -27,6 +27,7 @@
 #include <trajectory_msgs/JointTrajectory.h>
 
 #include "bimanual_skills/SimStep.h"
+#include "bimanual_skills/realtime/clock.hpp"
 
 #include <pthread.h>
 
@@ -48,10 +49,6 @@ namespace rt = bimanual_skills::realtime;
 namespace {
 
 constexpr double kPeriod = 0.001;  ///< The loop's period [s].
-
-double monotonic() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 /// A competing load: `threads` threads (normal priority) streaming through 8 MB each and computing, until stopped.
 class Load {
@@ -88,13 +85,13 @@ std::vector<double> noiseFloor(double seconds, int priority) {
   std::thread loop([&] {
     if (priority > 0) rt::requestRealtimeScheduling(priority);
     rt::LoopPacer pacer(kPeriod);
-    const double end = monotonic() + seconds;
+    const double end = bimanual_skills::realtime::monotonicSeconds() + seconds;
     double last = 0.0;
     periods.reserve(static_cast<std::size_t>(seconds / kPeriod) + 100);
-    while (monotonic() < end) {
+    while (bimanual_skills::realtime::monotonicSeconds() < end) {
       while (!pacer.waitUntilDue(0.01)) {
       }
-      const double now = monotonic();
+      const double now = bimanual_skills::realtime::monotonicSeconds();
       if (last > 0.0) periods.push_back(now - last);
       last = now;
       pacer.advance();
@@ -170,8 +167,8 @@ LoopFigures runDesign(const std::string& design, int priority, double seconds, c
       q0[i] = state->position[static_cast<std::size_t>(it - state->name.begin())];
     }
     const Load load(load_threads);
-    const double end = monotonic() + seconds;
-    for (int k = 0; monotonic() < end; ++k) {
+    const double end = bimanual_skills::realtime::monotonicSeconds() + seconds;
+    for (int k = 0; bimanual_skills::realtime::monotonicSeconds() < end; ++k) {
       trajectory_msgs::JointTrajectory t;
       for (int i = 1; i <= 7; ++i) t.joint_names.push_back("left_wam_joint" + std::to_string(i));
       trajectory_msgs::JointTrajectoryPoint p;
@@ -179,7 +176,7 @@ LoopFigures runDesign(const std::string& design, int priority, double seconds, c
       p.positions[0] += k % 2 == 0 ? 0.1 : -0.1;
       p.time_from_start = ros::Duration(0.5);
       t.points.push_back(p);
-      sent.push_back(monotonic());
+      sent.push_back(bimanual_skills::realtime::monotonicSeconds());
       command.publish(t);
       ros::WallDuration(0.2).sleep();
     }
@@ -209,7 +206,7 @@ double realtimeFactor(double seconds) {
   ros::Subscriber clock =
       node.subscribe<rosgraph_msgs::Clock>("/clock", 1000, [&](const rosgraph_msgs::Clock::ConstPtr& m) {
         const std::lock_guard<std::mutex> lock(mutex);
-        samples.emplace_back(monotonic(), m->clock.toSec());
+        samples.emplace_back(bimanual_skills::realtime::monotonicSeconds(), m->clock.toSec());
       });
   ros::WallDuration(seconds).sleep();
   clock.shutdown();

@@ -7,6 +7,7 @@
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/SetPayload.h"
 #include "bimanual_skills/SimStep.h"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/realtime/loop_pacer.hpp"
 #include "bimanual_skills/realtime/period_recorder.hpp"
 #include "bimanual_skills/realtime/triple_buffer.hpp"
@@ -140,10 +141,6 @@ const std::string kUsage =
 
 /// Wall seconds a service waits for the loop to take a request (the loop polls between cycles).
 constexpr double kServiceWait = 5.0;
-
-double wallNow() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 /// A torque command of an external controller, handed from the subscriber thread to the loop.
 struct ExternalCommand {
@@ -395,8 +392,8 @@ class BulletSimNode {
       }
       const bool stepping = stepping_ != nullptr;
       if (diverged_ || (paused_ && !stepping)) {
-        if (diverged_ && wallNow() > next_diverged_publish_) {
-          next_diverged_publish_ = wallNow() + 0.1;
+        if (diverged_ && bimanual_skills::realtime::monotonicSeconds() > next_diverged_publish_) {
+          next_diverged_publish_ = bimanual_skills::realtime::monotonicSeconds() + 0.1;
           publishState(false);  // the last valid states keep coming, stamp frozen; /diagnostics says why
         }
         std::this_thread::sleep_for(std::chrono::milliseconds(2));
@@ -406,11 +403,11 @@ class BulletSimNode {
       }
       const bool paced = !stepping && realtime_factor_ > 0.0 && !lockstep_;
       if (paced && !pacer_->waitUntilDue(0.005)) continue;  // short slices: requests are served meanwhile
-      const double start = wallNow();
+      const double start = bimanual_skills::realtime::monotonicSeconds();
       if (paced && consecutive) periods_.record(start - last_start);
       last_start = start;
       cycle();
-      cycle_times_.record(wallNow() - start);
+      cycle_times_.record(bimanual_skills::realtime::monotonicSeconds() - start);
       if (paced) {
         const long slips = pacer_->slips();
         pacer_->advance();
@@ -490,14 +487,14 @@ class BulletSimNode {
 
   /// Lockstep: waits (wall clock, bounded) until every external controller answered the published state.
   void waitForExternalCommands() {
-    const double deadline = wallNow() + lockstep_timeout_;
+    const double deadline = bimanual_skills::realtime::monotonicSeconds() + lockstep_timeout_;
     for (;;) {
       bool all = true;
       for (const auto& arm : arms_) {
         all =
             all && (!arm->external || arm->commands_received.load(std::memory_order_acquire) > arm->commands_answered);
       }
-      if (all || !ros::ok() || wallNow() > deadline) {
+      if (all || !ros::ok() || bimanual_skills::realtime::monotonicSeconds() > deadline) {
         if (!all) ++lockstep_timeouts_;
         return;
       }
@@ -910,7 +907,7 @@ class BulletSimNode {
       kv.value = value;
       status.values.push_back(kv);
     };
-    const double now = wallNow(), t = time_.load(std::memory_order_relaxed);
+    const double now = bimanual_skills::realtime::monotonicSeconds(), t = time_.load(std::memory_order_relaxed);
     const double factor =
         last_diagnostics_wall_ > 0.0 ? (t - last_diagnostics_time_) / (now - last_diagnostics_wall_) : 0.0;
     last_diagnostics_wall_ = now;

@@ -4,6 +4,7 @@
 // ros_layer::ArmControllerInterface: the control step runs per message on a thread and callback queue of its own, so
 // trajectory parsing, actions, markers and diagnostics never delay it; it computes with the stamps' Δt, checks the
 // joint names of every message, drops duplicate and reordered states and follows one publisher.
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/realtime/loop_pacer.hpp"
 #include "bimanual_skills/realtime/period_recorder.hpp"
 #include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
@@ -48,10 +49,6 @@ const std::string kUsage =
     "Trajectory action) and set_mode (bimanual_skills/SetControlMode); publishes effort_command\n"
     "(std_msgs/Float64MultiArray), state (bimanual_skills/JointTrajectoryControllerState), estimated_wrench\n"
     "(geometry_msgs/WrenchStamped, base frame), tool_paths (visualization_msgs/MarkerArray), /diagnostics.\n";
-
-double wallNow() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 class CtcControllerNode {
  public:
@@ -118,7 +115,7 @@ class CtcControllerNode {
 
   void onJointState(const ros::MessageEvent<sensor_msgs::JointState const>& event) {
     const sensor_msgs::JointState& message = *event.getConstMessage();
-    const double wall = wallNow();
+    const double wall = bimanual_skills::realtime::monotonicSeconds();
     if (!priority_requested_ && loop_priority_ > 0) {
       priority_requested_ = true;
       const char* error = bs::realtime::requestRealtimeScheduling(loop_priority_);

@@ -11,6 +11,7 @@
 #include "bimanual_skills/JointTrajectoryControllerState.h"
 #include "bimanual_skills/SetPayload.h"
 #include "bimanual_skills/SimStep.h"
+#include "bimanual_skills/realtime/clock.hpp"
 
 #include <actionlib/client/simple_action_client.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
@@ -52,10 +53,6 @@ std::vector<std::string> jointNames(const std::string& arm) {
   std::vector<std::string> names;
   for (int i = 1; i <= 7; ++i) names.push_back(arm + "_wam_joint" + std::to_string(i));
   return names;
-}
-
-double wallNow() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 /// Everything a user of the simulated robot sees: joint states, /clock, each arm's controller state, estimated
@@ -108,7 +105,7 @@ class SimFixture : public ::testing::Test {
 
   void onClock(const rosgraph_msgs::Clock::ConstPtr& m) {
     const std::lock_guard<std::mutex> lock(mutex_);
-    clock_samples_.emplace_back(wallNow(), m->clock.toSec());
+    clock_samples_.emplace_back(bimanual_skills::realtime::monotonicSeconds(), m->clock.toSec());
     if (clock_samples_.size() > 200000) clock_samples_.erase(clock_samples_.begin(), clock_samples_.begin() + 100000);
   }
 
@@ -137,8 +134,8 @@ class SimFixture : public ::testing::Test {
 
   /// Waits until `done` or `seconds` of wall time.
   static bool waitWall(const std::function<bool()>& done, double seconds) {
-    const double end = wallNow() + seconds;
-    while (ros::ok() && wallNow() < end) {
+    const double end = bimanual_skills::realtime::monotonicSeconds() + seconds;
+    while (ros::ok() && bimanual_skills::realtime::monotonicSeconds() < end) {
       if (done()) return true;
       std::this_thread::sleep_for(std::chrono::milliseconds(2));
     }
@@ -585,13 +582,13 @@ TEST_F(Pacing, ServicesAnswerWhileALongStepRuns) {
     return s.response;
   });
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  double start = wallNow();
+  double start = bimanual_skills::realtime::monotonicSeconds();
   ASSERT_TRUE(pause_.call(pause) && pause.response.success);
-  const double pause_answer = wallNow() - start;
-  start = wallNow();
+  const double pause_answer = bimanual_skills::realtime::monotonicSeconds() - start;
+  start = bimanual_skills::realtime::monotonicSeconds();
   std_srvs::Trigger reset;
   ASSERT_TRUE(reset_.call(reset) && reset.response.success);
-  const double reset_answer = wallNow() - start;
+  const double reset_answer = bimanual_skills::realtime::monotonicSeconds() - start;
   std::printf("during a 60 s step: ~pause answered in %.3f s, ~reset in %.3f s\n", pause_answer, reset_answer);
   EXPECT_LT(pause_answer, 1.0);
   EXPECT_LT(reset_answer, 1.0);
@@ -662,8 +659,8 @@ TEST_F(ExternalControllers, DropsReorderedAndDuplicateStatesAndIgnoresASecondPub
     if (diagnosticCount(name, "dropped_reordered_states") >= 1 &&
         diagnosticCount(name, "dropped_duplicate_states") >= 1)
       return true;
-    if (wallNow() - armed > 0.2) {
-      armed = wallNow();
+    if (bimanual_skills::realtime::monotonicSeconds() - armed > 0.2) {
+      armed = bimanual_skills::realtime::monotonicSeconds();
       const std::lock_guard<std::mutex> lock(relay_mutex_);
       reorder_ = duplicate_ = true;
     }

@@ -1,4 +1,5 @@
 #include "bimanual_skills/control/realtime_arm_controller.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -71,17 +72,9 @@ RealtimeArmController::RealtimeArmController(const kinematics::ChainModel& model
       states_(ArmControllerState(model.nq())),
       tolerances_(TrajectoryTolerances::none(model.nq())) {}
 
-namespace {
-
-double monotonicSeconds() noexcept {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-}  // namespace
-
 void RealtimeArmController::command(ControllerCommand command) {
   const std::lock_guard<std::mutex> lock(command_mutex_);
-  command.sent = monotonicSeconds();
+  command.sent = realtime::monotonicSeconds();
   commands_.writeSlot() = std::move(command);
   commands_.publish();
 }
@@ -93,7 +86,7 @@ TrajectoryStatus RealtimeArmController::validate(const Waypoints& waypoints) con
 
 void RealtimeArmController::take(const ControllerCommand& command) noexcept {
   ++commands_taken_;
-  command_taken_at_ = monotonicSeconds();
+  command_taken_at_ = realtime::monotonicSeconds();
   command_latency_ = command_taken_at_ - command.sent;
   if (goal_ == GoalState::Active && command.kind == ControllerCommand::Kind::Mode) goal_ = GoalState::Preempted;
   if (command.kind == ControllerCommand::Kind::Mode) {

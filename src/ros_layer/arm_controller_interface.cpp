@@ -2,6 +2,7 @@
 
 #include "bimanual_skills/JointTrajectoryControllerState.h"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/ros_layer/trajectory_messages.hpp"
 
 #include <diagnostic_msgs/DiagnosticArray.h>
@@ -45,10 +46,6 @@ std::vector<double> stdVector(const Eigen::VectorXd& v) {
 
 void assign(std::vector<double>& out, const Eigen::VectorXd& v) {
   out.assign(v.data(), v.data() + v.size());
-}
-
-double wallSeconds() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 }  // namespace
@@ -328,7 +325,7 @@ void ArmControllerInterface::onPublish(const ros::SteadyTimerEvent&) {
   if (!fresh) return;
   const std::lock_guard<std::mutex> lock(mutex_);
   last_ = *fresh;
-  last_state_wall_ = wallSeconds();
+  last_state_wall_ = bimanual_skills::realtime::monotonicSeconds();
   const bc::ArmControllerState& s = *last_;
   const bool due = s.stamp < last_published_ || s.stamp - last_published_ >= 1.0 / settings_.publish_rate - 1e-9;
   if (!due && !(active_ && s.goal_id == active_id_ && s.goal != bc::GoalState::Active)) return;
@@ -412,7 +409,7 @@ void ArmControllerInterface::onDiagnostics(const ros::SteadyTimerEvent&) {
   diagnostic_msgs::DiagnosticStatus status;
   status.name = owner_;
   status.hardware_id = arm_;
-  const double silent = last_ ? wallSeconds() - last_state_wall_ : 0.0;
+  const double silent = last_ ? bimanual_skills::realtime::monotonicSeconds() - last_state_wall_ : 0.0;
   const bool stale = last_ && silent > std::max(1.0, 2.0 * settings_.config.state_timeout);
   status.level = !last_ || stale ? diagnostic_msgs::DiagnosticStatus::WARN : diagnostic_msgs::DiagnosticStatus::OK;
   status.message = !last_  ? "waiting for joint states"
