@@ -11,6 +11,7 @@
 #include "bimanual_skills/FollowJointTrajectoryActionResult.h"
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
+#include "node_pid.hpp"
 
 #include <actionlib_msgs/GoalStatus.h>
 #include <ros/ros.h>
@@ -219,16 +220,8 @@ TEST(FoldOnRobot, AKilledSimulatorGivesAFailedRolloutNotAHang) {
   // Kill the simulator the moment the fold's goal (many points) is on its way, from the goal's own callback: the fold
   // and the settling last well under a second of wall time at this machine's real-time factor, and a kill after the
   // last image would leave nothing to fail.
-  const pid_t simulator = [] {
-    FILE* pipe = ::popen("pgrep -n -f __name:=bullet_si[m]", "r");
-    int pid = 0;
-    if (pipe != nullptr) {
-      if (std::fscanf(pipe, "%d", &pid) != 1) pid = 0;
-      ::pclose(pipe);
-    }
-    return static_cast<pid_t>(pid);
-  }();
-  ASSERT_GT(simulator, 0) << "no bullet_sim process";
+  const pid_t simulator = static_cast<pid_t>(bimanual_skills::test::nodePid("/bullet_sim"));
+  ASSERT_GT(simulator, 0) << "no /bullet_sim node answers getPid";
   ros::NodeHandle node;
   std::atomic<bool> folding{false};
   const auto goal_sub = node.subscribe<bimanual_skills::FollowJointTrajectoryActionGoal>(
