@@ -464,10 +464,14 @@ class FoldLearnerNode {
     }
   }
 
+  /// The camera's final images of a record's rollout, replayed in this process's simulation.
+  void renderFinal(const br::FoldRolloutRecord& record, cv::Mat& bgr, cv::Mat& depth) {
+    learner_->score(learner_->replay(record, 0.0), record.seed, bgr, depth);
+  }
+
   void writeImage(const br::FoldRolloutRecord& record, const std::string& name) {
-    const bt::FoldRollout rollout = learner_->replay(record, 0.0);
     cv::Mat bgr, depth;
-    learner_->score(rollout, record.seed, bgr, depth);
+    renderFinal(record, bgr, depth);
     cv::imwrite(out_ + "/" + name + ".png", bgr);
     writeDepth(depth, name);
   }
@@ -482,9 +486,8 @@ class FoldLearnerNode {
       for (char& c : name) {
         if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
       }
-      const bt::FoldRollout rollout = learner_->replay(run.final_policy, 0.0);
       cv::Mat bgr, depth;
-      learner_->score(rollout, run.final_policy.seed, bgr, depth);
+      renderFinal(run.final_policy, bgr, depth);
       const std::string path = out_ + "/final_runs/" + name + "_run_" + std::to_string(run.run);
       cv::imwrite(path + ".png", bgr);
       cv::Mat tenths;

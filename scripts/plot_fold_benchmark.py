@@ -8,6 +8,7 @@ the search) and q_max in DIR/tables.md. Either experiment's files may be missing
 Usage: plot_fold_benchmark.py DIR
 """
 import csv
+import math
 import os
 import random
 
@@ -102,7 +103,7 @@ def ceiling(directory):
     q = [float(r['fold_quality']) if r['outcome'] == 'Ok' else float('nan') for r in rows]
     best, running = [], float('-inf')
     for value in q:
-        running = max(running, value) if value == value else running
+        running = max(running, value) if not math.isnan(value) else running
         best.append(running)
     fig, ax = plt.subplots(figsize=(7, 4))
     first = [i for i, r in enumerate(rows) if r['stage'] == '1']

@@ -482,10 +482,10 @@ def runs_sheet(directory, epochs):
     fig, axes = plt.subplots(len(rows), columns, figsize=(1.6 * columns, 1.5 * len(rows) + 0.5), squeeze=False)
     for i, (algorithm, per_epoch) in enumerate(rows):
         name = re.sub(r'[^A-Za-z0-9_-]', '_', algorithm)
+        runs = runs_of(per_epoch)
         for j in range(columns):
             ax = axes[i][j]
             ax.axis('off')
-            runs = runs_of(per_epoch)
             if j >= len(runs):
                 continue
             path = os.path.join(folder, f'{name}_run_{runs[j]}.png')
