@@ -96,10 +96,16 @@ const char* const kUsage =
     "                \"\": the robot has none, q is not measured)\n"
     "  ~move_time    [s] to the start configuration (default 2), the tools coming down onto the cloth from\n"
     "                ~approach_height [m] above it (default 0.05); ~trajectory_rate points per second of the fold's\n"
-    "                goals (default 100); ~robot_timeout [s] longest wall-clock wait for any interface (default 30)\n"
+    "                goals (default 100); ~robot_timeout [s] longest wall-clock wait for any interface, service calls\n"
+    "                included (default 30); ~reset_timeout [s] for the reset service, the one longer wait: on\n"
+    "                hardware a person lays the cloth flat (default 660, beyond operator_prompt's 600)\n"
     "  ~start_delay  [s] of the robot's clock from sending the fold's goals to their start (default 0.5)\n"
     "  ~pause_service  std_srvs/SetBool holding a simulator's clock while the fold's goals travel (default\n"
     "                bullet_sim/pause; \"\" on a robot)\n"
+    "\n"
+    "A rollout the robot fails (an interface that failed or did not answer) is not learned from: it runs again\n"
+    "with the same parameters up to the learning file's robot_retries times (default 3), each fault logged to\n"
+    "DIR/robot_faults.csv; the learning stops with the reason after robot_fault_limit faults in a row (default 5).\n"
     "\n"
     "Writes into DIR: rollouts.csv and rollout_parameters.csv (every rollout, as it finishes), epochs.csv,\n"
     "coordination.csv (final coordination matrices), summary.json (one row per algorithm and epoch), initial.png\n"
@@ -173,6 +179,10 @@ class FoldLearnerNode {
     observer.rollout = [this](const br::FoldRolloutRecord& record, const bt::FoldRollout& rollout,
                               const bt::FoldReward& reward) { onRollout(record, rollout, reward); };
     observer.epoch = [this](const br::FoldEpochStats& s) { onEpoch(s); };
+    observer.robot_fault = [](const br::FoldRolloutRecord& r, int attempt, const std::string& reason, bool retry) {
+      ROS_WARN("fold_learner: the robot failed %s run %d epoch %d rollout %d (attempt %d): %s%s", r.algorithm.c_str(),
+               r.run, r.epoch, r.index, attempt, reason.c_str(), retry ? "; running it again" : "");
+    };
     observer.stop = [] { return !ros::ok(); };
     learner_ = std::make_unique<br::FoldLearner>(config_, out_, observer, std::move(evaluator));
     const bt::ClothFoldConfig& task = learner_->config().task;
@@ -202,6 +212,10 @@ class FoldLearnerNode {
     const br::FoldLearningResult result = learner_->learn();
     ROS_INFO("fold_learner: %d rollouts simulated and %d read from %s in %s", result.simulated, result.resumed,
              out_.c_str(), formatSeconds(result.seconds).c_str());
+    if (result.robot_faults > 0) {
+      ROS_WARN("fold_learner: the robot failed %d attempt(s), each run again (%s/robot_faults.csv)",
+               result.robot_faults, out_.c_str());
+    }
     if (dispatching_) {
       ROS_INFO("fold_learner: %zu worker(s) lost and %zu rollout(s) re-dispatched over the learning", workers_lost_,
                redispatched_);
@@ -306,6 +320,7 @@ class FoldLearnerNode {
     robot.trajectory_rate = parameters_.number("trajectory_rate", robot.trajectory_rate, 1.0, 1000.0);
     robot.start_delay = parameters_.number("start_delay", robot.start_delay, 0.0, 10.0);
     robot.timeout = parameters_.number("robot_timeout", robot.timeout, 0.1, 3600.0);
+    robot.reset_timeout = parameters_.number("reset_timeout", robot.reset_timeout, 0.1, 86400.0);
     robot.validate();
     robot_backend_ = true;
     const br::FoldLearningConfig config = config_;

@@ -138,11 +138,11 @@ class TeachNode {
     for (const auto& arm : arms_) {
       bimanual_skills::SetControlMode mode;
       mode.request.mode = "gravity_compensation";
-      if (!arm->mode.waitForExistence(ros::Duration(timeout_)) ||
-          bs::ros_layer::callWithin(arm->mode, mode, timeout_) != bs::ros_layer::CallOutcome::Answered ||
-          !mode.response.success) {
+      const auto outcome = bs::ros_layer::callWithin(arm->mode, mode, timeout_);
+      if (outcome != bs::ros_layer::CallOutcome::Answered || !mode.response.success) {
         ROS_ERROR("teach_demonstration: %s/set_mode gravity_compensation failed: %s", arm->name.c_str(),
-                  mode.response.message.c_str());
+                  outcome == bs::ros_layer::CallOutcome::Answered ? mode.response.message.c_str()
+                                                                  : bs::ros_layer::describe(outcome));
         return false;
       }
     }
@@ -328,8 +328,7 @@ class TeachNode {
       const auto outcome = bs::ros_layer::callWithin(grasp_, grasp, timeout_);
       const bool ok = outcome == bs::ros_layer::CallOutcome::Answered && grasp.response.success;
       response.success = response.success && ok;
-      const std::string why = outcome == bs::ros_layer::CallOutcome::TimedOut ? "no answer in time"
-                              : outcome == bs::ros_layer::CallOutcome::Failed ? "the call failed"
+      const std::string why = outcome != bs::ros_layer::CallOutcome::Answered ? bs::ros_layer::describe(outcome)
                               : ok                                            ? (request.data ? "grasped" : "released")
                                                                               : grasp.response.message;
       response.message += arm->name + ": " + why + "; ";

@@ -138,8 +138,7 @@ TEST(FoldLearning, LearningFiles) {
     EXPECT_DOUBLE_EQ(c->goal_stddev, 0.03);
     EXPECT_DOUBLE_EQ(c->eta, 500.0);
   }
-  const br::FoldLearningConfig ablation =
-      br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_ablation.yaml");
+  const br::FoldLearningConfig ablation = br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_ablation.yaml");
   EXPECT_EQ(ablation.algorithms, std::vector<std::string>{"IDR-DMP_CMU"});
   EXPECT_EQ(ablation.runs, table.runs);
   EXPECT_DOUBLE_EQ(ablation.initial_stddev, table.initial_stddev);
@@ -497,4 +496,112 @@ TEST(FoldLearning, ConcurrentRolloutsEqualSerialOnes) {
     EXPECT_EQ(alone_a.joint_path[arm], together_a.joint_path[arm]);
     EXPECT_EQ(alone_b.joint_path[arm], together_b.joint_path[arm]);
   }
+}
+
+namespace {
+
+/// Rollouts on one thread here, except the attempts (1 = the first request it gets) that `fails` picks: those the
+/// "robot" fails as FoldOnRobotTask does when an interface does not answer, without running them.
+class FaultyRobot : public br::Evaluator {
+ public:
+  FaultyRobot(const br::FoldLearningConfig& config, std::function<bool(int)> fails)
+      : threads_([c = br::withSimulationRenderer(
+                      config)] { return std::make_unique<br::FoldRolloutTask>(c.task, c.reward); },
+                 1),
+        failure_reward_(config.reward.failure_reward),
+        fails_(std::move(fails)) {}
+
+  std::vector<br::RolloutResult> evaluate(const std::vector<br::RolloutRequest>& batch, const Done& done,
+                                          const std::function<bool()>& stop) override {
+    std::vector<br::RolloutResult> results(batch.size());
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      if (stop && stop()) throw std::runtime_error("stopped");
+      if (fails_(++attempts_)) {
+        bt::FoldRewardTerms terms;
+        terms.outcome = bt::FoldOutcome::RobotFailed;
+        terms.reward = failure_reward_;
+        results[i] = br::FoldRolloutTask::resultOf(terms, "closing left's gripper (/grasp): no answer in time", {});
+        if (done) done(i, results[i], nullptr);
+        continue;
+      }
+      results[i] = threads_.evaluate({batch[i]}, [&](std::size_t, const br::RolloutResult& r, br::RolloutTask* t) {
+        if (done) done(i, r, t);
+      })[0];
+    }
+    return results;
+  }
+
+ private:
+  br::ParallelEvaluator threads_;
+  double failure_reward_;
+  std::function<bool(int)> fails_;
+  int attempts_ = 0;
+};
+
+}  // namespace
+
+// A rollout the robot fails is run again with the same parameters and seed, logged, and never learned from: the
+// learning is the one a robot without faults gives. Too many faults stop it with the reason, and a run after the
+// robot is fixed resumes from what finished.
+TEST(FoldLearning, RobotFaultsAreRunAgainNotLearnedFrom) {
+  br::FoldLearningConfig config = smallConfig();
+  config.jobs = 1;
+  const std::string clean_dir = freshDirectory("robot_clean");
+  const br::FoldLearningResult clean =
+      br::FoldLearner(config, clean_dir, {}, std::make_unique<FaultyRobot>(config, [](int) { return false; })).learn();
+  EXPECT_EQ(clean.robot_faults, 0);
+
+  // The first epoch's batch is the policy and three samples (attempts 1–4): samples 0 and 1 fail at their first
+  // attempts (2, 3), and sample 1 at its second (6, after sample 0's second at 5).
+  const std::string dir = freshDirectory("robot_faults");
+  std::vector<std::pair<int, bool>> seen;  // attempt, retried
+  br::FoldLearningObserver observer;
+  observer.robot_fault = [&](const br::FoldRolloutRecord&, int attempt, const std::string& reason, bool retry) {
+    EXPECT_NE(reason.find("no answer in time"), std::string::npos) << reason;
+    seen.emplace_back(attempt, retry);
+  };
+  const br::FoldLearningResult faulty =
+      br::FoldLearner(config, dir, observer,
+                      std::make_unique<FaultyRobot>(config, [](int n) { return n == 2 || n == 3 || n == 6; }))
+          .learn();
+  EXPECT_EQ(faulty.robot_faults, 3);
+  EXPECT_EQ(faulty.simulated, clean.simulated);
+  EXPECT_EQ(seen, (std::vector<std::pair<int, bool>>{{1, true}, {1, true}, {2, true}}));
+  EXPECT_EQ(bimanual_skills::testing::readTextFile(dir + "/epochs.csv"),
+            bimanual_skills::testing::readTextFile(clean_dir + "/epochs.csv"));
+  EXPECT_EQ(faulty.runs[0].final_policy.terms.reward, clean.runs[0].final_policy.terms.reward);
+  for (const auto& row : bimanual_skills::testing::readCsv(dir + "/rollouts.csv")) {
+    EXPECT_NE(row.at("outcome"), "RobotFailed") << "a robot's fault was written as a rollout";
+  }
+  const auto faults = bimanual_skills::testing::readCsv(dir + "/robot_faults.csv");
+  ASSERT_EQ(faults.size(), 3u);
+  EXPECT_EQ(faults[2].at("attempt"), "2");
+  EXPECT_EQ(faults[2].at("index"), faults[1].at("index"));
+
+  // A robot that fails everything from attempt 4 on: with k = 1 the rollout's second fault stops the learning.
+  config.robot_retries = 1;
+  config.robot_fault_limit = 100;
+  const std::string down_dir = freshDirectory("robot_down");
+  try {
+    br::FoldLearner(config, down_dir, {}, std::make_unique<FaultyRobot>(config, [](int n) { return n >= 4; })).learn();
+    ADD_FAILURE() << "the learning went on with a robot that fails every rollout";
+  } catch (const br::RobotFaults& e) {
+    EXPECT_NE(std::string(e.what()).find("2 times (robot_retries 1)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("no answer in time"), std::string::npos) << e.what();
+  }
+  // With k = 3 and m = 3, three faults in a row stop it.
+  config.robot_retries = 3;
+  config.robot_fault_limit = 3;
+  try {
+    br::FoldLearner(config, down_dir, {}, std::make_unique<FaultyRobot>(config, [](int) { return true; })).learn();
+    ADD_FAILURE() << "the learning went on with a robot that is down";
+  } catch (const br::RobotFaults& e) {
+    EXPECT_NE(std::string(e.what()).find("3 times in a row (robot_fault_limit 3)"), std::string::npos) << e.what();
+  }
+  // The robot fixed: the run resumes with the three rollouts that finished, and ends as the clean one.
+  const br::FoldLearningResult fixed =
+      br::FoldLearner(config, down_dir, {}, std::make_unique<FaultyRobot>(config, [](int) { return false; })).learn();
+  EXPECT_EQ(fixed.resumed, 3);
+  EXPECT_EQ(fixed.runs[0].final_policy.terms.reward, clean.runs[0].final_policy.terms.reward);
+  EXPECT_EQ(bimanual_skills::testing::readCsv(down_dir + "/robot_faults.csv").size(), 5u);  // 2 + 3, appended
 }

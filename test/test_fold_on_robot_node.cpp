@@ -207,6 +207,7 @@ TEST(FoldOnRobot, AKilledSimulatorGivesAFailedRolloutNotAHang) {
   const bs::rollout::FoldLearningConfig config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
   bs::ros_layer::FoldRobotInterfaces robot;
   robot.timeout = 10.0;  // a loaded machine (make test) can take seconds to answer; a dead simulator must still fail
+  robot.reset_timeout = 10.0;
   bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
   const bs::rollout::RolloutResult first = task.run(task.initialParameters(), 1);
   EXPECT_TRUE(first.ok) << first.outcome << ": " << first.reason;
@@ -278,6 +279,7 @@ TEST(FoldOnRobot, BadInterfaceSettingsAreRefusedByName) {
       {"start_delay", [](Robot& r) { r.start_delay = -1.0; }},
       {"start_delay", [](Robot& r) { r.start_delay = INFINITY; }},
       {"timeout", [](Robot& r) { r.timeout = 0.0; }},
+      {"reset_timeout", [](Robot& r) { r.reset_timeout = INFINITY; }},
       {"two arms", [](Robot& r) { r.arms = {"left"}; }},
   };
   for (const auto& [name, spoil] : bad) {

@@ -208,6 +208,9 @@ void FoldLearningConfig::validate() const {
   if (!(covariance_memory >= 0.0 && covariance_memory < 1.0)) {
     throw std::invalid_argument("fold learning: covariance_memory in [0, 1)");
   }
+  if (robot_retries < 0 || robot_retries > 100 || robot_fault_limit < 1 || robot_fault_limit > 1000) {
+    throw std::invalid_argument("fold learning: robot_retries in [0, 100] and robot_fault_limit in [1, 1000]");
+  }
   reward.validate("fold learning reward");
 }
 
@@ -270,9 +273,10 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
   }
   if (const YAML::Node learning = root["learning"]) {
     const std::string at = where + " learning";
-    io::checkKeys(learning, at,
-                  {"algorithms", "runs", "updates", "rollouts", "reuse", "epsilon", "eta", "initial_stddev",
-                   "goal_stddev", "covariance_memory", "repetitions", "seed", "jobs"});
+    io::checkKeys(
+        learning, at,
+        {"algorithms", "runs", "updates", "rollouts", "reuse", "epsilon", "eta", "initial_stddev", "goal_stddev",
+         "covariance_memory", "repetitions", "seed", "jobs", "robot_retries", "robot_fault_limit"});
     if (const YAML::Node algorithms = learning["algorithms"]) {
       if (!algorithms.IsSequence()) io::fail(at + ": 'algorithms' must be a list of names");
       c.algorithms.clear();
@@ -294,6 +298,8 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
       c.seed = static_cast<std::uint32_t>(seed);
     }
     if (learning["jobs"]) c.jobs = io::readInt(learning, "jobs", at);
+    if (learning["robot_retries"]) c.robot_retries = io::readInt(learning, "robot_retries", at);
+    if (learning["robot_fault_limit"]) c.robot_fault_limit = io::readInt(learning, "robot_fault_limit", at);
   }
   io::withContext(where, [&] { c.validate(); });
   return c;
@@ -307,8 +313,9 @@ struct FoldLearner::Impl {
   ParallelEvaluator* threads = nullptr;             ///< The evaluator when the rollouts run on threads here.
   std::unique_ptr<FoldRolloutTask> helper;          ///< For the demonstration and the images when they run elsewhere.
   std::map<std::string, FoldRolloutRecord> stored;  ///< Rollouts found in the directory.
-  io::CsvAppender rollouts_csv, parameters_csv;
+  io::CsvAppender rollouts_csv, parameters_csv, faults_csv;
   int simulated = 0, resumed = 0;
+  int robot_faults = 0, faults_in_a_row = 0;
 
   /// The reward the directory's rollouts were scored with, DIR/reward.txt: written while the directory holds no
   /// rollout, compared once it does (rollouts scored otherwise must not be reused). After readStored().
@@ -398,6 +405,8 @@ struct FoldLearner::Impl {
       rec.wall_seconds = toDouble(f[27], where);
       rec.reason = f[28];
       rec.resumed = true;
+      // A robot's fault says nothing of the policy (written by versions that learned from them): run it again.
+      if (rec.terms.outcome == tasks::FoldOutcome::RobotFailed) continue;
       const std::string k = key(rec.algorithm, rec.run, rec.epoch, rec.kind, rec.index);
       const auto w = weights.find(k);
       if (w == weights.end()) continue;  // interrupted between the two files: run it again
@@ -411,6 +420,8 @@ struct FoldLearner::Impl {
       rollouts_csv = io::CsvAppender(dir + "/rollouts.csv", kRolloutColumns);
       parameters_csv =
           io::CsvAppender(dir + "/rollout_parameters.csv", "algorithm,run,epoch,kind,index,size,weights...");
+      faults_csv = io::CsvAppender(dir + "/robot_faults.csv",
+                                   "algorithm,run,epoch,kind,index,seed,attempt,retried,wall_seconds,reason");
     } catch (const std::runtime_error& e) {
       throw std::invalid_argument(std::string("fold learning: ") + e.what());
     }
@@ -463,34 +474,89 @@ struct FoldLearner::Impl {
       ++resumed;
       if (observer.rollout) observer.rollout(rec, tasks::FoldRollout{}, firstTask().reward());
     }
+    // Robot faults are run again (same parameters, same seed) until the robot runs them or gives up.
+    for (int attempt = 1; !pending.empty(); ++attempt) {
+      pending = evaluatePending(batch, pending, attempt);
+    }
+  }
+
+  /// One attempt at the pending rollouts of a batch; returns those the robot failed (to run again).
+  std::vector<std::size_t> evaluatePending(std::vector<FoldRolloutRecord>& batch,
+                                           const std::vector<std::size_t>& pending, int attempt) {
     std::vector<RolloutRequest> requests;
     for (const std::size_t i : pending) {
       requests.push_back({FoldRolloutTask::encode(batch[i].coordination, batch[i].weights), batch[i].seed});
     }
+    std::vector<std::size_t> faulted;
+    std::string fault;  // why the learning stops, once it must
+    const auto stop = [&] { return !fault.empty() || (observer.stop && observer.stop()); };
     // done() runs under the evaluator's lock: the files, the counters and the observer see one rollout at a time.
-    evaluator->evaluate(
-        requests,
-        [&](std::size_t n, const RolloutResult& result, RolloutTask* task) {
-          // A task of another kind (e.g. one on a robot) gives its terms in the result only.
-          auto* fold = dynamic_cast<FoldRolloutTask*>(task);
-          FoldRolloutRecord& rec = batch[pending[n]];
-          rec.terms = fold ? fold->lastTerms() : FoldRolloutTask::termsOf(result);
-          rec.reason = result.reason;
-          rec.wall_seconds = result.wall_seconds;
-          write(rec);
-          ++simulated;
-          if (!observer.rollout) return;
-          if (fold) {
-            observer.rollout(rec, fold->lastRollout(), fold->reward());
-          } else if (const auto* recorded = dynamic_cast<const RecordedFoldTask*>(task)) {
-            observer.rollout(rec, recorded->lastRecording(), firstTask().reward());
-          } else {
-            tasks::FoldRollout paths;
-            paths.actual_path = FoldRolloutTask::toolPaths(result);
-            observer.rollout(rec, paths, firstTask().reward());
-          }
-        },
-        observer.stop);
+    try {
+      evaluator->evaluate(
+          requests,
+          [&](std::size_t n, const RolloutResult& result, RolloutTask* task) {
+            // A task of another kind (e.g. one on a robot) gives its terms in the result only.
+            auto* fold = dynamic_cast<FoldRolloutTask*>(task);
+            FoldRolloutRecord& rec = batch[pending[n]];
+            rec.terms = fold ? fold->lastTerms() : FoldRolloutTask::termsOf(result);
+            rec.reason = result.reason;
+            rec.wall_seconds = result.wall_seconds;
+            if (rec.terms.outcome == tasks::FoldOutcome::RobotFailed) {
+              onRobotFault(rec, attempt, fault);
+              faulted.push_back(pending[n]);
+              return;
+            }
+            faults_in_a_row = 0;
+            recordRollout(rec, task, result);
+          },
+          stop);
+    } catch (const std::runtime_error& e) {
+      if (!fault.empty() && std::string(e.what()) == "stopped") throw RobotFaults(fault);
+      throw;
+    }
+    if (!fault.empty()) throw RobotFaults(fault);
+    std::sort(faulted.begin(), faulted.end());
+    return faulted;
+  }
+
+  /// Under the evaluator's lock: logs a robot's fault and sets `fault` when the learning must stop.
+  void onRobotFault(const FoldRolloutRecord& rec, int attempt, std::string& fault) {
+    ++robot_faults;
+    ++faults_in_a_row;
+    const bool retry = attempt <= config.robot_retries && faults_in_a_row < config.robot_fault_limit;
+    std::ostringstream line;
+    line << quoted(rec.algorithm) << ',' << rec.run << ',' << rec.epoch << ',' << toString(rec.kind) << ',' << rec.index
+         << ',' << rec.seed << ',' << attempt << ',' << (retry ? 1 : 0) << ',' << number(rec.wall_seconds) << ','
+         << quoted(rec.reason);
+    faults_csv.append(line.str());
+    if (observer.robot_fault) observer.robot_fault(rec, attempt, rec.reason, retry);
+    if (retry || !fault.empty()) return;
+    std::ostringstream why;
+    why << "the robot failed ";
+    if (faults_in_a_row >= config.robot_fault_limit) {
+      why << faults_in_a_row << " times in a row (robot_fault_limit " << config.robot_fault_limit << ")";
+    } else {
+      why << "rollout " << key(rec.algorithm, rec.run, rec.epoch, rec.kind, rec.index) << ' ' << attempt
+          << " times (robot_retries " << config.robot_retries << ")";
+    }
+    why << "; the last: " << rec.reason << ". Fix the robot and run again: the finished rollouts are kept";
+    fault = why.str();
+  }
+
+  /// Under the evaluator's lock: a rollout the robot ran, written and shown.
+  void recordRollout(FoldRolloutRecord& rec, RolloutTask* task, const RolloutResult& result) {
+    write(rec);
+    ++simulated;
+    if (!observer.rollout) return;
+    if (auto* fold = dynamic_cast<FoldRolloutTask*>(task)) {
+      observer.rollout(rec, fold->lastRollout(), fold->reward());
+    } else if (const auto* recorded = dynamic_cast<const RecordedFoldTask*>(task)) {
+      observer.rollout(rec, recorded->lastRecording(), firstTask().reward());
+    } else {
+      tasks::FoldRollout paths;
+      paths.actual_path = FoldRolloutTask::toolPaths(result);
+      observer.rollout(rec, paths, firstTask().reward());
+    }
   }
 
   FoldRolloutTask& firstTask() { return helper ? *helper : static_cast<FoldRolloutTask&>(threads->task(0)); }
@@ -750,6 +816,7 @@ FoldLearningResult FoldLearner::learn() {
   }
   result.simulated = m.simulated;
   result.resumed = m.resumed;
+  result.robot_faults = m.robot_faults;
   result.seconds = secondsSince(start);
   return result;
 }

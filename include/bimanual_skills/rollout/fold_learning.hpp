@@ -15,7 +15,8 @@
 /// Nothing is lost: every finished rollout is appended at once to DIR/rollouts.csv (terms, outcome, reason) and
 /// DIR/rollout_parameters.csv (its latent weights). The learning is deterministic for a seed, so a restarted run
 /// regenerates the same rollouts and takes those already on disk instead of simulating them again (after checking
-/// that their parameters are the same to the last bit). Results do not depend on the number of threads.
+/// that their parameters are the same to the last bit). Results do not depend on the number of threads. Robot faults
+/// stay out of the learning (FoldLearningConfig::robot_retries): a rollout is learned from only once the robot ran it.
 /// Target bimanual_skills_rollout (rollout floor). Offline: allocates and throws std::invalid_argument.
 #pragma once
 
@@ -29,6 +30,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -76,6 +78,13 @@ struct FoldLearningConfig {
   double goal_stddev = 0.03;
   double covariance_memory = 0.0;  ///< λ of CoordinatedRepsParameters in [0, 1) (0: the thesis' REPS update).
   int repetitions = 0;             ///< Noise-free repetitions of the initial policy (varying only the sensors' noise).
+  /// A rollout the robot failed (tasks::FoldOutcome::RobotFailed: a service, an action or the camera failed or did
+  /// not answer) says nothing of its policy: it is run again with the same parameters and seed up to this many
+  /// times, logged to DIR/robot_faults.csv and never written as a rollout; one that fails once more stops the
+  /// learning with the reason.
+  int robot_retries = 3;
+  /// The learning also stops after this many robot failures in a row (a robot that is down).
+  int robot_fault_limit = 5;
   std::uint32_t seed = 1;
   int jobs = 0;  ///< Rollouts evaluated in parallel (0: the hardware's threads).
 
@@ -143,6 +152,7 @@ struct FoldLearningResult {
   std::vector<FoldRunResult> runs;
   std::vector<FoldRolloutRecord> repetitions;
   int simulated = 0, resumed = 0;  ///< Rollouts simulated now and taken from disk.
+  int robot_faults = 0;            ///< Attempts the robot failed (run again; not among the rollouts).
   double seconds = 0.0;
 };
 
@@ -155,9 +165,17 @@ struct FoldLearningObserver {
                      const tasks::FoldReward& reward)>
       rollout;
   std::function<void(const FoldEpochStats&)> epoch;
+  /// The robot failed attempt `attempt` (1 = the first) of a rollout, for `reason`; `retry` whether it runs again.
+  std::function<void(const FoldRolloutRecord& record, int attempt, const std::string& reason, bool retry)> robot_fault;
   /// Polled between rollouts: true stops the learning (learn() then throws std::runtime_error("stopped")); what
   /// finished is on disk.
   std::function<bool()> stop;
+};
+
+/// The learning stopped because the robot kept failing (FoldLearningConfig::robot_retries, robot_fault_limit).
+class RobotFaults : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
 };
 
 class FoldLearner {
@@ -173,7 +191,8 @@ class FoldLearner {
   FoldLearner& operator=(const FoldLearner&) = delete;
 
   /// Runs every algorithm and run of the configuration. \throws std::invalid_argument when the directory holds
-  /// rollouts of another configuration or seed.
+  /// rollouts of another configuration or seed; RobotFaults when the robot failed a rollout robot_retries + 1 times
+  /// or robot_fault_limit rollouts in a row (what finished is on disk: a run after the robot is fixed resumes).
   FoldLearningResult learn();
 
   /// Executes a recorded rollout again with paths and cloth meshes recorded at `cloth_rate` frames per second:

@@ -4,6 +4,7 @@
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "bimanual_skills/ros_layer/bounded_call.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 
 #include <cv_bridge/cv_bridge.h>
@@ -34,6 +35,8 @@ constexpr std::uint64_t kStatesAfterReset = 3;
 constexpr double kApproachShare = 0.7;
 /// Samples per second of the measured tool paths in a result.
 constexpr double kPathRate = 50.0;
+/// Longest wait for resuming a simulator after a failed rollout [s]: the next rollout resumes it anyway.
+constexpr double kResumeTimeout = 2.0;
 
 const char* errorName(int code) {
   switch (code) {
@@ -76,6 +79,7 @@ void FoldRobotInterfaces::validate() const {
   if (!(trajectory_rate >= 1.0) || !(trajectory_rate <= 1000.0)) fail("trajectory_rate must lie in [1, 1000] Hz");
   if (!(start_delay >= 0.0) || !(start_delay <= 10.0)) fail("start_delay must lie in [0, 10] s");
   if (!(timeout > 0.0) || !std::isfinite(timeout)) fail("timeout must be finite and > 0");
+  if (!(reset_timeout > 0.0) || !std::isfinite(reset_timeout)) fail("reset_timeout must be finite and > 0");
 }
 
 namespace {
@@ -205,7 +209,6 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
                                   " near its start with the tool " + std::to_string(robot_.approach_height) +
                                   " m above it");
     }
-    arm->client = std::make_unique<Client>(*node_, arm->name + "/follow_joint_trajectory", false);
     Arm* raw = arm.get();
     arm->state_sub = node_->subscribe<bimanual_skills::JointTrajectoryControllerState>(
         arm->name + "/state", 100, [this, raw](const bimanual_skills::JointTrajectoryControllerState::ConstPtr& s) {
@@ -225,8 +228,7 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
   // write into go.
   try {
     try {
-      waitFor([this] { return arms_[0]->client->isServerConnected() && arms_[1]->client->isServerConnected(); },
-              "the arms' follow_joint_trajectory actions");
+      connectArms();
     } catch (const Failure& f) {
       throw std::runtime_error("fold on the robot: " + f.reason);
     }
@@ -271,6 +273,30 @@ void FoldOnRobotTask::waitFor(const Done& done, const std::string& what) {
   }
 }
 
+template <typename Service>
+void FoldOnRobotTask::call(const std::string& service, Service& request, double timeout, const std::string& what) {
+  ros::ServiceClient client = node_->serviceClient<Service>(service);
+  const CallOutcome outcome = callWithin(client, request, timeout);
+  if (outcome == CallOutcome::Answered) return;
+  std::ostringstream message;
+  message << what << " (" << client.getService() << "): " << describe(outcome);
+  if (outcome != CallOutcome::Failed) message << " within " << timeout << " s";
+  throw Failure{tasks::FoldOutcome::RobotFailed, message.str()};
+}
+
+void FoldOnRobotTask::connectArms() {
+  // No callback of an old client may run while it goes, nor one of a new client before it is whole: the spinner
+  // stands still meanwhile (stop() joins its threads; the messages wait in the queue).
+  spinner_->stop();
+  for (const auto& arm : arms_) {
+    arm->client.reset();
+    arm->client = std::make_unique<Client>(*node_, arm->name + "/follow_joint_trajectory", false);
+  }
+  spinner_->start();
+  waitFor([this] { return arms_[0]->client->isServerConnected() && arms_[1]->client->isServerConnected(); },
+          "the arms' follow_joint_trajectory actions");
+}
+
 void FoldOnRobotTask::waitForGoal(Arm& arm, const std::string& what) {
   Client& client = *arm.client;
   waitFor(
@@ -292,17 +318,12 @@ void FoldOnRobotTask::waitForGoal(Arm& arm, const std::string& what) {
 }
 
 void FoldOnRobotTask::pause(bool paused) {
-  ros::ServiceClient client = node_->serviceClient<std_srvs::SetBool>(robot_.pause_service);
-  if (!client.waitForExistence(ros::Duration(robot_.timeout))) {
-    throw Failure{tasks::FoldOutcome::RobotFailed,
-                  "no pause service " + client.getService() +
-                      " (is the simulator running? on a robot the pause service is \"\")"};
-  }
   std_srvs::SetBool request;
   request.request.data = paused;
-  if (!client.call(request) || !request.response.success) {
-    throw Failure{tasks::FoldOutcome::RobotFailed, std::string(paused ? "pausing" : "resuming") + " the simulator (" +
-                                                       client.getService() + ") failed: " + request.response.message};
+  const std::string what = std::string(paused ? "pausing" : "resuming") + " the simulator";
+  call(robot_.pause_service, request, robot_.timeout, what);
+  if (!request.response.success) {
+    throw Failure{tasks::FoldOutcome::RobotFailed, what + " failed: " + request.response.message};
   }
   paused_ = paused;
   if (!paused) return;
@@ -330,13 +351,11 @@ void FoldOnRobotTask::resumeAfterFailure() noexcept {
   if (!paused_) return;
   paused_ = false;
   try {
-    // A simulator that is gone is not waited for (the rollout has failed already).
-    const std::string name = node_->resolveName(robot_.pause_service);
-    if (!ros::service::exists(name, false)) return;
-    ros::ServiceClient client = node_->serviceClient<std_srvs::SetBool>(name);
+    // A simulator that is gone or stopped is waited for briefly only (the rollout has failed already).
     std_srvs::SetBool request;
     request.request.data = false;
-    (void)client.call(request);
+    (void)callWithin(node_->serviceClient<std_srvs::SetBool>(robot_.pause_service), request,
+                     std::min(robot_.timeout, kResumeTimeout));
   } catch (const std::exception&) {  // best effort: the next rollout resumes it first anyway
   }
 }
@@ -346,13 +365,10 @@ void FoldOnRobotTask::waitUntil(const ros::Time& time, const char* what) {
 }
 
 void FoldOnRobotTask::reset() {
-  ros::ServiceClient client = node_->serviceClient<std_srvs::Trigger>(robot_.reset_service);
-  if (!client.waitForExistence(ros::Duration(robot_.timeout))) {
-    throw Failure{tasks::FoldOutcome::RobotFailed, "no reset service " + client.getService()};
-  }
   std_srvs::Trigger trigger;
-  if (!client.call(trigger) || !trigger.response.success) {
-    throw Failure{tasks::FoldOutcome::RobotFailed, "reset failed: " + trigger.response.message};
+  call(robot_.reset_service, trigger, robot_.reset_timeout, "the reset");
+  if (!trigger.response.success) {
+    throw Failure{tasks::FoldOutcome::RobotFailed, "the reset failed: " + trigger.response.message};
   }
   // The controllers have seen the reset scene (a simulation's clock went back) once their states come again.
   const auto states = [this] {
@@ -364,17 +380,12 @@ void FoldOnRobotTask::reset() {
 }
 
 void FoldOnRobotTask::grasp(bool close) {
-  ros::ServiceClient client = node_->serviceClient<bimanual_skills::ClothGrasp>(robot_.grasp_service);
-  if (!client.waitForExistence(ros::Duration(robot_.timeout))) {
-    throw Failure{tasks::FoldOutcome::RobotFailed, "no gripper service " + client.getService()};
-  }
   for (const auto& arm : arms_) {
     bimanual_skills::ClothGrasp request;
     request.request.arm = arm->name;
     request.request.grasp = close;
-    if (!client.call(request)) {
-      throw Failure{tasks::FoldOutcome::RobotFailed, "the gripper service " + client.getService() + " did not answer"};
-    }
+    call(robot_.grasp_service, request, robot_.timeout,
+         std::string(close ? "closing " : "opening ") + arm->name + "'s gripper");
     if (!request.response.success) {
       throw Failure{close ? tasks::FoldOutcome::GraspFailed : tasks::FoldOutcome::RobotFailed,
                     request.response.message};
@@ -558,6 +569,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     terms.r_acceleration = reward_.config().acceleration_weight * acceleration_cost;
     reason = why;
     for (const auto& arm : arms_) arm->client->cancelGoal();
+    reconnect_ = reconnect_ || outcome == tasks::FoldOutcome::RobotFailed;
   };
   try {
     if (!rollout::FoldRolloutTask::decode(parameters, tasks::ClothFoldTask::kDofs, task_.policyBasisSize(),
@@ -569,6 +581,10 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     const tasks::FoldPlan plan = task_.plan(coordination, weights);
     acceleration_cost = plan.acceleration_cost;
     if (plan.outcome != tasks::FoldOutcome::Ok) throw Failure{plan.outcome, plan.reason};
+    if (reconnect_) {
+      connectArms();
+      reconnect_ = false;
+    }
     // A simulator left paused (a learner stopped while it stood still) goes on first: paused, it publishes no
     // states and every rollout would fail.
     if (!robot_.pause_service.empty()) pause(false);

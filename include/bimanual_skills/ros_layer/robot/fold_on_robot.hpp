@@ -17,7 +17,9 @@
 /// identical to the in-process task's) as one trajectory goal per arm with a common start time, release, let the
 /// cloth settle, and score the camera's images with the reward (tasks::FoldReward). Any
 /// failure (a goal aborted or out of tolerance, a service that fails, a timeout, no image) ends the rollout with its
-/// outcome, a reason and the failure reward; nothing hangs: every wait has a wall-clock limit. Target
+/// outcome, a reason and the failure reward; nothing hangs: every wait has a wall-clock limit, service calls included
+/// (ros_layer::callWithin). A failure of the robot (FoldOutcome::RobotFailed: an interface that failed or did not
+/// answer) also rebuilds the action clients before the next rollout, which then waits for their servers. Target
 /// bimanual_skills_ros_robot. Offline: allocates; one object per thread.
 #pragma once
 
@@ -59,7 +61,10 @@ struct FoldRobotInterfaces {
   /// stands still from the grasp until both controllers have accepted them. A controller that gets its goal after the
   /// start skips the points already past (control_msgs' rule), which the path tolerance then fails.
   double start_delay = 0.5;
-  double timeout = 30.0;  ///< Longest wall-clock wait for any one interface [s].
+  double timeout = 30.0;  ///< Longest wall-clock wait for any one interface [s], service calls included.
+  /// Longest wall-clock wait for the reset service [s]: the one deliberately longer wait, since on hardware a person
+  /// lays the cloth flat: longer than operator_prompt's ~timeout (600 s), so that its refusal comes across.
+  double reset_timeout = 660.0;
 
   /// \throws std::invalid_argument naming the field that is out of range.
   void validate() const;
@@ -117,6 +122,12 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   tasks::FoldRewardTerms observe(const ros::Time& after, double acceleration_cost);
   template <typename Done>
   void waitFor(const Done& done, const std::string& what);
+  /// Calls `service` (a service's name) within `timeout`; throws Failure (RobotFailed) naming `what` when there is
+  /// no server, the call fails or no answer comes in time. The response's own success is the caller's to check.
+  template <typename Service>
+  void call(const std::string& service, Service& request, double timeout, const std::string& what);
+  /// New action clients for both arms, and the wait for their servers.
+  void connectArms();
 
   tasks::ClothFoldTask task_;
   tasks::FoldReward reward_;
@@ -136,7 +147,8 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   double next_image_ = 0.0, next_cloth_ = 0.0;
   tasks::FoldRollout recording_;
   double last_tracking_error_ = 0.0, last_robot_seconds_ = 0.0;
-  bool paused_ = false;  ///< Whether this task paused the simulator (and must resume it).
+  bool paused_ = false;     ///< Whether this task paused the simulator (and must resume it).
+  bool reconnect_ = false;  ///< The last rollout failed on the robot: new action clients before the next.
 };
 
 }  // namespace bimanual_skills::ros_layer

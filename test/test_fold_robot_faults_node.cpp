@@ -1,0 +1,313 @@
+// rostest (test/fold_robot_faults.test): the fold through the ROS backend when the robot misbehaves, against
+// sim.launch, with a fault injector in this node between the task and bullet_sim's gripper service and camera:
+// 1. a gripper service that takes a call and never answers fails the rollout within the task's timeout (RobotFailed,
+//    naming the call), and the next rollout, with the service answering again, succeeds;
+// 2. bullet_sim stopped with SIGSTOP, before a rollout (its first service call hangs) and in the middle of the fold
+//    (its actions and clock stand still): each rollout fails in time, and after SIGCONT the next one succeeds;
+// 3. a camera that stops in the middle of a rollout fails it (no images in time), the next one succeeds;
+// 4. a fault storm in a learning: a gripper that drops every fifth call is retried (never learned from, logged to
+//    robot_faults.csv), and a gripper that is down stops the learning after robot_fault_limit faults with the reason.
+#include "bimanual_skills/ClothGrasp.h"
+#include "bimanual_skills/FollowJointTrajectoryActionGoal.h"
+#include "bimanual_skills/rollout/fold_learning.hpp"
+#include "bimanual_skills/ros_layer/bounded_call.hpp"
+#include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
+#include "node_pid.hpp"
+
+#include <ros/callback_queue.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <sys/types.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+namespace bs = bimanual_skills;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+std::string configPath() {
+  std::string path;
+  ros::param::get("~config", path);
+  return path;
+}
+
+/// Between the task and bullet_sim: the gripper service /faulty/grasp and the camera under /faulty/camera, each
+/// passed on or broken on demand. Its callbacks run on a queue and threads of their own, so that a call it holds
+/// does not hold the camera.
+class FaultInjector {
+ public:
+  enum class Gripper { Pass, Hang, DropEveryFifth, Down };
+
+  FaultInjector() {
+    node_.setCallbackQueue(&queue_);
+    grasp_ = node_.advertiseService<bs::ClothGrasp::Request, bs::ClothGrasp::Response>(
+        "/faulty/grasp", [this](bs::ClothGrasp::Request& request, bs::ClothGrasp::Response& response) {
+          return onGrasp(request, response);
+        });
+    relay("image_raw", image_sub_, image_pub_);
+    relay("depth/image_raw", depth_sub_, depth_pub_);
+    relayInfo("camera_info", info_sub_, info_pub_);
+    relayInfo("depth/camera_info", depth_info_sub_, depth_info_pub_);
+    spinner_.start();
+  }
+  ~FaultInjector() {
+    setGripper(Gripper::Pass);  // lets a hanging call go
+    spinner_.stop();
+  }
+
+  void setGripper(Gripper mode) {
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      gripper_ = mode;
+      calls_ = 0;
+    }
+    changed_.notify_all();
+  }
+  void setCamera(bool on) { camera_on_ = on; }
+
+ private:
+  bool onGrasp(bs::ClothGrasp::Request& request, bs::ClothGrasp::Response& response) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    ++calls_;
+    if (gripper_ == Gripper::Hang) {  // until told otherwise (or a minute): the caller must not wait for it
+      changed_.wait_for(lock, std::chrono::seconds(60), [this] { return gripper_ != Gripper::Hang; });
+      return false;
+    }
+    if (gripper_ == Gripper::Down || (gripper_ == Gripper::DropEveryFifth && calls_ % 5 == 0)) return false;
+    lock.unlock();
+    bs::ClothGrasp forwarded;
+    forwarded.request = request;
+    if (bs::ros_layer::callWithin(node_.serviceClient<bs::ClothGrasp>("/bullet_sim/grasp"), forwarded, 10.0) !=
+        bs::ros_layer::CallOutcome::Answered) {
+      return false;
+    }
+    response = forwarded.response;
+    return true;
+  }
+
+  void relay(const std::string& topic, ros::Subscriber& sub, ros::Publisher& pub) {
+    pub = node_.advertise<sensor_msgs::Image>("/faulty/camera/" + topic, 2);
+    sub = node_.subscribe<sensor_msgs::Image>("/camera/" + topic, 2, [this, &pub](const sensor_msgs::ImageConstPtr& m) {
+      if (camera_on_) pub.publish(m);
+    });
+  }
+  void relayInfo(const std::string& topic, ros::Subscriber& sub, ros::Publisher& pub) {
+    pub = node_.advertise<sensor_msgs::CameraInfo>("/faulty/camera/" + topic, 2);
+    sub = node_.subscribe<sensor_msgs::CameraInfo>("/camera/" + topic, 2,
+                                                   [this, &pub](const sensor_msgs::CameraInfoConstPtr& m) {
+                                                     if (camera_on_) pub.publish(m);
+                                                   });
+  }
+
+  ros::CallbackQueue queue_;
+  ros::NodeHandle node_;
+  ros::AsyncSpinner spinner_{4, &queue_};
+  ros::ServiceServer grasp_;
+  ros::Subscriber image_sub_, depth_sub_, info_sub_, depth_info_sub_;
+  ros::Publisher image_pub_, depth_pub_, info_pub_, depth_info_pub_;
+  std::mutex mutex_;
+  std::condition_variable changed_;
+  Gripper gripper_ = Gripper::Pass;
+  int calls_ = 0;
+  std::atomic<bool> camera_on_{true};
+};
+
+/// The task through the injector, with short timeouts.
+bs::ros_layer::FoldRobotInterfaces faultyRobot() {
+  bs::ros_layer::FoldRobotInterfaces robot;
+  robot.grasp_service = "/faulty/grasp";
+  robot.camera = "/faulty/camera";
+  robot.timeout = 5.0;
+  robot.reset_timeout = 5.0;
+  return robot;
+}
+
+/// A rollout and the wall-clock time it took [s].
+struct Timed {
+  bs::rollout::RolloutResult result;
+  double seconds = 0.0;
+};
+
+/// Runs a rollout of `task` on a thread and waits at most `limit` for it: a hang fails the test instead of holding it.
+Timed runWithin(bs::ros_layer::FoldOnRobotTask& task, std::uint32_t seed, double limit) {
+  const auto start = Clock::now();
+  auto result = std::async(std::launch::async, [&] { return task.run(task.initialParameters(), seed); });
+  if (result.wait_for(std::chrono::duration<double>(limit)) != std::future_status::ready) {
+    ADD_FAILURE() << "the rollout hangs (" << limit << " s)";
+    std::abort();  // a thread still inside the task: nothing sane is left to do
+  }
+  const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  return {result.get(), seconds};
+}
+
+/// Calls `hook` once, when the fold's trajectory goal (many points) of the left arm is on its way.
+class OnFoldGoal {
+ public:
+  explicit OnFoldGoal(std::function<void()> hook) : hook_(std::move(hook)) {
+    sub_ = node_.subscribe<bs::FollowJointTrajectoryActionGoal>(
+        "/left/follow_joint_trajectory/goal", 10, [this](const bs::FollowJointTrajectoryActionGoalConstPtr& m) {
+          if (m->goal.trajectory.points.size() > 10 && !fired_.exchange(true)) hook_();
+        });
+    spinner_.start();
+  }
+  bool fired() const { return fired_; }
+
+ private:
+  ros::NodeHandle node_;
+  std::function<void()> hook_;
+  std::atomic<bool> fired_{false};
+  ros::Subscriber sub_;
+  ros::AsyncSpinner spinner_{1};
+};
+
+void expectRobotFailed(const Timed& run, const std::string& says, double limit) {
+  const bs::rollout::RolloutResult& r = run.result;
+  std::printf("  -> %s after %.1f s: %s\n", r.outcome.c_str(), run.seconds, r.reason.c_str());
+  EXPECT_FALSE(r.ok);
+  EXPECT_EQ(r.outcome, "RobotFailed");
+  EXPECT_NE(r.reason.find(says), std::string::npos) << r.reason;
+  EXPECT_LT(run.seconds, limit);
+}
+
+void expectOk(const Timed& run) {
+  const bs::rollout::RolloutResult& r = run.result;
+  std::printf("  -> %s after %.1f s, R = %.4f %s\n", r.outcome.c_str(), run.seconds, r.reward, r.reason.c_str());
+  EXPECT_TRUE(r.ok) << r.outcome << ": " << r.reason;
+}
+
+}  // namespace
+
+TEST(FoldRobotFaults, AStuckGripperServiceFailsTheRolloutInTime) {
+  FaultInjector injector;
+  const auto config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
+  bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, faultyRobot());
+  std::printf("the gripper service takes the call and never answers:\n");
+  injector.setGripper(FaultInjector::Gripper::Hang);
+  // Everything before the grasp (reset, images, the move to the start) and the 5 s the call may take.
+  expectRobotFailed(runWithin(task, 1, 60.0), "closing left's gripper (/faulty/grasp): no answer in time", 40.0);
+  injector.setGripper(FaultInjector::Gripper::Pass);
+  std::printf("the gripper service answers again:\n");
+  expectOk(runWithin(task, 2, 60.0));
+}
+
+TEST(FoldRobotFaults, AStoppedSimulatorFailsTheRolloutInTime) {
+  FaultInjector injector;
+  const auto config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
+  bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, faultyRobot());
+  const pid_t simulator = static_cast<pid_t>(bs::test::nodePid("/bullet_sim"));
+  ASSERT_GT(simulator, 0) << "no /bullet_sim node answers getPid";
+
+  std::printf("bullet_sim stopped (SIGSTOP) before the rollout: its first service call hangs\n");
+  ASSERT_EQ(::kill(simulator, SIGSTOP), 0);
+  const Timed before = runWithin(task, 1, 60.0);
+  ::kill(simulator, SIGCONT);
+  expectRobotFailed(before, "no answer in time within 5 s", 15.0);
+  std::printf("after SIGCONT:\n");
+  expectOk(runWithin(task, 2, 60.0));
+
+  std::printf("bullet_sim stopped (SIGSTOP) the moment the fold's goals go out:\n");
+  {
+    OnFoldGoal stop([simulator] { ::kill(simulator, SIGSTOP); });
+    const Timed during = runWithin(task, 3, 60.0);
+    ::kill(simulator, SIGCONT);
+    ASSERT_TRUE(stop.fired()) << "the fold's goal never came";
+    expectRobotFailed(during, "within 5 s", 40.0);
+  }
+  std::printf("after SIGCONT:\n");
+  expectOk(runWithin(task, 4, 60.0));
+}
+
+TEST(FoldRobotFaults, ACameraThatStopsMidRolloutFailsIt) {
+  FaultInjector injector;
+  const auto config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
+  bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, faultyRobot());
+  std::printf("the camera stops the moment the fold's goals go out:\n");
+  {
+    OnFoldGoal stop([&injector] { injector.setCamera(false); });
+    const Timed r = runWithin(task, 1, 60.0);
+    ASSERT_TRUE(stop.fired()) << "the fold's goal never came";
+    expectRobotFailed(r, "no answer from the camera /faulty/camera", 40.0);
+  }
+  injector.setCamera(true);
+  std::printf("the camera is back:\n");
+  expectOk(runWithin(task, 2, 60.0));
+}
+
+TEST(FoldRobotFaults, AFaultStormIsRetriedAndADownRobotStopsTheLearning) {
+  FaultInjector injector;
+  bs::rollout::FoldLearningConfig config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
+  config.robot_retries = 3;
+  config.robot_fault_limit = 4;
+  const auto robot = [&config] {
+    const bs::ros_layer::FoldRobotInterfaces interfaces = faultyRobot();
+    return std::make_unique<bs::rollout::ParallelEvaluator>(
+        [config, interfaces] {
+          return std::make_unique<bs::ros_layer::FoldOnRobotTask>(config.task, config.reward, interfaces);
+        },
+        1);
+  };
+  const std::string dir = ::testing::TempDir() + "/fold_robot_faults";
+  std::filesystem::remove_all(dir);
+  int printed = 0;
+  bs::rollout::FoldLearningObserver observer;
+  observer.robot_fault = [&](const bs::rollout::FoldRolloutRecord& r, int attempt, const std::string& reason,
+                             bool retry) {
+    std::printf("  robot fault: %s epoch %d %s %d, attempt %d: %s%s\n", r.algorithm.c_str(), r.epoch,
+                bs::rollout::toString(r.kind), r.index, attempt, reason.c_str(), retry ? "; running it again" : "");
+    ++printed;
+  };
+
+  std::printf("a gripper that drops every fifth call (k = 3, m = 4):\n");
+  injector.setGripper(FaultInjector::Gripper::DropEveryFifth);
+  const bs::rollout::FoldLearningResult storm = bs::rollout::FoldLearner(config, dir, observer, robot()).learn();
+  std::printf("  %d rollouts, %d robot faults, each run again\n", storm.simulated, storm.robot_faults);
+  EXPECT_GT(storm.robot_faults, 0);
+  EXPECT_EQ(printed, storm.robot_faults);
+  EXPECT_EQ(storm.simulated, (config.updates + 1) * (config.rollouts + 1));
+  int lines = -1;  // the header
+  std::ifstream rollouts(dir + "/rollouts.csv");
+  for (std::string line; std::getline(rollouts, line); ++lines) {
+    EXPECT_EQ(line.find("RobotFailed"), std::string::npos) << "a robot's fault was learned from: " << line;
+  }
+  EXPECT_EQ(lines, storm.simulated);
+
+  std::printf("a gripper that is down:\n");
+  injector.setGripper(FaultInjector::Gripper::Down);
+  config.seed += 1;
+  const std::string down = dir + "_down";
+  std::filesystem::remove_all(down);
+  printed = 0;
+  try {
+    bs::rollout::FoldLearner(config, down, observer, robot()).learn();
+    ADD_FAILURE() << "the learning went on with a robot that is down";
+  } catch (const bs::rollout::RobotFaults& e) {
+    std::printf("  the learning stopped: %s\n", e.what());
+    EXPECT_NE(std::string(e.what()).find("4 times in a row (robot_fault_limit 4)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("the call failed"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(printed, 4);
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_fold_robot_faults");
+  ros::NodeHandle keep_alive;
+  return RUN_ALL_TESTS();
+}
