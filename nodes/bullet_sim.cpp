@@ -392,6 +392,15 @@ class BulletSimNode {
       }
       const bool stepping = stepping_ != nullptr;
       if (diverged_ || (paused_ && !stepping)) {
+        for (auto& arm : arms_) {
+          if (!arm->controller) continue;
+          if (!diverged_) {
+            arm->controller->realtime().idle();  // paused: goals still reach the loop (and are accepted)
+          } else if (!divergence_told_) {
+            arm->controller->loopStopped("the simulation diverged");
+          }
+        }
+        divergence_told_ = diverged_;
         if (diverged_ && bimanual_skills::realtime::monotonicSeconds() > next_diverged_publish_) {
           next_diverged_publish_ = bimanual_skills::realtime::monotonicSeconds() + 0.1;
           publishState(false);  // the last valid states keep coming, stamp frozen; /diagnostics says why
@@ -977,6 +986,7 @@ class BulletSimNode {
   int loop_priority_ = 0;
   // Loop state (written by the loop; flags read by diagnostics).
   std::atomic<bool> paused_{false}, diverged_{false}, cloth_diverged_{false}, running_{true};
+  bool divergence_told_ = false;  ///< Loop side: the controllers were told the loop stopped for the divergence.
   std::atomic<double> time_{0.0};
   std::atomic<int> cloth_divergence_{0};
   Eigen::Matrix3Xi cloth_triangles_;  ///< Constant; copied for the publisher thread.

@@ -276,6 +276,102 @@ TEST(RealtimeArmController, GoalsSucceedOrReportTheViolatedTolerance) {
   EXPECT_GT(s.status_counts[static_cast<int>(bc::ControllerStatus::StaleState)], 0);
 }
 
+// control_msgs' timing: a trajectory runs from its own start (header.stamp), not from the cycle that takes it.
+TEST(RealtimeArmController, ATrajectoryStartsAtItsOwnStampAheadOrBehind) {
+  Loop left, right;
+  bc::RealtimeArmController a(left.model, Loop::friction(), Loop::config());
+  bc::RealtimeArmController b(right.model, Loop::friction(), Loop::config());
+  const auto both = [&](int steps) {
+    NoAllocGuard guard;  // holding, receiving and starting a trajectory do not allocate
+    for (int k = 0; k < steps; ++k) {
+      left.step(a);
+      right.step(b);
+    }
+  };
+  // The newest state of each (latestState() gives a state once).
+  bc::ArmControllerState last_a(7), last_b(7);
+  const auto state = [&](bc::RealtimeArmController& c) -> const bc::ArmControllerState& {
+    bc::ArmControllerState& last = &c == &a ? last_a : last_b;
+    if (const bc::ArmControllerState* fresh = c.latestState()) last = *fresh;
+    return last;
+  };
+  both(50);
+  const Eigen::VectorXd start = left.q;
+  Eigen::VectorXd target = start;
+  target[0] += 0.3;
+
+  // A first motion (2 s), then both arms get a trajectory that starts 0.1234 s ahead, off the 1 ms grid: the first
+  // motion goes on until then, and both begin in the first cycle at or after it, the same for both.
+  a.command(trajectoryTo(target, 2.0, 1));
+  both(300);
+  const double t_start = left.t + 0.1234;
+  for (auto* controller : {&a, &b}) {
+    bc::ControllerCommand c = trajectoryTo(start, 0.5, 2);
+    c.start = t_start;
+    controller->command(c);
+  }
+  both(100);
+  const bc::ArmControllerState before = state(a);
+  EXPECT_EQ(a.receivedGoal(), 2u);  // handed over: the loop has it
+  EXPECT_EQ(before.goal_id, 1u);    // and the first motion still runs
+  EXPECT_EQ(before.goal, bc::GoalState::Active);
+  EXPECT_GT(std::abs(before.desired_velocity[0]), 0.05);
+  both(30);
+  const bc::ArmControllerState sa = state(a), sb = state(b);
+  EXPECT_EQ(sa.goal_id, 2u);
+  EXPECT_EQ(sb.goal_id, 2u);
+  EXPECT_EQ(sa.trajectory_start, sb.trajectory_start);
+  EXPECT_GE(sa.trajectory_start, t_start);
+  EXPECT_LT(sa.trajectory_start, t_start + 0.001 + 1e-9);
+  // Its last waypoint at t_start + 0.5 exactly, not at the taking cycle + 0.5.
+  while (left.t < t_start + 0.5 - 1e-9) both(1);
+  const double last_before = state(a).stamp;
+  EXPECT_LT(last_before, t_start + 0.5);
+  EXPECT_GT(std::abs(state(a).desired_position[0] - start[0]), 1e-12);
+  both(1);
+  EXPECT_GE(state(a).stamp, t_start + 0.5);
+  EXPECT_LT((state(a).desired_position - start).cwiseAbs().maxCoeff(), 1e-12);
+
+  // A start 0.3 s behind: the waypoint at 0.2 is past and dropped, the one at 0.6 reached at start + 0.6.
+  both(200);
+  bc::ControllerCommand behind = trajectoryTo(target, 0.6, 3);
+  behind.waypoints.times = Eigen::Vector2d(0.2, 0.6);
+  behind.waypoints.positions = (Eigen::MatrixXd(7, 2) << start, target).finished();
+  behind.start = left.t - 0.3;
+  const double t_end = behind.start + 0.6;
+  a.command(behind);
+  while (left.t < t_end - 1e-9) both(1);
+  EXPECT_EQ(state(a).goal_id, 3u);
+  EXPECT_GT(std::abs(state(a).desired_position[0] - target[0]), 1e-12);
+  both(1);
+  EXPECT_LT((state(a).desired_position - target).cwiseAbs().maxCoeff(), 1e-12);
+
+  // Every waypoint behind: rejected, InThePast; validate() with the offset says so beforehand.
+  bc::ControllerCommand past = behind;
+  past.goal_id = 4;
+  past.start = left.t - 1.0;
+  EXPECT_EQ(a.validate(past.waypoints, -1.0), bc::TrajectoryStatus::InThePast);
+  a.command(past);
+  both(2);
+  EXPECT_EQ(state(a).goal_id, 4u);
+  EXPECT_EQ(state(a).goal, bc::GoalState::Rejected);
+  EXPECT_EQ(state(a).rejection, bc::TrajectoryStatus::InThePast);
+
+  // A loop that stands still (idle) receives a command, and takes it only when it runs again.
+  bc::ControllerCommand later = trajectoryTo(start, 0.5, 5);
+  later.start = left.t;
+  b.command(later);
+  const std::uint64_t taken = b.commandsTaken();
+  const double alive = b.lastCycle();
+  b.idle();
+  EXPECT_EQ(b.receivedGoal(), 5u);
+  EXPECT_EQ(b.commandsTaken(), taken);
+  EXPECT_GE(b.lastCycle(), alive);
+  both(1);
+  EXPECT_EQ(b.commandsTaken(), taken + 1);
+  EXPECT_EQ(state(b).goal_id, 5u);
+}
+
 TEST(RealtimeArmController, TheLoopNeverAllocatesWhileCommandsArriveFromAnotherThread) {
   Loop loop;
   bc::RealtimeArmController controller(loop.model, Loop::friction(), Loop::config());

@@ -405,6 +405,64 @@ TEST_F(HostedControl, TrajectoryActionAnswersWithControlMsgsCodes) {
   EXPECT_EQ(clients_["left"]->getState(), State::PREEMPTED);
 }
 
+// control_msgs' timing: a goal starts at its header.stamp. Both arms given the same future stamp begin in the same
+// cycle of the loop (their results say when), no earlier than the stamp and within one cycle of it. The goals are
+// sent while the simulation is paused, as the fold's are: the loop, standing still, has them and they are accepted;
+// a paused simulation holds a running goal, it does not abort it.
+TEST_F(HostedControl, ACommonFutureStartBeginsBothArmsInTheSameCycle) {
+  std_srvs::SetBool pause;
+  pause.request.data = true;
+  ASSERT_TRUE(pause_.call(pause) && pause.response.success) << pause.response.message;
+  // From the time the simulation stopped at (this node's clock may lag the simulator's by more than 0.5 s of it at
+  // many times real time on a loaded machine).
+  const auto at = pause.response.message.find("at t = ");
+  ASSERT_NE(at, std::string::npos) << pause.response.message;
+  std::map<std::string, Goal> goals;
+  const ros::Time start(std::stod(pause.response.message.substr(at + 7)) + 0.5);
+  for (const std::string& arm : kArms) {
+    std::vector<double> target = armPositions(arm);
+    target[0] += arm == "left" ? 0.2 : -0.2;
+    goals[arm].trajectory = trajectory(arm, {target}, 1.0);
+    goals[arm].trajectory.header.stamp = start;
+  }
+  for (const std::string& arm : kArms) clients_[arm]->sendGoal(goals[arm]);
+  EXPECT_TRUE(waitWall(
+      [&] { return clients_["left"]->getState() == State::ACTIVE && clients_["right"]->getState() == State::ACTIVE; },
+      10.0))
+      << "the paused loop did not take the goals";
+  pause.request.data = false;
+  ASSERT_TRUE(pause_.call(pause) && pause.response.success) << pause.response.message;
+  std::map<std::string, double> started;
+  for (const std::string& arm : kArms) {
+    ASSERT_TRUE(clients_[arm]->waitForResult(ros::Duration(60.0)));
+    EXPECT_EQ(clients_[arm]->getState(), State::SUCCEEDED) << clients_[arm]->getState().getText();
+    const std::string text = clients_[arm]->getResult()->error_string;
+    const auto at = text.find("started at t = ");
+    ASSERT_NE(at, std::string::npos) << text;
+    started[arm] = std::stod(text.substr(at + 15));
+    std::printf("%s: %s (stamp %.6f s)\n", arm.c_str(), text.c_str(), start.toSec());
+  }
+  EXPECT_EQ(started["left"], started["right"]);
+  EXPECT_GE(started["left"], start.toSec() - 1e-9);
+  EXPECT_LT(started["left"], start.toSec() + 0.001 + 1e-6);
+
+  // Paused with a goal running: the goal waits with the clock (no abort), and succeeds after the resume.
+  std::vector<double> back = armPositions("left");
+  back[0] -= 0.2;
+  Goal goal;
+  goal.trajectory = trajectory("left", {back}, 1.0);
+  clients_["left"]->sendGoal(goal);
+  waitSim(0.3);
+  pause.request.data = true;
+  ASSERT_TRUE(pause_.call(pause) && pause.response.success) << pause.response.message;
+  waitWall([] { return false; }, 1.5);
+  EXPECT_EQ(clients_["left"]->getState(), State::ACTIVE) << clients_["left"]->getState().getText();
+  pause.request.data = false;
+  ASSERT_TRUE(pause_.call(pause) && pause.response.success) << pause.response.message;
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(60.0)));
+  EXPECT_EQ(clients_["left"]->getState(), State::SUCCEEDED) << clients_["left"]->getState().getText();
+}
+
 TEST_F(HostedControl, EstimatesAPayloadWhileMoving) {
   waitSim(0.5);
   EXPECT_LT(std::abs(payloadError("1kHz")), 0.03);
@@ -467,9 +525,17 @@ TEST_F(HostedControl, ServicesRefuseAbsurdInputWithTheReason) {
       [&] { return diagnosticCount("bullet_sim: left controller", "rejected_trajectories") == rejected + 1; }, 15.0));
 }
 
-// sim_control.test raises ~max_force so that a wrench can make the arms diverge: the states keep coming with their
-// stamp frozen, /diagnostics says why, and ~reset brings the simulation back.
+// sim_control.test raises ~max_force so that a wrench can make the arms diverge: a running goal is aborted with the
+// reason, the states keep coming with their stamp frozen, /diagnostics says why, and ~reset brings the simulation
+// back.
 TEST_F(HostedControl, ADivergenceIsReportedAndResetRecovers) {
+  // A goal running when the simulation diverges ends: aborted with the reason, not left active for good.
+  std::vector<double> far = armPositions("left");
+  far[0] += 0.3;
+  Goal slow;
+  slow.trajectory = trajectory("left", {far}, 30.0);
+  clients_["left"]->sendGoal(slow);
+  ASSERT_TRUE(waitWall([&] { return clients_["left"]->getState() == State::ACTIVE; }, 10.0));
   ros::ServiceClient wrench = node_.serviceClient<bimanual_skills::ApplyWrench>("/bullet_sim/apply_wrench");
   bimanual_skills::ApplyWrench w;
   w.request.link = "left_wam_tool";
@@ -479,6 +545,11 @@ TEST_F(HostedControl, ADivergenceIsReportedAndResetRecovers) {
   ASSERT_TRUE(waitWall([&] { return diagnostic("bullet_sim", "(level)") == "2"; }, 20.0))
       << "no divergence reported: " << diagnostic("bullet_sim", "(message)");
   EXPECT_NE(diagnostic("bullet_sim", "(message)").find("diverged"), std::string::npos);
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(10.0))) << "the goal outlived the divergence";
+  EXPECT_EQ(clients_["left"]->getState(), State::ABORTED);
+  EXPECT_NE(clients_["left"]->getResult()->error_string.find("the control loop stopped: the simulation diverged"),
+            std::string::npos)
+      << clients_["left"]->getResult()->error_string;
   const long before = jointStateCount();
   const double frozen = lastStamp();
   waitWall([] { return false; }, 1.0);

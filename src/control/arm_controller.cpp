@@ -86,6 +86,12 @@ TrajectoryStatus ArmController::setTrajectory(const Waypoints& waypoints) noexce
   return status;
 }
 
+TrajectoryStatus ArmController::setTrajectory(const Waypoints& waypoints, double offset) noexcept {
+  const TrajectoryStatus status = trajectory_.load(waypoints, offset);
+  if (status == TrajectoryStatus::Ok) trajectory_request_ = true;
+  return status;
+}
+
 ControllerStatus ArmController::update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
                                        const Eigen::Ref<const Eigen::VectorXd>& qd,
                                        Eigen::Ref<Eigen::VectorXd> torque) noexcept {

@@ -17,6 +17,8 @@ const char* toString(TrajectoryStatus status) noexcept {
       return "NotIncreasing";
     case TrajectoryStatus::OutOfLimits:
       return "OutOfLimits";
+    case TrajectoryStatus::InThePast:
+      return "InThePast";
   }
   return "Unknown";
 }
@@ -35,32 +37,42 @@ JointTrajectory::JointTrajectory(int joints, int capacity, const Eigen::VectorXd
 }
 
 TrajectoryStatus JointTrajectory::load(const Waypoints& w) noexcept {
+  if (w.times.size() > 0 && !(w.times[0] > 0.0)) return TrajectoryStatus::NotIncreasing;
+  return load(w, 0.0);
+}
+
+TrajectoryStatus JointTrajectory::load(const Waypoints& w, double offset) noexcept {
   const Eigen::Index n = knot_q_.rows(), k = w.times.size();
   if (k < 1 || k > capacity() || w.positions.rows() != n || w.positions.cols() != k) return TrajectoryStatus::WrongSize;
   const auto optional_ok = [&](const Eigen::MatrixXd& m) { return m.size() == 0 || (m.rows() == n && m.cols() == k); };
   if (!optional_ok(w.velocities) || !optional_ok(w.accelerations)) return TrajectoryStatus::WrongSize;
-  if (!w.times.allFinite() || !w.positions.allFinite() || !w.velocities.allFinite() || !w.accelerations.allFinite()) {
+  if (!w.times.allFinite() || !w.positions.allFinite() || !w.velocities.allFinite() || !w.accelerations.allFinite() ||
+      !std::isfinite(offset)) {
     return TrajectoryStatus::NotFinite;
   }
+  Eigen::Index first = k;  // the first waypoint after the start
   for (Eigen::Index i = 0; i < k; ++i) {
-    if (w.times[i] <= (i == 0 ? 0.0 : w.times[i - 1])) return TrajectoryStatus::NotIncreasing;
+    if (i == 0 ? w.times[i] < 0.0 : w.times[i] <= w.times[i - 1]) return TrajectoryStatus::NotIncreasing;
     if ((w.positions.col(i).array() < lower_.array()).any() || (w.positions.col(i).array() > upper_.array()).any()) {
       return TrajectoryStatus::OutOfLimits;
     }
+    if (first == k && w.times[i] + offset > 0.0) first = i;
   }
-  pending_ = static_cast<int>(k);
-  pending_times_.head(k) = w.times;
-  pending_q_.leftCols(k) = w.positions;
+  if (first == k) return TrajectoryStatus::InThePast;
+  const Eigen::Index kept = k - first;
+  pending_ = static_cast<int>(kept);
+  pending_times_.head(kept) = w.times.tail(kept).array() + offset;
+  pending_q_.leftCols(kept) = w.positions.rightCols(kept);
   // NaN marks a value to estimate in start().
   if (w.velocities.size() > 0) {
-    pending_qd_.leftCols(k) = w.velocities;
+    pending_qd_.leftCols(kept) = w.velocities.rightCols(kept);
   } else {
-    pending_qd_.leftCols(k).setConstant(std::nan(""));
+    pending_qd_.leftCols(kept).setConstant(std::nan(""));
   }
   if (w.accelerations.size() > 0) {
-    pending_qdd_.leftCols(k) = w.accelerations;
+    pending_qdd_.leftCols(kept) = w.accelerations.rightCols(kept);
   } else {
-    pending_qdd_.leftCols(k).setZero();
+    pending_qdd_.leftCols(kept).setZero();
   }
   return TrajectoryStatus::Ok;
 }

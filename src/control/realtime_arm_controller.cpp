@@ -84,7 +84,26 @@ TrajectoryStatus RealtimeArmController::validate(const Waypoints& waypoints) con
   return checker_.load(waypoints);
 }
 
-void RealtimeArmController::take(const ControllerCommand& command) noexcept {
+TrajectoryStatus RealtimeArmController::validate(const Waypoints& waypoints, double offset) const noexcept {
+  const std::lock_guard<std::mutex> lock(command_mutex_);
+  return checker_.load(waypoints, offset);
+}
+
+void RealtimeArmController::receive() noexcept {
+  last_cycle_.store(realtime::monotonicSeconds(), std::memory_order_release);
+  const ControllerCommand* command = commands_.readNew();
+  if (!command) return;
+  pending_ = command;  // a newer command replaces one still waiting for its start
+  if (command->kind == ControllerCommand::Kind::Trajectory) {
+    received_goal_.store(command->goal_id, std::memory_order_release);
+  }
+}
+
+void RealtimeArmController::idle() noexcept {
+  receive();
+}
+
+void RealtimeArmController::take(const ControllerCommand& command, double stamp) noexcept {
   ++commands_taken_;
   command_taken_at_ = realtime::monotonicSeconds();
   command_latency_ = command_taken_at_ - command.sent;
@@ -97,7 +116,9 @@ void RealtimeArmController::take(const ControllerCommand& command) noexcept {
   goal_joint_ = -1;
   goal_error_ = 0.0;
   abort_reason_ = ControllerStatus::Ok;
-  rejection_ = controller_.setTrajectory(command.waypoints);
+  trajectory_start_ = stamp;
+  rejection_ = std::isfinite(command.start) ? controller_.setTrajectory(command.waypoints, command.start - stamp)
+                                            : controller_.setTrajectory(command.waypoints);
   const int n = joints();
   const TrajectoryTolerances& t = command.tolerances;
   const bool sized = t.path_position.size() == n && t.path_velocity.size() == n && t.goal_position.size() == n &&
@@ -166,6 +187,7 @@ void RealtimeArmController::publishState(double stamp, ControllerStatus status,
   s.mode = controller_.mode();
   s.goal_id = goal_id_;
   s.goal = goal_;
+  s.trajectory_start = trajectory_start_;
   s.goal_joint = goal_joint_;
   s.goal_error = goal_error_;
   s.goal_error_is_velocity = goal_error_is_velocity_;
@@ -183,7 +205,21 @@ ControllerStatus RealtimeArmController::update(double now, double stamp, const E
                                                const Eigen::Ref<const Eigen::VectorXd>& qd,
                                                const Eigen::Ref<const Eigen::VectorXd>& applied,
                                                Eigen::Ref<Eigen::VectorXd> torque) noexcept {
-  if (const ControllerCommand* command = commands_.readNew()) take(*command);
+  receive();
+  // A clock that went back (a simulation reset) drops a command waiting for a start on the old clock.
+  if (pending_ && stamp < last_update_stamp_ && pending_->kind == ControllerCommand::Kind::Trajectory &&
+      pending_->start > stamp) {
+    goal_id_ = pending_->goal_id;  // its goal ends: the controller restarts
+    goal_ = GoalState::Aborted;
+    abort_reason_ = ControllerStatus::StaleState;
+    trajectory_start_ = std::numeric_limits<double>::quiet_NaN();
+    pending_ = nullptr;
+  }
+  last_update_stamp_ = stamp;
+  if (pending_ && !(pending_->kind == ControllerCommand::Kind::Trajectory && pending_->start > stamp)) {
+    take(*pending_, stamp);
+    pending_ = nullptr;
+  }
   const ControllerStatus status = controller_.update(now, stamp, q, qd, applied, torque);
   ++counts_[static_cast<int>(status)];
   if (status == ControllerStatus::InvalidState || status == ControllerStatus::StaleState) {

@@ -11,6 +11,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <iomanip>
 #include <sstream>
 
 namespace bimanual_skills::ros_layer {
@@ -32,7 +33,9 @@ const char* const kControllerParameterHelp =
     "  trajectory_capacity   most points of one trajectory (default 2000)\n"
     "  path_tolerance, goal_tolerance  default position tolerances per joint [rad] (0: unchecked; 0, 0.05)\n"
     "  stopped_velocity_tolerance  default goal velocity tolerance [rad/s] (0.05)\n"
-    "  goal_time_tolerance   default time after a trajectory's end to meet the goal tolerances [s] (1.0)\n";
+    "  goal_time_tolerance   default time after a trajectory's end to meet the goal tolerances [s] (1.0)\n"
+    "  loop_timeout          an active goal is aborted when the loop has computed no torque for this long of the\n"
+    "                        robot's clock [s] (0.5; a paused simulation's clock stands still: no abort)\n";
 
 namespace {
 
@@ -102,6 +105,7 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
   t.goal_velocity =
       Eigen::VectorXd::Constant(static_cast<Eigen::Index>(n), p.number("stopped_velocity_tolerance", 0.05, 0.0, 100.0));
   t.goal_time = p.number("goal_time_tolerance", 1.0, 0.0, 3600.0);
+  s.loop_timeout = p.number("loop_timeout", 0.5, 1e-3, 3600.0);
   return s;
 }
 
@@ -143,10 +147,31 @@ void ArmControllerInterface::setDriverDiagnostics(std::vector<std::pair<std::str
   driver_diagnostics_ = std::move(values);
 }
 
+void ArmControllerInterface::loopStopped(const std::string& why) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  abortActive("the control loop stopped: " + why);
+}
+
+void ArmControllerInterface::abortActive(const std::string& why) {
+  if (!active_) return;
+  Result result;
+  result.error_code = Result::PATH_TOLERANCE_VIOLATED;
+  result.error_string = why;
+  if (accepted_) {
+    active_->setAborted(result, why);
+  } else {
+    active_->setRejected(result, why);
+  }
+  ROS_WARN("%s: goal aborted: %s", owner_.c_str(), why.c_str());
+  active_.reset();
+  active_id_ = 0;
+}
+
 void ArmControllerInterface::sendTrajectory(bc::Waypoints&& waypoints, const bc::TrajectoryTolerances& tolerances,
-                                            std::uint64_t goal_id) {
+                                            std::uint64_t goal_id, const ros::Time& start) {
   bc::ControllerCommand command;
   command.kind = bc::ControllerCommand::Kind::Trajectory;
+  command.start = start.toSec();
   command.waypoints = std::move(waypoints);
   command.tolerances = tolerances;
   command.goal_id = goal_id;
@@ -167,20 +192,23 @@ void ArmControllerInterface::cancelActive(const std::string& why) {
   Result result;
   result.error_code = Result::SUCCESSFUL;
   result.error_string = why;
-  active_->setCanceled(result, why);
+  active_->setCanceled(result, why);  // a goal not yet accepted is recalled
   active_.reset();
   active_id_ = 0;
 }
 
 void ArmControllerInterface::onCommand(const trajectory_msgs::JointTrajectory::ConstPtr& message) {
   bc::Waypoints waypoints;
+  const ros::Time now = ros::Time::now();
+  ros::Time start;
   const TrajectoryError error =
-      toWaypoints(*message, joint_names_, ros::Time::now(), controller_->trajectoryCapacity(), waypoints);
+      toWaypoints(*message, joint_names_, now, controller_->trajectoryCapacity(), waypoints, start);
   const std::lock_guard<std::mutex> lock(mutex_);
-  if (!error && waypoints.times.size() > 0 && controller_->validate(waypoints) != bc::TrajectoryStatus::Ok) {
+  const auto status = [&] { return controller_->validate(waypoints, (start - now).toSec()); };
+  if (!error && waypoints.times.size() > 0 && status() != bc::TrajectoryStatus::Ok) {
     ++rejected_;
-    last_rejection_ = std::string(bc::toString(controller_->validate(waypoints))) +
-                      " (a point outside the joint limits, or times that do not increase)";
+    last_rejection_ =
+        std::string(bc::toString(status())) + " (a point outside the joint limits, or times that do not increase)";
     ROS_WARN("%s: trajectory rejected: %s; the current motion goes on", owner_.c_str(), last_rejection_.c_str());
     return;
   }
@@ -198,7 +226,7 @@ void ArmControllerInterface::onCommand(const trajectory_msgs::JointTrajectory::C
   }
   const double duration = waypoints.times[waypoints.times.size() - 1];
   const auto points = waypoints.times.size();
-  sendTrajectory(std::move(waypoints), settings_.default_tolerances, 0);
+  sendTrajectory(std::move(waypoints), settings_.default_tolerances, 0, start);
   // DEBUG: a teleoperation streams many (joint_trajectory_controller logs none either).
   ROS_DEBUG("%s: tracking %ld points over %.2f s", owner_.c_str(), static_cast<long>(points), duration);
 }
@@ -208,14 +236,16 @@ void ArmControllerInterface::onGoal(GoalHandle goal) {
   Result result;
   bc::Waypoints waypoints;
   bc::TrajectoryTolerances tolerances;
+  const ros::Time now = ros::Time::now();
+  ros::Time start;
   TrajectoryError error =
-      toWaypoints(request->trajectory, joint_names_, ros::Time::now(), controller_->trajectoryCapacity(), waypoints);
+      toWaypoints(request->trajectory, joint_names_, now, controller_->trajectoryCapacity(), waypoints, start);
   if (!error) {
     error = resolveTolerances(request->path_tolerance, request->goal_tolerance, request->goal_time_tolerance,
                               joint_names_, settings_.default_tolerances, tolerances);
   }
   if (!error && waypoints.times.size() > 0) {
-    const bc::TrajectoryStatus status = controller_->validate(waypoints);
+    const bc::TrajectoryStatus status = controller_->validate(waypoints, (start - now).toSec());
     if (status != bc::TrajectoryStatus::Ok) {
       error = {Result::INVALID_GOAL,
                std::string("the controller refuses the waypoints: ") + bc::toString(status) +
@@ -233,17 +263,19 @@ void ArmControllerInterface::onGoal(GoalHandle goal) {
     return;
   }
   cancelActive("preempted by a new goal");
-  goal.setAccepted();
   if (waypoints.times.size() == 0) {
+    goal.setAccepted();
     sendMode(bc::ControllerMode::Hold);
     result.error_code = Result::SUCCESSFUL;
     result.error_string = "empty trajectory: holding";
     goal.setSucceeded(result, result.error_string);
     return;
   }
+  // Accepted once the loop has it (onPublish), as joint_trajectory_controller accepts a goal its loop will run.
   active_ = goal;
+  accepted_ = false;
   active_id_ = ++next_goal_id_;
-  sendTrajectory(std::move(waypoints), tolerances, active_id_);
+  sendTrajectory(std::move(waypoints), tolerances, active_id_, start);
 }
 
 void ArmControllerInterface::onCancel(GoalHandle goal) {
@@ -279,7 +311,8 @@ void ArmControllerInterface::finishGoal(const bc::ArmControllerState& state) {
   switch (state.goal) {
     case bc::GoalState::Succeeded:
       result.error_code = Result::SUCCESSFUL;
-      why << "reached the goal";
+      why << "reached the goal (started at t = " << std::fixed << std::setprecision(6) << state.trajectory_start
+          << " s)";
       break;
     case bc::GoalState::PathToleranceViolated:
       result.error_code = Result::PATH_TOLERANCE_VIOLATED;
@@ -322,8 +355,20 @@ void ArmControllerInterface::finishGoal(const bc::ArmControllerState& state) {
 
 void ArmControllerInterface::onPublish(const ros::SteadyTimerEvent&) {
   const bc::ArmControllerState* fresh = controller_->latestState();
-  if (!fresh) return;
   const std::lock_guard<std::mutex> lock(mutex_);
+  if (active_ && !accepted_ && controller_->receivedGoal() == active_id_) {
+    active_->setAccepted("the control loop has the trajectory");
+    accepted_ = true;
+  }
+  // A loop that computes no torque while the robot's clock goes on has stopped (a paused simulation's clock stands
+  // still).
+  if (active_ && last_ && ros::Time::now().toSec() - last_->stamp > settings_.loop_timeout) {
+    std::ostringstream why;
+    why << "the control loop stopped: no control cycle for " << ros::Time::now().toSec() - last_->stamp
+        << " s of the robot's clock (loop_timeout " << settings_.loop_timeout << " s)";
+    abortActive(why.str());
+  }
+  if (!fresh) return;
   last_ = *fresh;
   last_state_wall_ = bimanual_skills::realtime::monotonicSeconds();
   const bc::ArmControllerState& s = *last_;

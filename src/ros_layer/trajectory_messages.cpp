@@ -19,7 +19,7 @@ bool finite(const std::vector<double>& values) {
 }  // namespace
 
 TrajectoryError toWaypoints(const trajectory_msgs::JointTrajectory& message, const std::vector<std::string>& joints,
-                            const ros::Time& now, int capacity, control::Waypoints& out) {
+                            const ros::Time& now, int capacity, control::Waypoints& out, ros::Time& start) {
   const std::size_t n = joints.size();
   const std::size_t points = message.points.size();
   out = control::Waypoints{};
@@ -42,7 +42,7 @@ TrajectoryError toWaypoints(const trajectory_msgs::JointTrajectory& message, con
   }
   const bool with_velocities = !message.points.front().velocities.empty();
   const bool with_accelerations = !message.points.front().accelerations.empty();
-  const ros::Time start = message.header.stamp.isZero() ? now : message.header.stamp;
+  start = message.header.stamp.isZero() ? now : message.header.stamp;
   double previous = -1.0;
   std::size_t first = points;  // the first point after now
   for (std::size_t p = 0; p < points; ++p) {
@@ -75,7 +75,7 @@ TrajectoryError toWaypoints(const trajectory_msgs::JointTrajectory& message, con
   if (with_accelerations) out.accelerations.resize(static_cast<Eigen::Index>(n), k);
   for (int c = 0; c < k; ++c) {
     const auto& point = message.points[first + static_cast<std::size_t>(c)];
-    out.times[c] = (start + point.time_from_start - now).toSec();
+    out.times[c] = point.time_from_start.toSec();
     for (std::size_t i = 0; i < n; ++i) {
       const auto j = static_cast<std::size_t>(column[i]);
       const auto r = static_cast<Eigen::Index>(i);

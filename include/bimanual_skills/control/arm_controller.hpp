@@ -73,6 +73,8 @@ class ArmController {
   /// starting from the current desired state (no jump when replacing a running trajectory). Anything but Ok changes
   /// nothing.
   TrajectoryStatus setTrajectory(const Waypoints& waypoints) noexcept;
+  /// The same with times that count from `offset` seconds after the next update's stamp (JointTrajectory::load).
+  TrajectoryStatus setTrajectory(const Waypoints& waypoints, double offset) noexcept;
 
   ControllerMode mode() const noexcept { return mode_; }
   bool started() const noexcept { return started_; }

@@ -15,6 +15,7 @@ enum class TrajectoryStatus {
   NotFinite,      ///< NaN/Inf in the waypoints or the state.
   NotIncreasing,  ///< Waypoint times are not strictly increasing and positive.
   OutOfLimits,    ///< A waypoint lies outside the position limits.
+  InThePast,      ///< Every waypoint lies at or before the start (a start too far behind).
 };
 
 /// Name of a status ("Ok", ...), for logs outside the real-time path.
@@ -42,6 +43,11 @@ class JointTrajectory {
   /// Validates and stores waypoints; the trajectory is not active until start(). Anything but Ok leaves the
   /// trajectory unchanged. Real-time safe.
   TrajectoryStatus load(const Waypoints& waypoints) noexcept;
+  /// The same for waypoints whose times count from a start `offset` seconds after the instant start() activates them
+  /// (offset < 0: a start that lies behind, as control_msgs' header.stamp in the past): time t becomes t + offset,
+  /// and the waypoints at or before 0 are past and dropped (InThePast when every one is). Times must be >= 0 and
+  /// increase. Real-time safe.
+  TrajectoryStatus load(const Waypoints& waypoints, double offset) noexcept;
 
   /// Activates the loaded waypoints at time `t0` from the desired state (q, q̇, q̈) at that instant (typically
   /// the previous trajectory's sample). Real-time safe.

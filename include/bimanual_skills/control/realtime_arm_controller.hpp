@@ -4,13 +4,18 @@
 /// latest-wins mailbox, and after every update the loop hands out a snapshot of the controller's state through
 /// another. The loop thread never waits for a command, a publisher or a lock; the other threads never touch the
 /// controller. The goal of the running trajectory is monitored in the loop as control_msgs' FollowJointTrajectory
-/// defines it: path tolerances while it runs, goal tolerances at its end, within a goal time tolerance.
+/// defines it: path tolerances while it runs, goal tolerances at its end, within a goal time tolerance. A trajectory
+/// starts at its own time (control_msgs' header.stamp): one whose start lies ahead waits in the loop, the running
+/// motion going on, until the first update at or after it (two arms given the same start begin in the same cycle);
+/// one whose start lies behind is sampled from where it has got to by then.
 #pragma once
 
 #include "bimanual_skills/control/arm_controller.hpp"
 #include "bimanual_skills/realtime/triple_buffer.hpp"
 
+#include <atomic>
 #include <cstdint>
+#include <limits>
 #include <mutex>
 
 namespace bimanual_skills::control {
@@ -43,10 +48,13 @@ struct ControllerCommand {
   enum class Kind { Mode, Trajectory };
   Kind kind = Kind::Mode;
   ControllerMode mode = ControllerMode::Hold;  ///< Kind::Mode.
-  Waypoints waypoints;                         ///< Kind::Trajectory: times relative to the next update's stamp.
-  TrajectoryTolerances tolerances;             ///< Kind::Trajectory.
-  std::uint64_t goal_id = 0;                   ///< Kind::Trajectory: reported back in ArmControllerState.
-  double sent = 0.0;                           ///< Monotonic wall clock [s] when it was handed over (set by command()).
+  Waypoints waypoints;                         ///< Kind::Trajectory: times relative to `start` (>= 0, increasing).
+  /// Kind::Trajectory: the stamp its waypoints' times count from [s, the states' clock]; the loop holds the command
+  /// until its first update at or after it. NaN: the stamp of the update that takes it (times then > 0).
+  double start = std::numeric_limits<double>::quiet_NaN();
+  TrajectoryTolerances tolerances;  ///< Kind::Trajectory.
+  std::uint64_t goal_id = 0;        ///< Kind::Trajectory: reported back in ArmControllerState.
+  double sent = 0.0;                ///< Monotonic wall clock [s] when it was handed over (set by command()).
 };
 
 /// The controller after one update, as the loop hands it out.
@@ -64,6 +72,8 @@ struct ArmControllerState {
   Eigen::Matrix<double, 6, 1> wrench = Eigen::Matrix<double, 6, 1>::Zero();  ///< Estimated tool wrench, base frame.
   std::uint64_t goal_id = 0;
   GoalState goal = GoalState::None;
+  /// Stamp of the update that started goal_id's trajectory [s] (NaN before it started).
+  double trajectory_start = std::numeric_limits<double>::quiet_NaN();
   int goal_joint = -1;      ///< The joint that violated a tolerance.
   double goal_error = 0.0;  ///< Its error then [rad, or rad/s when goal_error_is_velocity].
   bool goal_error_is_velocity = false;
@@ -92,6 +102,14 @@ class RealtimeArmController {
   /// Checks waypoints as the loop's controller will (sizes, capacity, NaN/Inf, times, joint limits), without
   /// touching it. Thread-safe.
   TrajectoryStatus validate(const Waypoints& waypoints) const noexcept;
+  /// The same for waypoints with a start `offset` seconds from now (JointTrajectory::load's offset).
+  TrajectoryStatus validate(const Waypoints& waypoints, double offset) const noexcept;
+  /// The goal_id of the last trajectory the loop received (taken, or waiting for its start): a command handed over.
+  /// Thread-safe.
+  std::uint64_t receivedGoal() const noexcept { return received_goal_.load(std::memory_order_acquire); }
+  /// Monotonic wall clock [s] of the loop's last update() or idle() (0 before any): whether the loop still runs.
+  /// Thread-safe.
+  double lastCycle() const noexcept { return last_cycle_.load(std::memory_order_acquire); }
   /// The newest state if the loop produced one since the last call, else nullptr; valid until the next call.
   /// One reader thread.
   const ArmControllerState* latestState() noexcept { return states_.readNew(); }
@@ -102,6 +120,9 @@ class RealtimeArmController {
   ControllerStatus update(double now, double stamp, const Eigen::Ref<const Eigen::VectorXd>& q,
                           const Eigen::Ref<const Eigen::VectorXd>& qd, const Eigen::Ref<const Eigen::VectorXd>& applied,
                           Eigen::Ref<Eigen::VectorXd> torque) noexcept;
+  /// For a loop that stands still on purpose (a paused simulation): receives the newest command without acting on
+  /// it (update() does, at its time) and tells the other threads the loop is alive. Real-time safe.
+  void idle() noexcept;
   /// Loop side: commands taken so far, and when the last one was (monotonic wall clock [s], just before its first
   /// torque), for the loop's own statistics.
   std::uint64_t commandsTaken() const noexcept { return commands_taken_; }
@@ -114,7 +135,8 @@ class RealtimeArmController {
   int trajectoryCapacity() const noexcept { return capacity_; }
 
  private:
-  void take(const ControllerCommand& command) noexcept;
+  void receive() noexcept;
+  void take(const ControllerCommand& command, double stamp) noexcept;
   void monitorGoal(double stamp, ControllerStatus status) noexcept;
   void publishState(double stamp, ControllerStatus status, const Eigen::Ref<const Eigen::VectorXd>& q,
                     const Eigen::Ref<const Eigen::VectorXd>& qd,
@@ -138,6 +160,12 @@ class RealtimeArmController {
   long counts_[5] = {0, 0, 0, 0, 0};
   std::uint64_t commands_taken_ = 0;
   double command_latency_ = 0.0, command_taken_at_ = 0.0;
+  /// The command received and not yet taken (the reader's slot of commands_, valid until the next readNew()).
+  const ControllerCommand* pending_ = nullptr;
+  double last_update_stamp_ = -std::numeric_limits<double>::infinity();
+  double trajectory_start_ = std::numeric_limits<double>::quiet_NaN();
+  std::atomic<std::uint64_t> received_goal_{0};
+  std::atomic<double> last_cycle_{0.0};
 };
 
 }  // namespace bimanual_skills::control

@@ -35,6 +35,7 @@ struct ControllerSettings {
   control::ControllerMode initial_mode = control::ControllerMode::Hold;
   double publish_rate = 100.0;                       ///< [Hz] of state, estimated_wrench and action feedback.
   control::TrajectoryTolerances default_tolerances;  ///< When a goal does not set them.
+  double loop_timeout = 0.5;  ///< [s of the robot's clock] without a control cycle: the active goal is aborted.
 };
 
 /// The parameters a controller reads (under its parameter namespace), with their meaning, for --help texts.
@@ -66,6 +67,9 @@ class ArmControllerInterface {
   const ControllerSettings& settings() const noexcept { return settings_; }
   /// Counted outside the loop by the node that drives it (e.g. joint-state messages dropped), for /diagnostics.
   void setDriverDiagnostics(std::vector<std::pair<std::string, std::string>> values);
+  /// The host's loop has stopped for good (a simulation that diverged, a driver's fault): the active goal is aborted
+  /// with `why`. (A loop that just stops computing torques while the robot's clock goes on is found by loop_timeout.)
+  void loopStopped(const std::string& why);
 
  private:
   using Server = actionlib::ActionServer<bimanual_skills::FollowJointTrajectoryAction>;
@@ -80,7 +84,9 @@ class ArmControllerInterface {
   void onDiagnostics(const ros::SteadyTimerEvent&);
   /// Hands a trajectory (already converted) to the loop; `goal_id` 0 for a topic command.
   void sendTrajectory(control::Waypoints&& waypoints, const control::TrajectoryTolerances& tolerances,
-                      std::uint64_t goal_id);
+                      std::uint64_t goal_id, const ros::Time& start);
+  /// Ends the active goal (if any) as aborted (rejected before it was accepted), with `why`. Caller holds mutex_.
+  void abortActive(const std::string& why);
   void sendMode(control::ControllerMode mode);
   /// Ends the active goal (if any) as canceled, with `why`. Caller holds mutex_.
   void cancelActive(const std::string& why);
@@ -96,6 +102,7 @@ class ArmControllerInterface {
   std::mutex mutex_;  ///< The non-real-time state below (callbacks may run on several threads).
   std::optional<control::ArmControllerState> last_;
   std::optional<GoalHandle> active_;
+  bool accepted_ = false;  ///< Whether active_ was accepted (the loop had its trajectory).
   std::uint64_t active_id_ = 0, next_goal_id_ = 0;
   long trajectories_ = 0, rejected_ = 0;
   std::string last_rejection_;

@@ -23,13 +23,14 @@ struct TrajectoryError {
   explicit operator bool() const { return code != 0; }
 };
 
-/// Converts `message` for an arm whose joints are `joints` into waypoints with times relative to `now` (the clock
-/// of the controller's stamps). Refuses (before allocating for the points) a trajectory of more than `capacity`
-/// points; names that are not exactly the arm's joints (INVALID_JOINTS); points of the wrong size, NaN/Inf values,
-/// times that do not increase (INVALID_GOAL); a trajectory whose points all lie at or before `now`
+/// Converts `message` for an arm whose joints are `joints` into waypoints with times relative to `start`, the
+/// trajectory's own start: header.stamp, or `now` (the clock of the controller's stamps) when that is zero. The
+/// points at or before `now` are dropped. Refuses (before allocating for the points) a trajectory of more than
+/// `capacity` points; names that are not exactly the arm's joints (INVALID_JOINTS); points of the wrong size, NaN/Inf
+/// values, times that do not increase (INVALID_GOAL); a trajectory whose points all lie at or before `now`
 /// (OLD_HEADER_TIMESTAMP). An empty trajectory is not an error: `out` gets no waypoints (the caller holds).
 TrajectoryError toWaypoints(const trajectory_msgs::JointTrajectory& message, const std::vector<std::string>& joints,
-                            const ros::Time& now, int capacity, control::Waypoints& out);
+                            const ros::Time& now, int capacity, control::Waypoints& out, ros::Time& start);
 
 /// The tolerances of a goal: `defaults` for every joint, replaced where `path` or `goal` name a joint with a
 /// non-zero value (-1: unchecked), and the goal time tolerance (0: the default's). INVALID_GOAL for an unknown
