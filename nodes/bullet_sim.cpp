@@ -44,11 +44,13 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <deque>
 #include <fstream>
 #include <functional>
 #include <future>
 #include <iomanip>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -137,7 +139,8 @@ const std::string kUsage =
     "Services: ~reset (std_srvs/Trigger), ~pause (std_srvs/SetBool), ~step "
     "(bimanual_skills/SimStep, bounded),\n"
     "  ~set_payload, ~apply_wrench (bounded), ~grasp (bimanual_skills/ClothGrasp: fails when "
-    "no cloth node is in reach).\n";
+    "no cloth node is in reach;\n"
+    "  a stamp ahead is done by the loop in its first cycle at or after it).\n";
 
 /// Wall seconds a service waits for the loop to take a request (the loop polls between cycles).
 constexpr double kServiceWait = 5.0;
@@ -165,6 +168,12 @@ struct Arm {
   long commands_answered = 0;  ///< Loop side: commands_received when the state was last published.
   bool braking = false;
   ros::Subscriber subscriber;
+  // The gripper's scheduled command (loop side), and when the last one was done (for /diagnostics; −t − 1 when it
+  // failed at t).
+  double gripper_due = std::numeric_limits<double>::infinity();
+  bool gripper_grasp = false;
+  std::atomic<double> gripper_done_at{std::nan("")}, gripper_done_due{std::nan("")};
+  std::atomic<std::uint64_t> gripper_done_count{0};  ///< Scheduled commands done (the publisher thread logs them).
 };
 
 /// What the loop hands to the publisher thread after a cycle.
@@ -180,6 +189,7 @@ struct ClothFrame {
 };
 
 constexpr const char* kCameraFrame = "top_down_camera";
+constexpr double kNever = std::numeric_limits<double>::infinity();  ///< No gripper command scheduled.
 
 /// A service request for the loop thread; the service thread waits for `done`.
 struct Request {
@@ -391,6 +401,7 @@ class BulletSimNode {
         if (request->run(request)) request->done.set_value();
       }
       const bool stepping = stepping_ != nullptr;
+      if (!diverged_ && (!paused_ || stepping)) gripperDue(simulation_->time());
       if (diverged_ || (paused_ && !stepping)) {
         for (auto& arm : arms_) {
           if (!arm->controller) continue;
@@ -547,6 +558,7 @@ class BulletSimNode {
     }
     for (std::size_t a = 0; a < arms_.size(); ++a) {
       arms_[a]->gate->clear();
+      arms_[a]->gripper_due = kNever;  // scheduled on the old clock
       simulation_->readJointState(static_cast<int>(a), arms_[a]->state);
     }
     diverged_ = false;
@@ -597,8 +609,10 @@ class BulletSimNode {
   void publishLoop() {
     sensor_msgs::JointState states;
     states.name = names_;
+    std::vector<std::uint64_t> grippers_done(arms_.size(), 0);
     while (running_ && ros::ok()) {
       waitForSignal(publish_signal_);
+      logGripperCommands(grippers_done);
       const Snapshot* s = snapshots_->readNew();
       if (!s) continue;
       const ros::Time stamp(s->time);
@@ -610,6 +624,20 @@ class BulletSimNode {
       states.velocity.assign(s->velocity.data(), s->velocity.data() + s->velocity.size());
       states.effort.assign(s->effort.data(), s->effort.data() + s->effort.size());
       joint_state_publisher_.publish(states);
+    }
+  }
+
+  /// Publisher thread: logs the scheduled gripper commands the loop did since the last call.
+  void logGripperCommands(std::vector<std::uint64_t>& done) {
+    for (std::size_t a = 0; a < arms_.size(); ++a) {
+      const Arm& arm = *arms_[a];
+      const std::uint64_t count = arm.gripper_done_count.load(std::memory_order_acquire);
+      if (count == done[a]) continue;
+      done[a] = count;
+      const double at = arm.gripper_done_at.load(std::memory_order_relaxed);
+      ROS_INFO("bullet_sim: %s's scheduled gripper command %s at t = %.6f s, scheduled for t = %.6f s",
+               arm.name.c_str(), at >= 0.0 ? "done" : "failed", at >= 0.0 ? at : -at - 1.0,
+               arm.gripper_done_due.load(std::memory_order_relaxed));
     }
   }
 
@@ -879,7 +907,22 @@ class BulletSimNode {
     if (a < 0) return true;
     const bool grasp = request.grasp;
     const std::string arm = request.arm;
-    const auto r = submit([this, a, grasp, arm](const std::shared_ptr<Request>& req) {
+    const double at = request.stamp.toSec();
+    const auto r = submit([this, a, grasp, arm, at](const std::shared_ptr<Request>& req) {
+      if (at > simulation_->time()) {  // ahead: the loop does it at its time (gripperDue)
+        Arm& held = *arms_[static_cast<std::size_t>(a)];
+        held.gripper_due = at;
+        held.gripper_grasp = grasp;
+        req->success = true;
+        req->time = at;
+        std::ostringstream message;
+        message << arm << (grasp ? " grasp" : " release") << " scheduled at t = " << std::fixed << std::setprecision(6)
+                << at << " s";
+        req->message = message.str();
+        return true;
+      }
+      arms_[static_cast<std::size_t>(a)]->gripper_due = kNever;  // done now: one scheduled before is replaced
+      req->time = simulation_->time();
       int attached = 0;
       const sim::SimStatus status = grasp ? simulation_->grasp(a, &attached) : simulation_->release(a);
       req->nodes = attached;
@@ -900,8 +943,24 @@ class BulletSimNode {
     response.success = r->success;
     response.nodes = r->nodes;
     response.message = r->message;
+    response.executed = ros::Time(std::max(0.0, r->time));
     ROS_INFO("bullet_sim: %s", response.message.c_str());
     return true;
+  }
+
+  /// Loop thread, at the start of a cycle: the grippers' scheduled commands that are due at time t.
+  void gripperDue(double t) {
+    for (std::size_t a = 0; a < arms_.size(); ++a) {
+      Arm& arm = *arms_[a];
+      if (!(t >= arm.gripper_due)) continue;
+      int attached = 0;
+      const sim::SimStatus status = arm.gripper_grasp ? simulation_->grasp(static_cast<int>(a), &attached)
+                                                      : simulation_->release(static_cast<int>(a));
+      arm.gripper_done_at.store(status == sim::SimStatus::Ok ? t : -t - 1.0, std::memory_order_relaxed);
+      arm.gripper_done_due.store(arm.gripper_due, std::memory_order_relaxed);
+      arm.gripper_done_count.fetch_add(1, std::memory_order_release);
+      arm.gripper_due = kNever;
+    }
   }
 
   void onDiagnostics(const ros::SteadyTimerEvent&) {
@@ -953,6 +1012,14 @@ class BulletSimNode {
     add("physics_steps_that_allocated", std::to_string(physics_allocation_cycles_.load()));
     add("rejected_external_commands", std::to_string(rejected_commands_.load()));
     add("lockstep_timeouts", std::to_string(lockstep_timeouts_.load()));
+    for (const auto& arm : arms_) {
+      const double done = arm->gripper_done_at.load(std::memory_order_relaxed);
+      if (std::isnan(done)) continue;
+      std::ostringstream at;
+      at << std::fixed << std::setprecision(6) << (done >= 0.0 ? done : -done - 1.0)
+         << (done >= 0.0 ? "" : " (failed)");
+      add(arm->name + "_gripper_scheduled_done_at", at.str());
+    }
     array.status.push_back(status);
     diagnostics_publisher_.publish(array);
   }

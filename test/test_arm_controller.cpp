@@ -103,6 +103,23 @@ TEST(JointTrajectory, ReplacementMidMotionHasNoJump) {
   expectSmooth(trajectory, 0.7, 1.8);
 }
 
+// A stop from a moving state: one smooth segment to rest at q + q̇ T/2, no step in q, q̇ or q̈ at its start.
+TEST(JointTrajectory, StopsSmoothlyFromAMovingState) {
+  bc::JointTrajectory trajectory = freeTrajectory(2, 4);
+  const Eigen::Vector2d q(0.3, -0.2), qd(1.5, -0.4), qdd(2.0, 0.5);
+  trajectory.stop(10.0, q, qd, qdd, 0.6);
+  const Sample start = sampleAt(trajectory, 10.0);
+  EXPECT_LT((start.q - q).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((start.qd - qd).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((start.qdd - qdd).cwiseAbs().maxCoeff(), 1e-9);
+  expectSmooth(trajectory, 10.0, 10.6);
+  const Sample end = sampleAt(trajectory, 10.6), after = sampleAt(trajectory, 11.5);
+  EXPECT_LT((end.q - (q + 0.3 * qd)).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT(end.qd.cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((after.q - end.q).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_TRUE(trajectory.finished(10.6));
+}
+
 TEST(JointTrajectory, RejectsBadWaypointsAndKeepsTheOldOnes) {
   bc::JointTrajectory trajectory(2, 3, Eigen::Vector2d(-1, -1), Eigen::Vector2d(1, 1));
   bc::Waypoints w = threePoints();

@@ -168,6 +168,27 @@ TEST(ClothFold, BadAndWildPoliciesEndWithAReason) {
   EXPECT_EQ(task.run(task.demonstrationParameters()).outcome, bt::FoldOutcome::Ok);
 }
 
+// References a robot would be sent are checked against the URDF's limits as they are made, in the plan the ROS
+// backend sends and in the rollout the simulation runs alike: the demonstration squeezed into 0.25 s asks for joint
+// speeds beyond the WAM's limits.
+TEST(ClothFold, ReferencesBeyondTheJointLimitsFailInBothBackendsAlike) {
+  bt::ClothFoldConfig c = config();
+  c.duration = 0.25;
+  c.max_ik_error = 1.0;  // the CLIK may lag: the speed is what is checked here
+  bt::ClothFoldTask task(c);
+  const std::vector<Eigen::MatrixXd> identity{
+      Eigen::MatrixXd::Identity(bt::ClothFoldTask::kDofs, bt::ClothFoldTask::kDofs)};
+  const bt::FoldPlan plan = task.plan(identity, task.demonstrationParameters());
+  const bt::FoldRollout rollout = task.run(identity, task.demonstrationParameters());
+  std::printf("plan: %s: %s\nrollout: %s: %s\n", bt::toString(plan.outcome), plan.reason.c_str(),
+              bt::toString(rollout.outcome), rollout.reason.c_str());
+  EXPECT_EQ(plan.outcome, bt::FoldOutcome::OutOfLimits);
+  EXPECT_EQ(rollout.outcome, bt::FoldOutcome::OutOfLimits);
+  EXPECT_NE(plan.reason.find("velocity"), std::string::npos) << plan.reason;
+  EXPECT_EQ(plan.reason, rollout.reason);
+  EXPECT_EQ(bt::foldOutcomeFromString("OutOfLimits", "test"), bt::FoldOutcome::OutOfLimits);
+}
+
 TEST(ClothFold, BadConfiguration) {
   bt::ClothFoldConfig c = config();
   c.ik_method = "XYZ";

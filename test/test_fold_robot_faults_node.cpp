@@ -5,7 +5,8 @@
 // 2. bullet_sim stopped with SIGSTOP, before a rollout (its first service call hangs) and in the middle of the fold
 //    (its actions and clock stand still): each rollout fails in time, and after SIGCONT the next one succeeds;
 // 3. a camera that stops in the middle of a rollout fails it (no images in time), the next one succeeds;
-// 4. a fault storm in a learning: a gripper that drops every fifth call is retried (never learned from, logged to
+// 4. a fault storm in a learning: a gripper that drops every third closing call is retried (never learned from, logged
+// to
 //    robot_faults.csv), and a gripper that is down stops the learning after robot_fault_limit faults with the reason.
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/FollowJointTrajectoryActionGoal.h"
@@ -53,7 +54,7 @@ std::string configPath() {
 /// does not hold the camera.
 class FaultInjector {
  public:
-  enum class Gripper { Pass, Hang, DropEveryFifth, Down };
+  enum class Gripper { Pass, Hang, DropEveryThirdGrasp, Down };
 
   FaultInjector() {
     node_.setCallbackQueue(&queue_);
@@ -76,7 +77,7 @@ class FaultInjector {
     {
       const std::lock_guard<std::mutex> lock(mutex_);
       gripper_ = mode;
-      calls_ = 0;
+      grasps_ = 0;
     }
     changed_.notify_all();
   }
@@ -85,12 +86,13 @@ class FaultInjector {
  private:
   bool onGrasp(bs::ClothGrasp::Request& request, bs::ClothGrasp::Response& response) {
     std::unique_lock<std::mutex> lock(mutex_);
-    ++calls_;
+    if (request.grasp) ++grasps_;
     if (gripper_ == Gripper::Hang) {  // until told otherwise (or a minute): the caller must not wait for it
       changed_.wait_for(lock, std::chrono::seconds(60), [this] { return gripper_ != Gripper::Hang; });
       return false;
     }
-    if (gripper_ == Gripper::Down || (gripper_ == Gripper::DropEveryFifth && calls_ % 5 == 0)) return false;
+    if (gripper_ == Gripper::Down || (gripper_ == Gripper::DropEveryThirdGrasp && request.grasp && grasps_ % 3 == 0))
+      return false;
     lock.unlock();
     bs::ClothGrasp forwarded;
     forwarded.request = request;
@@ -125,7 +127,7 @@ class FaultInjector {
   std::mutex mutex_;
   std::condition_variable changed_;
   Gripper gripper_ = Gripper::Pass;
-  int calls_ = 0;
+  int grasps_ = 0;  ///< Calls that close a gripper since the mode was set.
   std::atomic<bool> camera_on_{true};
 };
 
@@ -274,8 +276,8 @@ TEST(FoldRobotFaults, AFaultStormIsRetriedAndADownRobotStopsTheLearning) {
     ++printed;
   };
 
-  std::printf("a gripper that drops every fifth call (k = 3, m = 4):\n");
-  injector.setGripper(FaultInjector::Gripper::DropEveryFifth);
+  std::printf("a gripper that drops every third call that closes it (k = 3, m = 4):\n");
+  injector.setGripper(FaultInjector::Gripper::DropEveryThirdGrasp);
   const bs::rollout::FoldLearningResult storm = bs::rollout::FoldLearner(config, dir, observer, robot()).learn();
   std::printf("  %d rollouts, %d robot faults, each run again\n", storm.simulated, storm.robot_faults);
   EXPECT_GT(storm.robot_faults, 0);
@@ -303,6 +305,26 @@ TEST(FoldRobotFaults, AFaultStormIsRetriedAndADownRobotStopsTheLearning) {
     EXPECT_NE(std::string(e.what()).find("the call failed"), std::string::npos) << e.what();
   }
   EXPECT_EQ(printed, 4);
+}
+
+// fold_slow_clock.test: bullet_sim at half real time, a task with a 1.5 s timeout: the move to the start (2 s of the
+// robot's clock, 4 s of wall time) and the fold are waits for the robot's motion, counted from its clock's last step,
+// so the rollout succeeds; a wait for an interface that does not answer still ends after 1.5 s.
+TEST(FoldRobotSlowClock, WaitsForTheRobotsMotionScaleWithItsClock) {
+  const auto config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
+  bs::ros_layer::FoldRobotInterfaces robot;
+  robot.timeout = 1.5;
+  robot.reset_timeout = 10.0;
+  bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
+  const Timed slow = runWithin(task, 1, 120.0);
+  std::printf("at half real time with a 1.5 s timeout: %s after %.1f s (%.1f s of the robot's clock) %s\n",
+              slow.result.outcome.c_str(), slow.seconds, task.lastRobotSeconds(), slow.result.reason.c_str());
+  EXPECT_TRUE(slow.result.ok) << slow.result.reason;
+  EXPECT_GT(slow.seconds, 1.5 * task.lastRobotSeconds());
+  robot.grasp_service = "/no_gripper_here";
+  bs::ros_layer::FoldOnRobotTask broken(config.task, config.reward, robot);
+  const Timed missing = runWithin(broken, 2, 120.0);
+  expectRobotFailed(missing, "no server within 1.5 s", 60.0);
 }
 
 int main(int argc, char** argv) {

@@ -372,6 +372,40 @@ TEST(RealtimeArmController, ATrajectoryStartsAtItsOwnStampAheadOrBehind) {
   EXPECT_EQ(state(b).goal_id, 5u);
 }
 
+// A hold that comes while the arm moves (a cancel) stops it smoothly from its desired state: the desired velocity
+// has no step, falls to rest within 2 max|q̇_d| / stop_deceleration, and the arm comes to rest near where it stopped.
+TEST(RealtimeArmController, AHoldWhileMovingStopsSmoothly) {
+  Loop loop;
+  bc::RealtimeArmController controller(loop.model, Loop::friction(), Loop::config());
+  run(loop, controller, 50);
+  Eigen::VectorXd target = loop.q;
+  target[0] += 0.6;
+  controller.command(trajectoryTo(target, 1.0, 1));
+  bc::ArmControllerState before = run(loop, controller, 500);  // mid-motion: the quintic at its fastest
+  const double speed = before.desired_velocity.cwiseAbs().maxCoeff();
+  ASSERT_GT(speed, 0.5);
+  bc::ControllerCommand hold;
+  hold.kind = bc::ControllerCommand::Kind::Mode;
+  hold.mode = bc::ControllerMode::Hold;
+  controller.command(hold);
+  double largest_step = 0.0;
+  bc::ArmControllerState previous = before;
+  const double stop_time = 2.0 * speed / bc::ArmControllerConfig{}.stop_deceleration;
+  const int steps = static_cast<int>(std::ceil(stop_time / 0.001)) + 2;
+  for (int k = 0; k < steps; ++k) {
+    const bc::ArmControllerState s = run(loop, controller, 1);
+    largest_step = std::max(largest_step, (s.desired_velocity - previous.desired_velocity).cwiseAbs().maxCoeff());
+    previous = s;
+  }
+  EXPECT_EQ(previous.goal, bc::GoalState::Preempted);
+  EXPECT_EQ(previous.mode, bc::ControllerMode::Hold);
+  EXPECT_LT(largest_step, 0.02) << "a step in the desired velocity";  // ~ stop_deceleration × 1 ms × 1.9
+  EXPECT_LT(previous.desired_velocity.cwiseAbs().maxCoeff(), 1e-9);
+  const Eigen::VectorXd rest = previous.desired_position;
+  run(loop, controller, 800);
+  EXPECT_LT((loop.q - rest).cwiseAbs().maxCoeff(), 0.02);
+}
+
 TEST(RealtimeArmController, TheLoopNeverAllocatesWhileCommandsArriveFromAnotherThread) {
   Loop loop;
   bc::RealtimeArmController controller(loop.model, Loop::friction(), Loop::config());

@@ -450,7 +450,7 @@ TEST_F(HostedControl, ACommonFutureStartBeginsBothArmsInTheSameCycle) {
   std::vector<double> back = armPositions("left");
   back[0] -= 0.2;
   Goal goal;
-  goal.trajectory = trajectory("left", {back}, 1.0);
+  goal.trajectory = trajectory("left", {back}, 5.0);  // long: this clock lags the simulator's
   clients_["left"]->sendGoal(goal);
   waitSim(0.3);
   pause.request.data = true;

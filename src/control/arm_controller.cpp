@@ -2,6 +2,7 @@
 
 #include "bimanual_skills/signal/acceleration_sign.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -55,18 +56,30 @@ ArmController::ArmController(const kinematics::ChainModel& model, const dynamics
       dynamics_(model),
       velocity_limit_(config.velocity_limit.size() == 0 ? model.velocityLimits() : config.velocity_limit),
       torque_limit_(config.gains.torque_limit.size() == 0 ? model.effortLimits() : config.gains.torque_limit),
-      timeout_(config.state_timeout) {
+      timeout_(config.state_timeout),
+      stop_deceleration_(config.stop_deceleration),
+      min_stop_time_(config.min_stop_time) {
   const int n = model.nq();
   if (velocity_limit_.size() != n || (velocity_limit_.array() <= 0.0).any()) {
     throw std::invalid_argument("ArmController: velocity_limit needs " + std::to_string(n) + " positive entries");
   }
   if (!(timeout_ > 0.0)) throw std::invalid_argument("ArmController: state_timeout must be > 0");
+  if (!(stop_deceleration_ > 0.0) || !std::isfinite(stop_deceleration_) || !(min_stop_time_ > 0.0) ||
+      !std::isfinite(min_stop_time_)) {
+    throw std::invalid_argument("ArmController: stop_deceleration and min_stop_time must be finite and > 0");
+  }
   ctc_.setFrictionCompensation(config.friction_compensation);
   q_d_ = qd_d_ = qdd_d_ = error_ = applied_ = accel_sign_ = Eigen::VectorXd::Zero(n);
 }
 
 void ArmController::holdAt(double t, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept {
   trajectory_.hold(t, q);
+  mode_ = ControllerMode::Hold;
+}
+
+void ArmController::stopAt(double t) noexcept {
+  const double duration = std::max(min_stop_time_, 2.0 * qd_d_.cwiseAbs().maxCoeff() / stop_deceleration_);
+  trajectory_.stop(t, q_d_, qd_d_, qdd_d_, duration);
   mode_ = ControllerMode::Hold;
 }
 
@@ -137,10 +150,12 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
       mode_ = ControllerMode::GravityCompensation;
       trajectory_request_ = false;
     } else {
-      holdAt(stamp, q);
-      q_d_ = q;
-      qd_d_.setZero();
-      qdd_d_.setZero();
+      if (mode_ == ControllerMode::GravityCompensation) {  // from where the arm is, as it moves
+        q_d_ = q;
+        qd_d_ = qd;
+        qdd_d_.setZero();
+      }
+      stopAt(stamp);
     }
   }
   if (trajectory_request_) {

@@ -109,6 +109,21 @@ TrajectoryStatus JointTrajectory::start(double t0, const Eigen::Ref<const Eigen:
   return TrajectoryStatus::Ok;
 }
 
+void JointTrajectory::stop(double t0, const Eigen::Ref<const Eigen::VectorXd>& q,
+                           const Eigen::Ref<const Eigen::VectorXd>& qd, const Eigen::Ref<const Eigen::VectorXd>& qdd,
+                           double duration) noexcept {
+  t0_ = t0;
+  segments_ = 1;
+  knot_times_[0] = 0.0;
+  knot_times_[1] = duration;
+  knot_q_.col(0) = q;
+  knot_qd_.col(0) = qd;
+  knot_qdd_.col(0) = qdd;
+  knot_q_.col(1) = q + 0.5 * duration * qd;
+  knot_qd_.col(1).setZero();
+  knot_qdd_.col(1).setZero();
+}
+
 void JointTrajectory::hold(double t0, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept {
   t0_ = t0;
   segments_ = 0;

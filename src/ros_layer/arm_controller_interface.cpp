@@ -12,6 +12,7 @@
 #include <chrono>
 #include <cstdio>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 
 namespace bimanual_skills::ros_layer {
@@ -31,6 +32,8 @@ const char* const kControllerParameterHelp =
     "  initial_mode          gravity_compensation | hold (default hold)\n"
     "  publish_rate          state, estimated_wrench and action feedback rate [Hz] (default 100)\n"
     "  trajectory_capacity   most points of one trajectory (default 2000)\n"
+    "  stop_deceleration, min_stop_time  a cancel, a path violation or a hold stops the arm over\n"
+    "                        max(min_stop_time, 2 max|qd| / stop_deceleration) [rad/s^2, s] (5, 0.05)\n"
     "  path_tolerance, goal_tolerance  default position tolerances per joint [rad] (0: unchecked; 0, 0.05)\n"
     "  stopped_velocity_tolerance  default goal velocity tolerance [rad/s] (0.05)\n"
     "  goal_time_tolerance   default time after a trajectory's end to meet the goal tolerances [s] (1.0)\n"
@@ -49,6 +52,11 @@ std::vector<double> stdVector(const Eigen::VectorXd& v) {
 
 void assign(std::vector<double>& out, const Eigen::VectorXd& v) {
   out.assign(v.data(), v.data() + v.size());
+}
+
+/// Where a trajectory's start lies from now [s] (0 for a zero stamp: it starts when the loop takes it).
+double offsetOf(const ros::Time& start, const ros::Time& now) {
+  return start.isZero() ? 0.0 : (start - now).toSec();
 }
 
 }  // namespace
@@ -74,6 +82,8 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
   c.velocity_limit = vector(p.numbers("velocity_limit", stdVector(model.velocityLimits()), n, 1e-6, 100.0));
   c.state_timeout = p.number("state_timeout", 0.05, 1e-3, 10.0);
   c.trajectory_capacity = p.integer("trajectory_capacity", 2000, 2, 100000);
+  c.stop_deceleration = p.number("stop_deceleration", 5.0, 1e-3, 1e4);
+  c.min_stop_time = p.number("min_stop_time", 0.05, 1e-3, 10.0);
   s.friction_file = p.text("friction_file", "");
   if (s.friction_file.empty()) {
     s.friction.joints.assign(n, dynamics::JointFriction{});
@@ -171,7 +181,8 @@ void ArmControllerInterface::sendTrajectory(bc::Waypoints&& waypoints, const bc:
                                             std::uint64_t goal_id, const ros::Time& start) {
   bc::ControllerCommand command;
   command.kind = bc::ControllerCommand::Kind::Trajectory;
-  command.start = start.toSec();
+  // A zero stamp is "now": the cycle that takes it (the clock here lags a simulation many times faster than the wall).
+  command.start = start.isZero() ? std::numeric_limits<double>::quiet_NaN() : start.toSec();
   command.waypoints = std::move(waypoints);
   command.tolerances = tolerances;
   command.goal_id = goal_id;
@@ -204,7 +215,7 @@ void ArmControllerInterface::onCommand(const trajectory_msgs::JointTrajectory::C
   const TrajectoryError error =
       toWaypoints(*message, joint_names_, now, controller_->trajectoryCapacity(), waypoints, start);
   const std::lock_guard<std::mutex> lock(mutex_);
-  const auto status = [&] { return controller_->validate(waypoints, (start - now).toSec()); };
+  const auto status = [&] { return controller_->validate(waypoints, offsetOf(start, now)); };
   if (!error && waypoints.times.size() > 0 && status() != bc::TrajectoryStatus::Ok) {
     ++rejected_;
     last_rejection_ =
@@ -245,7 +256,7 @@ void ArmControllerInterface::onGoal(GoalHandle goal) {
                               joint_names_, settings_.default_tolerances, tolerances);
   }
   if (!error && waypoints.times.size() > 0) {
-    const bc::TrajectoryStatus status = controller_->validate(waypoints, (start - now).toSec());
+    const bc::TrajectoryStatus status = controller_->validate(waypoints, offsetOf(start, now));
     if (status != bc::TrajectoryStatus::Ok) {
       error = {Result::INVALID_GOAL,
                std::string("the controller refuses the waypoints: ") + bc::toString(status) +
@@ -282,7 +293,7 @@ void ArmControllerInterface::onCancel(GoalHandle goal) {
   const std::lock_guard<std::mutex> lock(mutex_);
   if (active_ && *active_ == goal) {
     sendMode(bc::ControllerMode::Hold);
-    cancelActive("canceled: holding where the arm is");
+    cancelActive("canceled: the arm stops smoothly and holds");
   }
 }
 
@@ -318,7 +329,7 @@ void ArmControllerInterface::finishGoal(const bc::ArmControllerState& state) {
       result.error_code = Result::PATH_TOLERANCE_VIOLATED;
       why << "joint " << joint << " left its path tolerance: " << (state.goal_error_is_velocity ? "velocity " : "")
           << "error " << state.goal_error << (state.goal_error_is_velocity ? " rad/s" : " rad")
-          << "; holding where the arm is";
+          << "; the arm stops smoothly and holds";
       break;
     case bc::GoalState::GoalToleranceViolated:
       result.error_code = Result::GOAL_TOLERANCE_VIOLATED;
@@ -360,15 +371,18 @@ void ArmControllerInterface::onPublish(const ros::SteadyTimerEvent&) {
     active_->setAccepted("the control loop has the trajectory");
     accepted_ = true;
   }
-  // A loop that computes no torque while the robot's clock goes on has stopped (a paused simulation's clock stands
-  // still).
-  if (active_ && last_ && ros::Time::now().toSec() - last_->stamp > settings_.loop_timeout) {
-    std::ostringstream why;
-    why << "the control loop stopped: no control cycle for " << ros::Time::now().toSec() - last_->stamp
-        << " s of the robot's clock (loop_timeout " << settings_.loop_timeout << " s)";
-    abortActive(why.str());
+  if (!fresh) {
+    // A loop that computes no torque while the robot's clock goes on has stopped (a paused simulation's clock stands
+    // still).
+    const double idle = last_ ? ros::Time::now().toSec() - last_->stamp : 0.0;
+    if (active_ && idle > settings_.loop_timeout) {
+      std::ostringstream why;
+      why << "the control loop stopped: no control cycle for " << idle << " s of the robot's clock (loop_timeout "
+          << settings_.loop_timeout << " s)";
+      abortActive(why.str());
+    }
+    return;
   }
-  if (!fresh) return;
   last_ = *fresh;
   last_state_wall_ = bimanual_skills::realtime::monotonicSeconds();
   const bc::ArmControllerState& s = *last_;

@@ -13,6 +13,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <sstream>
 #include <stdexcept>
 
 namespace bimanual_skills::tasks {
@@ -102,6 +103,22 @@ struct ReferenceGenerator {
     }
     q_next[a] = q_ref[a] + clik.dq;
     qd_next[a] = (q_next[a] - q_ref[a]) / dt;
+    // The references a robot would be sent stay within the URDF's limits, in every backend alike.
+    for (Eigen::Index j = 0; j < q_next[a].size(); ++j) {
+      const double q = q_next[a][j], v = qd_next[a][j];
+      if (q >= model.lowerLimits()[j] && q <= model.upperLimits()[j] && std::abs(v) <= model.velocityLimits()[j]) {
+        continue;
+      }
+      std::ostringstream why;
+      why << "arm " << arm << "'s reference for joint " << j + 1 << " leaves its limits: ";
+      if (std::abs(v) > model.velocityLimits()[j]) {
+        why << "velocity " << v << " rad/s, limit " << model.velocityLimits()[j];
+      } else {
+        why << "position " << q << " rad, limits [" << model.lowerLimits()[j] << ", " << model.upperLimits()[j] << "]";
+      }
+      reason = why.str();
+      return FoldOutcome::OutOfLimits;
+    }
     qdd_ref[a] = (qd_next[a] - qd_ref[a]) / dt;
     acceleration_cost += qdd_ref[a].squaredNorm() * dt;
     q_ref[a] = q_next[a];
@@ -136,6 +153,8 @@ const char* toString(FoldOutcome outcome) noexcept {
       return "SimulationDiverged";
     case FoldOutcome::RobotFailed:
       return "RobotFailed";
+    case FoldOutcome::OutOfLimits:
+      return "OutOfLimits";
   }
   return "Unknown";
 }
@@ -154,7 +173,8 @@ FoldPolicy foldPolicyFromString(const std::string& text, const std::string& wher
 FoldOutcome foldOutcomeFromString(const std::string& text, const std::string& where) {
   for (const FoldOutcome outcome :
        {FoldOutcome::Ok, FoldOutcome::InvalidPolicy, FoldOutcome::GraspFailed, FoldOutcome::IkFailed,
-        FoldOutcome::ControllerFailed, FoldOutcome::SimulationDiverged, FoldOutcome::RobotFailed}) {
+        FoldOutcome::ControllerFailed, FoldOutcome::SimulationDiverged, FoldOutcome::RobotFailed,
+        FoldOutcome::OutOfLimits}) {
     if (text == toString(outcome)) return outcome;
   }
   throw std::invalid_argument(where + ": unknown outcome '" + text + "'");

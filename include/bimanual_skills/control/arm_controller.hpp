@@ -39,6 +39,10 @@ struct ArmControllerConfig {
   double state_timeout = 0.05;     ///< States older than this [s] are stale.
   int trajectory_capacity = 2000;  ///< Maximum waypoints of one trajectory.
   bool friction_compensation = true;
+  /// A hold requested while the arm moves (a cancel, a path tolerance violated, set_mode hold) stops it smoothly
+  /// from its desired state: a quintic to rest over T = max(min_stop_time, 2 max_j |q̇_d,j| / stop_deceleration).
+  double stop_deceleration = 5.0;  ///< [rad/s²] > 0
+  double min_stop_time = 0.05;     ///< [s] > 0
 };
 
 /// Construction allocates and validates (std::invalid_argument); every other call is real-time safe: no
@@ -66,8 +70,9 @@ class ArmController {
   /// True (and the controller will hold at the next fresh state) if no state newer than now − timeout arrived.
   bool stale(double now) noexcept;
 
-  /// Switches mode at the next update (hold: at the measured position then; track: the loaded trajectory, if any,
-  /// else hold).
+  /// Switches mode at the next update (hold: a smooth stop from the desired state, or from the measured one after
+  /// gravity compensation, ArmControllerConfig::stop_deceleration; track: the loaded trajectory, if any, else
+  /// hold).
   void setMode(ControllerMode mode) noexcept;
   /// Validates waypoints (times relative to the stamp of the next update) and tracks them from the next update on,
   /// starting from the current desired state (no jump when replacing a running trajectory). Anything but Ok changes
@@ -101,13 +106,15 @@ class ArmController {
 
  private:
   void holdAt(double t, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept;
+  /// Hold mode through a smooth stop from the desired state (q_d_, qd_d_, qdd_d_) at t.
+  void stopAt(double t) noexcept;
 
   ComputedTorqueController ctc_;
   DisturbanceObserver observer_;
   JointTrajectory trajectory_;
   dynamics::DynamicsData dynamics_;
   Eigen::VectorXd velocity_limit_, torque_limit_;
-  double timeout_;
+  double timeout_, stop_deceleration_, min_stop_time_;
   ControllerMode mode_ = ControllerMode::Hold;
   ControllerMode requested_mode_ = ControllerMode::Hold;
   bool mode_request_ = false, trajectory_request_ = false;

@@ -57,6 +57,10 @@ class JointTrajectory {
 
   /// A trajectory that stays at q from t0 on (velocity and acceleration 0).
   void hold(double t0, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept;
+  /// A stop: one quintic segment from the state (q, q̇, q̈) at t0 to rest at q + q̇ T/2 at t0 + T (T > 0), then
+  /// there; no step in position, velocity or acceleration. Real-time safe.
+  void stop(double t0, const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd,
+            const Eigen::Ref<const Eigen::VectorXd>& qdd, double duration) noexcept;
 
   /// Desired state at time t (before the start: the start state; after the end: the last waypoint at rest).
   /// Real-time safe; the outputs must have `joints` entries.

@@ -67,6 +67,7 @@ enum class FoldOutcome {
   ControllerFailed,    ///< Tracking error beyond max_tracking_error (or an invalid controller input).
   SimulationDiverged,  ///< The arms or the cloth left their bounds (NaN, speeds, stretch).
   RobotFailed,         ///< A robot interface failed or did not answer in time (a service, an action, a topic).
+  OutOfLimits,         ///< The joint references leave the URDF's position or velocity limits (checked as planned).
 };
 const char* toString(FoldOutcome outcome) noexcept;
 /// The inverse of toString(). \throws std::invalid_argument naming `where` for an unknown name.
@@ -101,7 +102,7 @@ struct FoldRollout {
 /// period, for a robot that takes whole trajectories. Column k of each matrix is the reference of period k
 /// (t = k dt after the grasp), over the hold, the movement, the hold, the release and the settling.
 struct FoldPlan {
-  FoldOutcome outcome = FoldOutcome::Ok;  ///< Ok, InvalidPolicy or IkFailed.
+  FoldOutcome outcome = FoldOutcome::Ok;  ///< Ok, InvalidPolicy, IkFailed or OutOfLimits.
   std::string reason;
   double dt = 0.0;                  ///< [s]
   int move_start = 0, release = 0;  ///< Periods at which the movement starts, the grippers open.

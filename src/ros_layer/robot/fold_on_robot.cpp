@@ -37,6 +37,13 @@ constexpr double kApproachShare = 0.7;
 constexpr double kPathRate = 50.0;
 /// Longest wait for resuming a simulator after a failed rollout [s]: the next rollout resumes it anyway.
 constexpr double kResumeTimeout = 2.0;
+/// Longest wait for each step of the recovery after a failed rollout [s of wall time, beyond the motion's own
+/// duration]: it is done on a robot that may be down.
+constexpr double kRecoveryTimeout = 3.0;
+/// Share of a joint's velocity limit a move between configurations may reach.
+constexpr double kMoveSpeedShare = 0.5;
+/// Peak over mean speed of a rest-to-rest quintic.
+constexpr double kQuinticPeak = 1.875;
 
 const char* errorName(int code) {
   switch (code) {
@@ -121,6 +128,13 @@ struct FoldOnRobotTask::Arm {
   ros::Subscriber state_sub;
   // Written by the spinner (guarded by the task's mutex): states received, and while a fold runs its samples.
   std::uint64_t states = 0;
+  Eigen::VectorXd actual;  ///< The last measured positions (empty before a state came).
+  double stamp = -std::numeric_limits<double>::infinity();  ///< Of the last state [s].
+  /// Around a reset: the last stamp before it and when it answered, and the states since that are the reset
+  /// scene's (a clock gone back, or on past the answer), with the last one's stamp.
+  double before_reset = -std::numeric_limits<double>::infinity();
+  double reset_answered = std::numeric_limits<double>::infinity(), after_reset_stamp = 0.0;
+  int after_reset = 0;
   bool recording = false;
   std::vector<double> times;
   std::vector<Eigen::VectorXd> positions;
@@ -214,7 +228,16 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
         arm->name + "/state", 100, [this, raw](const bimanual_skills::JointTrajectoryControllerState::ConstPtr& s) {
           const std::lock_guard<std::mutex> lock(mutex_);
           ++raw->states;
-          if (!raw->recording || s->actual.positions.size() != raw->joints.size()) return;
+          const double t = s->header.stamp.toSec();
+          raw->stamp = t;
+          if (t < raw->before_reset - 1e-9 || t > raw->reset_answered) {
+            ++raw->after_reset;
+            raw->after_reset_stamp = t;
+          }
+          if (s->actual.positions.size() != raw->joints.size()) return;
+          raw->actual =
+              Eigen::Map<const Eigen::VectorXd>(s->actual.positions.data(), Eigen::Index(s->actual.positions.size()));
+          if (!raw->recording) return;
           raw->times.push_back(s->header.stamp.toSec());
           raw->positions.push_back(
               Eigen::Map<const Eigen::VectorXd>(s->actual.positions.data(), Eigen::Index(s->actual.positions.size())));
@@ -260,10 +283,16 @@ Eigen::VectorXd FoldOnRobotTask::initialParameters() const {
 }
 
 template <typename Done>
-void FoldOnRobotTask::waitFor(const Done& done, const std::string& what) {
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(robot_.timeout);
+void FoldOnRobotTask::waitFor(const Done& done, const std::string& what, bool while_clock_runs) {
+  const auto limit = std::chrono::duration<double>(robot_.timeout);
+  auto deadline = std::chrono::steady_clock::now() + limit;
+  ros::Time clock = ros::Time::now();
   while (!done()) {
     if (!ros::ok()) throw Failure{tasks::FoldOutcome::RobotFailed, "shut down while waiting for " + what};
+    if (while_clock_runs && ros::Time::now() != clock) {  // the robot is moving on, at whatever rate
+      clock = ros::Time::now();
+      deadline = std::chrono::steady_clock::now() + limit;
+    }
     if (std::chrono::steady_clock::now() > deadline) {
       std::ostringstream message;
       message << "no answer from " << what << " within " << robot_.timeout << " s";
@@ -308,7 +337,7 @@ void FoldOnRobotTask::waitForGoal(Arm& arm, const std::string& what) {
         }
         return client.getState().isDone();
       },
-      arm.name + "'s " + what);
+      arm.name + "'s " + what, true);
   const auto result = client.getResult();
   if (client.getState() != actionlib::SimpleClientGoalState::SUCCEEDED || !result) {
     throw Failure{tasks::FoldOutcome::ControllerFailed,
@@ -361,22 +390,58 @@ void FoldOnRobotTask::resumeAfterFailure() noexcept {
 }
 
 void FoldOnRobotTask::waitUntil(const ros::Time& time, const char* what) {
-  waitFor([&] { return ros::Time::now() >= time; }, std::string("the robot's clock (") + what + ")");
+  waitFor([&] { return ros::Time::now() >= time; }, std::string("the robot's clock (") + what + ")", true);
 }
 
-void FoldOnRobotTask::reset() {
+ros::Time FoldOnRobotTask::reset() {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& arm : arms_) {
+      arm->before_reset = -std::numeric_limits<double>::infinity();  // nothing counts until the answer
+      arm->reset_answered = std::numeric_limits<double>::infinity();
+    }
+  }
+  double before[2];
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    for (int a = 0; a < 2; ++a) before[a] = arms_[static_cast<std::size_t>(a)]->stamp;
+  }
   std_srvs::Trigger trigger;
   call(robot_.reset_service, trigger, robot_.reset_timeout, "the reset");
   if (!trigger.response.success) {
     throw Failure{tasks::FoldOutcome::RobotFailed, "the reset failed: " + trigger.response.message};
   }
-  // The controllers have seen the reset scene (a simulation's clock went back) once their states come again.
-  const auto states = [this] {
+  // The controllers have seen the reset scene once states of it come: stamped before the last one before the reset
+  // (a simulation's clock went back) or after the last one when it answered (a robot's clock went on); states still
+  // queued from before do not count, however late this process reads them.
+  {
     const std::lock_guard<std::mutex> lock(mutex_);
-    return std::min(arms_[0]->states, arms_[1]->states);
-  };
-  const std::uint64_t before = states();
-  waitFor([&] { return states() >= before + kStatesAfterReset; }, "the arms' states after the reset");
+    for (int a = 0; a < 2; ++a) {
+      Arm& arm = *arms_[static_cast<std::size_t>(a)];
+      arm.before_reset = before[a];
+      arm.reset_answered = arm.stamp;
+      arm.after_reset = 0;
+    }
+  }
+  double after = 0.0;
+  waitFor(
+      [&] {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        if (std::min(arms_[0]->after_reset, arms_[1]->after_reset) < static_cast<int>(kStatesAfterReset)) {
+          return false;
+        }
+        after = std::min(arms_[0]->after_reset_stamp, arms_[1]->after_reset_stamp);
+        return true;
+      },
+      "the arms' states after the reset");
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    for (const auto& arm : arms_) {
+      arm->before_reset = -std::numeric_limits<double>::infinity();
+      arm->reset_answered = std::numeric_limits<double>::infinity();
+    }
+  }
+  return ros::Time(std::max(0.0, after));
 }
 
 void FoldOnRobotTask::grasp(bool close) {
@@ -393,18 +458,116 @@ void FoldOnRobotTask::grasp(bool close) {
   }
 }
 
+void FoldOnRobotTask::scheduleRelease(const ros::Time& release) {
+  for (const auto& arm : arms_) {
+    bimanual_skills::ClothGrasp request;
+    request.request.arm = arm->name;
+    request.request.grasp = false;
+    request.request.stamp = release;
+    call(robot_.grasp_service, request, robot_.timeout, "scheduling " + arm->name + "'s release");
+    if (!request.response.success) throw Failure{tasks::FoldOutcome::RobotFailed, request.response.message};
+    if (std::abs((request.response.executed - release).toSec()) > 1e-6) {
+      std::ostringstream message;
+      message << "the gripper service " << robot_.grasp_service << " does not schedule: " << arm->name
+              << "'s release for t = " << release.toSec() << " s was done at " << request.response.executed.toSec()
+              << " s";
+      throw Failure{tasks::FoldOutcome::RobotFailed, message.str()};
+    }
+  }
+}
+
+double FoldOnRobotTask::moveTime(const std::vector<Eigen::VectorXd>& from, const std::vector<Eigen::VectorXd>& to,
+                                 double shortest) const {
+  double time = shortest;
+  for (int a = 0; a < 2; ++a) {
+    const auto i = static_cast<std::size_t>(a);
+    const Eigen::VectorXd& limit = task_.armModel(a).velocityLimits();
+    for (Eigen::Index j = 0; j < limit.size(); ++j) {
+      time = std::max(time, kQuinticPeak * std::abs(to[i][j] - from[i][j]) / (kMoveSpeedShare * limit[j]));
+    }
+  }
+  return time;
+}
+
+std::vector<Eigen::VectorXd> FoldOnRobotTask::measuredPositions() {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<Eigen::VectorXd> q;
+  for (const auto& arm : arms_) {
+    if (arm->actual.size() != static_cast<Eigen::Index>(arm->joints.size())) {
+      throw Failure{tasks::FoldOutcome::RobotFailed, arm->name + "'s controller state has not come"};
+    }
+    q.push_back(arm->actual);
+  }
+  return q;
+}
+
 void FoldOnRobotTask::moveToStart() {
+  // Both arms together, each segment as long as the widest joint move needs at half its velocity limit (the
+  // configured move_time at least): from where the arms are to above the start, then down onto the cloth.
+  const std::vector<Eigen::VectorXd> now = measuredPositions();
+  std::vector<Eigen::VectorXd> above;
+  for (const auto& arm : arms_) above.push_back(arm->above_start);
+  const double up = moveTime(now, above, kApproachShare * robot_.move_time);
+  const double down = moveTime(above, task_.startPositions(), (1.0 - kApproachShare) * robot_.move_time);
+  last_move_seconds_ = up + down;
   for (int a = 0; a < 2; ++a) {
     Arm& arm = *arms_[static_cast<std::size_t>(a)];
     bimanual_skills::FollowJointTrajectoryGoal goal;
     goal.trajectory.joint_names = arm.joints;
     const Eigen::VectorXd& q = task_.startPositions()[static_cast<std::size_t>(a)];
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(q.size());
-    goal.trajectory.points.push_back(point(arm.above_start, zero, zero, kApproachShare * robot_.move_time));
-    goal.trajectory.points.push_back(point(q, zero, zero, robot_.move_time));
+    goal.trajectory.points.push_back(point(arm.above_start, zero, zero, up));
+    goal.trajectory.points.push_back(point(q, zero, zero, up + down));
     arm.client->sendGoal(goal);
   }
   for (const auto& arm : arms_) waitForGoal(*arm, "move to the start");
+}
+
+std::string FoldOnRobotTask::recover() noexcept {
+  std::string done;
+  const auto note = [&done](const std::string& what) { done += (done.empty() ? "" : ", ") + what; };
+  try {
+    for (const auto& arm : arms_) {
+      bimanual_skills::ClothGrasp request;
+      request.request.arm = arm->name;
+      request.request.grasp = false;
+      const CallOutcome outcome = callWithin(node_->serviceClient<bimanual_skills::ClothGrasp>(robot_.grasp_service),
+                                             request, std::min(robot_.timeout, kRecoveryTimeout));
+      note(arm->name +
+           (outcome == CallOutcome::Answered && request.response.success
+                ? "'s gripper opened"
+                : "'s gripper not opened (" +
+                      (outcome == CallOutcome::Answered ? request.response.message : std::string(describe(outcome))) +
+                      ")"));
+    }
+    // Up to the configurations above the start, timed from the velocity limits, if the arms still answer.
+    std::vector<Eigen::VectorXd> above;
+    for (const auto& arm : arms_) above.push_back(arm->above_start);
+    const double time = moveTime(measuredPositions(), above, 0.5);
+    for (const auto& arm : arms_) {
+      if (!arm->client->isServerConnected()) throw Failure{tasks::FoldOutcome::RobotFailed, arm->name + " is gone"};
+      bimanual_skills::FollowJointTrajectoryGoal goal;
+      goal.trajectory.joint_names = arm->joints;
+      const Eigen::VectorXd zero = Eigen::VectorXd::Zero(arm->above_start.size());
+      goal.trajectory.points.push_back(point(arm->above_start, zero, zero, time));
+      arm->client->sendGoal(goal);
+    }
+    const auto deadline = std::chrono::steady_clock::now() +
+                          std::chrono::duration<double>(time + std::min(robot_.timeout, kRecoveryTimeout));
+    bool retracted = true;
+    for (const auto& arm : arms_) {
+      while (!arm->client->getState().isDone() && std::chrono::steady_clock::now() < deadline && ros::ok()) {
+        std::this_thread::sleep_for(std::chrono::duration<double>(kPoll));
+      }
+      retracted = retracted && arm->client->getState() == actionlib::SimpleClientGoalState::SUCCEEDED;
+    }
+    note(retracted ? "the arms retracted above their start" : "the arms not retracted");
+  } catch (const Failure& f) {
+    note("the arms not retracted (" + f.reason + ")");
+  } catch (const std::exception& e) {
+    note(std::string("the recovery stopped: ") + e.what());
+  }
+  return done;
 }
 
 ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
@@ -456,16 +619,15 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
     for (const auto& arm : arms_) {
       if (failed(*arm)) waitForGoal(*arm, "fold trajectory");
     }
-    pause(false);
   }
-  // Until the release, unless an arm's goal fails first (waitForGoal then reports why).
+  // The grippers open at the planned release, on the robot's clock: the gripper's loop does it at its time, however
+  // late this process would be to ask.
   const ros::Time release = start + ros::Duration(plan.release * plan.dt);
+  scheduleRelease(release);
+  if (paused_) pause(false);
+  // Until the release, unless an arm's goal fails first (waitForGoal then reports why).
   waitFor([&] { return failed(*arms_[0]) || failed(*arms_[1]) || ros::Time::now() >= release; },
-          "the robot's clock (the fold's release)");
-  for (const auto& arm : arms_) {
-    if (failed(*arm)) waitForGoal(*arm, "fold trajectory");
-  }
-  grasp(false);
+          "the robot's clock (the fold's release)", true);
   for (const auto& arm : arms_) waitForGoal(*arm, "fold trajectory");
   const std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& arm : arms_) arm->recording = false;
@@ -562,6 +724,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
   std::vector<Eigen::MatrixXd> coordination;
   Eigen::VectorXd weights;
   double acceleration_cost = 0.0;
+  bool moved = false;  // whether the robot moved (and a failure must be recovered from)
   const auto fail = [&](tasks::FoldOutcome outcome, const std::string& why) {
     terms = tasks::FoldRewardTerms{};
     terms.outcome = outcome;
@@ -570,6 +733,9 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     reason = why;
     for (const auto& arm : arms_) arm->client->cancelGoal();
     reconnect_ = reconnect_ || outcome == tasks::FoldOutcome::RobotFailed;
+    if (!moved) return;
+    resumeAfterFailure();  // the recovery needs the clock
+    reason += "; recovery: " + recover();
   };
   try {
     if (!rollout::FoldRolloutTask::decode(parameters, tasks::ClothFoldTask::kDofs, task_.policyBasisSize(),
@@ -588,12 +754,12 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     // A simulator left paused (a learner stopped while it stood still) goes on first: paused, it publishes no
     // states and every rollout would fail.
     if (!robot_.pause_service.empty()) pause(false);
-    reset();
-    observeFlat(ros::Time::now());
+    observeFlat(reset());  // the flat cloth: images of the reset scene (this process's clock may lag)
+    moved = true;
     moveToStart();
-    // The move took move_time (the clock read before it may still be the one before a reset; nor can a time just
-    // after a reset take move_time away: ros::Time is never negative).
-    const ros::Time moved = ros::Time::now();
+    // The move took last_move_seconds_ (the clock read before it may still be the one before a reset; nor can a
+    // time just after a reset take it away: ros::Time is never negative).
+    const ros::Time at_start = ros::Time::now();
     // A simulator stands still from the grasp until both arms have the fold's goals: the cloth is held for exactly
     // start_delay before the fold, however long the messages take.
     if (!robot_.pause_service.empty()) pause(true);
@@ -601,7 +767,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     const ros::Time settled = fold(plan) + ros::Duration(task_.config().settle);
     waitUntil(settled, "the cloth settling");
     terms = observe(settled, acceleration_cost);
-    last_robot_seconds_ = robot_.move_time + (ros::Time::now() - moved).toSec();
+    last_robot_seconds_ = last_move_seconds_ + (ros::Time::now() - at_start).toSec();
   } catch (const Failure& failure) {
     fail(failure.outcome, failure.reason);
   } catch (const std::exception& e) {

@@ -5,7 +5,8 @@
 ///     waits for a person to lay the cloth flat);
 ///   - both arms: each a FollowJointTrajectory action ARM/follow_joint_trajectory and its controller state ARM/state
 ///     (bimanual_skills/JointTrajectoryControllerState);
-///   - the grippers: a bimanual_skills/ClothGrasp service (bullet_sim's ~grasp);
+///   - the grippers: a bimanual_skills/ClothGrasp service (bullet_sim's ~grasp) that does a stamped command at its
+///     time (the release is asked for before the fold starts and happens at the planned instant, at any load);
 ///   - the camera: colour (bgr8) and depth (32FC1, metres) sensor_msgs/Image with their sensor_msgs/CameraInfo;
 ///   - optionally the cloth's ground truth (sensor_msgs/PointCloud2 of its nodes, bullet_sim's ~cloth) for the fold
 ///     quality q; without it q is not measured (NaN);
@@ -19,7 +20,10 @@
 /// failure (a goal aborted or out of tolerance, a service that fails, a timeout, no image) ends the rollout with its
 /// outcome, a reason and the failure reward; nothing hangs: every wait has a wall-clock limit, service calls included
 /// (ros_layer::callWithin). A failure of the robot (FoldOutcome::RobotFailed: an interface that failed or did not
-/// answer) also rebuilds the action clients before the next rollout, which then waits for their servers. Target
+/// answer) also rebuilds the action clients before the next rollout, which then waits for their servers. After any
+/// failure once the arms moved, the robot recovers what it can on its own, each step bounded: the grippers open and
+/// the arms go up to above their start (the reason says how it went), so a person has only the cloth to lay. Moves
+/// between configurations are timed from the joints' velocity limits. Target
 /// bimanual_skills_ros_robot. Offline: allocates; one object per thread.
 #pragma once
 
@@ -54,14 +58,18 @@ struct FoldRobotInterfaces {
   std::vector<std::string> arms = {"left", "right"};  ///< Namespaces of the arms' actions and states, left first.
   std::string camera = "camera";           ///< CAMERA/image_raw, CAMERA/camera_info, CAMERA/depth/image_raw, ...
   std::string cloth = "bullet_sim/cloth";  ///< Ground truth of the cloth; "" when the robot has none.
-  double move_time = 2.0;                  ///< To the fold's start configuration [s of the robot's clock].
-  double approach_height = 0.05;           ///< The tools come down onto the cloth from this far above their start [m].
-  double trajectory_rate = 100.0;          ///< Points per second of the fold's trajectory goals.
+  /// To the fold's start configuration, at least [s of the robot's clock]: longer where a joint moves far (each
+  /// segment within half the joints' velocity limits).
+  double move_time = 2.0;
+  double approach_height = 0.05;   ///< The tools come down onto the cloth from this far above their start [m].
+  double trajectory_rate = 100.0;  ///< Points per second of the fold's trajectory goals.
   /// From sending the fold's goals to their common start [s of the robot's clock]; with a pause service the clock
   /// stands still from the grasp until both controllers have accepted them. A controller that gets its goal after the
   /// start skips the points already past (control_msgs' rule), which the path tolerance then fails.
   double start_delay = 0.5;
-  double timeout = 30.0;  ///< Longest wall-clock wait for any one interface [s], service calls included.
+  /// Longest wall-clock wait for any one interface [s], service calls included; a wait for the robot's motion counts
+  /// it from the robot clock's last step (a 0.1x simulator or a long motion on hardware does not time out).
+  double timeout = 30.0;
   /// Longest wall-clock wait for the reset service [s]: the one deliberately longer wait, since on hardware a person
   /// lays the cloth flat: longer than operator_prompt's ~timeout (600 s), so that its refusal comes across.
   double reset_timeout = 660.0;
@@ -101,11 +109,25 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   struct Arm;
   struct Failure;
   /// The steps of a rollout; each throws Failure.
-  void reset();
+  /// The reset; returns the robot's time of the reset scene's third state.
+  ros::Time reset();
+  /// Both arms from where they are to above the start, then onto the cloth, timed from the velocity limits.
   void moveToStart();
+  /// The shortest time (at least `shortest`) for both arms to move between configurations as rest-to-rest quintics
+  /// within half their velocity limits [s].
+  double moveTime(const std::vector<Eigen::VectorXd>& from, const std::vector<Eigen::VectorXd>& to,
+                  double shortest) const;
+  /// Both arms' last measured positions; throws Failure before any state came.
+  std::vector<Eigen::VectorXd> measuredPositions();
+  /// After a failed rollout that moved the robot: opens the grippers and lifts the arms to above their start, each
+  /// step bounded (kRecoveryTimeout); says what it did.
+  std::string recover() noexcept;
   void grasp(bool close);
   /// Runs the fold and opens the grippers; returns the time they opened at (as planned).
   ros::Time fold(const tasks::FoldPlan& plan);
+  /// Asks the grippers to open at `release` of the robot's clock (a stamped ClothGrasp the gripper's loop keeps);
+  /// throws Failure when the service does it at another time.
+  void scheduleRelease(const ros::Time& release);
   void waitUntil(const ros::Time& time, const char* what);
   /// Pauses or resumes the simulator's clock (pause_service); pausing waits until the clock here has reached the
   /// paused time.
@@ -120,8 +142,11 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   /// The flat cloth after the reset: the fold reward's reference.
   void observeFlat(const ros::Time& after);
   tasks::FoldRewardTerms observe(const ros::Time& after, double acceleration_cost);
+  /// Polls `done` for at most `timeout` of wall time; with `while_clock_runs` (a wait for the robot's motion) the
+  /// limit counts from the robot clock's last step instead, so a slow simulator or a long motion does not time out
+  /// while a stopped one does. Throws Failure (RobotFailed) naming `what`.
   template <typename Done>
-  void waitFor(const Done& done, const std::string& what);
+  void waitFor(const Done& done, const std::string& what, bool while_clock_runs = false);
   /// Calls `service` (a service's name) within `timeout`; throws Failure (RobotFailed) naming `what` when there is
   /// no server, the call fails or no answer comes in time. The response's own success is the caller's to check.
   template <typename Service>
@@ -146,7 +171,7 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   ros::Time record_start_;
   double next_image_ = 0.0, next_cloth_ = 0.0;
   tasks::FoldRollout recording_;
-  double last_tracking_error_ = 0.0, last_robot_seconds_ = 0.0;
+  double last_tracking_error_ = 0.0, last_robot_seconds_ = 0.0, last_move_seconds_ = 0.0;
   bool paused_ = false;     ///< Whether this task paused the simulator (and must resume it).
   bool reconnect_ = false;  ///< The last rollout failed on the robot: new action clients before the next.
 };
