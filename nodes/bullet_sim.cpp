@@ -186,6 +186,7 @@ struct Snapshot {
 struct ClothFrame {
   double time = 0.0;
   Eigen::Matrix3Xd vertices;
+  bool image = false;  ///< The camera's images of this frame too, whatever the camera's rate (the end of a ~step).
 };
 
 constexpr const char* kCameraFrame = "top_down_camera";
@@ -441,6 +442,11 @@ class BulletSimNode {
         stepping_->message = "stepped " + std::to_string(stepping_->stepped) + " of " +
                              std::to_string(stepping_->steps) + (diverged_ ? ": the simulation diverged" : "");
         stepping_->time = simulation_->time();
+        // The state, the cloth and the camera's images where the steps ended: a client that stepped to a moment
+        // observes that moment (the clock stands still there).
+        for (std::size_t a = 0; a < arms_.size(); ++a)
+          simulation_->readJointState(static_cast<int>(a), arms_[a]->state);
+        publishState(true, true);
         stepping_->done.set_value();
         stepping_.reset();
         pacer_->reanchor();
@@ -523,7 +529,7 @@ class BulletSimNode {
   }
 
   /// Hands the joint states to the publisher thread, and at marker_rate the cloth to the scene thread.
-  void publishState(bool force_cloth) {
+  void publishState(bool force_cloth, bool force_image = false) {
     Snapshot& s = snapshots_->writeSlot();
     s.time = diverged_ ? divergence_time_ : simulation_->time();
     published_time_ = s.time;
@@ -542,6 +548,7 @@ class BulletSimNode {
       ClothFrame& frame = cloth_frames_->writeSlot();
       frame.time = s.time;
       frame.vertices = simulation_->cloth().vertices();
+      frame.image = force_image;
       cloth_frames_->publish();
       sem_post(&scene_signal_);
       next_marker_time_ = simulation_->time() + 1.0 / marker_rate_;
@@ -666,7 +673,7 @@ class BulletSimNode {
       marker_publisher_.publish(markers);
       cloth_publisher_.publish(clothCloud(frame->vertices, stamp));
       // An image every 1/camera_rate simulated seconds, and at once after a reset (time going back).
-      if (renderer_ && (frame->time >= next_image - 1e-9 || frame->time < last_time)) {
+      if (renderer_ && (frame->image || frame->time >= next_image - 1e-9 || frame->time < last_time)) {
         publishImages(*frame);
         next_image = frame->time + 1.0 / camera_rate_;
       }

@@ -102,6 +102,9 @@ const char* const kUsage =
     "  ~start_delay  [s] of the robot's clock from sending the fold's goals to their start (default 0.5)\n"
     "  ~pause_service  std_srvs/SetBool holding a simulator's clock while the fold's goals travel (default\n"
     "                bullet_sim/pause; \"\" on a robot)\n"
+    "  ~step_service   bimanual_skills/SimStep: with a pause service, the simulator steps from the grasp to the\n"
+    "                settled cloth and the images are of that moment exactly (default bullet_sim/step; \"\" on a "
+    "robot)\n"
     "\n"
     "A rollout the robot fails (an interface that failed or did not answer) is not learned from: it runs again\n"
     "with the same parameters up to the learning file's robot_retries times (default 3), each fault logged to\n"
@@ -312,6 +315,7 @@ class FoldLearnerNode {
     robot.reset_service = parameters_.text("reset_service", robot.reset_service);
     robot.grasp_service = parameters_.text("grasp_service", robot.grasp_service);
     robot.pause_service = parameters_.text("pause_service", robot.pause_service);
+    robot.step_service = parameters_.text("step_service", robot.step_service);
     robot.arms = parameters_.texts("arms", robot.arms);
     robot.camera = parameters_.text("camera", robot.camera);
     robot.cloth = parameters_.text("cloth_topic", robot.cloth);

@@ -308,8 +308,8 @@ TEST(FoldRobotFaults, AFaultStormIsRetriedAndADownRobotStopsTheLearning) {
 }
 
 // fold_slow_clock.test: bullet_sim at half real time, a task with a 1.5 s timeout: the move to the start (2 s of the
-// robot's clock, 4 s of wall time) and the fold are waits for the robot's motion, counted from its clock's last step,
-// so the rollout succeeds; a wait for an interface that does not answer still ends after 1.5 s.
+// robot's clock, 4 s of wall time) is a wait for the robot's motion, counted from its clock's last step, so the
+// rollout succeeds; a wait for an interface that does not answer still ends after 1.5 s.
 TEST(FoldRobotSlowClock, WaitsForTheRobotsMotionScaleWithItsClock) {
   const auto config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
   bs::ros_layer::FoldRobotInterfaces robot;
@@ -320,7 +320,9 @@ TEST(FoldRobotSlowClock, WaitsForTheRobotsMotionScaleWithItsClock) {
   std::printf("at half real time with a 1.5 s timeout: %s after %.1f s (%.1f s of the robot's clock) %s\n",
               slow.result.outcome.c_str(), slow.seconds, task.lastRobotSeconds(), slow.result.reason.c_str());
   EXPECT_TRUE(slow.result.ok) << slow.result.reason;
-  EXPECT_GT(slow.seconds, 1.5 * task.lastRobotSeconds());
+  // The move to the start alone, at least 2 s of the robot's clock, took 4 s of wall time: beyond the timeout (the
+  // fold itself is one ~step, as fast as the simulator goes).
+  EXPECT_GT(slow.seconds, 4.0);
   robot.grasp_service = "/no_gripper_here";
   bs::ros_layer::FoldOnRobotTask broken(config.task, config.reward, robot);
   const Timed missing = runWithin(broken, 2, 120.0);

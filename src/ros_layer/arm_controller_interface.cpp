@@ -373,8 +373,8 @@ void ArmControllerInterface::onPublish(const ros::SteadyTimerEvent&) {
   }
   if (!fresh) {
     // A loop that computes no torque while the robot's clock goes on has stopped (a paused simulation's clock stands
-    // still).
-    const double idle = last_ ? ros::Time::now().toSec() - last_->stamp : 0.0;
+    // still). Both times from this process's clock: it may lag the loop's stamps, and a reset takes it back.
+    const double idle = last_ ? ros::Time::now().toSec() - clock_at_state_ : 0.0;
     if (active_ && idle > settings_.loop_timeout) {
       std::ostringstream why;
       why << "the control loop stopped: no control cycle for " << idle << " s of the robot's clock (loop_timeout "
@@ -385,6 +385,7 @@ void ArmControllerInterface::onPublish(const ros::SteadyTimerEvent&) {
   }
   last_ = *fresh;
   last_state_wall_ = bimanual_skills::realtime::monotonicSeconds();
+  clock_at_state_ = ros::Time::now().toSec();
   const bc::ArmControllerState& s = *last_;
   const bool due = s.stamp < last_published_ || s.stamp - last_published_ >= 1.0 / settings_.publish_rate - 1e-9;
   if (!due && !(active_ && s.goal_id == active_id_ && s.goal != bc::GoalState::Active)) return;

@@ -111,6 +111,7 @@ class ArmControllerInterface {
   std::deque<geometry_msgs::Point> actual_path_, desired_path_;
   long publish_count_ = 0;
   double last_state_wall_ = 0.0;
+  double clock_at_state_ = 0.0;     ///< This process's ROS time when the last state came [s].
   double last_published_ = -1e300;  ///< Stamp of the last state published [s].
 
   ros::Publisher state_publisher_, wrench_publisher_, path_publisher_, diagnostics_publisher_;

@@ -1,6 +1,7 @@
 #include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
 
 #include "bimanual_skills/ClothGrasp.h"
+#include "bimanual_skills/SimStep.h"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
@@ -361,6 +362,7 @@ void FoldOnRobotTask::pause(bool paused) {
   // has stood still here for 0.2 s.
   double at = 0.0;
   const bool told = std::sscanf(request.response.message.c_str(), "paused at t = %lf s", &at) == 1 && std::isfinite(at);
+  paused_at_ = told ? at : ros::Time::now().toSec();
   ros::Time seen = ros::Time::now();
   auto since = std::chrono::steady_clock::now();
   waitFor(
@@ -624,7 +626,19 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
   // late this process would be to ask.
   const ros::Time release = start + ros::Duration(plan.release * plan.dt);
   scheduleRelease(release);
-  if (paused_) pause(false);
+  if (paused_ && !robot_.step_service.empty()) {
+    // A simulator steps from the grasp to the settled cloth and stands still there.
+    const double until = release.toSec() + task_.config().settle;
+    bimanual_skills::SimStep step;
+    step.request.steps = static_cast<std::uint32_t>(std::max(0L, std::lround((until - paused_at_) / plan.dt)));
+    call(robot_.step_service, step, robot_.timeout + (until - paused_at_), "stepping the simulator through the fold");
+    if (!step.response.success) {
+      throw Failure{tasks::FoldOutcome::RobotFailed,
+                    "stepping the simulator through the fold: " + step.response.message};
+    }
+  } else if (paused_) {
+    pause(false);
+  }
   // Until the release, unless an arm's goal fails first (waitForGoal then reports why).
   waitFor([&] { return failed(*arms_[0]) || failed(*arms_[1]) || ros::Time::now() >= release; },
           "the robot's clock (the fold's release)", true);
@@ -767,6 +781,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     const ros::Time settled = fold(plan) + ros::Duration(task_.config().settle);
     waitUntil(settled, "the cloth settling");
     terms = observe(settled, acceleration_cost);
+    if (paused_) pause(false);  // a simulator stepped to the settled cloth runs on
     last_robot_seconds_ = last_move_seconds_ + (ros::Time::now() - at_start).toSec();
   } catch (const Failure& failure) {
     fail(failure.outcome, failure.reason);

@@ -55,6 +55,10 @@ struct FoldRobotInterfaces {
   /// std_srvs/SetBool pausing a simulator's clock while the fold's goals travel; "" on a robot (its clock is the
   /// wall's, and start_delay is their time on the way).
   std::string pause_service = "bullet_sim/pause";
+  /// bimanual_skills/SimStep of a simulator: with the pause service, the fold runs as one ~step from the grasp to
+  /// the settled cloth, so that the images and the cloth observed are of that moment exactly, however late this
+  /// process reads them; "" on a robot (or to let the simulator run free).
+  std::string step_service = "bullet_sim/step";
   std::vector<std::string> arms = {"left", "right"};  ///< Namespaces of the arms' actions and states, left first.
   std::string camera = "camera";           ///< CAMERA/image_raw, CAMERA/camera_info, CAMERA/depth/image_raw, ...
   std::string cloth = "bullet_sim/cloth";  ///< Ground truth of the cloth; "" when the robot has none.
@@ -173,6 +177,7 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   tasks::FoldRollout recording_;
   double last_tracking_error_ = 0.0, last_robot_seconds_ = 0.0, last_move_seconds_ = 0.0;
   bool paused_ = false;     ///< Whether this task paused the simulator (and must resume it).
+  double paused_at_ = 0.0;  ///< The simulator's time when it last paused [s].
   bool reconnect_ = false;  ///< The last rollout failed on the robot: new action clients before the next.
 };
 
