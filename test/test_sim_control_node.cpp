@@ -90,6 +90,15 @@ class SimFixture : public ::testing::Test {
     for (const std::string& arm : kArms) {
       ASSERT_TRUE(waitWall([&] { return clients_[arm]->isServerConnected(); }, 60.0))
           << arm << ": no trajectory action";
+      // The subscriptions of this fixture connected (a loaded machine takes a while, and a test's window of a few
+      // simulated seconds is a fraction of a second of wall time).
+      ASSERT_TRUE(waitWall(
+          [&] {
+            const std::lock_guard<std::mutex> lock(mutex_);
+            return !force_z_[arm].empty() && controller_state_count_[arm] > 0;
+          },
+          60.0))
+          << arm << ": no estimated_wrench or state";
     }
   }
 
