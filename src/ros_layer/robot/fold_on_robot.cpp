@@ -127,8 +127,8 @@ struct FoldOnRobotTask::Arm {
   Eigen::VectorXd above_start;  ///< The start configuration with the tool approach_height higher.
   std::unique_ptr<Client> client;
   ros::Subscriber state_sub;
-  // Written by the spinner (guarded by the task's mutex): states received, and while a fold runs its samples.
-  std::uint64_t states = 0;
+  // Written by the spinner (guarded by the task's mutex): the last state, the reset's count, and while a fold runs its
+  // samples.
   Eigen::VectorXd actual;  ///< The last measured positions (empty before a state came).
   double stamp = -std::numeric_limits<double>::infinity();  ///< Of the last state [s].
   /// Around a reset: the last stamp before it and when it answered, and the states since that are the reset
@@ -228,7 +228,6 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
     arm->state_sub = node_->subscribe<bimanual_skills::JointTrajectoryControllerState>(
         arm->name + "/state", 100, [this, raw](const bimanual_skills::JointTrajectoryControllerState::ConstPtr& s) {
           const std::lock_guard<std::mutex> lock(mutex_);
-          ++raw->states;
           const double t = s->header.stamp.toSec();
           raw->stamp = t;
           if (t < raw->before_reset - 1e-9 || t > raw->reset_answered) {
@@ -396,17 +395,15 @@ void FoldOnRobotTask::waitUntil(const ros::Time& time, const char* what) {
 }
 
 ros::Time FoldOnRobotTask::reset() {
-  {
-    const std::lock_guard<std::mutex> lock(mutex_);
-    for (const auto& arm : arms_) {
-      arm->before_reset = -std::numeric_limits<double>::infinity();  // nothing counts until the answer
-      arm->reset_answered = std::numeric_limits<double>::infinity();
-    }
-  }
   double before[2];
   {
     const std::lock_guard<std::mutex> lock(mutex_);
-    for (int a = 0; a < 2; ++a) before[a] = arms_[static_cast<std::size_t>(a)]->stamp;
+    for (int a = 0; a < 2; ++a) {
+      Arm& arm = *arms_[static_cast<std::size_t>(a)];
+      before[a] = arm.stamp;
+      arm.before_reset = -std::numeric_limits<double>::infinity();   // nothing counts until the answer (a reset
+      arm.reset_answered = std::numeric_limits<double>::infinity();  // that failed before may have left them set)
+    }
   }
   std_srvs::Trigger trigger;
   call(robot_.reset_service, trigger, robot_.reset_timeout, "the reset");
