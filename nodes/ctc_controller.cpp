@@ -4,6 +4,7 @@
 // ros_layer::ArmControllerInterface: the control step runs per message on a thread and callback queue of its own, so
 // trajectory parsing, actions, markers and diagnostics never delay it; it computes with the stamps' Δt, checks the
 // joint names of every message, drops duplicate and reordered states and follows one publisher.
+#include "bimanual_skills/JointEffortCommand.h"
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/realtime/loop_pacer.hpp"
 #include "bimanual_skills/realtime/period_recorder.hpp"
@@ -13,9 +14,9 @@
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
-#include <std_msgs/Float64MultiArray.h>
 
 #include <chrono>
+#include <cmath>
 #include <fstream>
 #include <memory>
 #include <mutex>
@@ -47,8 +48,13 @@ const std::string kUsage =
     "joint_states (sensor_msgs/JointState; effort, when complete, is taken as the torque the robot applied) and\n"
     "command (trajectory_msgs/JointTrajectory); serves follow_joint_trajectory (bimanual_skills/FollowJoint-\n"
     "Trajectory action) and set_mode (bimanual_skills/SetControlMode); publishes effort_command\n"
-    "(std_msgs/Float64MultiArray), state (bimanual_skills/JointTrajectoryControllerState), estimated_wrench\n"
+    "(bimanual_skills/JointEffortCommand, stamped with the joint state it answers), state "
+    "(bimanual_skills/JointTrajectoryControllerState), estimated_wrench\n"
     "(geometry_msgs/WrenchStamped, base frame), tool_paths (visualization_msgs/MarkerArray), /diagnostics.\n";
+
+/// [s] A state stamped this much before the last one is a reset (the clock may not have followed yet), not a
+/// reordered message.
+constexpr double kResetJump = 1.0;
 
 class CtcControllerNode {
  public:
@@ -70,9 +76,10 @@ class CtcControllerNode {
     const int n = static_cast<int>(interface_->jointNames().size());
     q_ = qd_ = applied_ = torque_ = Eigen::VectorXd::Zero(n);
     none_.resize(0);
-    command_.data.assign(static_cast<std::size_t>(n), 0.0);
+    command_.name = interface_->jointNames();
+    command_.effort.assign(static_cast<std::size_t>(n), 0.0);
     nominal_period_ = 1.0 / interface_->settings().config.observer.rate_hz;
-    effort_publisher_ = node.advertise<std_msgs::Float64MultiArray>("effort_command", 10);
+    effort_publisher_ = node.advertise<bimanual_skills::JointEffortCommand>("effort_command", 10);
     ros::NodeHandle state_node(node);
     state_node.setCallbackQueue(&state_queue_);
     state_subscriber_ = state_node.subscribe("joint_states", 10, &CtcControllerNode::onJointState, this,
@@ -140,12 +147,24 @@ class CtcControllerNode {
                          publisher.c_str(), interface_->jointNames().front().c_str());
       return;
     }
-    const double stamp = message.header.stamp.toSec(), now = ros::Time::now().toSec();
-    // A stamp that does not advance is a duplicate or a reordered message, unless the clock went back too (a
-    // simulation reset), which the controller restarts on.
-    if (has_stamp_ && stamp <= last_stamp_ && now >= last_stamp_) {
+    const double stamp = message.header.stamp.toSec();
+    double now = ros::Time::now().toSec();
+    // A stamp that does not advance is a duplicate or a reordered message, unless the clock went back too or the
+    // stamps jumped back by more than kResetJump (a simulation reset), which the controller restarts on.
+    const bool back = has_stamp_ && stamp <= last_stamp_ && now >= last_stamp_;
+    if (back && last_stamp_ - stamp <= kResetJump) {
       ++(stamp == last_stamp_ ? duplicates_ : reordered_);
       return;
+    }
+    // A reset seen in the stamps before /clock followed (another connection): until the clock goes back too, it lags
+    // the states, and the state's own stamp stands for now (else the fresh states would look stale).
+    if (back) clock_before_reset_ = now;
+    if (!std::isnan(clock_before_reset_)) {
+      if (now < clock_before_reset_) {
+        clock_before_reset_ = std::nan("");
+      } else {
+        now = stamp;
+      }
     }
     for (std::size_t i = 0; i < index_.size(); ++i) {
       const std::size_t j = index_[i];
@@ -174,7 +193,8 @@ class CtcControllerNode {
     has_stamp_ = true;
     last_stamp_ = stamp;
     if (wall - last_period_check_ > 5.0 && periods_.recorded() >= 200) checkRate(wall);
-    std::copy(torque_.data(), torque_.data() + torque_.size(), command_.data.begin());
+    std::copy(torque_.data(), torque_.data() + torque_.size(), command_.effort.begin());
+    command_.header.stamp = message.header.stamp;  // the state it answers: a lockstep loop matches the two
     effort_publisher_.publish(command_);
   }
 
@@ -221,8 +241,9 @@ class CtcControllerNode {
   std::string publisher_;
   double last_followed_ = 0.0, last_stamp_ = 0.0, nominal_period_ = 0.001, last_period_check_ = 0.0;
   bool has_stamp_ = false, rate_warned_ = false;
+  double clock_before_reset_ = std::nan("");  ///< The clock when a reset came in the stamps before it (NaN: none).
   Eigen::VectorXd q_, qd_, applied_, torque_, none_;
-  std_msgs::Float64MultiArray command_;
+  bimanual_skills::JointEffortCommand command_;
   bs::realtime::PeriodRecorder periods_{1000}, wall_periods_{200000}, command_times_{10000};
   double last_step_wall_ = 0.0;
   std::uint64_t commands_taken_ = 0;

@@ -105,6 +105,8 @@ const char* const kUsage =
     "  ~step_service   bimanual_skills/SimStep: with a pause service, the simulator steps from the grasp to the\n"
     "                settled cloth and the images are of that moment exactly (default bullet_sim/step; \"\" on a "
     "robot)\n"
+    "  ~world_digest_param  where a simulator gives its world's digest (default bullet_sim/world_digest): a\n"
+    "                simulator of another world than ~config's simulation file is refused at start; absent: unchecked\n"
     "\n"
     "A rollout the robot fails (an interface that failed or did not answer) is not learned from: it runs again\n"
     "with the same parameters up to the learning file's robot_retries times (default 3), each fault logged to\n"
@@ -172,10 +174,7 @@ class FoldLearnerNode {
     cloth_publisher_ = private_node_.advertise<visualization_msgs::Marker>("cloth", 1, true);
     scene_publisher_ = private_node_.advertise<visualization_msgs::Marker>("scene", 1, true);
     path_publisher_ = private_node_.advertise<visualization_msgs::MarkerArray>("tool_paths", 1, true);
-    image_publisher_ = private_node_.advertise<sensor_msgs::Image>("camera/image_raw", 1, true);
-    depth_publisher_ = private_node_.advertise<sensor_msgs::Image>("camera/depth/image_raw", 1, true);
-    info_publisher_ = private_node_.advertise<sensor_msgs::CameraInfo>("camera/camera_info", 1, true);
-    depth_info_publisher_ = private_node_.advertise<sensor_msgs::CameraInfo>("camera/depth/camera_info", 1, true);
+    camera_ = bs::ros_layer::RgbdPublisher(private_node_, true);
     joint_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10, true);
 
     br::FoldLearningObserver observer;
@@ -319,6 +318,7 @@ class FoldLearnerNode {
     robot.arms = parameters_.texts("arms", robot.arms);
     robot.camera = parameters_.text("camera", robot.camera);
     robot.cloth = parameters_.text("cloth_topic", robot.cloth);
+    robot.world_digest = parameters_.text("world_digest_param", robot.world_digest);
     robot.move_time = parameters_.number("move_time", robot.move_time, 0.1, 60.0);
     robot.approach_height = parameters_.number("approach_height", robot.approach_height, 0.0, 0.5);
     robot.trajectory_rate = parameters_.number("trajectory_rate", robot.trajectory_rate, 1.0, 1000.0);
@@ -352,11 +352,8 @@ class FoldLearnerNode {
     std_msgs::Header header;
     header.stamp = stamp;
     header.frame_id = kCameraFrame;
-    const sensor_msgs::CameraInfo info = bs::ros_layer::cameraInfo(learner_->config().reward.renderer.camera, header);
-    image_publisher_.publish(cv_bridge::CvImage(header, "bgr8", bgr).toImageMsg());
-    info_publisher_.publish(info);
-    depth_publisher_.publish(cv_bridge::CvImage(header, "32FC1", depth).toImageMsg());
-    depth_info_publisher_.publish(info);
+    camera_.publish(bs::ros_layer::RgbdFrame(
+        header, bgr, depth, bs::ros_layer::cameraInfo(learner_->config().reward.renderer.camera, header)));
   }
 
   void onRollout(const br::FoldRolloutRecord& record, const bt::FoldRollout& rollout, const bt::FoldReward& reward) {
@@ -581,10 +578,10 @@ class FoldLearnerNode {
       std_msgs::Header header;
       header.stamp = ros::Time(kBagStart + std::max(0.0, t));
       header.frame_id = kCameraFrame;
-      bag.write(ns + "/camera/image_raw", header.stamp, cv_bridge::CvImage(header, "bgr8", bgr).toImageMsg());
-      bag.write(ns + "/camera/camera_info", header.stamp, bs::ros_layer::cameraInfo(camera, header));
-      bag.write(ns + "/camera/depth/image_raw", header.stamp, cv_bridge::CvImage(header, "32FC1", depth).toImageMsg());
-      bag.write(ns + "/camera/depth/camera_info", header.stamp, bs::ros_layer::cameraInfo(camera, header));
+      bs::ros_layer::RgbdFrame(header, bgr, depth, bs::ros_layer::cameraInfo(camera, header))
+          .write(ns + "/", header.stamp, [&bag](const std::string& topic, const ros::Time& time, const auto& message) {
+            bag.write(topic, time, message);
+          });
     };
     if (!rollout.camera_colour.empty()) {
       for (std::size_t k = 0; k < rollout.camera_colour.size(); ++k) {
@@ -770,10 +767,9 @@ class FoldLearnerNode {
   std::vector<std::string> joint_names_;
   bs::sim::Table table_;
   bs::sim::ClothParameters cloth_;
-  ros::Publisher info_publisher_, depth_info_publisher_;
+  bs::ros_layer::RgbdPublisher camera_;
   tf2_ros::StaticTransformBroadcaster camera_frame_;
-  ros::Publisher cloth_publisher_, scene_publisher_, path_publisher_, image_publisher_, depth_publisher_,
-      joint_publisher_;
+  ros::Publisher cloth_publisher_, scene_publisher_, path_publisher_, joint_publisher_;
   std::deque<Paths> paths_;
   std::chrono::steady_clock::time_point start_;
   int done_ = 0, resumed_ = 0, total_ = 0;

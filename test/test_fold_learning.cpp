@@ -329,6 +329,30 @@ TEST(FoldLearning, SameOnAnyThreadsAndResumes) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("another reward"), std::string::npos) << e.what();
   }
+  // So is another world: the simulation file with a heavier cloth (its URDF and plant named by absolute paths).
+  {
+    std::string text = bimanual_skills::testing::readTextFile(config.task.sim_config);
+    const std::string config_dir = kSource + "/config/";
+    for (const auto& [key, file] : {std::pair<std::string, std::string>{"urdf: ", "../urdf/bimanual_wam.urdf"},
+                                    std::pair<std::string, std::string>{"plant: ", "plant.yaml"}}) {
+      const std::string::size_type at = text.find(key + file);
+      ASSERT_NE(at, std::string::npos) << key << file;
+      text.replace(at, key.size() + file.size(), key + config_dir + file);
+    }
+    const std::string::size_type mass = text.find("mass: 0.22");
+    ASSERT_NE(mass, std::string::npos);
+    text.replace(mass, 10, "mass: 0.44");
+    const std::string other_world = ::testing::TempDir() + "/fold_learning_other_world.yaml";
+    std::ofstream(other_world) << text;
+    br::FoldLearningConfig moved = config;
+    moved.task.sim_config = other_world;
+    try {
+      br::FoldLearner(moved, resumed_dir);
+      ADD_FAILURE() << "a directory of rollouts in another world was reused";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("another world"), std::string::npos) << e.what();
+    }
+  }
   config.seed = 6;
   EXPECT_THROW(br::FoldLearner(config, resumed_dir).learn(), std::invalid_argument);
 

@@ -11,6 +11,7 @@
 #include "bimanual_skills/FollowJointTrajectoryActionResult.h"
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
+#include "bimanual_skills/sim/sim_config.hpp"
 #include "node_pid.hpp"
 
 #include <actionlib_msgs/GoalStatus.h>
@@ -200,6 +201,29 @@ TEST(FoldOnRobot, AnAbsentPauseServiceIsRefusedAtOnceNotOnEveryRollout) {
     EXPECT_NE(std::string(e.what()).find("no pause service /no_such_simulator/pause"), std::string::npos) << e.what();
   }
   robot.pause_service = "";  // a robot: no pause, and the task is built
+  EXPECT_NO_THROW(bs::ros_layer::FoldOnRobotTask(config.task, config.reward, robot));
+}
+
+// A simulator of another world is refused at start, with both digests; the one of the same world is used.
+TEST(FoldOnRobot, ASimulatorOfAnotherWorldIsRefused) {
+  const bs::rollout::FoldLearningConfig config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
+  std::string simulated;
+  ASSERT_TRUE(ros::param::get("/bullet_sim/world_digest", simulated)) << "bullet_sim gives no ~world_digest";
+  EXPECT_EQ(simulated, bs::sim::SimConfig::worldDigest(config.task.sim_config));
+  bs::ros_layer::FoldRobotInterfaces robot;
+  robot.timeout = 10.0;
+  ros::param::set("/other_simulator/world_digest", "00000000deadbeef");
+  robot.world_digest = "/other_simulator/world_digest";
+  try {
+    bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
+    ADD_FAILURE() << "built against a simulator of another world";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("the simulator runs another world: /other_simulator/world_digest is "
+                                         "00000000deadbeef"),
+              std::string::npos)
+        << e.what();
+  }
+  robot.world_digest = "/bullet_sim/world_digest";
   EXPECT_NO_THROW(bs::ros_layer::FoldOnRobotTask(config.task, config.reward, robot));
 }
 

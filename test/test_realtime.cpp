@@ -5,6 +5,7 @@
 #include "bimanual_skills/control/realtime_arm_controller.hpp"
 #include "bimanual_skills/realtime/loop_pacer.hpp"
 #include "bimanual_skills/realtime/period_recorder.hpp"
+#include "bimanual_skills/realtime/seqlock.hpp"
 #include "bimanual_skills/realtime/triple_buffer.hpp"
 #include "test_support.hpp"
 #include "testing/no_alloc_guard.hpp"
@@ -98,6 +99,34 @@ TEST(PeriodRecorder, KeepsTheLastSamplesAndSummarises) {
   EXPECT_THROW(rt::PeriodRecorder(0), std::invalid_argument);
 }
 
+TEST(SeqLock, ReadersSeeWholeWritesWhileTheWriterNeverWaits) {
+  struct Pair {
+    double at, due;
+    std::uint64_t count;
+  };
+  rt::SeqLock<Pair> value(Pair{0.0, 0.0, 0});
+  EXPECT_EQ(value.writes(), 0u);
+  std::atomic<bool> done{false};
+  std::thread writer([&] {
+    for (std::uint64_t k = 1; k <= 200000; ++k) {
+      value.write(Pair{static_cast<double>(k), 2.0 * static_cast<double>(k), k});
+    }
+    done = true;
+  });
+  long torn = 0, reads = 0;
+  std::uint64_t last = 0;
+  while (!done) {
+    const Pair p = value.read();
+    ++reads;
+    if (p.due != 2.0 * p.at || p.count != static_cast<std::uint64_t>(p.at) || p.count < last) ++torn;
+    last = p.count;
+  }
+  writer.join();
+  EXPECT_EQ(torn, 0) << "of " << reads << " reads";
+  EXPECT_EQ(value.read().count, 200000u);
+  EXPECT_EQ(value.writes(), 200000u);
+}
+
 TEST(LoopPacer, ReanchorsInsteadOfCatchingUpAndSleepsInSlices) {
   EXPECT_THROW(rt::LoopPacer(0.0), std::invalid_argument);
   rt::LoopPacer pacer(0.002, 0.05);
@@ -143,20 +172,8 @@ struct Loop {
   Eigen::VectorXd none;
   double t = 0.0;
 
-  static bc::ArmControllerConfig config() {
-    bc::ArmControllerConfig c;
-    c.gains = bimanual_skills::test_support::lowGains();
-    c.observer = bc::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0);
-    c.observer.rate_hz = 1000.0;
-    c.friction_compensation = false;
-    c.trajectory_capacity = 10;
-    return c;
-  }
-  static bd::FrictionModel friction() {
-    bd::FrictionModel f;
-    f.joints.assign(7, bd::JointFriction{});
-    return f;
-  }
+  static bc::ArmControllerConfig config() { return bimanual_skills::test_support::loopControllerConfig(); }
+  static bd::FrictionModel friction() { return bimanual_skills::test_support::noFriction(); }
 
   bc::ControllerStatus step(bc::RealtimeArmController& controller) {
     const bc::ControllerStatus status = controller.update(t, t, q, qd, none, tau);

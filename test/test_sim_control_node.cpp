@@ -5,6 +5,7 @@
 //   sim_pacing.test    (hosted, free-running at real time)       Pacing.*
 //   sim_external.test  (ctc_controller processes, real time)     ExternalControllers.*
 //   sim_500hz.test     (hosted, a 2 ms step, lockstep)           Rate500.*
+//   sim_external_lockstep.test (ctc_controller processes, lockstep) ExternalLockstep.*
 #include "bimanual_skills/ApplyWrench.h"
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/FollowJointTrajectoryAction.h"
@@ -255,6 +256,48 @@ class SimFixture : public ::testing::Test {
   long diagnosticCount(const std::string& name, const std::string& key) {
     const std::string v = diagnostic(name, key);
     return v.empty() ? -1 : std::stol(v);
+  }
+
+  /// Two lockstep runs from a reset (paused, stepped): each arm sent 0.4 rad on joint 1 and −0.3 on joint 4 in 1 s,
+  /// stepped to t = 1.5 s; both arms' positions must be equal bit for bit and the left arm must have moved.
+  void expectRepeatableLockstepRuns() {
+    std_srvs::SetBool paused;
+    paused.request.data = true;
+    ASSERT_TRUE(pause_.call(paused));
+    std::vector<double> start;
+    const auto run = [&]() {
+      std_srvs::Trigger trigger;
+      EXPECT_TRUE(reset_.call(trigger) && trigger.response.success);
+      EXPECT_TRUE(waitWall([this] { return lastStamp() == 0.0; }, 5.0));
+      bimanual_skills::SimStep steps;
+      steps.request.steps = 1;  // the controllers restart on the first state of the new timeline
+      EXPECT_TRUE(step_.call(steps) && steps.response.success) << steps.response.message;
+      EXPECT_TRUE(waitWall([this] { return lastStamp() > 0.0; }, 5.0));
+      start = armPositions("left");
+      for (const std::string& arm : kArms) {
+        std::vector<double> target = armPositions(arm);
+        target[0] += 0.4;
+        target[3] -= 0.3;
+        commands_[arm].publish(trajectory(arm, {target}, 1.0));
+      }
+      waitWall([] { return false; }, 1.0);  // the controllers take the trajectories at the next step
+      steps.request.steps = 1499;
+      EXPECT_TRUE(step_.call(steps) && steps.response.success) << steps.response.message;
+      EXPECT_TRUE(waitWall([&] { return lastStamp() > 1.499 - 1e-9; }, 5.0));
+      std::vector<double> q = armPositions("left"), right = armPositions("right");
+      q.insert(q.end(), right.begin(), right.end());
+      return q;
+    };
+    const std::vector<double> first = run(), second = run();
+    paused.request.data = false;
+    ASSERT_TRUE(pause_.call(paused));
+    ASSERT_EQ(first.size(), 14u);
+    double moved = 0.0;
+    for (int i = 0; i < 14; ++i) {
+      EXPECT_EQ(first[i], second[i]) << "joint " << i;
+      if (i < 7) moved = std::max(moved, std::abs(first[i] - start[i]));
+    }
+    EXPECT_GT(moved, 0.1) << "the arms did not move: the trajectories were not taken";
   }
 
   /// Simulated seconds per wall second over the next `seconds` of wall time, from /clock.
@@ -513,6 +556,12 @@ TEST_F(HostedControl, ServicesRefuseAbsurdInputWithTheReason) {
   EXPECT_FALSE(g.response.success);
   EXPECT_EQ(g.response.nodes, 0);
   EXPECT_NE(g.response.message.find("grasped nothing"), std::string::npos) << g.response.message;
+  // A gripper command scheduled absurdly far ahead (a stamp in wall-clock seconds, say) is refused with the reason.
+  g.request.stamp = ros::Time(1.7e9);
+  ASSERT_TRUE(grasp.call(g));
+  EXPECT_FALSE(g.response.success);
+  EXPECT_NE(g.response.message.find("ahead of the simulation's clock; at most 600 s"), std::string::npos)
+      << g.response.message;
 
   bimanual_skills::SimStep steps;
   steps.request.steps = 4000000000u;
@@ -571,42 +620,21 @@ TEST_F(HostedControl, ADivergenceIsReportedAndResetRecovers) {
 }
 
 TEST_F(HostedControl, LockstepRunsAreRepeatableBitForBit) {
-  std_srvs::SetBool paused;
-  paused.request.data = true;
-  ASSERT_TRUE(pause_.call(paused));
-  std::vector<double> start;
-  const auto run = [&]() {
-    std_srvs::Trigger trigger;
-    EXPECT_TRUE(reset_.call(trigger) && trigger.response.success);
-    EXPECT_TRUE(waitWall([this] { return last_stamp_ == 0.0; }, 5.0));
-    bimanual_skills::SimStep steps;
-    steps.request.steps = 1;  // the controllers restart on the first state of the new timeline
-    EXPECT_TRUE(step_.call(steps) && steps.response.success) << steps.response.message;
-    start = armPositions("left");
-    for (const std::string& arm : kArms) {
-      std::vector<double> target = armPositions(arm);
-      target[0] += 0.4;
-      target[3] -= 0.3;
-      commands_[arm].publish(trajectory(arm, {target}, 1.0));
-    }
-    waitWall([] { return false; }, 1.0);  // the controllers take the trajectories at the next step
-    steps.request.steps = 1499;
-    EXPECT_TRUE(step_.call(steps) && steps.response.success) << steps.response.message;
-    EXPECT_TRUE(waitWall([&] { return last_stamp_ > 1.499 - 1e-9; }, 5.0));
-    std::vector<double> q = armPositions("left"), right = armPositions("right");
-    q.insert(q.end(), right.begin(), right.end());
-    return q;
-  };
-  const std::vector<double> first = run(), second = run();
-  paused.request.data = false;
-  ASSERT_TRUE(pause_.call(paused));
-  ASSERT_EQ(first.size(), 14u);
-  double moved = 0.0;
-  for (int i = 0; i < 14; ++i) {
-    EXPECT_EQ(first[i], second[i]) << "joint " << i;
-    if (i < 7) moved = std::max(moved, std::abs(first[i] - start[i]));
-  }
-  EXPECT_GT(moved, 0.1) << "the arms did not move: the trajectories were not taken";
+  expectRepeatableLockstepRuns();
+}
+
+// ------------------------------------------------------------------------------ sim_external_lockstep.test
+
+using ExternalLockstep = SimFixture;
+
+TEST_F(ExternalLockstep, RunsWithExternalControllersAreRepeatableBitForBit) {
+  ASSERT_TRUE(waitWall([&] { return diagnosticCount("bullet_sim", "lockstep_timeouts") >= 0; }, 30.0));
+  const long timeouts = diagnosticCount("bullet_sim", "lockstep_timeouts");
+  expectRepeatableLockstepRuns();
+  waitWall([] { return false; }, 1.5);  // the next /diagnostics
+  // Each step waited for the answer to its own state: none went on without one.
+  EXPECT_EQ(diagnosticCount("bullet_sim", "lockstep_timeouts"), timeouts);
+  EXPECT_EQ(diagnosticCount("bullet_sim", "rejected_external_commands"), 0);
 }
 
 // -------------------------------------------------------------------------------------------- sim_pacing.test

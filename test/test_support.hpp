@@ -2,6 +2,7 @@
 /// Helpers shared by the tests: the WAM models, seeded random configurations, FK, and the closed-loop test setup.
 #pragma once
 
+#include "bimanual_skills/control/arm_controller.hpp"
 #include "bimanual_skills/control/computed_torque_controller.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "testing/program_output.hpp"
@@ -76,6 +77,25 @@ inline control::ComputedTorqueGains lowGains() {
   gains.kp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
   gains.kv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
   return gains;
+}
+
+/// A 1 kHz arm controller of the WAM for loop tests: low gains, a plain observer, no friction compensation, room for
+/// 10 waypoints.
+inline control::ArmControllerConfig loopControllerConfig() {
+  control::ArmControllerConfig c;
+  c.gains = lowGains();
+  c.observer = control::ObserverGains::diagonal(7, 10.0, 0.0, 100.0, 0.0, 10.0);
+  c.observer.rate_hz = 1000.0;
+  c.friction_compensation = false;
+  c.trajectory_capacity = 10;
+  return c;
+}
+
+/// No friction on any of the WAM's 7 joints.
+inline dynamics::FrictionModel noFriction() {
+  dynamics::FrictionModel f;
+  f.joints.assign(7, dynamics::JointFriction{});
+  return f;
 }
 
 }  // namespace bimanual_skills::test_support

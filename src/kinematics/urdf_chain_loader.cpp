@@ -1,6 +1,6 @@
 // Loading a ChainModel from a URDF robot description with urdfdom.
 #include "bimanual_skills/kinematics/chain_model.hpp"
-#include "urdf_pose.hpp"
+#include "bimanual_skills/kinematics/urdf_pose.hpp"
 
 #include <urdf_parser/urdf_parser.h>
 

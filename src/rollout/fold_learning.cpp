@@ -5,6 +5,7 @@
 #include "bimanual_skills/primitives/dr_dmp.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "bimanual_skills/sim/sim_config.hpp"
 #include "io/csv_records.hpp"
 #include "io/yaml_io.hpp"
 
@@ -319,7 +320,7 @@ struct FoldLearner::Impl {
 
   /// The reward the directory's rollouts were scored with, DIR/reward.txt: written while the directory holds no
   /// rollout, compared once it does (rollouts scored otherwise must not be reused). After readStored().
-  void checkReward() {
+  void lockRewardAndWorld() {
     const tasks::FoldRewardConfig& r = config.reward;
     std::ostringstream text;
     text << "setting " << r.setting << "\nacceleration_weight " << number(r.acceleration_weight) << "\ncolour_weight "
@@ -329,18 +330,27 @@ struct FoldLearner::Impl {
          << number(r.image.fold_weight) << "\nfailure_reward " << number(r.failure_reward) << "\ndepth_noise "
          << number(r.renderer.noise.depth_stddev) << "\ncolour_noise " << number(r.renderer.noise.colour_stddev)
          << '\n';
-    const std::string path = dir + "/reward.txt";
+    lock("reward.txt", text.str(), "scored with another reward");
+    // The world the rollouts ran in: the simulation file with its URDF and plant (on a robot through ROS the
+    // simulator's is checked against it, FoldOnRobotTask).
+    lock("world.txt", "sim_config " + sim::SimConfig::worldDigest(config.task.sim_config) + "\n",
+         "run in another world (simulation, URDF or plant file)");
+  }
+
+  /// Writes `text` to DIR/name, or, when the directory holds rollouts already, checks that it says the same.
+  void lock(const std::string& name, const std::string& text, const std::string& otherwise) {
+    const std::string path = dir + "/" + name;
     std::ifstream in{path};
     if (in && !stored.empty()) {
       const std::string recorded{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-      if (recorded != text.str()) {
-        throw std::invalid_argument("fold learning: '" + dir + "' holds rollouts scored with another reward (" + path +
+      if (recorded != text) {
+        throw std::invalid_argument("fold learning: '" + dir + "' holds rollouts " + otherwise + " (" + path +
                                     "): use another directory");
       }
       return;
     }
     std::ofstream out(path);
-    out << text.str();
+    out << text;
     if (!out.flush()) throw std::invalid_argument("fold learning: cannot write '" + path + "'");
   }
 
@@ -775,7 +785,7 @@ FoldLearner::FoldLearner(const FoldLearningConfig& config, const std::string& ou
     m.evaluator = std::move(threads);
   }
   m.readStored();
-  m.checkReward();
+  m.lockRewardAndWorld();
   m.openFiles();
   m.firstTask().task().saveDemonstration(out_dir + "/demonstration_");
 }

@@ -1,5 +1,5 @@
 #include "bullet_arm.hpp"
-#include "kinematics/urdf_pose.hpp"
+#include "bimanual_skills/kinematics/urdf_pose.hpp"
 
 #include "bullet_conversions.hpp"
 

@@ -1,5 +1,6 @@
 #include "bimanual_skills/sim/sim_config.hpp"
 
+#include "io/digest.hpp"
 #include "io/yaml_io.hpp"
 
 #include <cmath>
@@ -106,6 +107,15 @@ void SimConfig::validate() const {
            std::to_string(step) + " s)");
     }
   }
+}
+
+std::string SimConfig::worldDigest(const std::string& path) {
+  const SimConfig config = fromYamlFile(path);
+  std::vector<std::string> files{path, config.urdf_path};
+  if (!config.plant_path.empty()) files.push_back(config.plant_path);
+  const std::string digest = io::fileDigest(files);
+  if (digest.empty()) throw std::invalid_argument("cannot read the files of the simulation '" + path + "'");
+  return digest;
 }
 
 SimConfig SimConfig::fromYamlFile(const std::string& path) {

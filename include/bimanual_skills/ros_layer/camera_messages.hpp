@@ -9,8 +9,11 @@
 
 #include "bimanual_skills/vision/top_down_camera.hpp"
 
+#include <cv_bridge/cv_bridge.h>
 #include <geometry_msgs/TransformStamped.h>
+#include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
 
 #include <string>
 
@@ -44,5 +47,52 @@ inline geometry_msgs::TransformStamped cameraTransform(const vision::TopDownCame
   t.transform.rotation.w = 0.0;
   return t;
 }
+
+/// One frame of an RGB-D camera as ROS carries it: the colour image (bgr8), the depth image (32FC1, metres) and the
+/// camera_info of both, under one header (stamp and optical frame). The one place the project's cameras and their
+/// recordings build these messages.
+struct RgbdFrame {
+  sensor_msgs::ImagePtr colour, depth;
+  sensor_msgs::CameraInfo info;
+
+  RgbdFrame(const std_msgs::Header& header, const cv::Mat& bgr, const cv::Mat& metres, sensor_msgs::CameraInfo info_)
+      : colour(cv_bridge::CvImage(header, "bgr8", bgr).toImageMsg()),
+        depth(cv_bridge::CvImage(header, "32FC1", metres).toImageMsg()),
+        info(std::move(info_)) {
+    info.header = header;
+  }
+
+  /// Each message with its topic relative to `ns` (camera/image_raw, camera/camera_info, camera/depth/image_raw,
+  /// camera/depth/camera_info), for a writer such as rosbag::Bag::write.
+  template <typename Writer>
+  void write(const std::string& ns, const ros::Time& time, Writer&& writer) const {
+    writer(ns + "camera/image_raw", time, colour);
+    writer(ns + "camera/camera_info", time, info);
+    writer(ns + "camera/depth/image_raw", time, depth);
+    writer(ns + "camera/depth/camera_info", time, info);
+  }
+};
+
+/// Publishes RgbdFrames on camera/image_raw, camera/camera_info, camera/depth/image_raw and camera/depth/camera_info
+/// relative to a node handle (camera_info after its image, as image_transport's CameraPublisher does).
+class RgbdPublisher {
+ public:
+  RgbdPublisher() = default;
+  RgbdPublisher(ros::NodeHandle& node, bool latch)
+      : colour_(node.advertise<sensor_msgs::Image>("camera/image_raw", 1, latch)),
+        info_(node.advertise<sensor_msgs::CameraInfo>("camera/camera_info", 1, latch)),
+        depth_(node.advertise<sensor_msgs::Image>("camera/depth/image_raw", 1, latch)),
+        depth_info_(node.advertise<sensor_msgs::CameraInfo>("camera/depth/camera_info", 1, latch)) {}
+
+  void publish(const RgbdFrame& frame) const {
+    colour_.publish(frame.colour);
+    info_.publish(frame.info);
+    depth_.publish(frame.depth);
+    depth_info_.publish(frame.info);
+  }
+
+ private:
+  ros::Publisher colour_, info_, depth_, depth_info_;
+};
 
 }  // namespace bimanual_skills::ros_layer

@@ -55,6 +55,10 @@ struct SimConfig {
   /// out of range, a cloth step that is not a multiple of the step, unreadable plant file).
   static SimConfig fromYamlFile(const std::string& path);
 
+  /// The world a simulation file describes, as a digest (16 hex digits) of its bytes and those of the URDF and plant
+  /// files it names: two processes that report the same digest simulate the same world. \throws like fromYamlFile.
+  static std::string worldDigest(const std::string& path);
+
   /// Throws std::invalid_argument naming the first inconsistent value (checked again by the simulation).
   void validate() const;
 };

@@ -262,6 +262,7 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
                                " within " + std::to_string(robot_.timeout) +
                                " s (a simulator's std_srvs/SetBool; on a robot set the pause service to \"\")");
     }
+    checkWorld(task.sim_config);
   } catch (...) {
     spinner_->stop();
     throw;
@@ -311,6 +312,22 @@ void FoldOnRobotTask::call(const std::string& service, Service& request, double 
   message << what << " (" << client.getService() << "): " << describe(outcome);
   if (outcome != CallOutcome::Failed) message << " within " << timeout << " s";
   throw Failure{tasks::FoldOutcome::RobotFailed, message.str()};
+}
+
+void FoldOnRobotTask::checkWorld(const std::string& sim_config) const {
+  if (robot_.world_digest.empty()) return;
+  const std::string key = node_->resolveName(robot_.world_digest);
+  std::string simulated;
+  if (!ros::param::get(key, simulated)) {
+    ROS_INFO("fold on the robot: no %s: the robot's world is not checked against %s", key.c_str(), sim_config.c_str());
+    return;
+  }
+  const std::string expected = sim::SimConfig::worldDigest(sim_config);
+  if (simulated != expected) {
+    throw std::runtime_error("fold on the robot: the simulator runs another world: " + key + " is " + simulated +
+                             ", the learning's simulation file " + sim_config + " (with its URDF and plant files) " +
+                             expected + "; give both the same files");
+  }
 }
 
 void FoldOnRobotTask::connectArms() {

@@ -1,5 +1,7 @@
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 
+#include "io/digest.hpp"
+
 #include <bimanual_skills/RolloutShare.h>
 
 #include <ros/master.h>
@@ -221,18 +223,7 @@ class TopicWorkerLink : public rollout::WorkerLink {
 }  // namespace
 
 std::string configDigest(const std::string& path) {
-  if (path.empty()) return {};
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return {};
-  std::uint64_t hash = 14695981039346656037ull;  // FNV-1a, 64 bits
-  for (std::istreambuf_iterator<char> c(in), end; c != end; ++c) {
-    hash ^= static_cast<unsigned char>(*c);
-    hash *= 1099511628211ull;
-  }
-  if (in.bad()) return {};
-  char text[17];
-  std::snprintf(text, sizeof text, "%016llx", static_cast<unsigned long long>(hash));
-  return text;
+  return io::fileDigest({path});
 }
 
 std::vector<std::string> splitWorkerNames(const std::string& text) {

@@ -62,6 +62,9 @@ struct FoldRobotInterfaces {
   std::vector<std::string> arms = {"left", "right"};  ///< Namespaces of the arms' actions and states, left first.
   std::string camera = "camera";           ///< CAMERA/image_raw, CAMERA/camera_info, CAMERA/depth/image_raw, ...
   std::string cloth = "bullet_sim/cloth";  ///< Ground truth of the cloth; "" when the robot has none.
+  /// Parameter where a simulator gives the digest of its world (sim::SimConfig::worldDigest): the task refuses to
+  /// start when it differs from the learning's simulation file. Absent (a real robot) or "": not checked.
+  std::string world_digest = "bullet_sim/world_digest";
   /// To the fold's start configuration, at least [s of the robot's clock]: longer where a joint moves far (each
   /// segment within half the joints' velocity limits).
   double move_time = 2.0;
@@ -157,6 +160,8 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   void call(const std::string& service, Service& request, double timeout, const std::string& what);
   /// New action clients for both arms, and the wait for their servers.
   void connectArms();
+  /// Throws std::runtime_error when a simulator says it runs another world than `sim_config`.
+  void checkWorld(const std::string& sim_config) const;
 
   tasks::ClothFoldTask task_;
   tasks::FoldReward reward_;

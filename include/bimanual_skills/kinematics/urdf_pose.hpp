@@ -1,6 +1,7 @@
 /// \file
 /// A URDF pose (urdfdom) as an Eigen transform, for the loaders of URDF files (kinematics' chain loader, the
-/// simulator's Bullet arms). Internal: not installed.
+/// simulator's Bullet arms). Public, so that no module includes another's private header; it needs urdfdom's headers
+/// (urdf_model/pose.h), which only the loaders have.
 #pragma once
 
 #include <urdf_model/pose.h>

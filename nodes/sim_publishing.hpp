@@ -1,0 +1,235 @@
+/// \file
+/// bullet_sim's publishing, off the loop thread: the loop hands each cycle's joint states (hosting::StateSink) and,
+/// at the marker rate, the cloth to two threads through triple buffers and semaphores. The first publishes /clock
+/// and joint_states (and logs the grippers' scheduled commands); the second the scene markers, ~cloth and, at the
+/// camera's rate, the top-down camera's images.
+#pragma once
+
+#include "bimanual_skills/hosting/control_loop.hpp"
+#include "bimanual_skills/realtime/triple_buffer.hpp"
+#include "bimanual_skills/ros_layer/camera_messages.hpp"
+#include "bimanual_skills/sim/bimanual_simulation.hpp"
+#include "bimanual_skills/tasks/fold_reward.hpp"
+#include "bimanual_skills/vision/cloth_renderer.hpp"
+#include "scene_markers.hpp"
+
+#include <ros/ros.h>
+#include <rosgraph_msgs/Clock.h>
+#include <sensor_msgs/JointState.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
+#include <tf2_ros/static_transform_broadcaster.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <semaphore.h>
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace bimanual_skills::nodes {
+
+/// Publishes what the loop hands over. states() runs on the loop thread (real-time safe: copies into preallocated
+/// slots and posts a semaphore); everything else on its own threads.
+class SimPublishing final : public hosting::StateSink {
+ public:
+  struct Settings {
+    double marker_rate = 30.0;  ///< Cloth markers and ~cloth per simulated second.
+    double camera_rate = 30.0;  ///< Camera images per simulated second (0: no camera).
+    vision::RenderNoise camera_noise;
+  };
+  /// Logs, on the publisher thread, the scheduled gripper commands done since the last call.
+  using GripperLog = std::function<void()>;
+
+  SimPublishing(ros::NodeHandle& node, ros::NodeHandle& private_node, const sim::BimanualSimulation& simulation,
+                std::vector<std::string> joint_names, Settings settings, GripperLog log_grippers)
+      : simulation_(simulation),
+        names_(std::move(joint_names)),
+        settings_(settings),
+        log_grippers_(std::move(log_grippers)) {
+    Snapshot initial;
+    initial.position = initial.velocity = initial.effort =
+        Eigen::VectorXd::Zero(static_cast<Eigen::Index>(names_.size()));
+    snapshots_ = std::make_unique<realtime::TripleBuffer<Snapshot>>(initial);
+    ClothFrame frame;
+    if (simulation.hasCloth()) {
+      frame.vertices = simulation.cloth().vertices();
+      triangles_ = simulation.cloth().triangles();
+      if (settings_.camera_rate > 0.0) {
+        vision::ClothRendererParameters camera = tasks::rendererFor(simulation.config());
+        camera.noise = settings_.camera_noise;
+        renderer_ = std::make_unique<vision::ClothRenderer>(camera);
+        camera_rng_.seed(simulation.config().seed);
+      }
+    }
+    frames_ = std::make_unique<realtime::TripleBuffer<ClothFrame>>(frame);
+    sem_init(&state_signal_, 0, 0);
+    sem_init(&scene_signal_, 0, 0);
+    joint_states_ = node.advertise<sensor_msgs::JointState>("joint_states", 10);
+    clock_ = node.advertise<rosgraph_msgs::Clock>("/clock", 10);
+    markers_ = private_node.advertise<visualization_msgs::MarkerArray>("markers", 1, true);
+    cloth_ = private_node.advertise<sensor_msgs::PointCloud2>("cloth", 1, true);
+    if (renderer_) {
+      camera_ = ros_layer::RgbdPublisher(node, false);
+      camera_frame_.sendTransform(
+          ros_layer::cameraTransform(renderer_->parameters().camera, "world", kCameraFrame, ros::Time(0)));
+    }
+    state_thread_ = std::thread([this] { stateLoop(); });
+    scene_thread_ = std::thread([this] { sceneLoop(); });
+  }
+
+  ~SimPublishing() override {
+    running_ = false;
+    sem_post(&state_signal_);
+    sem_post(&scene_signal_);
+    state_thread_.join();
+    scene_thread_.join();
+    sem_destroy(&state_signal_);
+    sem_destroy(&scene_signal_);
+  }
+  SimPublishing(const SimPublishing&) = delete;
+  SimPublishing& operator=(const SimPublishing&) = delete;
+
+  /// Loop thread: the joint states at t; at the marker rate (always when forced) the cloth too, with the camera's
+  /// images when forced (the end of a ~step).
+  void states(double t, const std::vector<sim::JointState>& states, bool forced) noexcept override {
+    Snapshot& s = snapshots_->writeSlot();
+    s.time = t;
+    Eigen::Index offset = 0;
+    for (const sim::JointState& state : states) {
+      const Eigen::Index n = state.position.size();
+      s.position.segment(offset, n) = state.position;
+      s.velocity.segment(offset, n) = state.velocity;
+      s.effort.segment(offset, n) = state.effort;
+      offset += n;
+    }
+    snapshots_->publish();
+    sem_post(&state_signal_);
+    if (simulation_.hasCloth() && (forced || t >= next_marker_ || t < last_marker_)) {
+      ClothFrame& frame = frames_->writeSlot();
+      frame.time = t;
+      frame.vertices = simulation_.cloth().vertices();
+      frame.image = forced;
+      frames_->publish();
+      sem_post(&scene_signal_);
+      next_marker_ = t + 1.0 / settings_.marker_rate;
+      last_marker_ = t;
+    }
+  }
+
+ private:
+  static constexpr const char* kCameraFrame = "top_down_camera";
+
+  struct Snapshot {
+    double time = 0.0;
+    Eigen::VectorXd position, velocity, effort;  ///< All arms, in joint-name order.
+  };
+  struct ClothFrame {
+    double time = 0.0;
+    Eigen::Matrix3Xd vertices;
+    bool image = false;  ///< The camera's images of this frame too, whatever the camera's rate.
+  };
+
+  /// Waits for the loop's signal, at most 0.1 s (so that a stopping node is seen).
+  static void waitForSignal(sem_t& signal) {
+    timespec deadline{};
+    clock_gettime(CLOCK_REALTIME, &deadline);
+    deadline.tv_nsec += 100000000;
+    if (deadline.tv_nsec >= 1000000000) deadline.tv_nsec -= 1000000000, ++deadline.tv_sec;
+    sem_timedwait(&signal, &deadline);
+  }
+
+  /// /clock first, so that the controllers' clocks move before the states arrive.
+  void stateLoop() {
+    sensor_msgs::JointState states;
+    states.name = names_;
+    while (running_ && ros::ok()) {
+      waitForSignal(state_signal_);
+      log_grippers_();
+      const Snapshot* s = snapshots_->readNew();
+      if (!s) continue;
+      const ros::Time stamp(s->time);
+      rosgraph_msgs::Clock clock;
+      clock.clock = stamp;
+      clock_.publish(clock);
+      states.header.stamp = stamp;
+      states.position.assign(s->position.data(), s->position.data() + s->position.size());
+      states.velocity.assign(s->velocity.data(), s->velocity.data() + s->velocity.size());
+      states.effort.assign(s->effort.data(), s->effort.data() + s->effort.size());
+      joint_states_.publish(states);
+    }
+  }
+
+  void sceneLoop() {
+    bool first = true;
+    double next_image = 0.0, last_time = 0.0;
+    while (running_ && ros::ok()) {
+      waitForSignal(scene_signal_);
+      const ClothFrame* frame = frames_->readNew();
+      if (!frame && !first) continue;
+      if (!frame) frame = &frames_->current();
+      first = false;
+      // The table each time too: the topic is latched, and a late subscriber gets only the last message. Stamped
+      // 0 (the latest transform): rviz drops markers stamped before a reset's jump back in time.
+      visualization_msgs::MarkerArray markers;
+      if (simulation_.config().has_table)
+        markers.markers.push_back(tableMarker(simulation_.config().table, ros::Time()));
+      if (simulation_.hasCloth()) markers.markers.push_back(clothMarker(frame->vertices, triangles_, ros::Time()));
+      markers_.publish(markers);
+      if (!simulation_.hasCloth()) continue;
+      cloth_.publish(clothCloud(frame->vertices, ros::Time(frame->time)));
+      // An image every 1/camera_rate simulated seconds, and at once after a reset (time going back).
+      if (renderer_ && (frame->image || frame->time >= next_image - 1e-9 || frame->time < last_time)) {
+        if (renderer_->render(frame->vertices, triangles_, camera_rng_) == vision::VisionStatus::Ok) {
+          std_msgs::Header header;
+          header.stamp = ros::Time(frame->time);
+          header.frame_id = kCameraFrame;
+          camera_.publish(ros_layer::RgbdFrame(header, renderer_->bgr(), renderer_->depth(),
+                                               ros_layer::cameraInfo(renderer_->parameters().camera, header)));
+        }
+        next_image = frame->time + 1.0 / settings_.camera_rate;
+      }
+      last_time = frame->time;
+    }
+  }
+
+  /// The cloth's nodes (world frame) as a point cloud, in the simulation's node order.
+  static sensor_msgs::PointCloud2 clothCloud(const Eigen::Matrix3Xd& vertices, const ros::Time& stamp) {
+    sensor_msgs::PointCloud2 cloud;
+    cloud.header.stamp = stamp;
+    cloud.header.frame_id = "world";
+    sensor_msgs::PointCloud2Modifier modifier(cloud);
+    modifier.setPointCloud2FieldsByString(1, "xyz");
+    modifier.resize(static_cast<std::size_t>(vertices.cols()));
+    sensor_msgs::PointCloud2Iterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z");
+    for (Eigen::Index i = 0; i < vertices.cols(); ++i, ++x, ++y, ++z) {
+      *x = static_cast<float>(vertices(0, i));
+      *y = static_cast<float>(vertices(1, i));
+      *z = static_cast<float>(vertices(2, i));
+    }
+    return cloud;
+  }
+
+  const sim::BimanualSimulation& simulation_;
+  std::vector<std::string> names_;
+  Settings settings_;
+  GripperLog log_grippers_;
+  std::unique_ptr<realtime::TripleBuffer<Snapshot>> snapshots_;
+  std::unique_ptr<realtime::TripleBuffer<ClothFrame>> frames_;
+  Eigen::Matrix3Xi triangles_;                       ///< Constant.
+  std::unique_ptr<vision::ClothRenderer> renderer_;  ///< The top-down camera (scene thread); null without one.
+  std::mt19937 camera_rng_;
+  tf2_ros::StaticTransformBroadcaster camera_frame_;
+  ros::Publisher joint_states_, clock_, markers_, cloth_;
+  ros_layer::RgbdPublisher camera_;
+  sem_t state_signal_{}, scene_signal_{};
+  std::atomic<bool> running_{true};
+  double next_marker_ = 0.0, last_marker_ = 0.0;  ///< Loop thread.
+  std::thread state_thread_, scene_thread_;
+};
+
+}  // namespace bimanual_skills::nodes
