@@ -9,7 +9,10 @@
 //   (tasks/fold_quality.hpp) is the ground truth. Writes DIR/folds.csv (a row per fold, as each finishes), the
 //   camera's images of each fold (DIR/folds/NN_*.png: colour, and depth as 16-bit PNG in units of 0.1 mm), and
 //   Spearman's rank correlation of each setting's reward with q (bootstrap interval over the folds) in
-//   summary.json and tables.md (scripts/plot_fold_benchmark.py).
+//   summary.json and tables.md (scripts/plot_fold_benchmark.py). Each fold is also scored (the first setting) on the
+//   images of the perspective RGB-D camera (tasks::rgbdCameraFor, Kinect-like noise and holes) re-projected into the
+//   reward's map (DIR/folds/NN_rgbd*.png): its Spearman with q and with the orthographic camera's reward, and its
+//   offset (mean and 95 % Student-t interval over the folds).
 // ceiling: q_max, the best fold a search with a large budget and the ground truth itself finds: CMA-ES on q over the
 //   scripted demonstration's reach, lift, release height and duration (60 generations of 10), then CMA-ES on q over
 //   the 12 goal offsets of the learner's policy from the best of those (120 generations of 12): 2040 rollouts.
@@ -19,6 +22,7 @@
 #include "bimanual_skills/learning/covariance_adaptation.hpp"
 #include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/learning/rank_correlation.hpp"
+#include "bimanual_skills/learning/student_t.hpp"
 #include "bimanual_skills/parallel/parallel_for.hpp"
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
@@ -28,6 +32,7 @@
 
 #include <opencv2/imgcodecs.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -38,6 +43,7 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <vector>
 
 namespace bs = bimanual_skills;
@@ -93,6 +99,37 @@ void writeImages(const std::string& dir, const std::string& name, const cv::Mat&
   cv::imwrite(dir + "/" + name + "_depth.png", tenths);
 }
 
+/// The fold reward of one rollout through the perspective RGB-D camera re-projected into the reward's map (flat and
+/// final cloth, noise from `rng`), and the share of the map the camera saw.
+std::pair<bt::FoldRewardTerms, double> perspectiveReward(const br::FoldLearningConfig& config,
+                                                         const std::string& setting, const bt::ClothFoldTask& fold,
+                                                         const bt::FoldRollout& rollout, std::mt19937& rng,
+                                                         const std::string& images = "") {
+  const bt::FoldRewardConfig reward_config = bt::rewardSetting(config.reward, setting, "fold_benchmark");
+  bt::FoldReward reward(reward_config, fold.simConfig().cloth.length * fold.simConfig().cloth.width,
+                        fold.idealFoldVertices(), fold.clothTriangles());
+  bs::vision::PerspectiveRenderer rgbd(config.reward.renderer, bt::rgbdCameraFor(fold.simConfig()));
+  bs::vision::HeightMapProjector projector(config.reward.renderer.camera);
+  rgbd.render(rollout.cloth_rest_vertices, rollout.cloth_triangles, rng);
+  projector.project(rgbd.bgr(), rgbd.depth(), rgbd.camera());
+  reward.observeFlat(projector.bgr(), projector.depth());
+  rgbd.render(rollout.cloth_vertices, rollout.cloth_triangles, rng);
+  const bs::vision::VisionStatus seen = projector.project(rgbd.bgr(), rgbd.depth(), rgbd.camera());
+  const bt::FoldRewardTerms terms =
+      reward.evaluateImages(rollout.outcome, rollout.acceleration_cost, projector.bgr(), projector.depth());
+  const bs::vision::HeightMapCoverage& c = projector.coverage();
+  const double coverage = seen == bs::vision::VisionStatus::Ok ? static_cast<double>(c.observed + c.filled) /
+                                                                     (projector.map().rows * projector.map().columns)
+                                                               : 0.0;
+  if (!images.empty()) {
+    writeImages(std::filesystem::path(images).parent_path().string(), std::filesystem::path(images).filename().string(),
+                rgbd.bgr(), rgbd.depth());
+    writeImages(std::filesystem::path(images).parent_path().string(),
+                std::filesystem::path(images).filename().string() + "_map", projector.bgr(), projector.depth());
+  }
+  return {terms, coverage};
+}
+
 struct FoldResult {
   FoldDraw draw;
   bt::FoldOutcome outcome = bt::FoldOutcome::Ok;
@@ -100,6 +137,10 @@ struct FoldResult {
   bt::FoldQuality fold;
   double acceleration_cost = 0.0;
   std::vector<bt::FoldRewardTerms> terms;  ///< Per reward setting.
+  /// The first setting's reward on the perspective RGB-D camera's images re-projected into the reward's map (the
+  /// same final and flat cloth), and the share of the map the camera saw.
+  bt::FoldRewardTerms perspective;
+  double perspective_coverage = 0.0;
 };
 
 void foldsExperiment(const Options& options, const br::FoldLearningConfig& config, int count,
@@ -113,7 +154,8 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
     csv << ',' << s << "_reward," << s << "_r_acceleration," << s << "_r_color," << s << "_r_depth," << s << "_r_goal,"
         << s << "_goal_mismatch," << s << "_r_fold";
   }
-  csv << ",fold_mismatch,fold_edge,fold_single,fold_length,reason\n";
+  csv << ",fold_mismatch,fold_edge,fold_single,fold_length,perspective_reward,perspective_r_fold,perspective_coverage,"
+         "reason\n";
   std::vector<FoldResult> results(static_cast<std::size_t>(count));
   std::printf("fold_benchmark folds: %d scripted folds of seed %u on %d threads\n", count, options.seed, options.jobs);
   bs::bench::parallelRuns(
@@ -141,6 +183,15 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
             writeImages(image_dir, stem, reward.bgr(), reward.depth());
           }
         }
+        // The same final and flat cloth through the perspective RGB-D camera, re-projected into the reward's map.
+        {
+          std::seed_seq sequence{noise_seed, 0x96bdu};
+          std::mt19937 rng(sequence);
+          char stem[32];
+          std::snprintf(stem, sizeof stem, "/%02d_rgbd", i);
+          std::tie(r.perspective, r.perspective_coverage) =
+              perspectiveReward(config, settings.front(), fold, rollout, rng, image_dir + stem);
+        }
         // The flat cloth as the camera sees it after the reset.
         bs::vision::ClothRenderer renderer(config.reward.renderer);
         std::seed_seq flat_sequence{noise_seed, 0xf1a7u};
@@ -163,8 +214,9 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
               << ',' << t.goal_mismatch << ',' << t.r_fold;
         }
         const bt::FoldRewardTerms& t = r.terms.front();
-        csv << ',' << t.fold_mismatch << ',' << t.fold_edge << ',' << t.fold_single << ',' << t.fold_length << ",\""
-            << r.reason << "\"\n"
+        csv << ',' << t.fold_mismatch << ',' << t.fold_edge << ',' << t.fold_single << ',' << t.fold_length << ','
+            << r.perspective.reward << ',' << r.perspective.r_fold << ',' << r.perspective_coverage << ",\"" << r.reason
+            << "\"\n"
             << std::flush;
         rows.emplace_back()
             .add("experiment", "folds")
@@ -196,6 +248,100 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
         .add("spearman_high", rho.high)
         .add("bootstrap_resamples", rho.resamples);
   }
+  // The perspective camera against the orthographic one on the same folds (the learner's setting): how each ranks
+  // the folds, how they rank each other, and the offset of the perspective reward (mean, 95 % Student-t interval).
+  std::vector<double> orthographic, perspective, offset;
+  for (const FoldResult& r : results) {
+    if (r.outcome != bt::FoldOutcome::Ok) continue;
+    orthographic.push_back(r.terms.front().reward);
+    perspective.push_back(r.perspective.reward);
+    offset.push_back(r.perspective.reward - r.terms.front().reward);
+  }
+  if (q.size() >= 3) {
+    const bs::learning::BootstrapInterval with_q = bs::learning::bootstrapSpearman(perspective, q, 10000, options.seed);
+    const bs::learning::BootstrapInterval with_o =
+        bs::learning::bootstrapSpearman(perspective, orthographic, 10000, options.seed);
+    const bs::learning::MeanInterval shift = bs::learning::meanInterval95(offset);
+    std::printf(
+        "fold_benchmark folds: perspective RGB-D camera (%s reward, re-projected): Spearman with q %.3f [%.3f, %.3f], "
+        "with the orthographic camera's reward %.3f [%.3f, %.3f]; offset %.4f +- %.4f (95 %% t interval, %d folds)\n",
+        settings.front().c_str(), with_q.estimate, with_q.low, with_q.high, with_o.estimate, with_o.low, with_o.high,
+        shift.mean, shift.half_width, shift.n);
+    rows.emplace_back()
+        .add("experiment", "perspective_camera")
+        .add("setting", settings.front())
+        .add("folds", shift.n)
+        .add("spearman_with_q", with_q.estimate)
+        .add("spearman_with_q_low", with_q.low)
+        .add("spearman_with_q_high", with_q.high)
+        .add("spearman_with_orthographic", with_o.estimate)
+        .add("spearman_with_orthographic_low", with_o.low)
+        .add("spearman_with_orthographic_high", with_o.high)
+        .add("offset_mean", shift.mean)
+        .add("offset_half_width_95", shift.half_width)
+        .add("offset_std_dev", shift.std_dev);
+  }
+}
+
+/// rgbd_noise: the first `count` folds of the set, each scored `draws` times with fresh camera noise through the
+/// orthographic and the perspective camera: how much the fold term moves with the sensor's noise alone.
+void rgbdNoiseExperiment(const Options& options, const br::FoldLearningConfig& config, int count, int draws,
+                         std::vector<bs::bench::JsonRow>& rows) {
+  std::ofstream csv(options.out + "/rgbd_noise.csv");
+  csv << "index,fold_quality,draw,camera,fold_mismatch,reward\n";
+  const std::string setting = rewardSettings().front();
+  std::printf("fold_benchmark rgbd_noise: %d folds of seed %u, %d noise draws each, both cameras\n", count,
+              options.seed, draws);
+  std::vector<std::vector<double>> ortho(static_cast<std::size_t>(count)), persp(static_cast<std::size_t>(count));
+  std::vector<double> q(static_cast<std::size_t>(count), std::nan(""));
+  bs::bench::parallelRuns(
+      count, options.jobs,
+      [&](int i) {
+        bt::ClothFoldTask fold(withDemonstration(config.task, drawFold(options.seed, i)));
+        const bt::FoldRollout rollout = fold.run(fold.demonstrationParameters());
+        if (rollout.outcome != bt::FoldOutcome::Ok) return;
+        q[static_cast<std::size_t>(i)] = rollout.fold.q;
+        bt::FoldReward reward(bt::rewardSetting(config.reward, setting, "fold_benchmark"),
+                              fold.simConfig().cloth.length * fold.simConfig().cloth.width, fold.idealFoldVertices(),
+                              fold.clothTriangles());
+        for (int k = 0; k < draws; ++k) {
+          std::seed_seq sequence{options.seed, 0x40d5u, static_cast<std::uint32_t>(i), static_cast<std::uint32_t>(k)};
+          std::mt19937 rng(sequence);
+          ortho[static_cast<std::size_t>(i)].push_back(reward.evaluate(rollout, rng).fold_mismatch);
+          char stem[64];
+          std::snprintf(stem, sizeof stem, "/rgbd_noise/%02d_%02d", i, k);
+          const bool keep = k < 3;
+          if (keep) std::filesystem::create_directories(options.out + "/rgbd_noise");
+          persp[static_cast<std::size_t>(i)].push_back(
+              perspectiveReward(config, setting, fold, rollout, rng, keep ? options.out + stem : "")
+                  .first.fold_mismatch);
+        }
+      },
+      [&](int i) {
+        const auto& o = ortho[static_cast<std::size_t>(i)];
+        const auto& p = persp[static_cast<std::size_t>(i)];
+        if (o.empty()) return;
+        const bs::learning::MeanInterval mo = bs::learning::meanInterval95(o), mp = bs::learning::meanInterval95(p);
+        std::printf(
+            "  fold %2d  q %.3f  fold mismatch: orthographic %.3f sd %.3f [%.3f, %.3f]  perspective %.3f sd %.3f "
+            "[%.3f, %.3f]\n",
+            i, q[static_cast<std::size_t>(i)], mo.mean, mo.std_dev, *std::min_element(o.begin(), o.end()),
+            *std::max_element(o.begin(), o.end()), mp.mean, mp.std_dev, *std::min_element(p.begin(), p.end()),
+            *std::max_element(p.begin(), p.end()));
+        std::fflush(stdout);
+        for (std::size_t k = 0; k < o.size(); ++k) {
+          csv << i << ',' << q[static_cast<std::size_t>(i)] << ',' << k << ",orthographic," << o[k] << ",\n";
+          csv << i << ',' << q[static_cast<std::size_t>(i)] << ',' << k << ",perspective," << p[k] << ",\n";
+        }
+        csv << std::flush;
+        rows.emplace_back()
+            .add("experiment", "rgbd_noise")
+            .add("index", i)
+            .add("fold_quality", q[static_cast<std::size_t>(i)])
+            .add("orthographic_sd", mo.std_dev)
+            .add("perspective_sd", mp.std_dev)
+            .add("perspective_max", *std::max_element(p.begin(), p.end()));
+      });
 }
 
 /// The scripted fold of a point of the unit box: reach 0–1.2, lift 0.1–0.8, release height 0–0.3 m, duration
@@ -310,7 +456,7 @@ int main(int argc, char** argv) {
   program.description =
       "The cloth fold's ground truth (the fold quality q of the simulated mesh) against the camera rewards, on a\n"
       "set of clearly different scripted folds (folds); and q_max, the best fold a large search on q finds (ceiling).";
-  program.experiments = {"folds", "ceiling", "all"};
+  program.experiments = {"folds", "ceiling", "rgbd_noise", "all"};
   program.with_jobs = true;
   program.extra = [&](bs::cli::CommandLine& line) {
     line.option("--config", "FILE", "fold learning file (default: config/fold_demo.yaml)", &config_path);
@@ -322,10 +468,14 @@ int main(int argc, char** argv) {
     const br::FoldLearningConfig config = br::withSimulationRenderer(br::FoldLearningConfig::fromYamlFile(config_path));
     std::filesystem::create_directories(options.out);
     std::vector<bs::bench::JsonRow> rows;
-    if (options.experiment != "ceiling") {
+    if (options.experiment == "folds" || options.experiment == "all") {
       foldsExperiment(options, config, count > 0 ? static_cast<int>(count) : (options.quick ? 4 : 30), rows);
     }
-    if (options.experiment != "folds") ceilingExperiment(options, config, rows);
+    if (options.experiment == "ceiling" || options.experiment == "all") ceilingExperiment(options, config, rows);
+    if (options.experiment == "rgbd_noise" || options.experiment == "all") {
+      rgbdNoiseExperiment(options, config, count > 0 ? static_cast<int>(count) : (options.quick ? 2 : 8),
+                          options.quick ? 3 : 20, rows);
+    }
     bs::bench::writeSummaryJson(options, "fold_benchmark", rows);
     bs::bench::runPlotScript("fold_benchmark", "plot_fold_benchmark.py", options.out);
   } catch (const std::exception& e) {

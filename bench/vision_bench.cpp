@@ -1,7 +1,8 @@
 // The vision module per call: rendering a 20 × 24-node cloth (flat and folded in half) as a top-down colour and
 // depth image at 320 × 240 and 640 × 480, without and with sensor noise; the noise of the same frame drawn with
 // std::normal_distribution on a std::mt19937 (the peer); and the reward's image terms (segmentation, minimum-area
-// rectangle, Sobel) on the rendered images. Seed 7 for the noise.
+// rectangle, Sobel) on the rendered images; the perspective RGB-D camera (640 × 480, Kinect-like errors) and the
+// re-projection of its depth into the 320 × 240 map. Seed 7 for the noise.
 //
 //   vision_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
 //   vision_bench --figures      writes the flat and half-folded cloth's images as PNG into the current directory
@@ -9,6 +10,7 @@
 #include "benchmark_main.hpp"
 #include "bimanual_skills/vision/cloth_renderer.hpp"
 #include "bimanual_skills/vision/image_reward.hpp"
+#include "bimanual_skills/vision/perspective_camera.hpp"
 #include "bimanual_skills/vision/synthetic_cloth.hpp"
 
 #include <benchmark/benchmark.h>
@@ -64,6 +66,30 @@ void BM_Render(benchmark::State& state) {
       },
       1);
   state.counters["cloth_pixels"] = renderer.clothPixelCount();
+}
+
+/// The perspective RGB-D camera (640 × 480, the Kinect of tasks::rgbdCameraFor) over the same scene: render with
+/// the sensor's errors, then re-project into the 320 × 240 map. args {folded, stage: 0 render, 1 re-project}.
+void BM_PerspectiveCamera(benchmark::State& state) {
+  const bv::ClothRendererParameters p = scene(320, 240);
+  const bv::PinholeCamera camera = bv::PinholeCamera::lookingAt(Eigen::Vector3d(1.15, 0.0, p.table.height + 1.3),
+                                                                Eigen::Vector3d(0.5, 0.0, p.table.height));
+  bv::PerspectiveRenderer renderer(p, camera);
+  bv::HeightMapProjector projector(p.camera);
+  const bv::ClothMesh mesh = cloth(p, state.range(0) != 0);
+  const bool project = state.range(1) != 0;
+  std::mt19937 rng(kSeed);
+  renderer.render(mesh.vertices, mesh.triangles, rng);
+  timeBatches(
+      state, 1,
+      [&](int) {
+        const bv::VisionStatus status = project ? projector.project(renderer.bgr(), renderer.depth(), camera)
+                                                : renderer.render(mesh.vertices, mesh.triangles, rng);
+        benchmark::DoNotOptimize(status);
+      },
+      1);
+  state.counters["cloth_pixels"] = renderer.clothPixelCount();
+  if (project) state.counters["map_cells_seen"] = projector.coverage().observed + projector.coverage().filled;
 }
 
 /// The peer of the noise: the same per-pixel draws (depth and three colour channels) from std::normal_distribution
@@ -179,6 +205,10 @@ int writeFigures() {
 BENCHMARK(BM_Render)
     ->ArgsProduct({{320, 640}, {0, 1}, {0, 1}})
     ->ArgNames({"columns", "folded", "noise"})
+    ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_PerspectiveCamera)
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->ArgNames({"folded", "reproject"})
     ->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_NoiseWithStdNormal)->Arg(320)->Arg(640)->ArgName("columns")->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_NoiseWithOpenCv)->Arg(320)->Arg(640)->ArgName("columns")->Unit(benchmark::kMicrosecond);

@@ -75,6 +75,10 @@ const std::string kUsage =
         "  ~camera_rate          top-down camera images per simulated second, at most marker_rate (default 30; 0: no\n"
         "                        camera)\n"
         "  ~camera_depth_noise, ~camera_colour_noise  the camera's noise: depth [m], colour [levels] (0.001, 2)\n"
+        "  ~rgbd_rate            perspective RGB-D camera (Kinect-like, 640 x 480, f 525 px) images per simulated\n"
+        "                        second (default 0: none); ~rgbd_eye, ~rgbd_target [m, world] where it is and looks\n"
+        "                        (default 1.3 m above and 0.65 m beyond the table's centre, looking at it);\n"
+        "                        ~rgbd_depth_noise k of sigma_z = k z^2 [1/m] (1.425e-3), ~rgbd_dropout (0.002)\n"
         "  ~paused               start paused (default false)\n"
         "  ~statistics_file      at exit, write the loop's periods and the times its controllers took commands "
         "(CSV)\n\n"
@@ -84,7 +88,9 @@ const std::string kUsage =
     "  ~markers (cloth TRIANGLE_LIST and table), ~cloth (sensor_msgs/PointCloud2: the cloth's nodes, world frame,\n"
     "  the simulator's ground truth), camera/image_raw (bgr8), camera/depth/image_raw (32FC1 [m]) with\n"
     "  camera/camera_info and camera/depth/camera_info (the orthographic top-down camera of the fold's reward,\n"
-    "  frame top_down_camera on /tf_static), /diagnostics (loop period, real-time factor, allocations per cycle);\n"
+    "  frame top_down_camera on /tf_static), rgbd/image_raw, rgbd/depth/image_raw (32FC1 [m], NaN: no return)\n"
+    "  with rgbd/camera_info, rgbd/depth/camera_info (frame rgbd_camera_optical_frame), /diagnostics (loop period, "
+    "real-time factor, allocations per cycle);\n"
     "  subscribes ARM/effort_command (bimanual_skills/JointEffortCommand; in lockstep each applies to the state\n"
     "  its stamp answers) for external controllers.\n"
     "  Each hosted controller serves ARM/command (trajectory_msgs/JointTrajectory), ARM/follow_joint_trajectory\n"
@@ -202,6 +208,15 @@ class BulletSimNode {
         p.number("camera_depth_noise", publishing.camera_noise.depth_stddev, 0.0, 1.0);
     publishing.camera_noise.colour_stddev =
         p.number("camera_colour_noise", publishing.camera_noise.colour_stddev, 0.0, 255.0);
+    publishing.rgbd_rate = p.number("rgbd_rate", 0.0, 0.0, 1000.0);
+    publishing.rgbd = bs::tasks::rgbdCameraFor(simulation_->config());
+    const Eigen::Vector3d from = publishing.rgbd.pose.translation(), to = simulation_->config().table.topCentre();
+    const auto eye = p.numbers("rgbd_eye", {from.x(), from.y(), from.z()}, 3);
+    const auto target = p.numbers("rgbd_target", {to.x(), to.y(), to.z()}, 3);
+    publishing.rgbd = bs::vision::PinholeCamera::lookingAt(Eigen::Vector3d(eye[0], eye[1], eye[2]),
+                                                           Eigen::Vector3d(target[0], target[1], target[2]));
+    publishing.rgbd_noise.axial = p.number("rgbd_depth_noise", publishing.rgbd_noise.axial, 0.0, 1.0);
+    publishing.rgbd_noise.dropout = p.number("rgbd_dropout", publishing.rgbd_noise.dropout, 0.0, 1.0);
     loop.paused = p.boolean("paused", false);
     statistics_file_ = p.text("statistics_file", "");
     const double command_timeout = p.number("command_timeout", 0.05, 1e-4, 10.0);

@@ -105,6 +105,12 @@ const char* const kUsage =
     "  ~step_service   bimanual_skills/SimStep: with a pause service, the simulator steps from the grasp to the\n"
     "                settled cloth and the images are of that moment exactly (default bullet_sim/step; \"\" on a "
     "robot)\n"
+    "  ~camera_model  orthographic (default: the camera is the reward's own top-down map, bullet_sim's camera/)\n"
+    "                or perspective (an RGB-D camera, rectified pinhole, any pose on tf, e.g. _camera:=bullet_sim's\n"
+    "                rgbd or a Kinect: its depth is re-projected into the reward's map); CameraInfo and frame are\n"
+    "                checked against it and a camera that does not fit is refused with the reason\n"
+    "  ~world_frame   the reward map's frame on tf (default world); ~min_coverage least share of the map a\n"
+    "                perspective camera must see (0.8)\n"
     "  ~world_digest_param  where a simulator gives its world's digest (default bullet_sim/world_digest): a\n"
     "                simulator of another world than ~config's simulation file is refused at start; absent: unchecked\n"
     "\n"
@@ -319,6 +325,9 @@ class FoldLearnerNode {
     robot.camera = parameters_.text("camera", robot.camera);
     robot.cloth = parameters_.text("cloth_topic", robot.cloth);
     robot.world_digest = parameters_.text("world_digest_param", robot.world_digest);
+    robot.camera_model = parameters_.text("camera_model", robot.camera_model);
+    robot.world_frame = parameters_.text("world_frame", robot.world_frame);
+    robot.min_coverage = parameters_.number("min_coverage", robot.min_coverage, 0.0, 1.0);
     robot.move_time = parameters_.number("move_time", robot.move_time, 0.1, 60.0);
     robot.approach_height = parameters_.number("approach_height", robot.approach_height, 0.0, 0.5);
     robot.trajectory_rate = parameters_.number("trajectory_rate", robot.trajectory_rate, 1.0, 1000.0);

@@ -1,8 +1,8 @@
 /// \file
 /// bullet_sim's publishing, off the loop thread: the loop hands each cycle's joint states (hosting::StateSink) and,
 /// at the marker rate, the cloth to two threads through triple buffers and semaphores. The first publishes /clock
-/// and joint_states (and logs the grippers' scheduled commands); the second the scene markers, ~cloth and, at the
-/// camera's rate, the top-down camera's images.
+/// and joint_states (and logs the grippers' scheduled commands); the second the scene markers, ~cloth and, at their
+/// rates, the top-down camera's images and the perspective RGB-D camera's (rgbd/...).
 #pragma once
 
 #include "bimanual_skills/hosting/control_loop.hpp"
@@ -41,6 +41,9 @@ class SimPublishing final : public hosting::StateSink {
     double marker_rate = 30.0;  ///< Cloth markers and ~cloth per simulated second.
     double camera_rate = 30.0;  ///< Camera images per simulated second (0: no camera).
     vision::RenderNoise camera_noise;
+    double rgbd_rate = 0.0;  ///< Perspective RGB-D images per simulated second (0: no such camera).
+    vision::PinholeCamera rgbd;
+    vision::DepthSensorNoise rgbd_noise;
   };
   /// Logs, on the publisher thread, the scheduled gripper commands done since the last call.
   using GripperLog = std::function<void()>;
@@ -65,6 +68,11 @@ class SimPublishing final : public hosting::StateSink {
         renderer_ = std::make_unique<vision::ClothRenderer>(camera);
         camera_rng_.seed(simulation.config().seed);
       }
+      if (settings_.rgbd_rate > 0.0) {
+        rgbd_ = std::make_unique<vision::PerspectiveRenderer>(tasks::rendererFor(simulation.config()), settings_.rgbd,
+                                                              settings_.rgbd_noise);
+        rgbd_rng_.seed(simulation.config().seed + 1u);
+      }
     }
     frames_ = std::make_unique<realtime::TripleBuffer<ClothFrame>>(frame);
     sem_init(&state_signal_, 0, 0);
@@ -73,11 +81,16 @@ class SimPublishing final : public hosting::StateSink {
     clock_ = node.advertise<rosgraph_msgs::Clock>("/clock", 10);
     markers_ = private_node.advertise<visualization_msgs::MarkerArray>("markers", 1, true);
     cloth_ = private_node.advertise<sensor_msgs::PointCloud2>("cloth", 1, true);
+    std::vector<geometry_msgs::TransformStamped> frames;
     if (renderer_) {
       camera_ = ros_layer::RgbdPublisher(node, false);
-      camera_frame_.sendTransform(
-          ros_layer::cameraTransform(renderer_->parameters().camera, "world", kCameraFrame, ros::Time(0)));
+      frames.push_back(ros_layer::cameraTransform(renderer_->parameters().camera, "world", kCameraFrame, ros::Time(0)));
     }
+    if (rgbd_) {
+      rgbd_camera_ = ros_layer::RgbdPublisher(node, false, "rgbd");
+      frames.push_back(ros_layer::cameraTransform(rgbd_->camera(), "world", kRgbdFrame, ros::Time(0)));
+    }
+    if (!frames.empty()) camera_frame_.sendTransform(frames);
     state_thread_ = std::thread([this] { stateLoop(); });
     scene_thread_ = std::thread([this] { sceneLoop(); });
   }
@@ -123,6 +136,7 @@ class SimPublishing final : public hosting::StateSink {
 
  private:
   static constexpr const char* kCameraFrame = "top_down_camera";
+  static constexpr const char* kRgbdFrame = "rgbd_camera_optical_frame";
 
   struct Snapshot {
     double time = 0.0;
@@ -166,7 +180,7 @@ class SimPublishing final : public hosting::StateSink {
 
   void sceneLoop() {
     bool first = true;
-    double next_image = 0.0, last_time = 0.0;
+    double next_image = 0.0, next_rgbd = 0.0, last_time = 0.0;
     while (running_ && ros::ok()) {
       waitForSignal(scene_signal_);
       const ClothFrame* frame = frames_->readNew();
@@ -192,6 +206,16 @@ class SimPublishing final : public hosting::StateSink {
                                                ros_layer::cameraInfo(renderer_->parameters().camera, header)));
         }
         next_image = frame->time + 1.0 / settings_.camera_rate;
+      }
+      if (rgbd_ && (frame->image || frame->time >= next_rgbd - 1e-9 || frame->time < last_time)) {
+        if (rgbd_->render(frame->vertices, triangles_, rgbd_rng_) == vision::VisionStatus::Ok) {
+          std_msgs::Header header;
+          header.stamp = ros::Time(frame->time);
+          header.frame_id = kRgbdFrame;
+          rgbd_camera_.publish(ros_layer::RgbdFrame(header, rgbd_->bgr(), rgbd_->depth(),
+                                                    ros_layer::cameraInfo(rgbd_->camera(), header)));
+        }
+        next_rgbd = frame->time + 1.0 / settings_.rgbd_rate;
       }
       last_time = frame->time;
     }
@@ -223,9 +247,11 @@ class SimPublishing final : public hosting::StateSink {
   Eigen::Matrix3Xi triangles_;                       ///< Constant.
   std::unique_ptr<vision::ClothRenderer> renderer_;  ///< The top-down camera (scene thread); null without one.
   std::mt19937 camera_rng_;
+  std::unique_ptr<vision::PerspectiveRenderer> rgbd_;  ///< The perspective RGB-D camera (scene thread); null without.
+  std::mt19937 rgbd_rng_;
   tf2_ros::StaticTransformBroadcaster camera_frame_;
   ros::Publisher joint_states_, clock_, markers_, cloth_;
-  ros_layer::RgbdPublisher camera_;
+  ros_layer::RgbdPublisher camera_, rgbd_camera_;
   sem_t state_signal_{}, scene_signal_{};
   std::atomic<bool> running_{true};
   double next_marker_ = 0.0, last_marker_ = 0.0;  ///< Loop thread.

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Plots of fold_benchmark: reads DIR/folds.csv, DIR/summary.json and DIR/folds/NN_final.png, writes
 DIR/ranking.png (each reward setting's reward of every fold against the fold's quality q, with Spearman's rho and its
-bootstrap interval), DIR/folds.png (the camera's image of each fold at the end, in order of q) and DIR/tables.md;
+bootstrap interval), DIR/perspective.png (the perspective RGB-D camera against the orthographic one), DIR/folds.png (the camera's image of each fold at the end, in order of q) and DIR/tables.md;
 from DIR/ceiling.csv (the ceiling experiment), DIR/ceiling.png (every rollout's q and the best so far, per stage of
 the search) and q_max in DIR/tables.md. Either experiment's files may be missing.
 
@@ -157,7 +157,70 @@ def folds_tables(directory, summary):
     for label, signal in ABLATION:
         value, low, high = bootstrap_spearman([signal(r) for r in folds], q, resamples=2000)
         lines.append(f'| {label} | {value:.3f} | [{low:.3f}, {high:.3f}] |\n')
+    if 'perspective_reward' in folds[0]:
+        lines += perspective(directory, folds)
     return lines
+
+
+def perspective(directory, folds):
+    """perspective.png (the same fold through both cameras, and the two rewards of every fold) and the tables.md
+    lines comparing the perspective RGB-D camera, re-projected, with the orthographic one on the same folds."""
+    q = [float(r['fold_quality']) for r in folds]
+    ortho = [float(r['fold_reward']) for r in folds]
+    persp = [float(r['perspective_reward']) for r in folds]
+    coverage = [float(r['perspective_coverage']) for r in folds]
+    offset = [p - o for p, o in zip(persp, ortho)]
+    n = len(offset)
+    mean = sum(offset) / n
+    sd = math.sqrt(sum((d - mean) ** 2 for d in offset) / (n - 1))
+    half = stats.t.ppf(0.975, n - 1) * sd / math.sqrt(n)
+    paired = stats.ttest_rel(persp, ortho)
+    wilcoxon = stats.wilcoxon(persp, ortho)
+    rho_p = bootstrap_spearman(persp, q, resamples=2000)
+    rho_o = bootstrap_spearman(ortho, q, resamples=2000)
+    rho_po = bootstrap_spearman(persp, ortho, resamples=2000)
+    # Whether the perspective camera ranks worse: the paired bootstrap of the difference of the two rhos.
+    rng = random.Random(2)
+    differences = []
+    for _ in range(2000):
+        idx = [rng.randrange(n) for _ in range(n)]
+        differences.append(stats.spearmanr([persp[i] for i in idx], [q[i] for i in idx])[0]
+                           - stats.spearmanr([ortho[i] for i in idx], [q[i] for i in idx])[0])
+    differences.sort()
+    low, high = differences[int(0.025 * 1999)], differences[int(0.975 * 1999)]
+    fig, axes = plt.subplots(1, 4, figsize=(19, 4.2))
+    best = max(range(n), key=lambda i: q[i])
+    index = int(folds[best]['index'])
+    for ax, (name, title) in zip(axes[:3], [('final', 'orthographic camera (the reward\'s map)'),
+                                            ('rgbd', 'perspective RGB-D camera (640 x 480)'),
+                                            ('rgbd_map', 'its depth re-projected into the map')]):
+        path = os.path.join(directory, 'folds', f'{index:02d}_{name}.png')
+        if os.path.exists(path):
+            ax.imshow(Image.open(path).convert('RGB'))
+        ax.set_title(f'{title}\nfold {index}, q = {q[best]:.2f}', fontsize=9)
+        ax.axis('off')
+    ax = axes[3]
+    points = ax.scatter(ortho, persp, c=q, cmap='viridis', s=22)
+    lo, hi = min(ortho + persp), max(ortho + persp)
+    ax.plot([lo, hi], [lo, hi], 'k:', lw=0.8, label='equal')
+    ax.set_xlabel('fold reward, orthographic camera')
+    ax.set_ylabel('fold reward, perspective camera re-projected')
+    ax.set_title(f'{n} folds: rho {rho_po[0]:.3f}, offset {mean:+.4f} +- {half:.4f}', fontsize=9)
+    ax.legend(loc='upper left', fontsize=8)
+    fig.colorbar(points, ax=ax, label='fold quality q')
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, 'perspective.png'), dpi=80)
+    plt.close(fig)
+    return [f'\nThe same {n} folds through the perspective RGB-D camera (Kinect-like: 640 x 480, f 525 px, '
+            'sigma_z = 1.425e-3 z^2, 0.2 % random and edge holes), re-projected into the reward\'s map '
+            '(perspective.png):\n\n| | orthographic camera | perspective camera |\n|---|---:|---:|\n',
+            f'| Spearman with q (95 % bootstrap) | {rho_o[0]:.3f} [{rho_o[1]:.3f}, {rho_o[2]:.3f}] | '
+            f'{rho_p[0]:.3f} [{rho_p[1]:.3f}, {rho_p[2]:.3f}] |\n',
+            f'\nPerspective minus orthographic: Spearman with q {rho_p[0] - rho_o[0]:+.3f} (paired bootstrap 95 % '
+            f'[{low:+.3f}, {high:+.3f}]); the two rewards rank the folds alike (Spearman {rho_po[0]:.3f} '
+            f'[{rho_po[1]:.3f}, {rho_po[2]:.3f}]); reward offset {mean:+.4f} +- {half:.4f} (mean, 95 % Student-t '
+            f'interval; paired t test p = {paired.pvalue:.2g}, Wilcoxon p = {wilcoxon.pvalue:.2g}); the camera saw '
+            f'{100 * min(coverage):.1f}-{100 * max(coverage):.1f} % of the map.\n']
 
 
 if __name__ == '__main__':

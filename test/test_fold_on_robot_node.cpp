@@ -82,6 +82,36 @@ std::string configPath() {
   return path;
 }
 
+/// fold_learner's output directory once it wrote summary.json (at most 240 s of wall time); "" if it did not.
+std::string learnerOutput() {
+  std::string out;
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(240.0);
+  while (ros::ok() && ros::WallTime::now() < deadline) {
+    if (ros::param::get("/fold_learner/out", out) && std::filesystem::exists(out + "/summary.json")) return out;
+    ros::WallDuration(0.1).sleep();
+  }
+  return "";
+}
+
+/// A rollouts.csv: its header and rows of cells.
+struct Rollouts {
+  std::vector<std::string> header;
+  std::vector<std::vector<std::string>> rows;
+  /// The index of a column (header.size() when there is none).
+  std::size_t column(const std::string& name) const {
+    return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) - header.begin());
+  }
+};
+
+Rollouts readRollouts(const std::string& dir) {
+  Rollouts r;
+  std::ifstream csv(dir + "/rollouts.csv");
+  std::string line;
+  if (std::getline(csv, line)) r.header = splitCsv(line);
+  while (std::getline(csv, line)) r.rows.push_back(splitCsv(line));
+  return r;
+}
+
 }  // namespace
 
 TEST(FoldOnRobot, LearnsThroughTheTrajectoryActionsTheGripperAndTheCamera) {
@@ -122,28 +152,18 @@ TEST(FoldOnRobot, LearnsThroughTheTrajectoryActionsTheGripperAndTheCamera) {
       "/right/follow_joint_trajectory/result", 20, on_result);
   ros::AsyncSpinner spinner(2);
   spinner.start();
-  std::string out;
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(240.0);
-  while (ros::ok() && ros::WallTime::now() < deadline &&
-         !(ros::param::get("/fold_learner/out", out) && std::filesystem::exists(out + "/summary.json"))) {
-    ros::WallDuration(0.1).sleep();
-  }
-  ASSERT_TRUE(std::filesystem::exists(out + "/summary.json")) << "fold_learner did not finish in 240 s";
-  std::ifstream csv(out + "/rollouts.csv");
-  std::string line;
-  ASSERT_TRUE(std::getline(csv, line));
-  const std::vector<std::string> header = splitCsv(line);
-  const auto column = [&](const std::string& name) {
-    return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) - header.begin());
-  };
-  const std::size_t outcome = column("outcome"), reward = column("reward"), reason = column("reason"),
-                    mismatch = column("fold_mismatch"), r_fold = column("r_fold");
-  ASSERT_LT(reason, header.size());
-  ASSERT_LT(mismatch, header.size());
+  const std::string out = learnerOutput();
+  ASSERT_FALSE(out.empty()) << "fold_learner did not finish in 240 s";
+  const Rollouts rollouts = readRollouts(out);
+  const std::size_t outcome = rollouts.column("outcome"), reward = rollouts.column("reward"),
+                    reason = rollouts.column("reason"), mismatch = rollouts.column("fold_mismatch"),
+                    r_fold = rollouts.column("r_fold");
+  ASSERT_LT(reason, rollouts.header.size());
+  ASSERT_LT(mismatch, rollouts.header.size());
   int rows = 0, ok = 0;
-  while (std::getline(csv, line)) {
-    const std::vector<std::string> cells = splitCsv(line);
-    ASSERT_EQ(cells.size(), header.size()) << line;
+  for (const std::vector<std::string>& cells : rollouts.rows) {
+    const std::string line = cells.empty() ? "" : cells.front() + ", ...";
+    ASSERT_EQ(cells.size(), rollouts.header.size()) << line;
     ++rows;
     EXPECT_TRUE(std::isfinite(std::stod(cells[reward]))) << line;
     EXPECT_FALSE(cells[outcome].empty()) << line;
@@ -315,6 +335,54 @@ TEST(FoldOnRobot, BadInterfaceSettingsAreRefusedByName) {
     } catch (const std::invalid_argument& e) {
       EXPECT_NE(std::string(e.what()).find(name), std::string::npos) << e.what();
     }
+  }
+}
+
+// ------------------------------------------------------------------------------------ fold_perspective.test
+
+// fold_learner scores through bullet_sim's perspective RGB-D camera (rgbd/...), its depth re-projected into the
+// reward's map; a task that takes either camera for the other model is refused at once with the reason.
+TEST(FoldThroughAPerspectiveCamera, LearnsOnTheReprojectedDepthAndRefusesTheWrongModel) {
+  const std::string out = learnerOutput();
+  ASSERT_FALSE(out.empty()) << "fold_learner did not finish in 240 s";
+  const Rollouts rollouts = readRollouts(out);
+  const std::size_t outcome = rollouts.column("outcome"), mismatch = rollouts.column("fold_mismatch");
+  ASSERT_LT(mismatch, rollouts.header.size());
+  int rows = 0, ok = 0;
+  for (const std::vector<std::string>& cells : rollouts.rows) {
+    const std::string line = cells.empty() ? "" : cells.front() + ", ...";
+    ++rows;
+    if (cells[outcome] != "Ok") continue;
+    ++ok;
+    EXPECT_GT(std::stod(cells[mismatch]), 0.02) << line;  // a fold, seen: neither the ideal nor the flat cloth
+    EXPECT_LT(std::stod(cells[mismatch]), 0.9) << line;
+  }
+  EXPECT_EQ(rows, 10);
+  EXPECT_GE(ok, 8);
+  // The pictures are the reward's map (320 x 240), not the camera's 640 x 480 view.
+  const cv::Mat final_image = cv::imread(out + "/final.png", cv::IMREAD_COLOR);
+  ASSERT_FALSE(final_image.empty());
+  EXPECT_EQ(final_image.cols, 320);
+  EXPECT_EQ(final_image.rows, 240);
+
+  const bs::rollout::FoldLearningConfig config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
+  bs::ros_layer::FoldRobotInterfaces robot;
+  robot.timeout = 10.0;
+  robot.camera = "rgbd";
+  robot.camera_model = "orthographic";
+  try {
+    bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
+    ADD_FAILURE() << "a perspective camera taken for the orthographic map";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("set the camera model to perspective"), std::string::npos) << e.what();
+  }
+  robot.camera = "camera";
+  robot.camera_model = "perspective";
+  try {
+    bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
+    ADD_FAILURE() << "the orthographic map taken for a perspective camera";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("set the camera model to orthographic"), std::string::npos) << e.what();
   }
 }
 

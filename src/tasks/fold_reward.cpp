@@ -48,6 +48,11 @@ vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim) {
   return p;
 }
 
+vision::PinholeCamera rgbdCameraFor(const sim::SimConfig& sim) {
+  const Eigen::Vector3d top = sim.table.topCentre();
+  return vision::PinholeCamera::lookingAt(top + Eigen::Vector3d(0.65, 0.0, 1.3), top);
+}
+
 FoldReward::FoldReward(const FoldRewardConfig& config, double flat_area, const Eigen::Matrix3Xd& goal_vertices,
                        const Eigen::Matrix3Xi& triangles)
     : config_(config),

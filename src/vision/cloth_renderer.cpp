@@ -1,5 +1,7 @@
 #include "bimanual_skills/vision/cloth_renderer.hpp"
 
+#include "render_support.hpp"
+
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -20,50 +22,6 @@ namespace {
 
 bool finite(const Eigen::Vector3d& v) {
   return v.allFinite();
-}
-
-/// SplitMix64 (Steele, Lea & Flood 2014): one 64-bit draw per call in about a nanosecond, seeded per render from the
-/// caller's generator; its four 16-bit quarters pick four normal quantiles.
-struct SplitMix64 {
-  std::uint64_t state;
-  std::uint64_t operator()() noexcept {
-    std::uint64_t z = (state += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-  }
-};
-
-/// The 2^16 equiprobable quantiles Φ⁻¹((i + ½) / 2^16) of the standard normal distribution (Newton's method on
-/// Φ(x) = erfc(−x/√2)/2), scaled to unit variance: a draw is one quantile picked by 16 uniform bits.
-std::vector<float> normalQuantiles() {
-  constexpr int kCount = 1 << 16;
-  std::vector<double> x(kCount);
-  const double sqrt2 = std::sqrt(2.0), inv_sqrt_2pi = 1.0 / std::sqrt(2.0 * std::acos(-1.0));
-  for (int i = kCount / 2; i < kCount; ++i) {
-    const double p = (i + 0.5) / kCount;
-    double q = 0.0;
-    for (int iteration = 0; iteration < 100; ++iteration) {
-      const double step = (0.5 * std::erfc(-q / sqrt2) - p) / (inv_sqrt_2pi * std::exp(-0.5 * q * q));
-      q -= step;
-      if (std::abs(step) < 1e-13) break;
-    }
-    x[i] = q;
-    x[kCount - 1 - i] = -q;
-  }
-  double second_moment = 0.0;
-  for (const double q : x) second_moment += q * q / kCount;
-  std::vector<float> quantiles(kCount);
-  for (int i = 0; i < kCount; ++i) quantiles[i] = static_cast<float>(x[i] / std::sqrt(second_moment));
-  return quantiles;
-}
-
-/// Colour in BGR bytes of an RGB colour in [0, 1] times a shading factor.
-cv::Vec3b shade(const Eigen::Vector3d& rgb, double factor) noexcept {
-  const auto byte = [factor](double c) {
-    return static_cast<unsigned char>(std::clamp(std::lround(255.0 * c * factor), 0L, 255L));
-  };
-  return {byte(rgb.z()), byte(rgb.y()), byte(rgb.x())};
 }
 
 }  // namespace

@@ -16,6 +16,8 @@ const char* toString(VisionStatus status) noexcept {
       return "WrongImageSize";
     case VisionStatus::NoCloth:
       return "NoCloth";
+    case VisionStatus::BadCameraPose:
+      return "BadCameraPose";
   }
   return "Unknown";
 }

@@ -7,6 +7,7 @@
 /// x_c = world x, y_c = world −y, z_c = world −z (looking down).
 #pragma once
 
+#include "bimanual_skills/vision/perspective_camera.hpp"
 #include "bimanual_skills/vision/top_down_camera.hpp"
 
 #include <cv_bridge/cv_bridge.h>
@@ -14,6 +15,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <Eigen/Geometry>
 
 #include <string>
 
@@ -48,6 +50,40 @@ inline geometry_msgs::TransformStamped cameraTransform(const vision::TopDownCame
   return t;
 }
 
+/// A perspective camera's sensor_msgs/CameraInfo: plumb_bob without distortion (rectified images), K from its
+/// intrinsics, R the identity, P = [K | 0] (a monocular camera).
+inline sensor_msgs::CameraInfo cameraInfo(const vision::PinholeCamera& camera, const std_msgs::Header& header) {
+  sensor_msgs::CameraInfo info;
+  info.header = header;
+  info.width = static_cast<std::uint32_t>(camera.width);
+  info.height = static_cast<std::uint32_t>(camera.height);
+  info.distortion_model = "plumb_bob";
+  info.D.assign(5, 0.0);
+  info.K = {camera.fx, 0.0, camera.cx, 0.0, camera.fy, camera.cy, 0.0, 0.0, 1.0};
+  info.R = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
+  info.P = {camera.fx, 0.0, camera.cx, 0.0, 0.0, camera.fy, camera.cy, 0.0, 0.0, 0.0, 1.0, 0.0};
+  return info;
+}
+
+/// A perspective camera's optical frame `frame` in `parent` (the world): its pose.
+inline geometry_msgs::TransformStamped cameraTransform(const vision::PinholeCamera& camera, const std::string& parent,
+                                                       const std::string& frame, const ros::Time& stamp) {
+  geometry_msgs::TransformStamped t;
+  t.header.stamp = stamp;
+  t.header.frame_id = parent;
+  t.child_frame_id = frame;
+  const Eigen::Vector3d p = camera.pose.translation();
+  const Eigen::Quaterniond q(camera.pose.linear());
+  t.transform.translation.x = p.x();
+  t.transform.translation.y = p.y();
+  t.transform.translation.z = p.z();
+  t.transform.rotation.x = q.x();
+  t.transform.rotation.y = q.y();
+  t.transform.rotation.z = q.z();
+  t.transform.rotation.w = q.w();
+  return t;
+}
+
 /// One frame of an RGB-D camera as ROS carries it: the colour image (bgr8), the depth image (32FC1, metres) and the
 /// camera_info of both, under one header (stamp and optical frame). The one place the project's cameras and their
 /// recordings build these messages.
@@ -73,16 +109,16 @@ struct RgbdFrame {
   }
 };
 
-/// Publishes RgbdFrames on camera/image_raw, camera/camera_info, camera/depth/image_raw and camera/depth/camera_info
-/// relative to a node handle (camera_info after its image, as image_transport's CameraPublisher does).
+/// Publishes RgbdFrames on NS/image_raw, NS/camera_info, NS/depth/image_raw and NS/depth/camera_info relative to a
+/// node handle (NS "camera" by default; camera_info after its image, as image_transport's CameraPublisher does).
 class RgbdPublisher {
  public:
   RgbdPublisher() = default;
-  RgbdPublisher(ros::NodeHandle& node, bool latch)
-      : colour_(node.advertise<sensor_msgs::Image>("camera/image_raw", 1, latch)),
-        info_(node.advertise<sensor_msgs::CameraInfo>("camera/camera_info", 1, latch)),
-        depth_(node.advertise<sensor_msgs::Image>("camera/depth/image_raw", 1, latch)),
-        depth_info_(node.advertise<sensor_msgs::CameraInfo>("camera/depth/camera_info", 1, latch)) {}
+  RgbdPublisher(ros::NodeHandle& node, bool latch, const std::string& ns = "camera")
+      : colour_(node.advertise<sensor_msgs::Image>(ns + "/image_raw", 1, latch)),
+        info_(node.advertise<sensor_msgs::CameraInfo>(ns + "/camera_info", 1, latch)),
+        depth_(node.advertise<sensor_msgs::Image>(ns + "/depth/image_raw", 1, latch)),
+        depth_info_(node.advertise<sensor_msgs::CameraInfo>(ns + "/depth/camera_info", 1, latch)) {}
 
   void publish(const RgbdFrame& frame) const {
     colour_.publish(frame.colour);

@@ -20,6 +20,7 @@
 #include "bimanual_skills/tasks/cloth_fold.hpp"
 #include "bimanual_skills/vision/cloth_renderer.hpp"
 #include "bimanual_skills/vision/image_reward.hpp"
+#include "bimanual_skills/vision/perspective_camera.hpp"
 
 #include <random>
 #include <string>
@@ -44,6 +45,11 @@ FoldRewardConfig rewardSetting(FoldRewardConfig config, const std::string& name,
 /// The camera and table of a simulation: the table top of `sim` (height, centre, extent) and a 320 × 240 camera
 /// 1.5 m above it centred on the cloth, covering 1 m of table across (3.125 mm pixels).
 vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim);
+
+/// The perspective RGB-D camera of the scene of `sim` (bullet_sim's rgbd/... by default): a Kinect (640 × 480,
+/// f = 525 px) 1.3 m above and 0.65 m beyond the table top's centre on its +x side, looking at that centre (27° off
+/// the vertical, 1.45 m away).
+vision::PinholeCamera rgbdCameraFor(const sim::SimConfig& sim);
 
 /// The reward's terms of one rollout.
 struct FoldRewardTerms {

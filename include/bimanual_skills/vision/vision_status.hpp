@@ -11,6 +11,7 @@ enum class VisionStatus {
   BadTriangle,      ///< A triangle index is negative or not below the vertex count: only the background was rendered.
   WrongImageSize,   ///< An image given to a reward term does not have the size and type the evaluator was built for.
   NoCloth,          ///< No cloth pixel in the image: the reward terms take their worst values.
+  BadCameraPose,    ///< A camera pose that is not finite or not a rigid transform.
 };
 
 /// Name of a status ("Ok", "EmptyMesh", ...), for logs outside the real-time path.

@@ -6,12 +6,14 @@
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
+#include "bimanual_skills/ros_layer/camera_contract.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 
 #include <cv_bridge/cv_bridge.h>
 #include <sensor_msgs/point_cloud2_iterator.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
+#include <tf2_eigen/tf2_eigen.h>
 
 #include <algorithm>
 #include <chrono>
@@ -82,6 +84,13 @@ void FoldRobotInterfaces::validate() const {
   if (reset_service.empty() || grasp_service.empty()) fail("the reset and grasp services need names");
   if (arms.size() != 2) fail("two arms (left, right) are needed, " + std::to_string(arms.size()) + " given");
   if (camera.empty()) fail("the camera needs a namespace");
+  try {
+    cameraModel(camera_model);
+  } catch (const std::invalid_argument& e) {
+    fail(e.what());
+  }
+  if (world_frame.empty()) fail("the world frame needs a name");
+  if (!(min_coverage >= 0.0) || !(min_coverage <= 1.0)) fail("min_coverage must lie in [0, 1]");
   if (!(move_time > 0.0) || !std::isfinite(move_time)) fail("move_time must be finite and > 0");
   if (!(approach_height >= 0.0) || !(approach_height <= 0.5)) fail("approach_height must lie in [0, 0.5] m");
   if (!(trajectory_rate >= 1.0) || !(trajectory_rate <= 1000.0)) fail("trajectory_rate must lie in [1, 1000] Hz");
@@ -155,15 +164,20 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
           }(),
           task_.simConfig().cloth.length * task_.simConfig().cloth.width, task_.idealFoldVertices(),
           task_.clothTriangles()),
-      robot_(robot) {
+      robot_(robot),
+      projector_(reward_.config().renderer.camera) {
   robot_.validate();
+  tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_);
+  if (cameraModel(robot_.camera_model) == CameraModel::Perspective) {
+    recording_projector_ = std::make_unique<vision::HeightMapProjector>(reward_.config().renderer.camera);
+  }
   node_ = std::make_unique<ros::NodeHandle>();
   node_->setCallbackQueue(&queue_);
   const std::string camera = robot_.camera + "/";
   const auto keep = [this](auto& slot) {
     return [this, &slot](const auto& message) {
       const std::lock_guard<std::mutex> lock(mutex_);
-      slot = message;
+      if (sceneCounts(message->header.stamp.toSec())) slot = message;
     };
   };
   image_sub_ = node_->subscribe<sensor_msgs::Image>(camera + "image_raw", 2, keep(image_));
@@ -174,6 +188,7 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
         double t = 0.0;
         {
           const std::lock_guard<std::mutex> lock(mutex_);
+          if (!sceneCounts(depth->header.stamp.toSec())) return;
           depth_ = depth;
           t = (depth->header.stamp - record_start_).toSec();
           if (!recording_frames_ || !image_ || image_->header.stamp != depth->header.stamp || t < next_image_) return;
@@ -183,7 +198,13 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
         try {
           cv::Mat bgr = cv_bridge::toCvCopy(image, "bgr8")->image, metres = cv_bridge::toCvCopy(depth, "32FC1")->image;
           const std::lock_guard<std::mutex> lock(mutex_);
-          if (recording_frames_) addFrame(recording_, t, bgr, metres);  // still this rollout's
+          if (!recording_frames_) return;  // no longer this rollout's
+          if (recording_projector_) {      // a perspective camera's frames as the reward's map shows them
+            if (recording_projector_->project(bgr, metres, camera_) != vision::VisionStatus::Ok) return;
+            bgr = recording_projector_->bgr().clone();
+            metres = recording_projector_->depth().clone();
+          }
+          addFrame(recording_, t, bgr, metres);
         } catch (const cv_bridge::Exception&) {
           // An image of another encoding: observe() fails the rollout with the reason.
         }
@@ -193,6 +214,7 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
     cloth_sub_ = node_->subscribe<sensor_msgs::PointCloud2>(
         robot_.cloth, 2, [this](const sensor_msgs::PointCloud2ConstPtr& cloud) {
           const std::lock_guard<std::mutex> lock(mutex_);
+          if (!sceneCounts(cloud->header.stamp.toSec())) return;
           cloth_ = cloud;
           const double t = (cloud->header.stamp - record_start_).toSec();
           if (!recording_frames_ || t < next_cloth_) return;
@@ -263,6 +285,24 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
                                " s (a simulator's std_srvs/SetBool; on a robot set the pause service to \"\")");
     }
     checkWorld(task.sim_config);
+    // A camera the reward cannot use is refused once, here, with the reason (and again per image, if it changes).
+    sensor_msgs::CameraInfoConstPtr info;
+    try {
+      waitFor(
+          [&] {
+            const std::lock_guard<std::mutex> lock(mutex_);
+            info = info_;
+            return info != nullptr;
+          },
+          "the camera_info of " + node_->resolveName(robot_.camera));
+    } catch (const Failure& f) {
+      throw std::runtime_error("fold on the robot: " + f.reason);
+    }
+    const std::string problem = cameraProblem(*info);
+    if (!problem.empty()) {
+      throw std::runtime_error("fold on the robot: the camera " + node_->resolveName(robot_.camera) + " (" +
+                               robot_.camera_model + ") cannot be used: " + problem);
+    }
   } catch (...) {
     spinner_->stop();
     throw;
@@ -328,6 +368,30 @@ void FoldOnRobotTask::checkWorld(const std::string& sim_config) const {
                              ", the learning's simulation file " + sim_config + " (with its URDF and plant files) " +
                              expected + "; give both the same files");
   }
+}
+
+bool FoldOnRobotTask::sceneCounts(double stamp) {
+  scene_last_stamp_ = stamp;
+  return stamp < scene_before_reset_ - 1e-9 || stamp > scene_reset_answered_;
+}
+
+std::string FoldOnRobotTask::cameraProblem(const sensor_msgs::CameraInfo& info) {
+  const CameraModel model = cameraModel(robot_.camera_model);
+  const vision::TopDownCamera& map = reward_.config().renderer.camera;
+  std::string problem = cameraInfoProblem(info, model, map);
+  if (!problem.empty()) return problem;
+  Eigen::Isometry3d pose;
+  try {
+    pose = tf2::transformToEigen(
+        tf_.lookupTransform(robot_.world_frame, info.header.frame_id, ros::Time(0), ros::Duration(robot_.timeout)));
+  } catch (const tf2::TransformException& e) {
+    return "no transform from " + robot_.world_frame + " to its frame " + info.header.frame_id + " on tf (" + e.what() +
+           ")";
+  }
+  if (model == CameraModel::Orthographic) return orthographicPoseProblem(pose, map);
+  const std::lock_guard<std::mutex> lock(mutex_);  // the recording's projection reads it on the spinner
+  camera_ = pinholeCamera(info, pose);
+  return "";
 }
 
 void FoldOnRobotTask::connectArms() {
@@ -412,9 +476,19 @@ void FoldOnRobotTask::waitUntil(const ros::Time& time, const char* what) {
 }
 
 ros::Time FoldOnRobotTask::reset() {
-  double before[2];
+  double before[2], scene_before = 0.0;
   {
     const std::lock_guard<std::mutex> lock(mutex_);
+    // The camera's and the cloth's messages as the arms' states: none counts until the reset answered, then those of
+    // the reset scene only (stamped before the last one before the reset, or after the last one when it answered),
+    // so that an image of the last rollout's fold, stamped later than the reset scene on a simulator, is not taken
+    // for the flat cloth.
+    scene_before = scene_last_stamp_;
+    scene_before_reset_ = -std::numeric_limits<double>::infinity();
+    scene_reset_answered_ = std::numeric_limits<double>::infinity();
+    image_ = depth_ = nullptr;
+    info_ = nullptr;
+    cloth_ = nullptr;
     for (int a = 0; a < 2; ++a) {
       Arm& arm = *arms_[static_cast<std::size_t>(a)];
       before[a] = arm.stamp;
@@ -438,6 +512,8 @@ ros::Time FoldOnRobotTask::reset() {
       arm.reset_answered = arm.stamp;
       arm.after_reset = 0;
     }
+    scene_before_reset_ = scene_before;
+    scene_reset_answered_ = scene_last_stamp_;
   }
   double after = 0.0;
   waitFor(
@@ -456,6 +532,7 @@ ros::Time FoldOnRobotTask::reset() {
       arm->before_reset = -std::numeric_limits<double>::infinity();
       arm->reset_answered = std::numeric_limits<double>::infinity();
     }
+    scene_before_reset_ = scene_reset_answered_ = std::numeric_limits<double>::infinity();  // all count again
   }
   return ros::Time(std::max(0.0, after));
 }
@@ -663,7 +740,8 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
 }
 
 struct FoldOnRobotTask::Camera {
-  cv_bridge::CvImageConstPtr bgr, metres;
+  cv::Mat bgr, metres;  ///< In the reward's map.
+  ros::Time stamp;
   sensor_msgs::PointCloud2ConstPtr cloth;
 };
 
@@ -679,30 +757,59 @@ FoldOnRobotTask::Camera FoldOnRobotTask::cameraImages(const ros::Time& after, bo
         depth = depth_;
         info = info_;
         out.cloth = cloth_;
-        const auto fresh = [&](const auto& m) { return m && m->header.stamp >= after; };
-        return fresh(image) && fresh(depth) && fresh(info) && (!with_cloth || fresh(out.cloth));
+        // Stamped after `after` and not ahead of this clock: an image of the last rollout's end, rendered late and
+        // stamped later than the reset scene on a simulator whose clock went back, is not of this scene.
+        const ros::Time latest = ros::Time::now() + ros::Duration(kAheadOfClock);
+        const auto fresh = [&](const auto& m) { return m && m->header.stamp >= after && m->header.stamp <= latest; };
+        // One frame: colour and depth taken together (a camera that stamps them apart, within 20 ms).
+        return fresh(image) && fresh(depth) && fresh(info) && (!with_cloth || fresh(out.cloth)) &&
+               std::abs((image->header.stamp - depth->header.stamp).toSec()) <= 0.02;
       },
       "the camera " + robot_.camera + (with_cloth ? " and the cloth " + robot_.cloth : ""));
   if (!with_cloth) out.cloth = nullptr;
-  const vision::TopDownCamera& camera = reward_.config().renderer.camera;
-  if (static_cast<int>(info->width) != camera.columns || static_cast<int>(info->height) != camera.rows) {
-    throw Failure{tasks::FoldOutcome::RobotFailed,
-                  "the camera's images are " + std::to_string(info->width) + " x " + std::to_string(info->height) +
-                      ", the reward's camera " + std::to_string(camera.columns) + " x " + std::to_string(camera.rows)};
+  const std::string problem = cameraProblem(*info);
+  if (!problem.empty()) {
+    throw Failure{tasks::FoldOutcome::RobotFailed, "the camera " + robot_.camera + " cannot be used: " + problem};
   }
+  if (image->width != info->width || image->height != info->height || depth->width != info->width ||
+      depth->height != info->height) {
+    throw Failure{tasks::FoldOutcome::RobotFailed,
+                  "the camera's images are " + std::to_string(image->width) + " x " + std::to_string(image->height) +
+                      " and " + std::to_string(depth->width) + " x " + std::to_string(depth->height) +
+                      ", its camera_info " + std::to_string(info->width) + " x " + std::to_string(info->height)};
+  }
+  cv_bridge::CvImageConstPtr bgr, metres;
   try {
-    out.bgr = cv_bridge::toCvShare(image, "bgr8");
-    out.metres = cv_bridge::toCvShare(depth, "32FC1");
+    bgr = cv_bridge::toCvShare(image, "bgr8");
+    metres = cv_bridge::toCvShare(depth, "32FC1");
   } catch (const cv_bridge::Exception& e) {
     throw Failure{tasks::FoldOutcome::RobotFailed, std::string("unreadable camera image: ") + e.what()};
   }
+  out.stamp = image->header.stamp;
+  if (cameraModel(robot_.camera_model) == CameraModel::Orthographic) {
+    out.bgr = bgr->image;
+    out.metres = metres->image;
+    return out;
+  }
+  const vision::VisionStatus status = projector_.project(bgr->image, metres->image, camera_);
+  const vision::HeightMapCoverage& c = projector_.coverage();
+  const vision::TopDownCamera& map = projector_.map();
+  const double seen = static_cast<double>(c.observed + c.filled) / (map.rows * map.columns);
+  if (status != vision::VisionStatus::Ok || seen < robot_.min_coverage) {
+    std::ostringstream why;
+    why << "the camera's depth re-projected into the reward's map: " << vision::toString(status) << ", " << 100.0 * seen
+        << " % of the map seen (min_coverage " << 100.0 * robot_.min_coverage << " %)";
+    throw Failure{tasks::FoldOutcome::RobotFailed, why.str()};
+  }
+  out.bgr = projector_.bgr();
+  out.metres = projector_.depth();
   return out;
 }
 
 void FoldOnRobotTask::observeFlat(const ros::Time& after) {
   const Camera camera = cameraImages(after, false);
   try {
-    reward_.observeFlat(camera.bgr->image, camera.metres->image);
+    reward_.observeFlat(camera.bgr, camera.metres);
   } catch (const std::invalid_argument& e) {
     throw Failure{tasks::FoldOutcome::RobotFailed, std::string("the camera does not show the flat cloth after the "
                                                                "reset: ") +
@@ -714,7 +821,7 @@ tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double a
   const Camera camera = cameraImages(after, true);
   const sensor_msgs::PointCloud2ConstPtr& cloth = camera.cloth;
   tasks::FoldRewardTerms terms =
-      reward_.evaluateImages(tasks::FoldOutcome::Ok, acceleration_cost, camera.bgr->image, camera.metres->image);
+      reward_.evaluateImages(tasks::FoldOutcome::Ok, acceleration_cost, camera.bgr, camera.metres);
   terms.fold_quality = terms.fold_distance = terms.fold_displacement = std::numeric_limits<double>::quiet_NaN();
   if (cloth) {
     Eigen::Matrix3Xd vertices;
@@ -733,8 +840,7 @@ tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double a
   // The images scored close the recording.
   const std::lock_guard<std::mutex> lock(mutex_);
   recording_frames_ = false;
-  addFrame(recording_, (camera.bgr->header.stamp - record_start_).toSec(), camera.bgr->image.clone(),
-           camera.metres->image.clone());
+  addFrame(recording_, (camera.stamp - record_start_).toSec(), camera.bgr.clone(), camera.metres.clone());
   return terms;
 }
 

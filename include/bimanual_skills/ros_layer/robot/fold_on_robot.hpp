@@ -33,6 +33,7 @@
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
 #include "bimanual_skills/tasks/cloth_fold.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
+#include "bimanual_skills/vision/perspective_camera.hpp"
 
 #include <actionlib/client/simple_action_client.h>
 #include <ros/callback_queue.h>
@@ -40,7 +41,10 @@
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
 #include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
 
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -60,7 +64,14 @@ struct FoldRobotInterfaces {
   /// process reads them; "" on a robot (or to let the simulator run free).
   std::string step_service = "bullet_sim/step";
   std::vector<std::string> arms = {"left", "right"};  ///< Namespaces of the arms' actions and states, left first.
-  std::string camera = "camera";           ///< CAMERA/image_raw, CAMERA/camera_info, CAMERA/depth/image_raw, ...
+  std::string camera = "camera";  ///< CAMERA/image_raw, CAMERA/camera_info, CAMERA/depth/image_raw, ...
+  /// "orthographic": the camera is the reward's own top-down map camera (bullet_sim's camera/...); "perspective": an
+  /// RGB-D camera (rectified pinhole, any pose on tf, e.g. bullet_sim's rgbd/... or a Kinect) whose depth is
+  /// re-projected into that map. The CameraInfo and the frame are checked against the model (camera_contract.hpp).
+  std::string camera_model = "orthographic";
+  std::string world_frame = "world";  ///< The frame of the reward's map (the table's world) on tf.
+  /// The least share of the reward's map a perspective camera must see (points or filled gaps) for a rollout.
+  double min_coverage = 0.8;
   std::string cloth = "bullet_sim/cloth";  ///< Ground truth of the cloth; "" when the robot has none.
   /// Parameter where a simulator gives the digest of its world (sim::SimConfig::worldDigest): the task refuses to
   /// start when it differs from the learning's simulation file. Absent (a real robot) or "": not checked.
@@ -111,6 +122,9 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   /// cloth's ground truth every kClothPeriod (when the robot has it).
   const tasks::FoldRollout& lastRecording() const override { return recording_; }
   static constexpr double kImagePeriod = 0.25, kClothPeriod = 0.05;  ///< [s of the robot's clock]
+  /// A camera or cloth message stamped further ahead of this process's clock [s] is of another timeline (a
+  /// simulator's, before its reset) and not used.
+  static constexpr double kAheadOfClock = 0.5;
 
  private:
   struct Arm;
@@ -143,7 +157,7 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   void resumeAfterFailure() noexcept;
   void waitForGoal(Arm& arm, const std::string& what);
   /// The camera's colour and depth images (and the cloth's cloud, if the robot has one and `with_cloth`) stamped at
-  /// `after` or later, checked against the reward's camera.
+  /// `after` or later, checked against the reward's camera; a perspective camera's re-projected into its map.
   struct Camera;
   Camera cameraImages(const ros::Time& after, bool with_cloth);
   /// The flat cloth after the reset: the fold reward's reference.
@@ -162,6 +176,11 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   void connectArms();
   /// Throws std::runtime_error when a simulator says it runs another world than `sim_config`.
   void checkWorld(const std::string& sim_config) const;
+  /// Why the camera whose camera_info is `info` cannot be used (its model, size, distortion, frame on tf); "" when
+  /// it can. For a perspective camera, sets camera_ (intrinsics and pose).
+  std::string cameraProblem(const sensor_msgs::CameraInfo& info);
+  /// Under mutex_: whether a camera or cloth message stamped `stamp` belongs to the scene since the last reset.
+  bool sceneCounts(double stamp);
 
   tasks::ClothFoldTask task_;
   tasks::FoldReward reward_;
@@ -175,6 +194,17 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   sensor_msgs::ImageConstPtr image_, depth_;
   sensor_msgs::CameraInfoConstPtr info_;
   sensor_msgs::PointCloud2ConstPtr cloth_;
+  /// The camera's and the cloth's messages across a reset (under mutex_), as the arms' states: the latest stamp seen,
+  /// and the window that does not count while a reset runs (see reset()); outside a reset everything counts.
+  double scene_last_stamp_ = -std::numeric_limits<double>::infinity();
+  double scene_before_reset_ = std::numeric_limits<double>::infinity();
+  double scene_reset_answered_ = std::numeric_limits<double>::infinity();
+  tf2_ros::Buffer tf_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  vision::PinholeCamera camera_;          ///< The perspective camera as last checked (under mutex_).
+  vision::HeightMapProjector projector_;  ///< Its images into the reward's map.
+  /// The same for the frames recorded during a rollout (spinner thread, under mutex_); null for an orthographic one.
+  std::unique_ptr<vision::HeightMapProjector> recording_projector_;
   /// While a rollout records (from the fold's start, `record_start_`, to its images): the frames received.
   bool recording_frames_ = false;
   ros::Time record_start_;
