@@ -86,6 +86,19 @@ class RolloutWorker {
       if (pending_ && m->client == pending_->client && m->id == pending_->id) pending_.reset();
       return;
     }
+    // Another learner's share while one runs or waits: answered BUSY, never preempting the first learner's.
+    const std::string& holder = running_ ? current_.client : pending_ ? pending_->client : m->client;
+    if (holder != m->client) {
+      bs::RolloutShareState busy;
+      busy.state = bs::RolloutShareState::BUSY;
+      busy.client = m->client;
+      busy.id = m->id;
+      busy.text = holder;
+      state_.publish(busy);
+      ROS_WARN_THROTTLE(5.0, "rollout_worker %s: busy with a share of %s: one of %s answered BUSY",
+                        ros::this_node::getName().c_str(), holder.c_str(), m->client.c_str());
+      return;
+    }
     if (running_) cancel_ = true;
     if (pending_) {  // never started: its sender hears that it was replaced
       bs::RolloutShareState replaced;

@@ -410,15 +410,37 @@ TEST(Dispatcher, ClearErrorsWhenNoWorkerIsLeftARolloutKillsThemOrAWorkerRefuses)
     }
   }
   {
+    // A worker that refuses (another configuration file on its host, say) is its own fault: left out for good,
+    // warned, and the others do its rollouts, in this batch and the next.
     std::vector<FakeWorker> workers(2);
     workers[1].fault = F::Refuse;
+    std::vector<std::string> warnings;
+    br::DispatchConfig config = quickDispatch();
+    config.log = [&](const std::string& line, bool fault) {
+      if (fault) warnings.push_back(line);
+    };
+    br::Dispatcher dispatcher(std::make_unique<FakeDirectory>(workers, 2), 2, config);
+    const std::vector<br::RolloutResult> first = dispatcher.evaluate(batch(6));
+    EXPECT_EQ(first.size(), 6u);
+    ASSERT_EQ(warnings.size(), 1u);
+    EXPECT_NE(warnings[0].find("w1 lost (it refused the rollouts: unknown task 'toy'; left out of this learning)"),
+              std::string::npos)
+        << warnings[0];
+    const int shares = workers[1].shares;
+    EXPECT_EQ(dispatcher.evaluate(batch(6)).size(), 6u);
+    EXPECT_EQ(workers[1].shares, shares) << "a worker that refused was asked again";
+    EXPECT_EQ(warnings.size(), 1u);
+  }
+  {
+    // When every worker refuses, the learning ends with the reason.
+    std::vector<FakeWorker> workers(2);
+    workers[0].fault = workers[1].fault = F::Refuse;
     br::Dispatcher dispatcher(std::make_unique<FakeDirectory>(workers, 2), 2, quickDispatch());
     try {
       dispatcher.evaluate(batch(6));
       FAIL() << "expected an error";
-    } catch (const std::invalid_argument& e) {
-      EXPECT_NE(std::string(e.what()).find("worker w1 refused the rollouts: unknown task 'toy'"), std::string::npos)
-          << e.what();
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("refused the rollouts: unknown task 'toy'"), std::string::npos) << e.what();
     }
   }
   EXPECT_THROW(br::Dispatcher(nullptr, 2, quickDispatch()), std::invalid_argument);

@@ -6,6 +6,7 @@
 // summary.json must report both workers lost and their rollouts re-dispatched, and the learner must show the tool
 // paths of the workers' rollouts on ~tool_paths.
 #include "bimanual_skills/rollout/fold_learning.hpp"
+#include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "rollout_test_support.hpp"
 
@@ -26,6 +27,7 @@
 #include <mutex>
 #include <sstream>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace br = bimanual_skills::rollout;
@@ -52,6 +54,53 @@ std::map<std::string, std::string> rolloutsByKey(const std::string& path, std::s
   }
   return out;
 }
+
+/// worker_2's topics as a client sees them: its states of the clients named, and its share topic.
+struct WorkerTwo {
+  explicit WorkerTwo(std::vector<std::string> clients) : clients_(std::move(clients)) {
+    state_ = node_.subscribe<bimanual_skills::RolloutShareState>(
+        "/rollout_workers/worker_2/state", 64, [this](const bimanual_skills::RolloutShareStateConstPtr& m) {
+          if (std::find(clients_.begin(), clients_.end(), m->client) == clients_.end()) return;
+          const std::lock_guard<std::mutex> lock(mutex_);
+          heard_.push_back(*m);
+        });
+    share_ = node_.advertise<bimanual_skills::RolloutShare>("/rollout_workers/worker_2/share", 4);
+    spinner_.start();
+  }
+  /// Whether both topics connected within 20 s.
+  bool connected() {
+    const ros::WallTime by = ros::WallTime::now() + ros::WallDuration(20.0);
+    while ((share_.getNumSubscribers() == 0 || state_.getNumPublishers() == 0) && ros::WallTime::now() < by) {
+      ros::WallDuration(0.01).sleep();
+    }
+    return share_.getNumSubscribers() > 0;
+  }
+  void send(const bimanual_skills::RolloutShare& m) { share_.publish(m); }
+  /// The first state heard that `match` accepts, waiting up to 60 s; a default state if none.
+  template <typename Match>
+  bimanual_skills::RolloutShareState first(const Match& match) {
+    const ros::WallTime by = ros::WallTime::now() + ros::WallDuration(60.0);
+    do {
+      {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        for (const bimanual_skills::RolloutShareState& m : heard_) {
+          if (match(m)) return m;
+        }
+      }
+      ros::WallDuration(0.01).sleep();
+    } while (ros::WallTime::now() < by);
+    return bimanual_skills::RolloutShareState{};
+  }
+
+ private:
+  std::vector<std::string> clients_;
+  ros::NodeHandle node_;
+  std::mutex mutex_;
+  std::vector<bimanual_skills::RolloutShareState> heard_;
+  ros::Subscriber state_;
+  ros::Publisher share_;
+  ros::AsyncSpinner spinner_{1};
+};
 
 }  // namespace
 
@@ -169,26 +218,8 @@ TEST(RolloutWorkers, AWorkerRefusesAShareOfAnotherConfigurationFile) {
   EXPECT_NE(digest, bimanual_skills::ros_layer::configDigest(config + ".missing"));
   EXPECT_EQ(bimanual_skills::ros_layer::configDigest(config + ".missing"), "");
 
-  ros::NodeHandle node;
-  std::mutex mutex;
-  std::vector<bimanual_skills::RolloutShareState> ends;
-  const auto state = node.subscribe<bimanual_skills::RolloutShareState>(
-      "/rollout_workers/worker_2/state", 16, [&](const bimanual_skills::RolloutShareStateConstPtr& m) {
-        if (m->client != "digest_test") return;
-        if (m->state == bimanual_skills::RolloutShareState::REFUSED ||
-            m->state == bimanual_skills::RolloutShareState::SUCCEEDED) {
-          const std::lock_guard<std::mutex> lock(mutex);
-          ends.push_back(*m);
-        }
-      });
-  ros::Publisher share = node.advertise<bimanual_skills::RolloutShare>("/rollout_workers/worker_2/share", 4);
-  ros::AsyncSpinner spinner(1);
-  spinner.start();
-  const ros::WallTime connect_by = ros::WallTime::now() + ros::WallDuration(20.0);
-  while ((share.getNumSubscribers() == 0 || state.getNumPublishers() == 0) && ros::WallTime::now() < connect_by) {
-    ros::WallDuration(0.01).sleep();
-  }
-  ASSERT_GT(share.getNumSubscribers(), 0u) << "worker_2 is not there";
+  WorkerTwo worker({"digest_test"});
+  ASSERT_TRUE(worker.connected()) << "worker_2 is not there";
   const auto send = [&](std::uint64_t id, const std::string& with) {
     bimanual_skills::RolloutShare m;
     m.client = "digest_test";
@@ -199,18 +230,11 @@ TEST(RolloutWorkers, AWorkerRefusesAShareOfAnotherConfigurationFile) {
     m.dimension = 2;
     m.parameters = {0.5, -0.5, 1.0, 1.0};
     m.seeds = {1, 2};
-    share.publish(m);
-    const ros::WallTime by = ros::WallTime::now() + ros::WallDuration(20.0);
-    while (ros::WallTime::now() < by) {
-      {
-        const std::lock_guard<std::mutex> lock(mutex);
-        for (const bimanual_skills::RolloutShareState& e : ends) {
-          if (e.id == id) return e;
-        }
-      }
-      ros::WallDuration(0.01).sleep();
-    }
-    return bimanual_skills::RolloutShareState{};
+    worker.send(m);
+    return worker.first([id](const bimanual_skills::RolloutShareState& e) {
+      return e.id == id && (e.state == bimanual_skills::RolloutShareState::REFUSED ||
+                            e.state == bimanual_skills::RolloutShareState::SUCCEEDED);
+    });
   };
   const bimanual_skills::RolloutShareState refused = send(1, "0123456789abcdef");
   EXPECT_EQ(refused.state, bimanual_skills::RolloutShareState::REFUSED);
@@ -218,6 +242,44 @@ TEST(RolloutWorkers, AWorkerRefusesAShareOfAnotherConfigurationFile) {
   const bimanual_skills::RolloutShareState ran = send(2, digest);
   EXPECT_EQ(ran.state, bimanual_skills::RolloutShareState::SUCCEEDED) << ran.text;
   EXPECT_EQ(ran.rewards.size(), 2u);
+}
+
+// A worker running one learner's share answers another learner's share BUSY instead of dropping the first.
+TEST(RolloutWorkers, ABusyWorkerAnswersBusyToAnotherClientAndFinishesItsShare) {
+  std::string config;
+  ros::param::get("~config", config);
+  const Eigen::VectorXd fold = br::makeRolloutTask("fold", config)->initialParameters();
+  WorkerTwo worker({"busy_a", "busy_b"});
+  ASSERT_TRUE(worker.connected()) << "worker_2 is not there";
+  const auto heard = [&](const std::string& client, std::uint8_t which) {
+    return worker.first(
+        [&](const bimanual_skills::RolloutShareState& m) { return m.client == client && m.state == which; });
+  };
+  bimanual_skills::RolloutShare a;
+  a.client = "busy_a";
+  a.id = 1;
+  a.task = "fold";
+  a.config = config;
+  a.dimension = static_cast<std::uint32_t>(fold.size());
+  for (int k = 0; k < 2; ++k) a.parameters.insert(a.parameters.end(), fold.data(), fold.data() + fold.size());
+  a.seeds = {1, 2};
+  worker.send(a);
+  ASSERT_EQ(heard("busy_a", bimanual_skills::RolloutShareState::RUNNING).id, 1u) << "the fold share did not start";
+  bimanual_skills::RolloutShare b;
+  b.client = "busy_b";
+  b.id = 7;
+  b.task = "quadratic";
+  b.dimension = 2;
+  b.parameters = {0.5, -0.5};
+  b.seeds = {1};
+  worker.send(b);
+  const bimanual_skills::RolloutShareState busy = heard("busy_b", bimanual_skills::RolloutShareState::BUSY);
+  EXPECT_EQ(busy.id, 7u) << "no BUSY for the second client";
+  EXPECT_EQ(busy.text, "busy_a");
+  const bimanual_skills::RolloutShareState end = worker.first([](const bimanual_skills::RolloutShareState& m) {
+    return m.client == "busy_a" && m.state != bimanual_skills::RolloutShareState::RUNNING;
+  });
+  EXPECT_EQ(end.state, bimanual_skills::RolloutShareState::SUCCEEDED) << "the first share was dropped: " << end.text;
 }
 
 int main(int argc, char** argv) {

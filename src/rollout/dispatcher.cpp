@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <deque>
+#include <map>
 #include <set>
 #include <stdexcept>
 #include <thread>
@@ -91,7 +92,9 @@ void Dispatcher::join(const std::vector<std::string>& alive, std::vector<std::st
   for (const std::string& name : alive) {
     const bool known = std::any_of(workers_.begin(), workers_.end(),
                                    [&](const std::unique_ptr<Worker>& w) { return w->name == name; });
-    if (known || std::find(left_out.begin(), left_out.end(), name) != left_out.end()) continue;
+    if (known || std::find(left_out.begin(), left_out.end(), name) != left_out.end() || refused_.count(name) > 0) {
+      continue;
+    }
     std::unique_ptr<WorkerLink> link = directory_->connect(name);
     if (!link) {
       left_out.push_back(name);  // tried once per look-up round: connecting can take seconds
@@ -162,9 +165,12 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
       if (stopping && !busy) throw std::runtime_error("stopped");
       if (workers_.empty()) {
         if (secondsSince(waiting) > config_.wait_for_workers) {
+          std::string refusals;
+          for (const auto& [name, why] : refused_) refusals += "; " + name + " " + why;
           throw std::runtime_error("dispatch: no rollout worker alive for " +
                                    std::to_string(static_cast<int>(config_.wait_for_workers)) + " s (" +
-                                   std::to_string(batch.size() - reported) + " rollouts left) " + directory_->where());
+                                   std::to_string(batch.size() - reported) + " rollouts left) " + directory_->where() +
+                                   (refusals.empty() ? std::string() : " (left out" + refusals + ")"));
         }
         std::this_thread::sleep_for(std::chrono::duration<double>(std::min(0.2, config_.wait_for_workers)));
         discover();
@@ -240,9 +246,14 @@ std::vector<RolloutResult> Dispatcher::evaluate(const std::vector<RolloutRequest
             }
             break;
           }
-          case WorkerLink::State::Refused:
-            cancelAll();
-            throw std::invalid_argument("dispatch: worker " + w.name + " refused the rollouts: " + status.reason);
+          case WorkerLink::State::Refused: {
+            // That worker's fault (another configuration file on its host, a task it lacks): left out for good, its
+            // rollouts go to the others; a request every worker refuses fails on max_attempts of them.
+            const std::string why = "it refused the rollouts: " + (status.reason.empty() ? "no reason" : status.reason);
+            refused_[w.name] = why;
+            drop(at--, why + "; left out of this learning");
+            break;
+          }
           case WorkerLink::State::Lost:
             drop(at--, status.reason.empty() ? "lost" : status.reason);
             break;

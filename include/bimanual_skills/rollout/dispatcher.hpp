@@ -14,6 +14,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -27,7 +28,7 @@ class WorkerLink {
     Idle,      ///< No share (before start() or after its results were taken).
     Running,   ///< Working on its share.
     Finished,  ///< The share's results are in `results` (their count and contents are checked by the dispatcher).
-    Refused,   ///< The worker refused the share (unknown task, bad configuration): an error of the request.
+    Refused,   ///< The worker refused the share (a task or configuration it lacks): it is left out, warned.
     Lost,      ///< The worker is gone or failed in a way that says nothing about the request.
   };
   struct Status {
@@ -104,9 +105,10 @@ class Dispatcher : public Evaluator {
   Dispatcher(std::unique_ptr<WorkerDirectory> directory, std::size_t terms, DispatchConfig config);
   ~Dispatcher() override;
 
-  /// Evaluator::evaluate on the workers; `done` gets no task. \throws std::runtime_error when no worker is alive
-  /// for config.wait_for_workers, when a rollout failed on config.max_attempts workers, or "stopped";
-  /// std::invalid_argument when a worker refused the request (with its reason).
+  /// Evaluator::evaluate on the workers; `done` gets no task. A worker that refuses a share (another configuration
+  /// file on its host, a task it lacks) is left out of this learning, warned, and its rollouts go to the others.
+  /// \throws std::runtime_error when no worker is alive for config.wait_for_workers (naming those left out and
+  /// why), when a rollout failed on config.max_attempts workers (a request every worker refuses), or "stopped".
   std::vector<RolloutResult> evaluate(const std::vector<RolloutRequest>& batch, const Done& done = {},
                                       const std::function<bool()>& stop = {}) override;
 
@@ -132,6 +134,7 @@ class Dispatcher : public Evaluator {
   std::vector<std::unique_ptr<Worker>> workers_;
   double rollout_seconds_ = 0.0;  ///< Mean wall time of a rollout on the workers, over every result so far.
   std::size_t timed_ = 0;         ///< Results behind that mean.
+  std::map<std::string, std::string> refused_;  ///< Workers that refused a share, and why: never joined again.
 };
 
 }  // namespace bimanual_skills::rollout

@@ -30,7 +30,8 @@ bool endsWith(const std::string& s, const std::string& tail) {
 
 bool terminal(std::uint8_t state) {
   return state == RolloutShareState::SUCCEEDED || state == RolloutShareState::REFUSED ||
-         state == RolloutShareState::FAILED || state == RolloutShareState::CANCELLED;
+         state == RolloutShareState::FAILED || state == RolloutShareState::CANCELLED ||
+         state == RolloutShareState::BUSY;
 }
 
 class TopicWorkerLink : public rollout::WorkerLink {
@@ -85,7 +86,9 @@ class TopicWorkerLink : public rollout::WorkerLink {
       active_ = message.id;
       done_ = 0;
       end_.reset();
-      last_heard_ = ros::WallTime::now();
+      taken_ = false;
+      dropped_.clear();
+      last_heard_ = sent_ = ros::WallTime::now();
     }
     share_.publish(message);
     return true;
@@ -105,6 +108,17 @@ class TopicWorkerLink : public rollout::WorkerLink {
       if ((ros::WallTime::now() - lastHeard()).toSec() > kSilence) {
         return lost("not heard for " + std::to_string(static_cast<int>(kSilence)) + " s");
       }
+      std::string dropped;
+      {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        dropped = dropped_;
+        // Heard, but never with this share, for as long as a silent worker gets: it did not take it.
+        if (dropped.empty() && !taken_ && (ros::WallTime::now() - sent_).toSec() > kSilence) {
+          dropped = "it never took the share (heard idle or busy with another for " +
+                    std::to_string(static_cast<int>(kSilence)) + " s)";
+        }
+      }
+      if (!dropped.empty()) return lost(dropped);
       status.state = State::Running;
       return status;
     }
@@ -118,6 +132,8 @@ class TopicWorkerLink : public rollout::WorkerLink {
         return status;
       case RolloutShareState::FAILED:
         return lost(end->text.empty() ? "it failed" : end->text);
+      case RolloutShareState::BUSY:
+        return lost("it is busy with a share of " + (end->text.empty() ? std::string("another client") : end->text));
       default:
         return lost("its share was cancelled" + (end->text.empty() ? std::string() : ": " + end->text));
     }
@@ -144,7 +160,22 @@ class TopicWorkerLink : public rollout::WorkerLink {
     const std::lock_guard<std::mutex> lock(mutex_);
     heard_ = true;
     last_heard_ = ros::WallTime::now();
-    if (active_ == 0 || m->id != active_ || m->client != client_ || end_) return;
+    if (active_ == 0 || end_) return;
+    const bool ours = m->id == active_ && m->client == client_;
+    if (!ours) {
+      if (m->state == RolloutShareState::RUNNING && m->client == client_) {
+        if (!taken_) sent_ = last_heard_;  // still finishing an earlier share of ours (cancelled): it waits
+        return;
+      }
+      // Once it ran this share, a heartbeat without it means the worker dropped it (restarted, or taken over).
+      if (taken_ && dropped_.empty() && m->state == RolloutShareState::IDLE) {
+        dropped_ = "it went idle holding the share (restarted?)";
+      } else if (taken_ && dropped_.empty() && m->state == RolloutShareState::RUNNING) {
+        dropped_ = "it runs a share of " + m->client + " instead of this one";
+      }
+      return;
+    }
+    taken_ = true;
     done_ = m->done;
     if (terminal(m->state)) end_ = m;
   }
@@ -160,8 +191,9 @@ class TopicWorkerLink : public rollout::WorkerLink {
     end_.reset();
   }
 
+  /// A lost worker: its share is cancelled there (a worker still alive stops running what others now run).
   Status lost(const std::string& why) {
-    forget();
+    cancel();
     Status status;
     status.state = State::Lost;
     status.reason = why;
@@ -215,6 +247,9 @@ class TopicWorkerLink : public rollout::WorkerLink {
   std::uint64_t active_ = 0;  ///< The share running, 0 for none.
   std::size_t done_ = 0;
   RolloutShareStateConstPtr end_;  ///< Its final state, once heard.
+  bool taken_ = false;             ///< The worker was heard with the share (running it, or its end).
+  std::string dropped_;            ///< Why the worker, once it had the share, no longer has it ("": it has).
+  ros::WallTime sent_;             ///< When the share was sent.
   ros::Publisher share_;
   /// Last, so that it is shut down first: its callback uses the members above.
   ros::Subscriber state_;
