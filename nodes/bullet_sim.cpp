@@ -14,6 +14,7 @@
 #include "bimanual_skills/ros_layer/hosted_loop.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
+#include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
 #include "node_cli.hpp"
 #include "sim_publishing.hpp"
@@ -53,6 +54,8 @@ const std::string kUsage =
         "driver would. Simulated time is published on /clock (set /use_sim_time true for the other nodes).\n\n"
         "Parameters (private, defaults in config/bullet_sim.yaml):\n"
         "  ~config               simulation file (default: the package's config/sim.yaml)\n"
+        "  ~robot                robot file (default: the simulation file's): arms, URDF, plant, start, braking,\n"
+        "                        payload, and the controllers' chains, gains and friction by default\n"
         "  ~hosted_controllers   arms whose controller runs in this node's loop (default: all); each reads its\n"
         "                        parameters from ARM/ctc_controller/ (see below)\n"
         "  ~external_controllers arms commanded on ARM/effort_command by a separate controller (ctc_controller);\n"
@@ -182,8 +185,12 @@ class BulletSimNode {
     private_node.deleteParam("world_digest");  // ours, of an earlier run: set below
     bs::ros_layer::ParameterReader p(private_node, "bullet_sim");
     const std::string config_path = p.text("config", ros::package::getPath("bimanual_skills") + "/config/sim.yaml");
-    simulation_ = std::make_unique<sim::BimanualSimulation>(sim::SimConfig::fromYamlFile(config_path));
-    world_digest_ = sim::SimConfig::worldDigest(config_path);
+    const std::string robot_path = p.text("robot", "");
+    simulation_ = std::make_unique<sim::BimanualSimulation>(sim::SimConfig::fromYamlFile(config_path, robot_path));
+    world_digest_ = sim::SimConfig::worldDigest(config_path, robot_path);
+    if (!simulation_->config().robot_path.empty()) {
+      robot_file_ = sim::RobotFile::fromYamlFile(simulation_->config().robot_path);
+    }
     robot_ = std::make_unique<SimulatedRobot>(*simulation_);
     bs::hosting::LoopSettings loop;
     loop.period = simulation_->stepSize();
@@ -198,7 +205,7 @@ class BulletSimNode {
           "SCHED_FIFO it would starve every other thread of its core (set ~loop_priority 0)");
     }
     max_step_duration_ = p.number("max_step_duration", 60.0, simulation_->stepSize(), 86400.0);
-    max_payload_ = p.number("max_payload", 4.0, 0.0, 1000.0);
+    max_payload_ = p.number("max_payload", robot_file_ ? robot_file_->rated_payload : 4.0, 0.0, 1000.0);
     max_force_ = p.number("max_force", 200.0, 0.0, 1e9);
     max_torque_ = p.number("max_torque", 50.0, 0.0, 1e9);
     bs::nodes::SimPublishing::Settings publishing;
@@ -246,12 +253,16 @@ class BulletSimNode {
     for (std::size_t a = 0; a < all_arms.size(); ++a) {
       const int n = simulation_->jointCount(static_cast<int>(a));
       const auto size = static_cast<std::size_t>(n);
-      initial_.push_back(simulation_->trueState(static_cast<int>(a)).q);
+      const sim::RobotArm* from_robot = robot_file_ ? robot_file_->arm(all_arms[a]) : nullptr;
+      initial_.push_back(from_robot ? from_robot->start : simulation_->trueState(static_cast<int>(a)).q);
       if (p.has("initial_positions/" + all_arms[a])) {
         const auto q = p.numbers("initial_positions/" + all_arms[a], {}, size);
         initial_.back() = Eigen::Map<const Eigen::VectorXd>(q.data(), n);
       }
-      const auto d = p.numbers("braking_damping", std::vector<double>(size, 10.0), size, 0.0, 1e4);
+      const Eigen::VectorXd braking =
+          robot_file_ ? robot_file_->braking_damping : Eigen::VectorXd(Eigen::VectorXd::Constant(n, 10.0));
+      const auto d = p.numbers("braking_damping", std::vector<double>(braking.data(), braking.data() + braking.size()),
+                               size, 0.0, 1e4);
       damping.push_back(Eigen::Map<const Eigen::VectorXd>(d.data(), n));
       joint_names_.push_back(simulation_->armModel(static_cast<int>(a)).jointNames());
       names.insert(names.end(), joint_names_.back().begin(), joint_names_.back().end());
@@ -267,8 +278,9 @@ class BulletSimNode {
       const bool is_external = std::find(external.begin(), external.end(), arm) != external.end();
       if (std::find(hosted.begin(), hosted.end(), arm) != hosted.end()) {
         if (is_external) throw std::invalid_argument("arm '" + arm + "' is both hosted and external");
-        controllers_.push_back(bs::ros_layer::hostArmController(*loop_, static_cast<int>(a), node, arm, joint_names_[a],
-                                                                description, "bullet_sim"));
+        controllers_.push_back(bs::ros_layer::hostArmController(
+            *loop_, static_cast<int>(a), node, arm, joint_names_[a], description, "bullet_sim",
+            bs::ros_layer::controllerDefaults(robot_file_ ? &*robot_file_ : nullptr, arm)));
         continue;
       }
       // Commanded from outside: on a queue and thread of their own, handed to the loop lock-free.
@@ -551,6 +563,7 @@ class BulletSimNode {
 
   std::unique_ptr<sim::BimanualSimulation> simulation_;
   std::unique_ptr<SimulatedRobot> robot_;
+  std::optional<sim::RobotFile> robot_file_;  ///< The robot the simulation runs (none when its file names the arms).
   bs::hosting::ScopedCounterProbe<bs::testing::AllocationCounter> probe_;  ///< The loop's allocations per cycle.
   std::vector<Eigen::VectorXd> initial_;
   std::vector<std::vector<std::string>> joint_names_;

@@ -9,6 +9,8 @@
 #include "bimanual_skills/realtime/loop_pacer.hpp"
 #include "bimanual_skills/realtime/period_recorder.hpp"
 #include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
+#include "bimanual_skills/ros_layer/hosted_loop.hpp"
+#include "bimanual_skills/sim/robot_file.hpp"
 #include "node_cli.hpp"
 
 #include <ros/callback_queue.h>
@@ -40,6 +42,8 @@ const std::string kUsage =
         "\n"
         "Parameters (private; config/ctc_controller.yaml holds the defaults):\n"
         "  ~arm                  arm name (default: the namespace)\n"
+        "  ~robot                robot file (config/robots/*.yaml): the arm's chain, gains and friction model by\n"
+        "                        default\n"
         "  ~loop_priority        SCHED_FIFO priority of the control thread, 1-99 (0: unchanged, the default)\n"
         "  ~statistics_file      at exit, write the control steps' wall periods and the times commands were taken\n"
         "                        (CSV)\n") +
@@ -65,13 +69,20 @@ class CtcControllerNode {
     const std::string arm = parameters.text("arm", ns);
     loop_priority_ = parameters.integer("loop_priority", 0, 0, 99);
     statistics_file_ = parameters.text("statistics_file", "");
+    // The robot file (config/robots/*.yaml), when given: the arm's chain, gains and friction model by default.
+    const std::string robot_path = parameters.text("robot", "");
+    bs::ros_layer::ControllerDefaults defaults;
     if (arm.empty()) throw std::invalid_argument("no arm name: run in the arm's namespace (__ns:=left) or set ~arm");
     std::string description, key;
     if (!private_node.searchParam("robot_description", key) || !ros::param::get(key, description)) {
       throw std::invalid_argument("parameter 'robot_description' is not set");
     }
+    if (!robot_path.empty()) {
+      const bs::sim::RobotFile robot = bs::sim::RobotFile::fromYamlFile(robot_path);
+      defaults = bs::ros_layer::controllerDefaults(&robot, arm);
+    }
     interface_ = std::make_unique<bs::ros_layer::ArmControllerInterface>(node, parameters, arm, description,
-                                                                         "ctc_controller " + arm);
+                                                                         "ctc_controller " + arm, defaults);
     parameters.warnUnknown();
     const int n = static_cast<int>(interface_->jointNames().size());
     q_ = qd_ = applied_ = torque_ = Eigen::VectorXd::Zero(n);

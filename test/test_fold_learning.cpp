@@ -329,16 +329,14 @@ TEST(FoldLearning, SameOnAnyThreadsAndResumes) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("another reward"), std::string::npos) << e.what();
   }
-  // So is another world: the simulation file with a heavier cloth (its URDF and plant named by absolute paths).
+  // So is another world: the simulation file with a heavier cloth (its robot file named by an absolute path).
   {
     std::string text = bimanual_skills::testing::readTextFile(config.task.sim_config);
     const std::string config_dir = kSource + "/config/";
-    for (const auto& [key, file] : {std::pair<std::string, std::string>{"urdf: ", "../urdf/bimanual_wam.urdf"},
-                                    std::pair<std::string, std::string>{"plant: ", "plant.yaml"}}) {
-      const std::string::size_type at = text.find(key + file);
-      ASSERT_NE(at, std::string::npos) << key << file;
-      text.replace(at, key.size() + file.size(), key + config_dir + file);
-    }
+    const std::string robot = "robot: robots/wam.yaml";
+    const std::string::size_type at = text.find(robot);
+    ASSERT_NE(at, std::string::npos) << robot;
+    text.replace(at, robot.size(), "robot: " + config_dir + "robots/wam.yaml");
     const std::string::size_type mass = text.find("mass: 0.22");
     ASSERT_NE(mass, std::string::npos);
     text.replace(mass, 10, "mass: 0.44");

@@ -42,7 +42,8 @@ TEST(NodeParameters, OutOfRangeAndMistypedValuesStopTheNodeWithTheReason) {
   // Lists cannot be given on a command line: set on the master first.
   ros::param::set("/sim_d/hosted_controllers", std::vector<std::string>{"middle"});
   ros::param::set("/left/ctc_a/kp", std::vector<double>{1.0, 2.0});
-  const std::string sim = BULLET_SIM, ctc = std::string(CTC_CONTROLLER) + " __ns:=left", ik = IK_SERVER;
+  const std::string sim = BULLET_SIM, ik = IK_SERVER;
+  const std::string ctc = std::string(CTC_CONTROLLER) + " __ns:=left _robot:=" + ROBOT_FILE;
   const std::vector<std::pair<std::string, std::string>> cases = {
       {sim + " __name:=sim_a _realtime_factor:=-1", "parameter /sim_a/realtime_factor = -1 is out of range [0, 1000]"},
       {sim + " __name:=sim_b _lockstep:=maybe", "parameter /sim_b/lockstep must be true or false"},

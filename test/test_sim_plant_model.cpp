@@ -1,6 +1,7 @@
 // The configuration files of the simulator: config/plant.yaml and config/sim.yaml load; bad files are rejected with
 // messages that name the file and the entry.
 #include "bimanual_skills/sim/plant_model.hpp"
+#include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 
 #include <gtest/gtest.h>
@@ -154,4 +155,67 @@ TEST(SimConfigFiles, BadSimulationFilesNameTheFileAndTheEntry) {
     EXPECT_NE(message.find(c.expected), std::string::npos) << c.file << ": " << message;
     EXPECT_NE(message.find(path), std::string::npos) << c.file << " names the file: " << message;
   }
+}
+
+// ---- robot files (config/robots/*.yaml) ----
+
+TEST(RobotFile, TheWamFileGivesWhatTheSimulationAndTheControllersUsed) {
+  const bs::sim::RobotFile wam = bs::sim::RobotFile::fromYamlFile(kConfig + "/robots/wam.yaml");
+  EXPECT_EQ(wam.name, "wam");
+  ASSERT_EQ(wam.arms.size(), 2u);
+  EXPECT_EQ(wam.arms[0].name, "left");
+  EXPECT_EQ(wam.arms[1].tip_link, "right_wam_tool");
+  EXPECT_TRUE(fs::exists(wam.urdf_path));
+  EXPECT_TRUE(fs::exists(wam.arms[1].friction_file));
+  EXPECT_EQ(wam.kp.size(), 7);
+  EXPECT_EQ(wam.kp[0], 150.0);
+  EXPECT_EQ(wam.braking_damping[6], 0.5);
+  EXPECT_EQ(wam.rated_payload, 4.0);
+  EXPECT_EQ(wam.arms[0].start[3], 2.0);
+  ASSERT_NE(wam.arm("right"), nullptr);
+  EXPECT_EQ(wam.arm("middle"), nullptr);
+  // config/sim.yaml names it: the same arms, URDF and plant as a file that names them itself (test/sim_500hz.yaml).
+  const SimConfig via_robot = SimConfig::fromYamlFile(kConfig + "/sim.yaml");
+  const SimConfig explicit_arms = SimConfig::fromYamlFile(BIMANUAL_SKILLS_SOURCE_DIR "/test/sim_500hz.yaml");
+  EXPECT_EQ(fs::canonical(via_robot.urdf_path), fs::canonical(explicit_arms.urdf_path));
+  EXPECT_EQ(fs::canonical(via_robot.plant_path), fs::canonical(explicit_arms.plant_path));
+  ASSERT_EQ(via_robot.arms.size(), explicit_arms.arms.size());
+  for (std::size_t a = 0; a < via_robot.arms.size(); ++a) {
+    EXPECT_EQ(via_robot.arms[a].base_link, explicit_arms.arms[a].base_link);
+    EXPECT_EQ(via_robot.arms[a].tip_link, explicit_arms.arms[a].tip_link);
+  }
+  EXPECT_EQ(fs::canonical(via_robot.robot_path), fs::canonical(kConfig + "/robots/wam.yaml"));
+  // A robot given to a file that names its arms replaces them.
+  EXPECT_EQ(SimConfig::fromYamlFile(BIMANUAL_SKILLS_SOURCE_DIR "/test/sim_500hz.yaml", kConfig + "/robots/wam.yaml")
+                .robot_path,
+            kConfig + "/robots/wam.yaml");
+}
+
+TEST(RobotFile, BadRobotFilesAreRefusedNamingTheEntry) {
+  const std::string urdf = BIMANUAL_SKILLS_SOURCE_DIR "/urdf/bimanual_wam.urdf";
+  const std::string plant = kConfig + "/plant.yaml";
+  const auto robot = [&](const std::string& arms, const std::string& extra) {
+    return "name: test\nurdf: " + urdf + "\nplant: " + plant + "\nrated_payload: 4\narms:\n" + arms +
+           "kp: [1, 1, 1, 1, 1, 1, 1]\nkv: [1, 1, 1, 1, 1, 1, 1]\nbraking_damping: [1, 1, 1, 1, 1, 1, 1]\n" + extra;
+  };
+  const std::string left =
+      "  - {name: left, base_link: left_wam_base, tip_link: left_wam_tool, start: [0, 0.6, 0, 2, 0, 0.5, 0]}\n";
+  const auto load = [](const std::string& path) { return bs::sim::RobotFile::fromYamlFile(path); };
+  EXPECT_EQ(errorOf([&] { load(write("robot_ok.yaml", robot(left, ""))); }), "no exception");
+  EXPECT_NE(errorOf([&] { load(write("robot_extra.yaml", robot(left, "kd: [1]\n"))); }).find("kd"), std::string::npos);
+  EXPECT_NE(errorOf([&] { load(write("robot_twice.yaml", robot(left + left, ""))); }).find("taken by another arm"),
+            std::string::npos);
+  const std::string far =
+      "  - {name: left, base_link: left_wam_base, tip_link: left_wam_tool, start: [0, 0.6, 0, 9, 0, 0.5, 0]}\n";
+  EXPECT_NE(errorOf([&] { load(write("robot_far.yaml", robot(far, ""))); }).find("outside the URDF's joint limits"),
+            std::string::npos);
+  const std::string short_start =
+      "  - {name: left, base_link: left_wam_base, tip_link: left_wam_tool, start: [0, 0.6, 0]}\n";
+  EXPECT_NE(errorOf([&] { load(write("robot_short.yaml", robot(short_start, ""))); }).find("start"), std::string::npos);
+  const std::string no_link =
+      "  - {name: left, base_link: left_wam_base, tip_link: nowhere, start: [0, 0.6, 0, 2, 0, 0.5, 0]}\n";
+  EXPECT_NE(errorOf([&] { load(write("robot_link.yaml", robot(no_link, ""))); }).find("nowhere"), std::string::npos);
+  // A simulation file naming a robot and arms of its own is ambiguous.
+  const std::string both = write("sim_both.yaml", "robot: " + kConfig + "/robots/wam.yaml\nurdf: " + urdf + "\n");
+  EXPECT_NE(errorOf([&] { SimConfig::fromYamlFile(both); }).find("the robot file gives them"), std::string::npos);
 }

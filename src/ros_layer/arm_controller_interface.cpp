@@ -21,10 +21,11 @@ namespace bc = bimanual_skills::control;
 using Result = bimanual_skills::FollowJointTrajectoryResult;
 
 const char* const kControllerParameterHelp =
-    "  base_link, tip_link   the arm's chain in robot_description (default ARM_wam_base, ARM_wam_tool)\n"
-    "  kp, kv                PD gains per joint [N m/rad, N m s/rad] (default 50, 5)\n"
+    "  base_link, tip_link   the arm's chain in robot_description (default: the robot file's)\n"
+    "  kp, kv                PD gains per joint [N m/rad, N m s/rad] (default: the robot file's, else 50, 5)\n"
     "  torque_limit, velocity_limit  per joint (default: the URDF's limits)\n"
-    "  friction_file         friction model YAML (fit_friction's output); empty: no friction compensation\n"
+    "  friction_file         friction model YAML (fit_friction's output; default: the robot file's); empty: no\n"
+    "                        friction compensation\n"
     "  observer/{k11,k12,k21,k22,sigma}  disturbance observer gains (diagonal; thesis eq. 4.14)\n"
     "  observer/{rate,fir_taps,fir_cutoff}  its nominal rate [Hz] and velocity FIR (the robot's rate may differ:\n"
     "                        the observer integrates the measured dt; a mismatch is warned about)\n"
@@ -62,10 +63,18 @@ double offsetOf(const ros::Time& start, const ros::Time& now) {
 }  // namespace
 
 ControllerSettings readControllerSettings(ParameterReader& p, const std::string& arm,
-                                          const std::string& robot_description) {
+                                          const std::string& robot_description, const ControllerDefaults& defaults) {
   ControllerSettings s;
-  s.base_link = p.text("base_link", arm + "_wam_base");
-  s.tip_link = p.text("tip_link", arm + "_wam_tool");
+  const auto link = [&](const char* key, const std::string& robot) {
+    const std::string value = p.text(key, robot);
+    if (value.empty()) {
+      throw std::invalid_argument("parameter " + p.name(key) + " is not set and no robot file gives " + arm + "'s " +
+                                  key);
+    }
+    return value;
+  };
+  s.base_link = link("base_link", defaults.base_link);
+  s.tip_link = link("tip_link", defaults.tip_link);
   try {
     s.model = std::make_shared<const kinematics::ChainModel>(
         kinematics::ChainModel::fromUrdfString(robot_description, s.base_link, s.tip_link));
@@ -76,15 +85,18 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
   const kinematics::ChainModel& model = *s.model;
   const auto n = static_cast<std::size_t>(model.nq());
   bc::ArmControllerConfig& c = s.config;
-  c.gains.kp = vector(p.numbers("kp", std::vector<double>(n, 50.0), n, 0.0, 1e5));
-  c.gains.kv = vector(p.numbers("kv", std::vector<double>(n, 5.0), n, 0.0, 1e4));
+  const auto gains = [n](const Eigen::VectorXd& robot, double otherwise) {
+    return static_cast<std::size_t>(robot.size()) == n ? stdVector(robot) : std::vector<double>(n, otherwise);
+  };
+  c.gains.kp = vector(p.numbers("kp", gains(defaults.kp, 50.0), n, 0.0, 1e5));
+  c.gains.kv = vector(p.numbers("kv", gains(defaults.kv, 5.0), n, 0.0, 1e4));
   c.gains.torque_limit = vector(p.numbers("torque_limit", stdVector(model.effortLimits()), n, 1e-6, 1e4));
   c.velocity_limit = vector(p.numbers("velocity_limit", stdVector(model.velocityLimits()), n, 1e-6, 100.0));
   c.state_timeout = p.number("state_timeout", 0.05, 1e-3, 10.0);
   c.trajectory_capacity = p.integer("trajectory_capacity", 2000, 2, 100000);
   c.stop_deceleration = p.number("stop_deceleration", 5.0, 1e-3, 1e4);
   c.min_stop_time = p.number("min_stop_time", 0.05, 1e-3, 10.0);
-  s.friction_file = p.text("friction_file", "");
+  s.friction_file = p.text("friction_file", defaults.friction_file);
   if (s.friction_file.empty()) {
     s.friction.joints.assign(n, dynamics::JointFriction{});
     c.friction_compensation = false;
@@ -121,9 +133,9 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
 
 ArmControllerInterface::ArmControllerInterface(ros::NodeHandle node, ParameterReader& parameters,
                                                const std::string& arm, const std::string& robot_description,
-                                               const std::string& owner)
+                                               const std::string& owner, const ControllerDefaults& defaults)
     : arm_(arm), owner_(owner), node_(node) {
-  settings_ = readControllerSettings(parameters, arm, robot_description);
+  settings_ = readControllerSettings(parameters, arm, robot_description, defaults);
   controller_ = std::make_unique<bc::RealtimeArmController>(*settings_.model, settings_.friction, settings_.config);
   joint_names_ = settings_.model->jointNames();
   kinematics_ = std::make_unique<kinematics::ChainData>(*settings_.model);

@@ -1,4 +1,5 @@
 #include "bimanual_skills/sim/sim_config.hpp"
+#include "bimanual_skills/sim/robot_file.hpp"
 
 #include "io/digest.hpp"
 #include "io/yaml_io.hpp"
@@ -109,22 +110,43 @@ void SimConfig::validate() const {
   }
 }
 
-std::string SimConfig::worldDigest(const std::string& path) {
-  const SimConfig config = fromYamlFile(path);
+std::string SimConfig::worldDigest(const std::string& path, const std::string& robot) {
+  const SimConfig config = fromYamlFile(path, robot);
   std::vector<std::string> files{path, config.urdf_path};
+  if (!config.robot_path.empty()) files.push_back(config.robot_path);
   if (!config.plant_path.empty()) files.push_back(config.plant_path);
   const std::string digest = io::fileDigest(files);
   if (digest.empty()) throw std::invalid_argument("cannot read the files of the simulation '" + path + "'");
   return digest;
 }
 
-SimConfig SimConfig::fromYamlFile(const std::string& path) {
+SimConfig SimConfig::fromYamlFile(const std::string& path, const std::string& robot) {
   const std::string where = "simulation file '" + path + "'";
   const YAML::Node root = io::loadYamlFile(path, where);
   if (!root.IsMap()) fail(where + ": must be a map");
-  io::checkKeys(root, where, {"urdf", "plant", "step", "seed", "gravity", "arms", "table", "cloth"});
+  io::checkKeys(root, where, {"robot", "urdf", "plant", "step", "seed", "gravity", "arms", "table", "cloth"});
   SimConfig config;
-  config.urdf_path = io::resolvePath(path, io::readString(root, "urdf", where));
+  if (root["robot"] && (root["urdf"] || root["plant"] || root["arms"])) {
+    fail(where + ": names a 'robot' file and 'urdf', 'plant' or 'arms' too: the robot file gives them");
+  }
+  if (!robot.empty() || root["robot"]) {
+    config.robot_path = robot.empty() ? io::resolvePath(path, io::readString(root, "robot", where)) : robot;
+    const RobotFile file = RobotFile::fromYamlFile(config.robot_path);
+    config.urdf_path = file.urdf_path;
+    config.plant_path = file.plant_path;
+    for (const RobotArm& arm : file.arms) config.arms.push_back({arm.name, arm.base_link, arm.tip_link});
+  } else {
+    config.urdf_path = io::resolvePath(path, io::readString(root, "urdf", where));
+    config.plant_path = io::resolvePath(path, io::readString(root, "plant", where));
+    const YAML::Node arms = root["arms"];
+    if (!arms || !arms.IsSequence() || arms.size() == 0) fail(where + ": needs a non-empty list 'arms'");
+    for (std::size_t k = 0; k < arms.size(); ++k) {
+      const std::string at = where + " arm " + std::to_string(k + 1);
+      io::checkKeys(arms[k], at, {"name", "base_link", "tip_link"});
+      config.arms.push_back({io::readString(arms[k], "name", at), io::readString(arms[k], "base_link", at),
+                             io::readString(arms[k], "tip_link", at)});
+    }
+  }
   config.step = io::readDouble(root, "step", where, config.step);
   if (root["seed"]) {
     const double seed = io::readDouble(root, "seed", where);
@@ -132,15 +154,6 @@ SimConfig SimConfig::fromYamlFile(const std::string& path) {
     config.seed = static_cast<std::uint32_t>(seed);
   }
   if (root["gravity"]) config.gravity = io::readVector(root, "gravity", where, 3);
-
-  const YAML::Node arms = root["arms"];
-  if (!arms || !arms.IsSequence() || arms.size() == 0) fail(where + ": needs a non-empty list 'arms'");
-  for (std::size_t k = 0; k < arms.size(); ++k) {
-    const std::string at = where + " arm " + std::to_string(k + 1);
-    io::checkKeys(arms[k], at, {"name", "base_link", "tip_link"});
-    config.arms.push_back({io::readString(arms[k], "name", at), io::readString(arms[k], "base_link", at),
-                           io::readString(arms[k], "tip_link", at)});
-  }
 
   config.has_table = static_cast<bool>(root["table"]);
   if (config.has_table) {
@@ -154,7 +167,6 @@ SimConfig SimConfig::fromYamlFile(const std::string& path) {
   config.has_cloth = static_cast<bool>(root["cloth"]);
   if (config.has_cloth) config.cloth = readCloth(root["cloth"], where + " cloth", config.grasp_radius);
 
-  config.plant_path = io::resolvePath(path, io::readString(root, "plant", where));
   config.plant = PlantModel::fromYamlFile(config.plant_path);
   for (const ArmConfig& arm : config.arms) {
     if (!config.plant.hasArm(arm.name)) {

@@ -24,7 +24,7 @@ using primitives::CartesianDmp;
 using primitives::CartesianDmpState;
 using primitives::Pose;
 
-/// Low computed-torque gains (about a tenth of libbarrett's stiff position gains; config/ctc_controller.yaml).
+/// Low computed-torque gains (about a tenth of libbarrett's stiff position gains; config/robots/wam.yaml).
 const Eigen::VectorXd kDefaultKp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
 const Eigen::VectorXd kDefaultKv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
 /// |q̈_ref| below this counts as no acceleration for the observer's friction sign [rad/s²].

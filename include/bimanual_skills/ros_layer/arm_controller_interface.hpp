@@ -38,14 +38,22 @@ struct ControllerSettings {
   double loop_timeout = 0.5;  ///< [s of the robot's clock] without a control cycle: the active goal is aborted.
 };
 
+/// Defaults of a controller's parameters that come from the robot (its robot file, sim/robot_file.hpp): the chain,
+/// the gains and the friction model. A parameter that is set wins.
+struct ControllerDefaults {
+  std::string base_link, tip_link, friction_file;
+  Eigen::VectorXd kp, kv;  ///< Empty: the built-in 50 and 5 per joint.
+};
+
 /// The parameters a controller reads (under its parameter namespace), with their meaning, for --help texts.
 extern const char* const kControllerParameterHelp;
 
-/// Reads and checks the controller parameters of arm `arm` (base/tip links default to ARM_wam_base and
-/// ARM_wam_tool) for the chain that `robot_description` gives. \throws std::invalid_argument with the parameter's
-/// name and the reason for a mistyped or out-of-range value, an unknown link or an unreadable friction file.
+/// Reads and checks the controller parameters of arm `arm` for the chain that `robot_description` gives, with the
+/// robot's `defaults`. \throws std::invalid_argument with the parameter's name and the reason for a mistyped or
+/// out-of-range value, an unknown link, no link given (neither parameter nor robot) or an unreadable friction file.
 ControllerSettings readControllerSettings(ParameterReader& parameters, const std::string& arm,
-                                          const std::string& robot_description);
+                                          const std::string& robot_description,
+                                          const ControllerDefaults& defaults = ControllerDefaults());
 
 /// One arm's controller as ROS sees it. The loop that drives it calls realtime().update(...) on its own thread;
 /// everything here runs on the callback queue of `node` (whatever spins it). Topics, the action and the service
@@ -55,7 +63,8 @@ class ArmControllerInterface {
   /// Reads the controller parameters through `parameters` (the caller warns about unknown keys when it has read
   /// its own). \throws std::invalid_argument (see readControllerSettings).
   ArmControllerInterface(ros::NodeHandle node, ParameterReader& parameters, const std::string& arm,
-                         const std::string& robot_description, const std::string& owner);
+                         const std::string& robot_description, const std::string& owner,
+                         const ControllerDefaults& defaults = ControllerDefaults());
   ~ArmControllerInterface();
   ArmControllerInterface(const ArmControllerInterface&) = delete;
   ArmControllerInterface& operator=(const ArmControllerInterface&) = delete;

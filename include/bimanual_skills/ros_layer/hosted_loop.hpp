@@ -8,6 +8,7 @@
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/sim/robot_file.hpp"
 
 #include <diagnostic_msgs/DiagnosticStatus.h>
 #include <ros/ros.h>
@@ -21,6 +22,15 @@
 
 namespace bimanual_skills::ros_layer {
 
+/// The controller defaults the robot file gives arm `arm` (its chain, gains and friction model); none without a
+/// file. \throws std::invalid_argument when the file has no such arm.
+inline ControllerDefaults controllerDefaults(const sim::RobotFile* robot, const std::string& arm) {
+  if (!robot) return {};
+  const sim::RobotArm* a = robot->arm(arm);
+  if (!a) throw std::invalid_argument("the robot file " + robot->path + " has no arm '" + arm + "'");
+  return {a->base_link, a->tip_link, a->friction_file, robot->kp, robot->kv};
+}
+
 /// Arm `arm` (index `index` of the loop's robot, joints `joints`) driven in `loop` by a computed-torque controller
 /// whose parameters are ARM/ctc_controller/* and whose topics, action and services are ARM/...
 /// (ArmControllerInterface); its goals are aborted with the reason when the loop stops. `owner` prefixes the log lines.
@@ -30,11 +40,12 @@ inline std::unique_ptr<ArmControllerInterface> hostArmController(hosting::Contro
                                                                  ros::NodeHandle& node, const std::string& arm,
                                                                  const std::vector<std::string>& joints,
                                                                  const std::string& description,
-                                                                 const std::string& owner) {
+                                                                 const std::string& owner,
+                                                                 const ControllerDefaults& defaults = {}) {
   ros::NodeHandle arm_node(node, arm);
   ParameterReader parameters(ros::NodeHandle(arm_node, "ctc_controller"), owner + ": " + arm + " controller");
   auto controller = std::make_unique<ArmControllerInterface>(arm_node, parameters, arm, description,
-                                                             owner + ": " + arm + " controller");
+                                                             owner + ": " + arm + " controller", defaults);
   parameters.warnUnknown();
   if (controller->jointNames() != joints) {
     throw std::invalid_argument("the controller of '" + arm +

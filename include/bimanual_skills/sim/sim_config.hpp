@@ -34,6 +34,7 @@ struct SimConfig {
   double grasp_radius = 0.04;  ///< Nodes within this distance of a tool are grasped [m].
   PlantModel plant;            ///< True plant, one entry per arm name.
   std::string plant_path;      ///< Where `plant` was read from (informative).
+  std::string robot_path;      ///< The robot file the arms, URDF and plant came from ("" when the file names them).
   std::uint32_t seed = 1;      ///< Seed of the sensor noise generator.
 
   /// Reads a simulation file; relative paths in it (`urdf`, `plant`) are relative to the file's directory:
@@ -53,11 +54,15 @@ struct SimConfig {
   /// \endcode
   /// \throws std::invalid_argument naming the file and the entry (missing or unknown entries, wrong types, values
   /// out of range, a cloth step that is not a multiple of the step, unreadable plant file).
-  static SimConfig fromYamlFile(const std::string& path);
+  /// Instead of `urdf`, `plant` and `arms`, a simulation file may name a robot file (`robot: robots/wam.yaml`,
+  /// sim/robot_file.hpp) that gives them; a non-empty `robot` here replaces whichever the file names (the scene,
+  /// step and seed stay the file's).
+  static SimConfig fromYamlFile(const std::string& path, const std::string& robot = "");
 
-  /// The world a simulation file describes, as a digest (16 hex digits) of its bytes and those of the URDF and plant
-  /// files it names: two processes that report the same digest simulate the same world. \throws like fromYamlFile.
-  static std::string worldDigest(const std::string& path);
+  /// The world a simulation file describes (with `robot` as fromYamlFile), as a digest (16 hex digits) of its bytes
+  /// and those of the robot, URDF and plant files it names: two processes that report the same digest simulate the
+  /// same world. \throws like fromYamlFile.
+  static std::string worldDigest(const std::string& path, const std::string& robot = "");
 
   /// Throws std::invalid_argument naming the first inconsistent value (checked again by the simulation).
   void validate() const;
