@@ -1,11 +1,13 @@
 // ik_server: forward and inverse kinematics services for each arm of a robot description.
 //   <arm>/solve_ik (bimanual_skills/SolveIk): global CLIK solver, MoveIt error codes
 //   <arm>/solve_fk (bimanual_skills/SolveFk)
-// Parameters (private): arms [{name, base_link, tip_link}], method, default_timeout, max_timeout, max_attempts,
+// Parameters (private): arms [{name, base_link, tip_link}] (or robot, a robot file that names them), method,
+// default_timeout, max_timeout, max_attempts,
 // tf_timeout; see config/ik_server.yaml. A thin shell: all kinematics is in the core library.
 #include "bimanual_skills/SolveFk.h"
 #include "bimanual_skills/SolveIk.h"
 #include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/sim/robot_file.hpp"
 
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "node_cli.hpp"
@@ -314,7 +316,8 @@ Inverse and forward kinematics services for each arm of robot_description: <arm>
 (bimanual_skills/SolveIk: the global CLIK solver, modes first/closest/all, any of the thesis' methods by name,
 MoveIt error codes) and <arm>/solve_fk (bimanual_skills/SolveFk). Start it with launch/ik_server.launch.
 
-parameters (private, config/ik_server.yaml): arms [{name, base_link, tip_link}], method (default ED),
+parameters (private, config/ik_server.yaml): arms [{name, base_link, tip_link}] (default: those of robot, a robot
+file, config/robots/*.yaml), method (default ED),
   default_timeout, max_timeout, max_attempts, tf_timeout
 reads: robot_description, tf
 example: rosservice call /left/solve_ik "{target: {header: {frame_id: world}, pose: {position: {x: 0.55, y: 0.25,
@@ -331,6 +334,7 @@ int main(int argc, char** argv) {
   global.start();
   ros::NodeHandle private_node("~");
   Settings settings;
+  std::string robot_path;
   bimanual_skills::ros_layer::ParameterReader parameters(private_node, "ik_server");
   try {
     settings.method = parameters.text("method", settings.method, bk::methodNames());
@@ -339,6 +343,7 @@ int main(int argc, char** argv) {
     settings.max_attempts = parameters.integer("max_attempts", settings.max_attempts, 1);
     settings.tf_timeout = parameters.number("tf_timeout", settings.tf_timeout, 0.0, 60.0);
     parameters.accept("arms");
+    robot_path = parameters.text("robot", "");
     parameters.warnUnknown();
   } catch (const std::invalid_argument& e) {
     ROS_FATAL("ik_server: %s", e.what());
@@ -349,9 +354,24 @@ int main(int argc, char** argv) {
     ROS_FATAL("ik_server: parameter 'robot_description' is not set");
     return 2;
   }
+  // The arms: ~arms when set, else the robot file's.
   XmlRpc::XmlRpcValue arms;
-  if (!private_node.getParam("arms", arms) || arms.getType() != XmlRpc::XmlRpcValue::TypeArray || arms.size() == 0) {
-    ROS_FATAL("ik_server: ~arms must be a non-empty list of {name, base_link, tip_link}");
+  if (!private_node.hasParam("arms") && !robot_path.empty()) {
+    try {
+      const bimanual_skills::sim::RobotFile robot = bimanual_skills::sim::RobotFile::fromYamlFile(robot_path);
+      arms.setSize(static_cast<int>(robot.arms.size()));
+      for (std::size_t a = 0; a < robot.arms.size(); ++a) {
+        arms[static_cast<int>(a)]["name"] = robot.arms[a].name;
+        arms[static_cast<int>(a)]["base_link"] = robot.arms[a].base_link;
+        arms[static_cast<int>(a)]["tip_link"] = robot.arms[a].tip_link;
+      }
+    } catch (const std::invalid_argument& e) {
+      ROS_FATAL("ik_server: ~robot: %s", e.what());
+      return 2;
+    }
+  } else if (!private_node.getParam("arms", arms) || arms.getType() != XmlRpc::XmlRpcValue::TypeArray ||
+             arms.size() == 0) {
+    ROS_FATAL("ik_server: ~arms must be a non-empty list of {name, base_link, tip_link} (or give ~robot)");
     return 2;
   }
   tf2_ros::Buffer tf;
