@@ -51,9 +51,7 @@ struct ControlLoop::Arm {
   // Commanded from outside.
   std::unique_ptr<sim::TorqueCommandGate> gate;
   std::unique_ptr<realtime::TripleBuffer<TorqueCommand>> commands;
-  std::atomic<std::uint64_t> received{0};  ///< Commands handed over so far (writer side).
-  std::uint64_t seen = 0;                  ///< Loop side: `received` when the newest command was read.
-  const TorqueCommand* newest = nullptr;   ///< Loop side: the newest command read, not yet applied.
+  const TorqueCommand* newest = nullptr;  ///< Loop side: the newest command read, not yet applied.
   bool lockstep_waits = false;
 };
 
@@ -129,7 +127,6 @@ void ControlLoop::torqueCommand(int arm, double answers, const double* torque, s
   if (command.well_formed) command.torque = Eigen::Map<const Eigen::VectorXd>(torque, a.joints);
   command.answers = answers;
   a.commands->publish();
-  a.received.fetch_add(1, std::memory_order_release);
 }
 
 // ---------------------------------------------------------------- the loop thread
@@ -218,15 +215,18 @@ void ControlLoop::endStep(bool success, const std::string& why) {
   stepping_.reset();
 }
 
+void ControlLoop::interruptStep(const std::string& why) {
+  if (!stepping_) return;
+  stepping_->outcome = {
+      false,
+      "interrupted after " + std::to_string(stepped_) + " of " + std::to_string(stepping_->cycles) + " steps: " + why,
+      robot_.time()};
+  stepping_->finish();
+  stepping_.reset();
+}
+
 void ControlLoop::restart(const std::string& why) {
-  if (stepping_) {
-    stepping_->outcome = {
-        false,
-        "interrupted after " + std::to_string(stepped_) + " of " + std::to_string(stepping_->cycles) + " steps: " + why,
-        robot_.time()};
-    stepping_->finish();
-    stepping_.reset();
-  }
+  interruptStep(why);
   for (std::size_t a = 0; a < arms_.size(); ++a) {
     Arm& arm = *arms_[a];
     if (arm.gate) {
@@ -376,14 +376,7 @@ LoopOutcome ControlLoop::call(std::function<LoopOutcome()> request, double wait)
 LoopOutcome ControlLoop::pause(bool paused, double wait) {
   return call(
       [this, paused] {
-        if (!paused && stepping_) {
-          stepping_->outcome = {false,
-                                "interrupted after " + std::to_string(stepped_) + " of " +
-                                    std::to_string(stepping_->cycles) + " steps: the loop was resumed",
-                                robot_.time()};
-          stepping_->finish();
-          stepping_.reset();
-        }
+        if (!paused) interruptStep("the loop was resumed");
         paused_ = paused;
         pacer_.reanchor();
         // The stamp of the last states handed out (a cycle hands out, then advances), to the microsecond: a client

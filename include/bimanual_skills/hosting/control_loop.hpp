@@ -194,6 +194,8 @@ class ControlLoop {
   void waitForAnswers(double t) noexcept;
   void handOut(double t, bool forced) noexcept;
   void endStep(bool success, const std::string& why);
+  /// Ends a step() in progress, unsuccessfully, with `why` (nothing without one).
+  void interruptStep(const std::string& why);
   std::vector<std::shared_ptr<Request>> takeRequests();
 
   LoopRobot& robot_;
