@@ -154,13 +154,15 @@ void run(sim::BimanualSimulation& simulation, int steps, const std::function<voi
 
 /// The simulation the speed and fold_rollout experiments run (sim_benchmark --sim FILE); empty: config/sim.yaml.
 std::string g_sim_file;
+/// A robot file replacing the simulation file's (sim_benchmark --robot FILE); empty: the simulation file's.
+std::string g_robot_file;
 
 std::string simFile() {
   return g_sim_file.empty() ? bimanual_skills::cli::packageFile("config/sim.yaml") : g_sim_file;
 }
 
 sim::SimConfig baseConfig(const Options& options) {
-  sim::SimConfig config = sim::SimConfig::fromYamlFile(simFile());
+  sim::SimConfig config = sim::SimConfig::fromYamlFile(simFile(), g_robot_file);
   config.seed = options.seed;
   return config;
 }
@@ -169,15 +171,20 @@ Row twoArms(const Options& options) {
   sim::SimConfig config = baseConfig(options);
   config.has_cloth = false;
   sim::BimanualSimulation simulation(config);
-  const Eigen::VectorXd centre = (Eigen::VectorXd(7) << 0.0, 0.6, 0.0, 1.6, 0.0, 0.5, 0.0).finished();
+  // Each arm swings every joint about its start posture (the middle of its joint ranges when the simulation file
+  // gives none), within its limits.
   const Eigen::VectorXd amplitude = (Eigen::VectorXd(7) << 0.4, 0.3, 0.4, 0.3, 0.5, 0.4, 0.5).finished();
   const Eigen::VectorXd frequency = (Eigen::VectorXd(7) << 0.3, 0.25, 0.35, 0.4, 0.5, 0.45, 0.6).finished();
   std::vector<sim::ArmState> start;
+  std::vector<Eigen::VectorXd> amplitudes;
   for (int arm = 0; arm < 2; ++arm) {
-    start.push_back({arm == 0 ? centre : Eigen::VectorXd(-centre), Eigen::VectorXd::Zero(7)});
-    start.back().q[1] = centre[1];
-    start.back().q[3] = centre[3];
-    start.back().q[5] = centre[5];
+    const bs::kinematics::ChainModel& chain = simulation.armModel(arm);
+    const Eigen::VectorXd& given = config.arms[static_cast<std::size_t>(arm)].start;
+    const Eigen::VectorXd centre = given.size() == chain.nq() ? given : bs::kinematics::middleOfLimits(chain);
+    const Eigen::VectorXd margin =
+        (centre - chain.lowerLimits()).cwiseMin(chain.upperLimits() - centre).cwiseMax(0.0) * 0.9;
+    start.push_back({centre, Eigen::VectorXd::Zero(chain.nq())});
+    amplitudes.push_back(amplitude.cwiseMin(margin));
   }
   if (simulation.reset(start) != sim::SimStatus::Ok) throw std::runtime_error("two_arms: reset failed");
   JointTracker tracker(simulation);
@@ -194,7 +201,7 @@ Row twoArms(const Options& options) {
           for (int j = 0; j < 7; ++j) {
             const double w = 2.0 * M_PI * frequency[j];
             // Starts at rest: amplitude ramps in with (1 − cos) so the desired motion is smooth from t = 0.
-            const double a = amplitude[j] * std::min(1.0, t);
+            const double a = amplitudes[static_cast<std::size_t>(arm)][j] * std::min(1.0, t);
             q[j] = start[static_cast<std::size_t>(arm)].q[j] + a * std::sin(w * t);
             qd[j] = a * w * std::cos(w * t);
             qdd[j] = -a * w * w * std::sin(w * t);
@@ -219,14 +226,17 @@ FoldPlan planFold(const sim::BimanualSimulation& simulation, const sim::SimConfi
   const double radius = 0.5 * config.cloth.length - 0.01, lift = 0.025;
   const int waypoints = 31;
   FoldPlan plan;
-  const Eigen::VectorXd seed = (Eigen::VectorXd(7) << 0.0, 0.8, 0.0, 1.6, 0.0, 0.7, 0.0).finished();
   for (int arm = 0; arm < simulation.armCount(); ++arm) {
+    // From the robot's IK seed (the middle of the joint ranges when the simulation file gives none).
+    const bs::kinematics::ChainModel& chain = simulation.armModel(arm);
+    const Eigen::VectorXd& ik_seed = config.arms[static_cast<std::size_t>(arm)].ik_seed;
+    const Eigen::VectorXd seed = ik_seed.size() == chain.nq() ? ik_seed : bs::kinematics::middleOfLimits(chain);
     const double y = centre.y() + (simulation.basePose(arm).translation().y() > 0 ? 0.5 : -0.5) * config.cloth.width;
     bs::kinematics::GlobalIkParameters parameters;
     parameters.timeout = 0.2;
-    bs::kinematics::GlobalIkSolver solver(simulation.armModel(arm), parameters);
+    bs::kinematics::GlobalIkSolver solver(chain, parameters);
     std::vector<Eigen::VectorXd> points;
-    Eigen::VectorXd previous = seed, q(7);
+    Eigen::VectorXd previous = seed, q(chain.nq());
     for (int w = 0; w < waypoints; ++w) {
       double s = static_cast<double>(w) / (waypoints - 1);
       s = s * s * (3.0 - 2.0 * s);
@@ -389,6 +399,8 @@ void foldRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows) 
   for (const char* method : {"ED", "CTP+SD+SVF"}) {
     bs::tasks::ClothFoldConfig config;
     config.sim_config = simFile();
+    config.robot = g_robot_file;
+    config.friction_files = {"", ""};  // the rigid-body model alone (the robot file's friction models otherwise)
     config.duration = options.quick ? 3.0 : 8.5;  // quicker folds ask the WAM for more than its joint speeds
     config.settle = options.quick ? 0.2 : 1.0;
     config.ik_method = method;
@@ -456,6 +468,10 @@ int main(int argc, char** argv) {
                 &plant_file);
     line.option("--sim", "FILE", "simulation of the speed and fold_rollout experiments (default: config/sim.yaml)",
                 &g_sim_file);
+    line.option("--robot", "FILE",
+                "robot file of the speed and fold_rollout experiments instead of the simulation file's (e.g.\n"
+                "config/robots/offset_wrist.yaml)",
+                &g_robot_file);
     line.option("--arm", "NAME", "arm of config/sim.yaml the friction and payload experiments use (default left)",
                 &arm_name);
   };

@@ -272,8 +272,9 @@ void placementExperiment(const bs::bench::ExperimentOptions& options, const Sett
   std::fflush(stdout);
 }
 
-/// Writes a bimanual configuration (the format of config/bimanual.yaml, which scripts/generate_bimanual_urdf.py turns
-/// into a URDF) with the first arm at the world's origin and the second at `second_base`.
+/// Writes a bimanual configuration (the format of config/robots/wam/placement.yaml, which
+/// scripts/generate_bimanual_urdf.py turns into a URDF) with the first arm at the world's origin and the second at
+/// `second_base`.
 void writeBimanualConfig(const std::string& path, const Eigen::Isometry3d& second_base, const std::string& why) {
   // URDF's rpy: R = Rz(yaw) Ry(pitch) Rx(roll).
   const Eigen::Vector3d ypr = second_base.linear().eulerAngles(2, 1, 0);
@@ -418,10 +419,11 @@ int main(int argc, char** argv) {
                 "map always builds and times the map and writes it there, the placement experiments read it",
                 &cache);
     line.flag("--no-cache", "neither read nor write map files", &no_cache);
-    line.option("--write-config", "FILE",
-                "placement: write the best placement found as a bimanual configuration (config/bimanual.yaml's "
-                "format) for scripts/generate_bimanual_urdf.py",
-                &write_config);
+    line.option(
+        "--write-config", "FILE",
+        "placement: write the best placement found as a bimanual configuration (config/robots/wam/placement.yaml's "
+        "format) for scripts/generate_bimanual_urdf.py",
+        &write_config);
   };
   const bs::bench::ExperimentOptions options = bs::bench::parseExperimentOptions(argc, argv, program);
   if (resolution < 0.0 || (resolution > 0.0 && resolution < 0.005) || step < 0.0 || (step > 0.0 && step < 0.01)) {

@@ -4,9 +4,11 @@
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/sim/robot_file.hpp"
 #include "joint_state_publishing.hpp"
 #include "node_cli.hpp"
 
+#include <ros/package.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
 #include <tf2_eigen/tf2_eigen.h>
@@ -26,6 +28,7 @@ namespace {
 
 struct Arm {
   std::string name;
+  std::string tip;  ///< Its tool link (the robot file's).
   std::unique_ptr<bk::ChainModel> model;
   std::unique_ptr<bk::ChainData> data;
   Eigen::VectorXd q;
@@ -86,23 +89,26 @@ bool readNumberList(const ros::NodeHandle& node, const std::string& name, std::v
   return true;
 }
 
-/// Loads the arms named in ~arms from robot_description; throws std::invalid_argument with a clear message.
+/// Loads the arms named in ~arms from robot_description, their tips and default postures (their starts) from the
+/// robot file; throws std::invalid_argument with a clear message.
 std::vector<Arm> loadArms(const ros::NodeHandle& node, const std::vector<std::string>& names, const std::string& world,
-                          const std::string& tip) {
+                          const bimanual_skills::sim::RobotFile& robot) {
   std::string description;
   if (!ros::param::get("robot_description", description)) {
     throw std::invalid_argument("parameter 'robot_description' is not set");
   }
   std::vector<Arm> arms;
   for (const std::string& name : names) {
+    const bimanual_skills::sim::RobotArm* file_arm = robot.arm(name);
+    if (file_arm == nullptr) throw std::invalid_argument("the robot file " + robot.path + " has no arm '" + name + "'");
     Arm arm;
     arm.name = name;
-    arm.model = std::make_unique<bk::ChainModel>(bk::ChainModel::fromUrdfString(description, world, name + "_" + tip));
+    arm.tip = file_arm->tip_link;
+    arm.model = std::make_unique<bk::ChainModel>(bk::ChainModel::fromUrdfString(description, world, arm.tip));
     arm.data = std::make_unique<bk::ChainData>(*arm.model);
     std::vector<double> q;
-    if (!readNumberList(node, "q_" + name, q)) {
-      q.assign(static_cast<std::size_t>(arm.model->nq()), 0.0);
-    }
+    if (!readNumberList(node, "q_" + name, q))
+      q.assign(file_arm->start.data(), file_arm->start.data() + file_arm->start.size());
     arm.q = Eigen::Map<const Eigen::VectorXd>(q.data(), static_cast<Eigen::Index>(q.size()));
     if (!arm.model->withinLimits(arm.q)) {
       throw std::invalid_argument("~q_" + name + " must hold " + std::to_string(arm.model->nq()) +
@@ -135,7 +141,9 @@ Commands a joint configuration to each arm of the bimanual model on /joint_state
 kinematics from the core library and checks them against the tf that robot_state_publisher publishes from the
 same robot_description. Exits 0 on agreement (unless ~hold is true). Run it with launch/bimanual_model.launch.
 
-parameters (private, config/fk_demo.yaml): world_frame, tip_link, arms, q_<arm>, publish_rate, tf_timeout, hold
+parameters (private, config/fk_demo.yaml): robot (the robot file: arms, tool links and default postures; default
+the package's config/robots/wam.yaml), world_frame, arms (default the robot file's), q_<arm> (default its start),
+publish_rate, tf_timeout, hold
 reads: robot_description, tf        publishes: /joint_states
 )";
 
@@ -145,21 +153,24 @@ int main(int argc, char** argv) {
   bimanual_skills::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "bimanual_fk_demo");
   ros::NodeHandle node("~");
-  std::string world, tip;
+  std::string world;
   double rate_hz = 50.0, tf_timeout = 5.0;
   bool hold = false;
   std::vector<Arm> arms;
   try {
     bimanual_skills::ros_layer::ParameterReader p(node, "bimanual_fk_demo");
     world = p.text("world_frame", "world");
-    tip = p.text("tip_link", "wam_tool");
+    const bimanual_skills::sim::RobotFile robot = bimanual_skills::sim::RobotFile::fromYamlFile(
+        p.text("robot", ros::package::getPath("bimanual_skills") + "/config/robots/wam.yaml"));
+    std::vector<std::string> robot_arms;
+    for (const bimanual_skills::sim::RobotArm& arm : robot.arms) robot_arms.push_back(arm.name);
     rate_hz = p.number("publish_rate", 50.0, 0.1, 1000.0);
     tf_timeout = p.number("tf_timeout", 5.0, 0.0, 600.0);
     hold = p.boolean("hold", false);
-    const std::vector<std::string> names = p.texts("arms", {"left", "right"});
+    const std::vector<std::string> names = p.texts("arms", robot_arms);
     for (const std::string& name : names) p.accept("q_" + name);  // read by loadArms
     p.warnUnknown();
-    arms = loadArms(node, names, world, tip);
+    arms = loadArms(node, names, world, robot);
   } catch (const std::invalid_argument& e) {
     ROS_FATAL("bimanual_fk_demo: %s", e.what());
     return 2;
@@ -172,8 +183,8 @@ int main(int argc, char** argv) {
   sensor_msgs::JointState msg = jointStates(arms);
   ros::Rate rate(rate_hz > 0.0 ? rate_hz : 50.0);
 
-  std::printf("bimanual_fk_demo: forward kinematics of %zu arms in frame '%s' (core library, chain %s -> <arm>_%s)\n",
-              arms.size(), world.c_str(), world.c_str(), tip.c_str());
+  std::printf("bimanual_fk_demo: forward kinematics of %zu arms in frame '%s' (core library, chain %s -> tool)\n",
+              arms.size(), world.c_str(), world.c_str());
   bool all_agree = true;
   for (Arm& arm : arms) {
     const Eigen::Isometry3d& pose = arm.data->tipPose();
@@ -185,7 +196,7 @@ int main(int argc, char** argv) {
                 bk::conditionNumber(*arm.data));
 
     // The same frame as robot_state_publisher computes it from /joint_states.
-    const std::string tip_frame = arm.name + "_" + tip;
+    const std::string& tip_frame = arm.tip;
     const bool found = bimanual_skills::nodes::publishUntil(
         publisher, msg, rate, tf_timeout, [&] { return buffer.canTransform(world, tip_frame, ros::Time(0)); });
     if (!found) {

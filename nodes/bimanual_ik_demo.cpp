@@ -4,9 +4,11 @@
 #include "bimanual_skills/SolveIk.h"
 
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/sim/robot_file.hpp"
 #include "joint_state_publishing.hpp"
 #include "node_cli.hpp"
 
+#include <ros/package.h>
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
 #include <tf2_ros/transform_listener.h>
@@ -14,6 +16,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdio>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -21,6 +24,7 @@ namespace {
 
 struct Arm {
   std::string name;
+  std::string tool;  ///< Its tool link (the robot file's).
   geometry_msgs::PoseStamped target;
   sensor_msgs::JointState solution;
   bool solved = false;
@@ -61,7 +65,8 @@ Asks ik_server for a pose of each arm's tool (<arm>/solve_ik), commands the solu
 checks the tool poses robot_state_publisher then publishes against the targets. Exits 0 when every arm reached its
 target within 1e-4 m and rad (unless ~hold is true). launch/demo.launch runs it with robot_state_publisher.
 
-parameters (private, config/ik_demo.yaml): world_frame, arms, target_<arm> {position, orientation}, method
+parameters (private, config/ik_demo.yaml): robot (the robot file: arms and tool links; default the package's
+config/robots/wam.yaml), world_frame, arms (default the robot file's), target_<arm> {position, orientation}, method
   (empty: the server's default), timeout, tf_timeout, publish_rate, hold
 calls: <arm>/solve_ik        publishes: /joint_states        reads: tf
 )";
@@ -77,6 +82,7 @@ int main(int argc, char** argv) {
   double timeout = 0.05, tf_timeout = 5.0, rate_hz = 50.0;
   bool hold = false;
   std::vector<std::string> names;
+  std::map<std::string, std::string> tools;
   try {
     bimanual_skills::ros_layer::ParameterReader p(node, "bimanual_ik_demo");
     world = p.text("world_frame", "world");
@@ -85,7 +91,16 @@ int main(int argc, char** argv) {
     tf_timeout = p.number("tf_timeout", 5.0, 0.0, 600.0);
     rate_hz = p.number("publish_rate", 50.0, 0.1, 1000.0);
     hold = p.boolean("hold", false);
-    names = p.texts("arms", {"left", "right"});
+    const bimanual_skills::sim::RobotFile robot = bimanual_skills::sim::RobotFile::fromYamlFile(
+        p.text("robot", ros::package::getPath("bimanual_skills") + "/config/robots/wam.yaml"));
+    for (const bimanual_skills::sim::RobotArm& arm : robot.arms) tools[arm.name] = arm.tip_link;
+    std::vector<std::string> robot_arms;
+    for (const bimanual_skills::sim::RobotArm& arm : robot.arms) robot_arms.push_back(arm.name);
+    names = p.texts("arms", robot_arms);
+    for (const std::string& name : names) {
+      if (tools.count(name) == 0)
+        throw std::invalid_argument("the robot file " + robot.path + " has no arm '" + name + "'");
+    }
     for (const std::string& name : names) p.accept("target_" + name);  // read below
     p.warnUnknown();
   } catch (const std::invalid_argument& e) {
@@ -97,6 +112,7 @@ int main(int argc, char** argv) {
   for (const std::string& name : names) {
     Arm arm;
     arm.name = name;
+    arm.tool = tools[name];
     if (!readTarget(node, name, world, arm.target)) return 2;
     arms.push_back(arm);
   }
@@ -147,7 +163,7 @@ int main(int argc, char** argv) {
       all_reached = false;
       continue;
     }
-    const std::string tool = arm.name + "_wam_tool";
+    const std::string& tool = arm.tool;
     geometry_msgs::TransformStamped tf;
     const bool received = bimanual_skills::nodes::publishUntil(publisher, command, rate, tf_timeout, [&] {
       try {

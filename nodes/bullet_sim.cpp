@@ -190,6 +190,9 @@ class BulletSimNode {
     world_digest_ = sim::SimConfig::worldDigest(config_path, robot_path);
     if (!simulation_->config().robot_path.empty()) {
       robot_file_ = sim::RobotFile::fromYamlFile(simulation_->config().robot_path);
+      for (const std::string& derived : robot_file_->derived) {
+        ROS_INFO("bullet_sim: robot '%s', from the model: %s", robot_file_->name.c_str(), derived.c_str());
+      }
     }
     robot_ = std::make_unique<SimulatedRobot>(*simulation_);
     bs::hosting::LoopSettings loop;

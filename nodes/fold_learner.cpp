@@ -33,6 +33,7 @@
 #include <deque>
 #include <filesystem>
 #include <fstream>
+#include <iomanip>
 #include <limits>
 #include <map>
 #include <string>
@@ -69,6 +70,10 @@ const char* const kUsage =
     "  ~policy       goals or weights (the thesis' DR-DMP: its folds end where the demonstration ends) instead of\n"
     "                the learning file's task policy; ~covariance_memory in [0, 1) instead of its (0: the thesis'\n"
     "                REPS update). Not with workers either\n"
+    "  ~robot        robot file (config/robots/*.yaml) instead of the one the learning file's simulation names:\n"
+    "                the arms, their URDF, plant, gains and friction models (fold.launch robot:=FILE sets it)\n"
+    "  ~write_fold_start FILE  write the fold's start configuration on the robot (~config, ~robot) as bullet_sim\n"
+    "                overrides and exit: ROBOT_fold_start.yaml beside ROBOT.yaml for fold.launch start_at_grasp\n"
     "  ~jobs         rollouts in parallel (default: the learning file's, 0 = one per core)\n"
     "  ~replay_best  after learning, replay the best rollout on the topics in a loop until shut down (default\n"
     "                false: exit when done)\n"
@@ -165,11 +170,13 @@ class FoldLearnerNode {
     }
     config_.covariance_memory = parameters_.number("covariance_memory", config_.covariance_memory, 0.0, 0.999);
     config_.jobs = parameters_.integer("jobs", config_.jobs, 0, 1024);
+    const bool robot = parameters_.has("robot");
+    if (robot) config_.task.robot = parameters_.text("robot", "");
     std::unique_ptr<br::Evaluator> evaluator = makeDispatcher();
-    if (evaluator && (!reward.empty() || ablated)) {
+    if (evaluator && (!reward.empty() || ablated || robot)) {
       throw std::invalid_argument(
-          "~reward, ~policy and ~covariance_memory are not for rollout workers: they read the learning file, set "
-          "them there");
+          "~reward, ~policy, ~covariance_memory and ~robot are not for rollout workers: they read the learning "
+          "file, set them there");
     }
     if (parameters_.text("backend", "sim", {"sim", "ros"}) == "ros") {
       if (evaluator) throw std::invalid_argument("~backend ros runs the rollouts on the robot, not on workers");
@@ -194,7 +201,7 @@ class FoldLearnerNode {
     observer.stop = [] { return !ros::ok(); };
     learner_ = std::make_unique<br::FoldLearner>(config_, out_, observer, std::move(evaluator));
     const bt::ClothFoldConfig& task = learner_->config().task;
-    const bs::sim::SimConfig sim = bs::sim::SimConfig::fromYamlFile(task.sim_config);
+    const bs::sim::SimConfig sim = bs::sim::SimConfig::fromYamlFile(task.sim_config, task.robot);
     for (const bs::sim::ArmConfig& arm : sim.arms) {
       const std::vector<std::string> names =
           bs::kinematics::ChainModel::fromUrdfFile(sim.urdf_path, arm.base_link, arm.tip_link).jointNames();
@@ -791,6 +798,37 @@ class FoldLearnerNode {
 
 }  // namespace
 
+/// ~write_fold_start FILE: the fold's start configuration of the learning file on its robot (~config, ~robot) as
+/// bullet_sim overrides (initial_positions per arm), for sim.launch sim_overrides:= and fold.launch start_at_grasp.
+void writeFoldStart(const std::string& file) {
+  bs::ros_layer::ParameterReader parameters(ros::NodeHandle("~"), "fold_learner");
+  br::FoldLearningConfig config = br::FoldLearningConfig::fromYamlFile(
+      parameters.text("config", ros::package::getPath("bimanual_skills") + "/config/fold_demo.yaml"));
+  if (parameters.has("robot")) config.task.robot = parameters.text("robot", "");
+  const bt::ClothFoldTask task(config.task);
+  // Files of the package as the package names them.
+  const auto named = [package = ros::package::getPath("bimanual_skills")](const std::string& path) {
+    const std::string relative = std::filesystem::path(path).lexically_relative(package).string();
+    return relative.empty() || relative.rfind("..", 0) == 0 ? path : relative;
+  };
+  std::ofstream out(file);
+  out << "# bullet_sim overrides (sim.launch sim_overrides:=...): start and reset with the arms at the cloth fold's "
+         "start\n# configuration (tools at the cloth's far corners, tasks::ClothFoldTask::startPositions()), as the "
+         "in-process fold\n# task starts, instead of moving there. Written by fold_learner _write_fold_start:=FILE "
+         "from\n# "
+      << named(config.task.sim_config) << (config.task.robot.empty() ? "" : " on " + named(config.task.robot))
+      << ".\ninitial_positions:\n";
+  for (std::size_t a = 0; a < task.startPositions().size(); ++a) {
+    out << "  " << task.simConfig().arms[a].name << ": [";
+    const Eigen::VectorXd& q = task.startPositions()[a];
+    for (Eigen::Index i = 0; i < q.size(); ++i)
+      out << (i > 0 ? ", " : "") << std::fixed << std::setprecision(6) << q[i];
+    out << "]\n";
+  }
+  if (!out.flush()) throw std::runtime_error("cannot write " + file);
+  std::printf("fold_learner: wrote the fold's start to %s\n", file.c_str());
+}
+
 int main(int argc, char** argv) {
   bs::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "fold_learner");
@@ -798,6 +836,10 @@ int main(int argc, char** argv) {
   // the last handle to go shuts the node down, which must still tell a fault from a Ctrl-C.
   const ros::NodeHandle keep_alive;
   try {
+    if (std::string file; ros::param::get("~write_fold_start", file)) {
+      writeFoldStart(file);
+      return 0;
+    }
     FoldLearnerNode node;
     node.run();
   } catch (const std::exception& e) {

@@ -1,6 +1,7 @@
 // workspace_markers: an arm's workspace map (workspace/workspace_map.hpp, thesis Sec. 3.2.1) in rviz. A thin shell:
 // the map is built by the library (or read from its cache file) and published once, latched.
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/workspace/workspace_map.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
@@ -19,7 +20,7 @@ namespace bw = bimanual_skills::workspace;
 namespace {
 
 const char* kUsage =
-    "usage: rosrun bimanual_skills workspace_markers [_urdf:=FILE] [_base:=LINK] [_tip:=LINK] [_resolution:=M]\n"
+    "usage: rosrun bimanual_skills workspace_markers [_robot:=FILE] [_arm:=NAME] [_resolution:=M]\n"
     "                                                [_orientations:=N] [_seed:=S] [_cache:=DIR] [_slice_y:=M]\n"
     "\n"
     "An arm's workspace map by inverse sampling (thesis Sec. 3.2.1, Fig. 3.7) in rviz: the map is built, or read\n"
@@ -27,8 +28,8 @@ const char* kUsage =
     "then published once, latched, in the frame of the base link.\n"
     "\n"
     "Parameters (private):\n"
-    "  ~urdf          the arm's URDF file (default: the package's urdf/wam.urdf)\n"
-    "  ~base, ~tip    the chain's links (default wam_base, wam_tool)\n"
+    "  ~robot         the robot file (default: the package's config/robots/wam.yaml): its URDF and arms\n"
+    "  ~arm           the arm mapped (default the robot file's first); the map is in its base link's frame\n"
     "  ~resolution    voxel edge [m] (default 0.1)\n"
     "  ~orientations  tool orientations tried per voxel (default 50)\n"
     "  ~seed          of the orientations and IK restarts (default 1)\n"
@@ -61,9 +62,14 @@ int main(int argc, char** argv) {
   ros::NodeHandle private_node("~");
   try {
     bs::ros_layer::ParameterReader p(private_node, "workspace_markers");
-    const std::string urdf = p.text("urdf", ros::package::getPath("bimanual_skills") + "/urdf/wam.urdf");
-    const std::string base = p.text("base", "wam_base");
-    const std::string tip = p.text("tip", "wam_tool");
+    const bs::sim::RobotFile robot = bs::sim::RobotFile::fromYamlFile(
+        p.text("robot", ros::package::getPath("bimanual_skills") + "/config/robots/wam.yaml"));
+    const std::string arm_name = p.text("arm", robot.arms.front().name);
+    const bs::sim::RobotArm* arm = robot.arm(arm_name);
+    if (arm == nullptr) throw std::invalid_argument("the robot file " + robot.path + " has no arm '" + arm_name + "'");
+    const std::string& urdf = robot.urdf_path;
+    const std::string& base = arm->base_link;
+    const std::string& tip = arm->tip_link;
     const std::string cache = p.text("cache", bw::WorkspaceMap::defaultCacheDirectory());
     bw::WorkspaceMapSettings settings;
     settings.resolution = p.number("resolution", 0.1, 1e-3, 10.0);

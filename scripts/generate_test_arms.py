@@ -2,7 +2,9 @@
 """Generate the two test arms of the IK benchmark (urdf/test_arms/), whose geometry differs from the WAM's.
 
 - offset_wrist_arm: 7 revolute joints with elbow and wrist offsets (the last three axes do not meet) and
-  asymmetric limits on joints 4 and 6;
+  asymmetric limits on joints 4 and 6: the Franka Emika Panda's published kinematics (its DH table converted to
+  standard DH, its joint, velocity and torque limits) with link masses close to the Panda's; the project's second
+  robot (config/robots/offset_wrist.yaml);
 - spherical_wrist_arm: 6 revolute joints, an industrial-style arm with a shoulder offset and a spherical wrist,
   asymmetric limits on joints 2 and 3.
 
@@ -29,7 +31,9 @@ ARMS = {
             (0.088, math.pi / 2, 0.0, -0.0175, 3.7525),
             (0.0, 0.0, 0.107, -2.8973, 2.8973),
         ],
-        "masses": [3.5, 3.5, 3.0, 3.0, 2.5, 1.5, 0.5],
+        "masses": [4.97, 0.65, 3.23, 3.59, 1.23, 1.67, 0.74],
+        "effort": [87.0, 87.0, 87.0, 87.0, 12.0, 12.0, 12.0],
+        "velocity": [2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61],
     },
     "spherical_wrist_arm": {
         "base_height": 0.45,
@@ -56,13 +60,18 @@ def generate(name):
     out.append("  </link>\n")
     parent = "base_link"
     origin_xyz, origin_rpy = (0.0, 0.0, arm["base_height"]), (0.0, 0.0, 0.0)
-    for i, ((a, alpha, d, lower, upper), mass) in enumerate(zip(arm["dh"], arm["masses"]), start=1):
+    joints = len(arm["dh"])
+    efforts = arm.get("effort", [100] * joints)
+    velocities = arm.get("velocity", [2] * joints)
+    for i, ((a, alpha, d, lower, upper), mass, effort, velocity) in enumerate(
+        zip(arm["dh"], arm["masses"], efforts, velocities), start=1
+    ):
         link = f"link{i}"
         out.append(f'  <joint name="joint{i}" type="revolute">\n')
         out.append(f'    <parent link="{parent}"/>\n    <child link="{link}"/>\n')
         out.append(f'    <origin xyz="{vec(*origin_xyz)}" rpy="{vec(*origin_rpy)}"/>\n')
         out.append('    <axis xyz="0 0 1"/>\n')
-        out.append(f'    <limit lower="{fmt(lower)}" upper="{fmt(upper)}" effort="100" velocity="2"/>\n')
+        out.append(f'    <limit lower="{fmt(lower)}" upper="{fmt(upper)}" effort="{fmt(effort)}" velocity="{fmt(velocity)}"/>\n')
         out.append("  </joint>\n")
         out.append(f'  <link name="{link}">\n')
         # A slender rod from the joint to the next frame: mass at its middle, inertia of a 5 cm radius cylinder.

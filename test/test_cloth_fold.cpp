@@ -24,6 +24,7 @@ bt::ClothFoldConfig config() {
   c.sim_config = BIMANUAL_SKILLS_SOURCE_DIR "/config/sim.yaml";
   c.duration = 3.0;
   c.settle = 0.7;
+  c.friction_files = {"", ""};  // no friction compensation (the robot file's models otherwise)
   return c;
 }
 

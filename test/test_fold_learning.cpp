@@ -30,9 +30,8 @@ const std::string kSource = BIMANUAL_SKILLS_SOURCE_DIR;
 br::FoldLearningConfig smallConfig() {
   br::FoldLearningConfig c;
   c.task.sim_config = kSource + "/config/sim.yaml";
-  // As the learning files: the controllers compensate the identified friction (their state must not leak from one
-  // rollout into the next).
-  c.task.friction_files = {kSource + "/config/friction/left.yaml", kSource + "/config/friction/right.yaml"};
+  // As the learning files, the controllers compensate the robot file's identified friction (their state must not
+  // leak from one rollout into the next).
   c.task.duration = 3.0;
   c.task.settle = 0.7;
   c.algorithms = {"IDR-DMP_CMU"};
@@ -120,7 +119,8 @@ TEST(FoldLearning, PeersUpdateTowardsTheirBestRollouts) {
 
 TEST(FoldLearning, LearningFiles) {
   const br::FoldLearningConfig demo = br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_demo.yaml");
-  EXPECT_EQ(demo.task.friction_files.size(), 2u);
+  EXPECT_TRUE(demo.task.friction_files.empty());  // the robot file's
+  EXPECT_TRUE(demo.task.robot.empty());           // the simulation file's
   EXPECT_TRUE(std::filesystem::exists(demo.task.sim_config));
   const br::FoldLearningConfig table = br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_table75.yaml");
   EXPECT_EQ(table.algorithms.size(), 5u);

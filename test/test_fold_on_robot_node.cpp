@@ -7,13 +7,16 @@
 // 2. A rollout of a FoldOnRobotTask here, with bullet_sim killed (SIGKILL) while the fold's trajectories run, ends
 //    as a failed rollout with a reason within the task's timeouts; the next one fails at once too, and neither hangs.
 // 3. operator_prompt (the hardware's scene reset) with nobody at its terminal refuses the reset with a reason.
+#include "bimanual_skills/FollowJointTrajectoryAction.h"
 #include "bimanual_skills/FollowJointTrajectoryActionGoal.h"
 #include "bimanual_skills/FollowJointTrajectoryActionResult.h"
+#include "bimanual_skills/JointTrajectoryControllerState.h"
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 #include "node_pid.hpp"
 
+#include <actionlib/client/simple_action_client.h>
 #include <actionlib_msgs/GoalStatus.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -383,6 +386,127 @@ TEST(FoldThroughAPerspectiveCamera, LearnsOnTheReprojectedDepthAndRefusesTheWron
     ADD_FAILURE() << "the orthographic map taken for a perspective camera";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("set the camera model to orthographic"), std::string::npos) << e.what();
+  }
+}
+
+// ------------------------------------------------------------------------------------------ second_robot.test
+
+/// An arm's controller state, collected over a window of the robot's clock.
+struct StateWindow {
+  std::mutex mutex;
+  std::vector<std::string> joints;
+  std::vector<double> actual;
+  double max_error = 0.0, max_velocity = 0.0;
+  int messages = 0;
+  void add(const bimanual_skills::JointTrajectoryControllerState& s) {
+    const std::lock_guard<std::mutex> lock(mutex);
+    joints = s.joint_names;
+    actual = s.actual.positions;
+    for (const double e : s.error.positions) max_error = std::max(max_error, std::abs(e));
+    for (const double v : s.actual.velocities) max_velocity = std::max(max_velocity, std::abs(v));
+    ++messages;
+  }
+  void restart() {
+    const std::lock_guard<std::mutex> lock(mutex);
+    max_error = max_velocity = 0.0;
+    messages = 0;
+  }
+};
+
+/// Waits `seconds` of the robot's clock (bounded in wall time).
+void waitRobot(double seconds) {
+  const ros::Time until = ros::Time::now() + ros::Duration(seconds);
+  const ros::WallTime limit = ros::WallTime::now() + ros::WallDuration(60.0 + 10.0 * seconds);
+  while (ros::ok() && ros::Time::now() < until && ros::WallTime::now() < limit) ros::WallDuration(0.01).sleep();
+}
+
+// The second robot learns through ROS as the WAM does (its fold's start, gains, braking and payload derived from its
+// model), then holds still and tracks a trajectory goal on both arms.
+TEST(SecondRobot, LearnsThroughROSThenHoldsAndTracksAGoal) {
+  const std::string out = learnerOutput();
+  ASSERT_FALSE(out.empty()) << "fold_learner did not finish in 240 s";
+  const Rollouts rollouts = readRollouts(out);
+  const std::size_t outcome = rollouts.column("outcome"), reason = rollouts.column("reason"),
+                    mismatch = rollouts.column("fold_mismatch");
+  ASSERT_LT(mismatch, rollouts.header.size());
+  int rows = 0, ok = 0;
+  for (const std::vector<std::string>& cells : rollouts.rows) {
+    const std::string line = cells.empty() ? "" : cells.front() + ", ... " + cells[reason];
+    ++rows;
+    if (cells[outcome] != "Ok") continue;
+    ++ok;
+    EXPECT_GT(std::stod(cells[mismatch]), 0.02) << line;
+    EXPECT_LT(std::stod(cells[mismatch]), 0.9) << line;
+  }
+  EXPECT_EQ(rows, 10);
+  EXPECT_GE(ok, 8);
+
+  ros::NodeHandle node;
+  std::map<std::string, StateWindow> windows;
+  std::vector<ros::Subscriber> subscriptions;
+  for (const std::string arm : {"left", "right"}) {
+    StateWindow& window = windows[arm];
+    subscriptions.push_back(node.subscribe<bimanual_skills::JointTrajectoryControllerState>(
+        "/" + arm + "/state", 100,
+        [&window](const bimanual_skills::JointTrajectoryControllerState::ConstPtr& s) { window.add(*s); }));
+  }
+  ros::AsyncSpinner spinner(2);
+  spinner.start();
+  waitRobot(0.5);
+  // Holding: the reference stays, the arms do not drift from it (the error is what the joints' friction leaves at
+  // the derived gains without friction compensation: the wrist's static friction over its stiffness, ~0.03 rad).
+  for (auto& [arm, window] : windows) window.restart();
+  waitRobot(2.0);
+  for (auto& [arm, window] : windows) {
+    const std::lock_guard<std::mutex> lock(window.mutex);
+    ASSERT_GT(window.messages, 100) << arm << ": no controller states";
+    EXPECT_LT(window.max_error, 0.05) << arm << " does not hold";
+    EXPECT_LT(window.max_velocity, 0.05) << arm << " moves while holding";
+    std::printf("%s holds: max error %.5f rad, max speed %.4f rad/s\n", arm.c_str(), window.max_error,
+                window.max_velocity);
+  }
+  // A goal on both arms: joints 1, 2 and 4 out and back over 3 s, ending 0.15 rad from where they were.
+  std::map<std::string, std::unique_ptr<actionlib::SimpleActionClient<bimanual_skills::FollowJointTrajectoryAction>>>
+      clients;
+  std::map<std::string, std::vector<double>> goals;
+  for (auto& [arm, window] : windows) {
+    clients[arm] = std::make_unique<actionlib::SimpleActionClient<bimanual_skills::FollowJointTrajectoryAction>>(
+        node, "/" + arm + "/follow_joint_trajectory", false);
+    ASSERT_TRUE(clients[arm]->waitForServer(ros::Duration(30.0))) << arm;
+    bimanual_skills::FollowJointTrajectoryGoal goal;
+    const std::lock_guard<std::mutex> lock(window.mutex);
+    goal.trajectory.joint_names = window.joints;
+    const std::vector<double> from = window.actual;
+    for (const double s : {1.0, 0.5}) {
+      trajectory_msgs::JointTrajectoryPoint point;
+      point.positions = from;
+      point.positions[0] += 0.3 * s;
+      point.positions[1] += 0.3 * s;
+      point.positions[3] -= 0.3 * s;
+      point.time_from_start = ros::Duration(s > 0.75 ? 1.5 : 3.0);
+      goal.trajectory.points.push_back(point);
+    }
+    goals[arm] = goal.trajectory.points.back().positions;
+    window.max_error = 0.0;
+    clients[arm]->sendGoal(goal);
+  }
+  for (auto& [arm, client] : clients) {
+    ASSERT_TRUE(client->waitForResult(ros::Duration(120.0))) << arm << ": the goal did not end";
+    EXPECT_EQ(client->getState(), actionlib::SimpleClientGoalState::SUCCEEDED)
+        << arm << ": " << client->getState().text_;
+    const auto result = client->getResult();
+    ASSERT_TRUE(result);
+    EXPECT_EQ(result->error_code, 0) << arm << ": " << result->error_string;
+  }
+  waitRobot(0.5);
+  for (auto& [arm, window] : windows) {
+    const std::lock_guard<std::mutex> lock(window.mutex);
+    EXPECT_LT(window.max_error, 0.05) << arm << " tracks the goal badly";
+    for (std::size_t i = 0; i < goals[arm].size(); ++i) {
+      EXPECT_NEAR(window.actual[i], goals[arm][i], 0.05) << arm << " joint " << i + 1;
+    }
+    std::printf("%s tracks the goal: max tracking error %.4f rad\n", arm.c_str(), window.max_error);
+    RecordProperty(arm + "_max_tracking_error_rad", std::to_string(window.max_error));
   }
 }
 

@@ -85,7 +85,7 @@ TEST(IkServer, SolvesTargetsInTheBaseAndInTheWorldFrame) {
   EXPECT_TRUE(
       left.model.withinLimits(Eigen::Map<const Eigen::VectorXd>(response.solution.position.data(), left.model.nq())));
   EXPECT_EQ(response.solution.name.front(), "left_wam_joint1");
-  // The same pose in the world frame: the left base stands at y = +0.4 (config/bimanual.yaml), via tf.
+  // The same pose in the world frame: the left base stands at y = +0.4 (config/robots/wam/placement.yaml), via tf.
   request.target = poseMsg(Eigen::Translation3d(0.0, 0.4, 0.0) * target, "world");
   request.method = "ED";
   response = call(client, request);

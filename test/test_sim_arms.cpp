@@ -2,8 +2,8 @@
 // forward dynamics (RNEA + Cholesky, equal to KDL), virtual work by finite differences of forward kinematics for
 // external wrenches; plus joint limits, the table, friction holding the arm, determinism, reset and bad input.
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
-#include "testing/no_alloc_guard.hpp"
 #include "test_support.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 
@@ -32,7 +32,7 @@ const std::string kPlantFile = BIMANUAL_SKILLS_SOURCE_DIR "/config/plant.yaml";
 SimConfig leftArm() {
   SimConfig config;
   config.urdf_path = kBimanualUrdf;
-  config.arms = {{"left", "left_wam_base", "left_wam_tool"}};
+  config.arms = {{"left", "left_wam_base", "left_wam_tool", {}, "", {}}};
   config.has_table = false;
   config.plant.arms = {{"left", ArmPlantParameters::ideal()}};
   return config;
@@ -139,7 +139,7 @@ TEST(SimArms, TiltedBaseAndZeroGravity) {
   for (const Eigen::Vector3d& gravity : {Eigen::Vector3d(0.0, 0.0, -9.81), Eigen::Vector3d(0.0, 0.0, 0.0)}) {
     SimConfig config;
     config.urdf_path = urdf;
-    config.arms = {{"arm", "wam_base", "wam_tool"}};
+    config.arms = {{"arm", "wam_base", "wam_tool", {}, "", {}}};
     config.has_table = false;
     config.gravity = gravity;
     config.plant.arms = {{"arm", ArmPlantParameters::ideal()}};
@@ -304,7 +304,7 @@ TEST(SimArms, TableStopsTheArm) {
 
 TEST(SimArms, SameSeedAndCommandsGiveBitIdenticalTrajectoriesAlsoAfterReset) {
   SimConfig config = leftArm();
-  config.arms.push_back({"right", "right_wam_base", "right_wam_tool"});
+  config.arms.push_back({"right", "right_wam_base", "right_wam_tool", {}, "", {}});
   config.plant = bs::sim::PlantModel::fromYamlFile(kPlantFile);
   config.has_table = true;
   config.table.pose.translation() = Eigen::Vector3d(0.55, 0.0, 0.0);

@@ -1,5 +1,8 @@
 // The configuration files of the simulator: config/plant.yaml and config/sim.yaml load; bad files are rejected with
 // messages that name the file and the entry.
+#include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/sim/plant_model.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
@@ -218,4 +221,131 @@ TEST(RobotFile, BadRobotFilesAreRefusedNamingTheEntry) {
   // A simulation file naming a robot and arms of its own is ambiguous.
   const std::string both = write("sim_both.yaml", "robot: " + kConfig + "/robots/wam.yaml\nurdf: " + urdf + "\n");
   EXPECT_NE(errorOf([&] { SimConfig::fromYamlFile(both); }).find("the robot file gives them"), std::string::npos);
+}
+
+// ---- what a robot file leaves out comes from the model ----
+
+/// The second robot's left arm, as its robot file has it (gravity in its base frame).
+bs::kinematics::ChainModel offsetWristArm() {
+  const bs::sim::RobotFile robot = bs::sim::RobotFile::fromYamlFile(kConfig + "/robots/offset_wrist.yaml");
+  // Its base stands upright: gravity is the chain's default.
+  return bs::kinematics::ChainModel::fromUrdfFile(robot.urdf_path, "left_base_link", "left_tool");
+}
+
+TEST(RobotFileDerivation, GainsAreTheBandwidthOnTheInertiaEachJointSees) {
+  const bs::kinematics::ChainModel arm = offsetWristArm();
+  const Eigen::VectorXd q = (Eigen::VectorXd(7) << 0.1, 0.5, -0.2, -2.0, 0.3, 2.0, 0.4).finished();
+  const Eigen::VectorXd hz = (Eigen::VectorXd(7) << 1, 2, 3, 4, 5, 6, 7).finished();
+  Eigen::VectorXd kp, kv;
+  bs::sim::gainsFromBandwidth(arm, q, hz, 0.7, kp, kv);
+  // Independent reference: M_ii as the torque of joint i for a unit acceleration of joint i alone (inverse dynamics
+  // at rest, gravity taken out), not the composite-rigid-body mass matrix the derivation uses.
+  bs::dynamics::DynamicsData data(arm);
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(7);
+  Eigen::VectorXd rest(7), pushed(7);
+  ASSERT_EQ(bs::dynamics::inverseDynamics(arm, data, q, zero, zero, rest), bs::dynamics::DynamicsStatus::Success);
+  for (int i = 0; i < 7; ++i) {
+    const Eigen::VectorXd unit = Eigen::VectorXd::Unit(7, i);
+    ASSERT_EQ(bs::dynamics::inverseDynamics(arm, data, q, zero, unit, pushed), bs::dynamics::DynamicsStatus::Success);
+    const double inertia = pushed[i] - rest[i], omega = 2.0 * M_PI * hz[i];
+    EXPECT_NEAR(kp[i], inertia * omega * omega, 1e-9 * kp[i]) << "joint " << i + 1;
+    EXPECT_NEAR(kv[i], 2.0 * 0.7 * inertia * omega, 1e-9 * kv[i]) << "joint " << i + 1;
+  }
+  EXPECT_THROW(bs::sim::gainsFromBandwidth(arm, q, -hz, 1.0, kp, kv), std::invalid_argument);
+}
+
+TEST(RobotFileDerivation, BrakingAndPayloadComeFromTheUrdfLimits) {
+  const bs::kinematics::ChainModel arm = offsetWristArm();
+  // The URDF's limits (scripts/generate_test_arms.py): 87 N m at 2.175 rad/s, 12 N m at 2.61 rad/s.
+  const Eigen::VectorXd braking = bs::sim::brakingFromLimits(arm);
+  EXPECT_NEAR(braking[0], 87.0 / (2.0 * 2.175), 1e-12);
+  EXPECT_NEAR(braking[6], 12.0 / (2.0 * 2.61), 1e-12);
+  // The payload: with that mass at the tool, the most loaded joint needs exactly half its effort limit against
+  // gravity and no joint more (inverse dynamics at rest with the payload, a reference apart from the derivation).
+  const Eigen::VectorXd q = (Eigen::VectorXd(7) << 0.0, 0.6, 0.0, -1.5, 0.0, 1.8, 0.0).finished();
+  const double payload = bs::sim::payloadFromEfforts(arm, q);
+  EXPECT_GT(payload, 0.5);
+  bs::dynamics::DynamicsData data(arm);
+  bs::dynamics::Payload load;
+  load.mass = payload;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(7);
+  Eigen::VectorXd held(7);
+  ASSERT_EQ(bs::dynamics::inverseDynamics(arm, data, q, zero, zero, held, load), bs::dynamics::DynamicsStatus::Success);
+  const double worst = (held.cwiseAbs().array() / (0.5 * arm.effortLimits().array())).maxCoeff();
+  EXPECT_NEAR(worst, 1.0, 1e-9);
+  // An arm whose URDF gives no limits: nothing to derive, said per joint.
+  const bs::kinematics::ChainModel unlimited = bs::kinematics::ChainModel::fromUrdfFile(
+      BIMANUAL_SKILLS_SOURCE_DIR "/test/chain_no_limits.urdf", "base_link", "tool");
+  EXPECT_NE(errorOf([&] { bs::sim::brakingFromLimits(unlimited); }).find("no effort or velocity limit"),
+            std::string::npos);
+}
+
+TEST(RobotFileDerivation, TheStartPostureIsTheSolutionNearestTheMiddleOfTheRanges) {
+  const bs::kinematics::ChainModel arm = offsetWristArm();
+  Eigen::Isometry3d tool = Eigen::Isometry3d::Identity();
+  tool.translation() = Eigen::Vector3d(0.45, 0.1, 0.3);
+  tool.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  const Eigen::VectorXd q = bs::sim::postureFromToolPose(arm, tool);
+  EXPECT_EQ(bs::sim::postureFromToolPose(arm, tool), q);  // the same answer every time
+  EXPECT_TRUE(arm.withinLimits(q));
+  bs::kinematics::ChainData data(arm);
+  (void)bs::kinematics::forwardKinematics(arm, data, q);
+  EXPECT_LT((data.tipPose().translation() - tool.translation()).norm(), 1e-4);
+  EXPECT_LT((data.tipPose().linear() - tool.linear()).norm(), 1e-3);
+  // Brute force: no solution from 40 independently seeded searches lies nearer the middle of the ranges.
+  const Eigen::ArrayXd middle = 0.5 * (arm.lowerLimits() + arm.upperLimits()).array();
+  const Eigen::ArrayXd range = (arm.upperLimits() - arm.lowerLimits()).array();
+  const auto distance = [&](const Eigen::VectorXd& x) { return ((x.array() - middle) / range).square().sum(); };
+  for (std::uint32_t seed = 100; seed < 140; ++seed) {
+    bs::kinematics::GlobalIkParameters parameters;
+    parameters.seed = seed;
+    parameters.timeout = 1.0;
+    bs::kinematics::GlobalIkSolver solver(arm, parameters);
+    std::mt19937 rng(seed);
+    Eigen::VectorXd other(7);
+    if (solver.solve(tool, bs::kinematics::randomWithinLimits(arm, rng), other).status !=
+        bs::kinematics::IkStatus::Converged) {
+      continue;
+    }
+    EXPECT_LE(distance(q), distance(other) + 0.05) << "seed " << seed << ": " << other.transpose();
+  }
+  Eigen::Isometry3d far = tool;
+  far.translation() = Eigen::Vector3d(3.0, 0.0, 0.0);
+  EXPECT_NE(errorOf([&] { bs::sim::postureFromToolPose(arm, far); }).find("no posture"), std::string::npos);
+}
+
+TEST(RobotFileDerivation, TheSecondRobotFileDerivesWhatItLeavesOutAndBadOnesSayWhatToGive) {
+  const bs::sim::RobotFile robot = bs::sim::RobotFile::fromYamlFile(kConfig + "/robots/offset_wrist.yaml");
+  EXPECT_EQ(robot.derived.size(), 5u);  // two starts, the gains, the braking, the payload
+  EXPECT_GT(robot.rated_payload, 1.0);
+  EXPECT_EQ(robot.kp.size(), 7);
+  EXPECT_EQ(robot.braking_damping.size(), 7);
+  for (const bs::sim::RobotArm& arm : robot.arms) EXPECT_EQ(arm.ik_seed, arm.start);
+  // The WAM's file gives everything: nothing derived.
+  EXPECT_TRUE(bs::sim::RobotFile::fromYamlFile(kConfig + "/robots/wam.yaml").derived.empty());
+
+  const std::string head = "name: test\nurdf: " + std::string(BIMANUAL_SKILLS_SOURCE_DIR) +
+                           "/urdf/bimanual_offset_wrist.urdf\nplant: " + kConfig +
+                           "/robots/offset_wrist/plant.yaml\narms:\n  - {name: left, base_link: left_base_link, "
+                           "tip_link: left_tool, ";
+  const std::string reachable = "start_tool: {xyz: [0.55, 0.25, 0.45], rpy: [3.14159, 0, 0]}}\n";
+  const auto refused = [&](const std::string& file, const std::string& text) {
+    return errorOf([&] { bs::sim::RobotFile::fromYamlFile(write(file, text)); });
+  };
+  EXPECT_EQ(refused("derive_ok.yaml", head + reachable + "bandwidth: 3\n"), "no exception");
+  EXPECT_NE(refused("derive_no_start.yaml", head + "friction: ''}\nbandwidth: 3\n").find("'start_tool'"),
+            std::string::npos);
+  EXPECT_NE(refused("derive_both_starts.yaml", head + "start: [0, 0, 0, -2, 0, 2, 0], " + reachable + "bandwidth: 3\n")
+                .find("not both"),
+            std::string::npos);
+  EXPECT_NE(refused("derive_far.yaml", head + "start_tool: {xyz: [3, 0, 0.45]}}\nbandwidth: 3\n")
+                .find("no 'start' and none derived from the model"),
+            std::string::npos);
+  EXPECT_NE(refused("derive_no_gains.yaml", head + reachable).find("'bandwidth'"), std::string::npos);
+  EXPECT_NE(refused("derive_gains_twice.yaml",
+                    head + reachable + "bandwidth: 3\nkp: [1, 1, 1, 1, 1, 1, 1]\nkv: [1, 1, 1, 1, 1, 1, 1]\n")
+                .find("not both"),
+            std::string::npos);
+  EXPECT_NE(refused("derive_bad_bandwidth.yaml", head + reachable + "bandwidth: -1\n").find("give 'kp' and 'kv'"),
+            std::string::npos);
 }

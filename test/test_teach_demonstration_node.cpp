@@ -31,7 +31,7 @@ bool call(const std::string& name, Service& service) {
   return ros::service::call(name, service);
 }
 
-/// The corners the tools start at (config/bullet_sim_fold_start.yaml: the cloth's far corners).
+/// The corners the tools start at (config/robots/wam_fold_start.yaml: the cloth's far corners).
 const Eigen::Vector3d kCorner[2] = {Eigen::Vector3d(0.79, 0.29, 0.165), Eigen::Vector3d(0.79, -0.29, 0.165)};
 
 /// The hands' folding arc at s in [0, 1] (minimum jerk): half a circle of radius 0.25 m over the cloth.

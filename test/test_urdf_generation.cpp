@@ -48,6 +48,15 @@ TEST(UrdfGeneration, CommittedBimanualEqualsGenerated) {
       << "urdf/bimanual_wam.urdf is stale: run scripts/generate_bimanual_urdf.py --out urdf/bimanual_wam.urdf";
 }
 
+TEST(UrdfGeneration, CommittedSecondRobotEqualsGenerated) {
+  const std::string generated =
+      generate("generate_bimanual_urdf.py", "--arm " + kSource + "/urdf/test_arms/offset_wrist_arm.urdf --config " +
+                                                kSource + "/config/robots/offset_wrist/placement.yaml");
+  ASSERT_FALSE(generated.empty());
+  EXPECT_EQ(readFile(kSource + "/urdf/bimanual_offset_wrist.urdf"), generated)
+      << "urdf/bimanual_offset_wrist.urdf is stale: run the command in config/robots/offset_wrist.yaml";
+}
+
 TEST(UrdfGeneration, CommittedTestArmsEqualGenerated) {
   for (const std::string arm : {"offset_wrist_arm", "spherical_wrist_arm"}) {
     const std::string generated = generate("generate_test_arms.py", "--arm " + arm);

@@ -22,7 +22,7 @@ TEST(WorkspaceMarkers, PublishesTheMapAndTheCones) {
   ASSERT_EQ(map->markers.size(), 1u);
   const visualization_msgs::Marker& cubes = map->markers.front();
   EXPECT_EQ(cubes.type, visualization_msgs::Marker::CUBE_LIST);
-  EXPECT_EQ(cubes.header.frame_id, "wam_base");
+  EXPECT_EQ(cubes.header.frame_id, "left_wam_base");  // the robot file's first arm
   EXPECT_GT(cubes.points.size(), 10u);
   EXPECT_EQ(cubes.colors.size(), cubes.points.size());
   EXPECT_NEAR(cubes.scale.x, 0.9 * 0.3, 1e-12);

@@ -136,4 +136,17 @@ void saveYamlFile(const std::string& path, const std::string& what, const std::s
   if (!file) fail("cannot write " + what + " '" + path + "'");
 }
 
+Eigen::Isometry3d readPose(const YAML::Node& node, const std::string& where) {
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  if (node["xyz"]) pose.translation() = readVector(node, "xyz", where, 3);
+  if (node["rpy"]) {
+    const Eigen::VectorXd rpy = readVector(node, "rpy", where, 3);
+    pose.linear() =
+        (Eigen::AngleAxisd(rpy[2], Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(rpy[1], Eigen::Vector3d::UnitY()) *
+         Eigen::AngleAxisd(rpy[0], Eigen::Vector3d::UnitX()))
+            .toRotationMatrix();
+  }
+  return pose;
+}
+
 }  // namespace bimanual_skills::io

@@ -8,6 +8,7 @@
 
 #include <yaml-cpp/yaml.h>
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <functional>
 #include <initializer_list>
@@ -56,6 +57,9 @@ std::string readString(const YAML::Node& node, const std::string& key, const std
 Eigen::VectorXd toVector(const YAML::Node& value, const std::string& at, const std::string& name, int size = -1);
 /// A list of finite numbers at `node[key]`; `size` ≥ 0 requires that many.
 Eigen::VectorXd readVector(const YAML::Node& node, const std::string& key, const std::string& where, int size = -1);
+/// A pose {xyz: [x, y, z], rpy: [roll, pitch, yaw]} at `node` (about fixed x, y, z, as in URDF; each entry
+/// defaults to zero).
+Eigen::Isometry3d readPose(const YAML::Node& node, const std::string& where);
 /// A list of `rows` lists of `cols` finite numbers at `node[key]`.
 Eigen::MatrixXd readMatrix(const YAML::Node& node, const std::string& key, const std::string& where, int rows,
                            int cols);

@@ -171,4 +171,14 @@ Eigen::VectorXd randomWithinLimits(const ChainModel& model, std::mt19937& rng) {
   return q;
 }
 
+Eigen::VectorXd middleOfLimits(const ChainModel& model) {
+  Eigen::VectorXd q(model.nq());
+  for (int i = 0; i < model.nq(); ++i) {
+    const double lo = std::isfinite(model.lowerLimits()[i]) ? model.lowerLimits()[i] : -M_PI;
+    const double hi = std::isfinite(model.upperLimits()[i]) ? model.upperLimits()[i] : M_PI;
+    q[i] = 0.5 * (lo + hi);
+  }
+  return q;
+}
+
 }  // namespace bimanual_skills::kinematics

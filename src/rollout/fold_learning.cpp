@@ -118,7 +118,7 @@ int toInt(const std::string& text, const std::string& where) {
 
 FoldLearningConfig withSimulationRenderer(FoldLearningConfig config) {
   const vision::RenderNoise noise = config.reward.renderer.noise;
-  config.reward.renderer = tasks::rendererFor(sim::SimConfig::fromYamlFile(config.task.sim_config));
+  config.reward.renderer = tasks::rendererFor(sim::SimConfig::fromYamlFile(config.task.sim_config, config.task.robot));
   config.reward.renderer.noise = noise;
   return config;
 }
@@ -219,9 +219,10 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
   const std::string where = "fold learning file '" + path + "'";
   const YAML::Node root = io::loadYamlFile(path, where);
   if (!root.IsMap()) io::fail(where + ": must be a map");
-  io::checkKeys(root, where, {"sim", "friction", "task", "reward", "learning"});
+  io::checkKeys(root, where, {"sim", "robot", "friction", "task", "reward", "learning"});
   FoldLearningConfig c;
   c.task.sim_config = io::resolvePath(path, io::readString(root, "sim", where));
+  if (root["robot"]) c.task.robot = io::resolvePath(path, io::readString(root, "robot", where));
   if (const YAML::Node friction = root["friction"]) {
     if (!friction.IsSequence()) io::fail(where + ": 'friction' must be a list of files, one per arm");
     for (const YAML::Node& file : friction)
@@ -333,7 +334,7 @@ struct FoldLearner::Impl {
     lock("reward.txt", text.str(), "scored with another reward");
     // The world the rollouts ran in: the simulation file with its URDF and plant (on a robot through ROS the
     // simulator's is checked against it, FoldOnRobotTask).
-    lock("world.txt", "sim_config " + sim::SimConfig::worldDigest(config.task.sim_config) + "\n",
+    lock("world.txt", "sim_config " + sim::SimConfig::worldDigest(config.task.sim_config, config.task.robot) + "\n",
          "run in another world (simulation, URDF or plant file)");
   }
 

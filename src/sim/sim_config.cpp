@@ -14,26 +14,13 @@ namespace {
 using io::fail;
 
 /// Pose from `xyz` and `rpy` (roll, pitch, yaw about fixed x, y, z, as in URDF); both optional (zero).
-Eigen::Isometry3d readPose(const YAML::Node& node, const std::string& where) {
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  if (node["xyz"]) pose.translation() = io::readVector(node, "xyz", where, 3);
-  if (node["rpy"]) {
-    const Eigen::VectorXd rpy = io::readVector(node, "rpy", where, 3);
-    pose.linear() =
-        (Eigen::AngleAxisd(rpy[2], Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(rpy[1], Eigen::Vector3d::UnitY()) *
-         Eigen::AngleAxisd(rpy[0], Eigen::Vector3d::UnitX()))
-            .toRotationMatrix();
-  }
-  return pose;
-}
-
 ClothParameters readCloth(const YAML::Node& node, const std::string& where, double& grasp_radius) {
   io::checkKeys(node, where,
                 {"xyz", "rpy", "size", "nodes", "mass", "stretch_stiffness", "bending_stiffness", "damping", "friction",
                  "thickness", "position_iterations", "self_collision", "strain_limit", "step", "max_node_speed",
                  "max_stretch", "grasp_radius"});
   ClothParameters c;
-  c.pose = readPose(node, where);
+  c.pose = io::readPose(node, where);
   if (node["size"]) {
     const Eigen::VectorXd size = io::readVector(node, "size", where, 2);
     c.length = size[0];
@@ -134,7 +121,10 @@ SimConfig SimConfig::fromYamlFile(const std::string& path, const std::string& ro
     const RobotFile file = RobotFile::fromYamlFile(config.robot_path);
     config.urdf_path = file.urdf_path;
     config.plant_path = file.plant_path;
-    for (const RobotArm& arm : file.arms) config.arms.push_back({arm.name, arm.base_link, arm.tip_link});
+    for (const RobotArm& arm : file.arms)
+      config.arms.push_back({arm.name, arm.base_link, arm.tip_link, arm.start, arm.friction_file, arm.ik_seed});
+    config.kp = file.kp;
+    config.kv = file.kv;
   } else {
     config.urdf_path = io::resolvePath(path, io::readString(root, "urdf", where));
     config.plant_path = io::resolvePath(path, io::readString(root, "plant", where));
@@ -143,8 +133,12 @@ SimConfig SimConfig::fromYamlFile(const std::string& path, const std::string& ro
     for (std::size_t k = 0; k < arms.size(); ++k) {
       const std::string at = where + " arm " + std::to_string(k + 1);
       io::checkKeys(arms[k], at, {"name", "base_link", "tip_link"});
-      config.arms.push_back({io::readString(arms[k], "name", at), io::readString(arms[k], "base_link", at),
-                             io::readString(arms[k], "tip_link", at)});
+      config.arms.push_back({io::readString(arms[k], "name", at),
+                             io::readString(arms[k], "base_link", at),
+                             io::readString(arms[k], "tip_link", at),
+                             {},
+                             "",
+                             {}});
     }
   }
   config.step = io::readDouble(root, "step", where, config.step);
@@ -160,7 +154,7 @@ SimConfig SimConfig::fromYamlFile(const std::string& path, const std::string& ro
     const YAML::Node table = root["table"];
     const std::string at = where + " table";
     io::checkKeys(table, at, {"xyz", "rpy", "size", "friction"});
-    config.table.pose = readPose(table, at);
+    config.table.pose = io::readPose(table, at);
     if (table["size"]) config.table.size = io::readVector(table, "size", at, 3);
     config.table.friction = io::readDouble(table, "friction", at, config.table.friction);
   }

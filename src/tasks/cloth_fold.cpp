@@ -25,8 +25,6 @@ using primitives::CartesianDmpState;
 using primitives::Pose;
 
 /// Low computed-torque gains (about a tenth of libbarrett's stiff position gains; config/robots/wam.yaml).
-const Eigen::VectorXd kDefaultKp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
-const Eigen::VectorXd kDefaultKv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
 /// |q̈_ref| below this counts as no acceleration for the observer's friction sign [rad/s²].
 constexpr double kAccelerationDeadBand = 1e-3;
 /// Samples per second of the scripted demonstration the DMPs are fitted to.
@@ -266,7 +264,7 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
   }
   if (!(config.demo_lag >= 0.0 && config.demo_lag < 0.9))
     throw std::invalid_argument("cloth fold: demo_lag in [0, 0.9)");
-  m.sim_config = sim::SimConfig::fromYamlFile(config.sim_config);
+  m.sim_config = sim::SimConfig::fromYamlFile(config.sim_config, config.robot);
   if (!m.sim_config.has_cloth) throw std::invalid_argument("cloth fold: '" + config.sim_config + "' has no cloth");
   m.simulation = std::make_unique<sim::BimanualSimulation>(m.sim_config);
   if (m.simulation->armCount() != 2) throw std::invalid_argument("cloth fold: the simulation needs two arms");
@@ -278,16 +276,24 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
   m.clik_parameters.inverse = op;
   m.clik_parameters.limits = scheme;
   control::ComputedTorqueGains gains;
-  gains.kp = config.kp.size() ? config.kp : kDefaultKp;
-  gains.kv = config.kv.size() ? config.kv : kDefaultKv;
+  gains.kp = config.kp.size() ? config.kp : m.sim_config.kp;
+  gains.kv = config.kv.size() ? config.kv : m.sim_config.kv;
+  if (gains.kp.size() == 0 || gains.kv.size() == 0) {
+    throw std::invalid_argument(
+        "cloth fold: no controller gains: give kp and kv, or a simulation file with a robot file");
+  }
   m.gains = gains;
   for (int arm = 0; arm < 2; ++arm) {
     const kinematics::ChainModel& model = m.simulation->armModel(arm);
     dynamics::FrictionModel friction;
-    const bool with_friction = arm < static_cast<int>(config.friction_files.size()) &&
-                               !config.friction_files[static_cast<std::size_t>(arm)].empty();
+    const std::string file = config.friction_files.empty()
+                                 ? m.sim_config.arms[static_cast<std::size_t>(arm)].friction_file
+                                 : (arm < static_cast<int>(config.friction_files.size())
+                                        ? config.friction_files[static_cast<std::size_t>(arm)]
+                                        : std::string());
+    const bool with_friction = !file.empty();
     if (with_friction) {
-      friction = dynamics::loadFrictionModel(config.friction_files[static_cast<std::size_t>(arm)]);
+      friction = dynamics::loadFrictionModel(file);
     } else {
       friction.joints.assign(static_cast<std::size_t>(model.nq()), dynamics::JointFriction{});
     }
@@ -299,7 +305,6 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
   // The demonstration: the scripted arcs fitted by two Cartesian DMPs; the start configurations by global IK.
   primitives::DmpParameters dmp;
   dmp.kernels = config.kernels;
-  const Eigen::VectorXd seed = (Eigen::VectorXd(7) << 0.0, 0.8, 0.0, 1.6, 0.0, 0.7, 0.0).finished();
   if (!config.demonstration_files.empty() && config.demonstration_files.size() != 2) {
     throw std::invalid_argument("cloth fold: demonstration_files needs one DMP file per arm (left, right)");
   }
@@ -328,7 +333,12 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
     Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
     target.translation() = path.front().position;
     target.linear() = path.front().orientation.toRotationMatrix();
-    Eigen::VectorXd q(7);
+    // Seeded with the robot's IK seed (the middle of the joint ranges when the simulation file gives none): the fold
+    // starts in the branch the arm works in.
+    const kinematics::ChainModel& chain = m.simulation->armModel(arm);
+    const Eigen::VectorXd& ik_seed = m.sim_config.arms[static_cast<std::size_t>(arm)].ik_seed;
+    const Eigen::VectorXd seed = ik_seed.size() == chain.nq() ? ik_seed : kinematics::middleOfLimits(chain);
+    Eigen::VectorXd q(chain.nq());
     const auto result = solver.solve(m.simulation->basePose(arm).inverse() * target, seed, q);
     if (result.status != kinematics::IkStatus::Converged) {
       throw std::invalid_argument("cloth fold: no IK solution for the start of arm " + std::to_string(arm));

@@ -143,4 +143,7 @@ class ChainModel {
 /// A configuration uniform within the joint limits (±π for unlimited joints), drawn from `rng` joint by joint.
 Eigen::VectorXd randomWithinLimits(const ChainModel& model, std::mt19937& rng);
 
+/// The middle of each joint's range (0 for unlimited joints): a seed that favours no branch.
+Eigen::VectorXd middleOfLimits(const ChainModel& model);
+
 }  // namespace bimanual_skills::kinematics

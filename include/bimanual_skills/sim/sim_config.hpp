@@ -17,9 +17,14 @@ namespace bimanual_skills::sim {
 
 /// One simulated arm: the serial chain between two links of the URDF.
 struct ArmConfig {
-  std::string name;       ///< Arm name (the key of its true plant in the plant model).
-  std::string base_link;  ///< Link fixed to the world (through fixed joints only); the chain's base frame.
-  std::string tip_link;   ///< The tool link: payloads hang and grippers sit at its origin.
+  std::string name;           ///< Arm name (the key of its true plant in the plant model).
+  std::string base_link;      ///< Link fixed to the world (through fixed joints only); the chain's base frame.
+  std::string tip_link;       ///< The tool link: payloads hang and grippers sit at its origin.
+  Eigen::VectorXd start;      ///< The robot file's start posture (empty when the simulation file names the arms).
+  std::string friction_file;  ///< The robot file's friction model of its controller ("" for none, or no file).
+  /// The posture task poses are solved from (IK seed): the branch the arm works in. The robot file's `ik_seed` or
+  /// start; empty when the simulation file names the arms.
+  Eigen::VectorXd ik_seed;
 };
 
 struct SimConfig {
@@ -35,6 +40,7 @@ struct SimConfig {
   PlantModel plant;            ///< True plant, one entry per arm name.
   std::string plant_path;      ///< Where `plant` was read from (informative).
   std::string robot_path;      ///< The robot file the arms, URDF and plant came from ("" when the file names them).
+  Eigen::VectorXd kp, kv;      ///< The robot file's computed-torque gains (empty without a robot file).
   std::uint32_t seed = 1;      ///< Seed of the sensor noise generator.
 
   /// Reads a simulation file; relative paths in it (`urdf`, `plant`) are relative to the file's directory:

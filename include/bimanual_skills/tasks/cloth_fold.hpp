@@ -33,13 +33,15 @@ const char* toString(FoldPolicy policy) noexcept;
 FoldPolicy foldPolicyFromString(const std::string& text, const std::string& where);
 
 struct ClothFoldConfig {
-  std::string sim_config;                                    ///< Simulation file with a cloth (config/sim.yaml).
-  int kernels = 20;                                          ///< DMP weights per DoF.
-  double duration = 4.0;                                     ///< Of the fold movement [s].
+  std::string sim_config;  ///< Simulation file with a cloth (config/sim.yaml).
+  std::string robot;      ///< A robot file replacing the simulation file's (sim::SimConfig::fromYamlFile); "": its own.
+  int kernels = 20;       ///< DMP weights per DoF.
+  double duration = 4.0;  ///< Of the fold movement [s].
   double hold_before = 0.2, hold_after = 0.3, settle = 1.0;  ///< Around the movement [s].
-  /// Computed-torque gains per joint (low, as in Ch. 4); empty: the defaults of config/ctc_controller.yaml.
+  /// Computed-torque gains per joint (low, as in Ch. 4); empty: the robot file's.
   Eigen::VectorXd kp, kv;
-  /// Friction model files per arm for the controllers and observers ("" = no friction compensation).
+  /// Friction model files per arm for the controllers and observers ("" = no friction compensation); empty: the
+  /// robot file's.
   std::vector<std::string> friction_files;
   std::string ik_method = "ED";     ///< CLIK method (a thesis name, e.g. "CTP+SD+SVF").
   double max_ik_error = 0.05;       ///< Task error of the CLIK references beyond which the rollout fails [m].

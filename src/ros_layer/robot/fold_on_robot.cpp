@@ -272,11 +272,6 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
   // No destructor runs for an object whose constructor throws: the spinner must stop before the arms its callbacks
   // write into go.
   try {
-    try {
-      connectArms();
-    } catch (const Failure& f) {
-      throw std::runtime_error("fold on the robot: " + f.reason);
-    }
     // A pause service named but absent would fail every rollout after a timeout: refused once, here.
     if (!robot_.pause_service.empty() &&
         !ros::service::waitForService(node_->resolveName(robot_.pause_service), ros::Duration(robot_.timeout))) {
@@ -284,7 +279,7 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
                                " within " + std::to_string(robot_.timeout) +
                                " s (a simulator's std_srvs/SetBool; on a robot set the pause service to \"\")");
     }
-    checkWorld(task.sim_config);
+    checkWorld(task.sim_config, task.robot);
     // A camera the reward cannot use is refused once, here, with the reason (and again per image, if it changes).
     sensor_msgs::CameraInfoConstPtr info;
     try {
@@ -302,6 +297,13 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
     if (!problem.empty()) {
       throw std::runtime_error("fold on the robot: the camera " + node_->resolveName(robot_.camera) + " (" +
                                robot_.camera_model + ") cannot be used: " + problem);
+    }
+    // The arms last: a camera or world the learning cannot use is a setting to change, said before any wait for the
+    // robot's actions.
+    try {
+      connectArms();
+    } catch (const Failure& f) {
+      throw std::runtime_error("fold on the robot: " + f.reason);
     }
   } catch (...) {
     spinner_->stop();
@@ -354,7 +356,7 @@ void FoldOnRobotTask::call(const std::string& service, Service& request, double 
   throw Failure{tasks::FoldOutcome::RobotFailed, message.str()};
 }
 
-void FoldOnRobotTask::checkWorld(const std::string& sim_config) const {
+void FoldOnRobotTask::checkWorld(const std::string& sim_config, const std::string& robot) const {
   if (robot_.world_digest.empty()) return;
   const std::string key = node_->resolveName(robot_.world_digest);
   std::string simulated;
@@ -362,11 +364,13 @@ void FoldOnRobotTask::checkWorld(const std::string& sim_config) const {
     ROS_INFO("fold on the robot: no %s: the robot's world is not checked against %s", key.c_str(), sim_config.c_str());
     return;
   }
-  const std::string expected = sim::SimConfig::worldDigest(sim_config);
+  const std::string expected = sim::SimConfig::worldDigest(sim_config, robot);
   if (simulated != expected) {
     throw std::runtime_error("fold on the robot: the simulator runs another world: " + key + " is " + simulated +
-                             ", the learning's simulation file " + sim_config + " (with its URDF and plant files) " +
-                             expected + "; give both the same files");
+                             ", the learning's simulation file " + sim_config +
+                             (robot.empty() ? std::string() : " on the robot file " + robot) +
+                             " (with its URDF and plant files) " + expected +
+                             "; give both the same files (fold_learner ~robot, sim.launch robot:=)");
   }
 }
 

@@ -175,7 +175,7 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   /// New action clients for both arms, and the wait for their servers.
   void connectArms();
   /// Throws std::runtime_error when a simulator says it runs another world than `sim_config`.
-  void checkWorld(const std::string& sim_config) const;
+  void checkWorld(const std::string& sim_config, const std::string& robot) const;
   /// Why the camera whose camera_info is `info` cannot be used (its model, size, distortion, frame on tf); "" when
   /// it can. For a perspective camera, sets camera_ (intrinsics and pose).
   std::string cameraProblem(const sensor_msgs::CameraInfo& info);
