@@ -469,15 +469,19 @@ int main(int argc, char** argv) {
     line.option("--sim", "FILE", "simulation of the speed and fold_rollout experiments (default: config/sim.yaml)",
                 &g_sim_file);
     line.option("--robot", "FILE",
-                "robot file of the speed and fold_rollout experiments instead of the simulation file's (e.g.\n"
-                "config/robots/offset_wrist.yaml)",
+                "robot file instead of the simulation file's (e.g. config/robots/offset_wrist.yaml): the arms of\n"
+                "the speed and fold_rollout experiments, the arm (--arm) the friction experiment identifies",
                 &g_robot_file);
+    line.option("--friction-out", "FILE",
+                "friction: also write the advanced model here (the friction file the robot file's arm names)",
+                &bs::bench::sim_experiments::frictionOut());
     line.option("--arm", "NAME", "arm of config/sim.yaml the friction and payload experiments use (default left)",
                 &arm_name);
   };
   const Options options = bs::bench::parseExperimentOptions(argc, argv, program);
   bs::bench::sim_experiments::usePlantFile(plant_file);
   bs::bench::sim_experiments::useArm(arm_name);
+  bs::bench::sim_experiments::useRobotFile(g_robot_file);
   try {
     cpu_set_t one;
     CPU_ZERO(&one);

@@ -33,8 +33,18 @@ void payload(const ExperimentOptions& options, Rows& rows);
 constexpr double kControlPeriod = 0.002;
 
 /// config/sim.yaml with only the left arm (no table, no cloth), its true plant from config/plant.yaml (or the file
-/// given to usePlantFile), seeded.
+/// given to usePlantFile), seeded; the arm of the robot file given to useRobotFile instead of the WAM's.
 sim::SimConfig oneArmConfig(const ExperimentOptions& options);
+
+/// Makes the friction experiment identify another robot's arm (sim_benchmark --robot FILE): its plant, gains and
+/// excitation then come from its robot file and model (excitationRanges, loggerGains). Empty: the WAM of
+/// config/sim.yaml with the thesis' settings.
+void useRobotFile(const std::string& path);
+/// That file ("" for the WAM).
+std::string& robotFile();
+/// Where the friction experiment also writes its advanced model (sim_benchmark --friction-out FILE, e.g. the file a
+/// robot file's arm names); "" for nowhere else.
+std::string& frictionOut();
 
 /// Makes the friction and payload experiments use another true plant (sim_benchmark --plant FILE), e.g. to find
 /// out which of the plant's effects the models miss. Empty: config/plant.yaml.
@@ -45,12 +55,29 @@ void useArm(const std::string& name);
 std::string& armName();
 
 /// What the controllers know of the arm: the simulation's rigid-body model with the data-sheet reflected rotor
-/// inertias of shared/reference/wam.md (no friction: that is identified).
+/// inertias (no friction: that is identified). The plant file's rotor inertias stand for the data sheet's: for the
+/// WAM they are those of shared/reference/wam.md.
 kinematics::ChainModel controllerModel(const sim::BimanualSimulation& simulation);
 
-/// Computed-torque gains of the low-gain (compliant) controller of Sec. 4.2: about a tenth of libbarrett's stiff
-/// position gains (900, 2500, 600, 500, 50, 50, 8), as in test_control.
-control::ComputedTorqueGains lowGains();
+/// Computed-torque gains of the low-gain (compliant) controller of Sec. 4.2: the robot file's (the WAM's are about a
+/// tenth of libbarrett's stiff position gains 900, 2500, 600, 500, 50, 50, 8, as in test_control).
+control::ComputedTorqueGains lowGains(const sim::SimConfig& config);
+
+/// Gains of the controller that logs the excitation: stiff, as the thesis logged under the WAM's PID. The WAM's
+/// (400, 400, 200, 150, 30, 30, 6; 40, 40, 15, 10, 1.5, 1.5, 0.2); another robot's: 3 kp and √3 kv of its
+/// robot file (√3 times its bandwidth at the same damping ratio).
+control::ComputedTorqueGains loggerGains(const sim::SimConfig& config);
+
+/// Where the excitation swings each joint: centres drawn in [centre_low, centre_high], amplitudes up to
+/// `amplitude` [rad]; `pairs` the cable-coupled joints (0-based; the plant's differentials), each excited together.
+struct ExcitationRanges {
+  Eigen::VectorXd centre_low, centre_high, amplitude;
+  std::vector<std::pair<int, int>> pairs;
+};
+/// The WAM's ranges (within its limits, away from self-collisions) unless useRobotFile named another robot, whose
+/// ranges come from its joint limits: amplitude a = min(1.2, 0.2 r) of the range r, centres at least 0.15 r + a from
+/// either limit (the middle when the range is too short).
+ExcitationRanges excitationRanges(const sim::SimConfig& config);
 
 /// Excitation of the identification (thesis Sec. 4.2.2, "oscillation movements at different speeds, moving joints
 /// individually at different positions and also with coupled movements"): every joint i follows
@@ -69,15 +96,17 @@ struct ExcitationTrajectory {
 };
 
 /// The seeded excitation set: for each joint one `joint` trajectory, one `coupled` per cable pair and one `all`,
-/// `repeats` times with fresh draws (centres, amplitudes, speeds).
-std::vector<ExcitationTrajectory> excitationSet(std::uint32_t seed, int repeats, double length);
+/// `repeats` times with fresh draws (centres, amplitudes, speeds) within `ranges`.
+std::vector<ExcitationTrajectory> excitationSet(std::uint32_t seed, int repeats, double length,
+                                                const ExcitationRanges& ranges);
 
 /// Identification data: a log of excitation runs, the friction observed in it (2.12) and sign(q̈).
 struct IdentificationData {
   dynamics::FrictionLog log;
-  Eigen::MatrixXd friction, signs;  ///< observedFriction(controller model, log), accelerationSigns(log, logged).
-  std::vector<int> first_sample;    ///< Index of each trajectory's first sample, plus the end.
-  int train_end = 0;                ///< Samples before it are training data, from it validation data.
+  Eigen::MatrixXd friction, signs;         ///< observedFriction(controller model, log), accelerationSigns(log, logged).
+  std::vector<int> first_sample;           ///< Index of each trajectory's first sample, plus the end.
+  int train_end = 0;                       ///< Samples before it are training data, from it validation data.
+  std::vector<std::pair<int, int>> pairs;  ///< The arm's cable-coupled joints (ExcitationRanges::pairs).
 };
 
 /// Runs the training and then the validation trajectories one after the other on the arm (reset to each start at
@@ -88,8 +117,8 @@ struct IdentificationData {
 IdentificationData logExcitation(const ExperimentOptions& options, const std::vector<ExcitationTrajectory>& training,
                                  const std::vector<ExcitationTrajectory>& validation);
 
-/// fitFriction as fit_friction runs it (pairs 2-3 and 5-6, ε = 0.05, sign of the logged q̈), fitted on the
-/// training samples; fit.test holds the errors over all validation samples.
+/// fitFriction as fit_friction runs it (the arm's coupled pairs, 2-3 and 5-6 on the WAM, ε = 0.05, sign of the logged
+/// q̈), fitted on the training samples; fit.test holds the errors over all validation samples.
 dynamics::FrictionFit identifyFriction(const IdentificationData& data, dynamics::FrictionModelType type,
                                        std::uint32_t seed, bool quick);
 

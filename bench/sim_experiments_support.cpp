@@ -16,11 +16,17 @@
 namespace bimanual_skills::bench::sim_experiments {
 namespace {
 
-/// Ranges of the excitation (within the thesis' joint limits, away from self-collisions): centre interval and
+/// Ranges of the WAM's excitation (within the thesis' joint limits, away from self-collisions): centre interval and
 /// largest amplitude per joint [rad].
 const Eigen::VectorXd kCentreLow = (Eigen::VectorXd(7) << -1.0, -0.4, -0.8, 0.9, -1.0, -0.3, -0.5).finished();
 const Eigen::VectorXd kCentreHigh = (Eigen::VectorXd(7) << 1.0, 0.4, 0.8, 1.7, -0.2, 0.3, 0.5).finished();
 const Eigen::VectorXd kAmplitude = (Eigen::VectorXd(7) << 1.1, 0.9, 1.2, 0.9, 1.2, 1.0, 1.2).finished();
+
+/// The arm's chain as the simulation file gives it.
+kinematics::ChainModel armChain(const sim::SimConfig& config) {
+  const sim::ArmConfig& arm = config.arms.front();
+  return kinematics::ChainModel::fromUrdfFile(config.urdf_path, arm.base_link, arm.tip_link);
+}
 
 /// Offline processing of one run's samples (rows): zero-phase low-pass, q̈ by central differences of the filtered
 /// q̇, ends trimmed; appended to the log.
@@ -66,8 +72,23 @@ void useArm(const std::string& name) {
   armName() = name;
 }
 
+std::string& robotFile() {
+  static std::string path;
+  return path;
+}
+
+void useRobotFile(const std::string& path) {
+  robotFile() = path;
+}
+
+std::string& frictionOut() {
+  static std::string path;
+  return path;
+}
+
 sim::SimConfig oneArmConfig(const ExperimentOptions& options) {
-  sim::SimConfig config = sim::SimConfig::fromYamlFile(bimanual_skills::cli::packageFile("config/sim.yaml"));
+  sim::SimConfig config =
+      sim::SimConfig::fromYamlFile(bimanual_skills::cli::packageFile("config/sim.yaml"), robotFile());
   if (!plantFile().empty()) {
     config.plant = sim::PlantModel::fromYamlFile(plantFile());
     config.plant_path = plantFile();
@@ -75,7 +96,10 @@ sim::SimConfig oneArmConfig(const ExperimentOptions& options) {
   config.seed = options.seed;
   const auto arm =
       std::find_if(config.arms.begin(), config.arms.end(), [](const sim::ArmConfig& a) { return a.name == armName(); });
-  if (arm == config.arms.end()) throw std::invalid_argument("no arm called '" + armName() + "' in config/sim.yaml");
+  if (arm == config.arms.end()) {
+    throw std::invalid_argument("no arm called '" + armName() + "' in " +
+                                (robotFile().empty() ? std::string("config/sim.yaml") : robotFile()));
+  }
   config.arms = {*arm};
   config.has_table = false;
   config.has_cloth = false;
@@ -83,16 +107,59 @@ sim::SimConfig oneArmConfig(const ExperimentOptions& options) {
 }
 
 kinematics::ChainModel controllerModel(const sim::BimanualSimulation& simulation) {
-  // Data-sheet reflected rotor inertias (shared/reference/wam.md), J1..J7 [kg m²].
-  const Eigen::VectorXd rotor = (Eigen::VectorXd(7) << 0.164, 0.148, 0.053, 0.030, 0.0028, 0.0028, 0.0003).finished();
-  return simulation.armModel(0).withRotorInertia(rotor);
+  const sim::SimConfig& config = simulation.config();
+  const Eigen::VectorXd& rotor = config.plant.arm(config.arms.front().name).rotor_inertia;
+  const int n = simulation.armModel(0).nq();
+  return simulation.armModel(0).withRotorInertia(rotor.size() == n ? rotor : Eigen::VectorXd::Zero(n));
 }
 
-control::ComputedTorqueGains lowGains() {
+control::ComputedTorqueGains lowGains(const sim::SimConfig& config) {
+  if (config.kp.size() == 0) throw std::invalid_argument("the simulation names no robot file: no controller gains");
   control::ComputedTorqueGains gains;
-  gains.kp = (Eigen::VectorXd(7) << 150, 150, 60, 60, 10, 10, 2.5).finished();
-  gains.kv = (Eigen::VectorXd(7) << 15, 15, 6, 6, 0.6, 0.6, 0.15).finished();
+  gains.kp = config.kp;
+  gains.kv = config.kv;
   return gains;
+}
+
+control::ComputedTorqueGains loggerGains(const sim::SimConfig& config) {
+  control::ComputedTorqueGains gains;
+  if (robotFile().empty()) {
+    gains.kp = (Eigen::VectorXd(7) << 400, 400, 200, 150, 30, 30, 6).finished();
+    gains.kv = (Eigen::VectorXd(7) << 40, 40, 15, 10, 1.5, 1.5, 0.2).finished();
+  } else {
+    gains = lowGains(config);
+    gains.kp *= 3.0;
+    gains.kv *= std::sqrt(3.0);
+  }
+  return gains;
+}
+
+ExcitationRanges excitationRanges(const sim::SimConfig& config) {
+  ExcitationRanges ranges;
+  for (const sim::Drive& drive : config.plant.arm(config.arms.front().name).drives) {
+    if (drive.second >= 0) ranges.pairs.emplace_back(drive.first, drive.second);
+  }
+  if (robotFile().empty()) {
+    ranges.centre_low = kCentreLow;
+    ranges.centre_high = kCentreHigh;
+    ranges.amplitude = kAmplitude;
+    return ranges;
+  }
+  const kinematics::ChainModel chain = armChain(config);
+  const int n = chain.nq();
+  ranges.centre_low.resize(n);
+  ranges.centre_high.resize(n);
+  ranges.amplitude.resize(n);
+  for (int i = 0; i < n; ++i) {
+    const double lower = std::max(chain.lowerLimits()[i], -M_PI), upper = std::min(chain.upperLimits()[i], M_PI);
+    const double range = upper - lower, amplitude = std::min(1.2, 0.2 * range);
+    ranges.amplitude[i] = amplitude;
+    ranges.centre_low[i] = lower + 0.15 * range + amplitude;
+    ranges.centre_high[i] = upper - 0.15 * range - amplitude;
+    if (ranges.centre_low[i] > ranges.centre_high[i])
+      ranges.centre_low[i] = ranges.centre_high[i] = 0.5 * (lower + upper);
+  }
+  return ranges;
 }
 
 void ExcitationTrajectory::evaluate(double t, Eigen::VectorXd& q, Eigen::VectorXd& qd, Eigen::VectorXd& qdd) const {
@@ -120,7 +187,9 @@ void ExcitationTrajectory::evaluate(double t, Eigen::VectorXd& q, Eigen::VectorX
   }
 }
 
-std::vector<ExcitationTrajectory> excitationSet(std::uint32_t seed, int repeats, double length) {
+std::vector<ExcitationTrajectory> excitationSet(std::uint32_t seed, int repeats, double length,
+                                                const ExcitationRanges& ranges) {
+  const int n = static_cast<int>(ranges.amplitude.size());
   std::mt19937 rng(seed);
   const auto uniform = [&](double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng); };
   std::vector<ExcitationTrajectory> set;
@@ -129,33 +198,36 @@ std::vector<ExcitationTrajectory> excitationSet(std::uint32_t seed, int repeats,
     e.kind = kind;
     e.excited = excited;
     e.length = length;
-    e.centre.resize(7);
-    e.amplitude.resize(7);
-    e.frequency.resize(7);
-    e.phase.resize(7);
-    for (int i = 0; i < 7; ++i) {
+    e.centre.resize(n);
+    e.amplitude.resize(n);
+    e.frequency.resize(n);
+    e.phase.resize(n);
+    for (int i = 0; i < n; ++i) {
       const bool main = std::find(excited.begin(), excited.end(), i) != excited.end();
-      e.centre[i] = uniform(kCentreLow[i], kCentreHigh[i]);
+      e.centre[i] = uniform(ranges.centre_low[i], ranges.centre_high[i]);
       // Main joints: 0.1–0.5 Hz, peak speed up to 0.25–1.5 rad/s, amplitude up to 40–100 % of the largest;
       // the others 15–35 % of it at 0.05–0.2 Hz: slower, but not creeping (a joint crawling at a few cm/s only
       // sticks and slips, data no model of the thesis' family fits, and it would dominate the fit).
       if (main) {
         e.frequency[i] = uniform(0.1, 0.5);
         const double peak_speed = uniform(0.25, 1.5);
-        e.amplitude[i] = std::min(kAmplitude[i] * uniform(0.4, 1.0), peak_speed / (2.0 * M_PI * e.frequency[i]));
+        e.amplitude[i] = std::min(ranges.amplitude[i] * uniform(0.4, 1.0), peak_speed / (2.0 * M_PI * e.frequency[i]));
       } else {
         e.frequency[i] = uniform(0.05, 0.2);
-        e.amplitude[i] = kAmplitude[i] * uniform(0.15, 0.35);
+        e.amplitude[i] = ranges.amplitude[i] * uniform(0.15, 0.35);
       }
       e.phase[i] = uniform(0.0, 2.0 * M_PI);
     }
     set.push_back(e);
   };
   for (int r = 0; r < repeats; ++r) {
-    for (int j = 0; j < 7; ++j) draw("joint " + std::to_string(j + 1), {j});
-    draw("coupled 2-3", {1, 2});
-    draw("coupled 5-6", {4, 5});
-    draw("all", {0, 1, 2, 3, 4, 5, 6});
+    for (int j = 0; j < n; ++j) draw("joint " + std::to_string(j + 1), {j});
+    for (const auto& [a, b] : ranges.pairs) {
+      draw("coupled " + std::to_string(a + 1) + "-" + std::to_string(b + 1), {a, b});
+    }
+    std::vector<int> all(static_cast<std::size_t>(n));
+    for (int j = 0; j < n; ++j) all[static_cast<std::size_t>(j)] = j;
+    draw("all", all);
   }
   return set;
 }
@@ -166,14 +238,13 @@ IdentificationData logExcitation(const ExperimentOptions& options, const std::ve
   const kinematics::ChainModel model = controllerModel(simulation);
   // The logger's controller: computed torque without friction compensation, stiff gains (the data only needs the
   // applied torque; the thesis logged its data under the WAM's stiff PID).
-  control::ComputedTorqueGains gains;
-  gains.kp = (Eigen::VectorXd(7) << 400, 400, 200, 150, 30, 30, 6).finished();
-  gains.kv = (Eigen::VectorXd(7) << 40, 40, 15, 10, 1.5, 1.5, 0.2).finished();
+  const control::ComputedTorqueGains gains = loggerGains(simulation.config());
   dynamics::FrictionModel no_friction;
   no_friction.joints.assign(7, dynamics::JointFriction());
   control::ComputedTorqueController controller(model, no_friction, gains);
   const int substeps = static_cast<int>(std::lround(kControlPeriod / simulation.stepSize()));
   IdentificationData data;
+  data.pairs = excitationRanges(simulation.config()).pairs;
   sim::JointState state(7);
   Eigen::VectorXd q(7), qd(7), qdd(7), u(7);
   double t0 = 0.0;
@@ -223,7 +294,7 @@ dynamics::FrictionFit identifyFriction(const IdentificationData& data, dynamics:
                                        std::uint32_t seed, bool quick) {
   dynamics::FrictionFitOptions options;
   options.type = type;
-  options.pairs = {{1, 2}, {4, 5}};  // fit_friction's default for 7 joints
+  options.pairs = data.pairs;
   options.seed = seed;
   options.holdout = 1.0 - static_cast<double>(data.train_end) / data.log.samples();
   if (quick) {
@@ -234,11 +305,13 @@ dynamics::FrictionFit identifyFriction(const IdentificationData& data, dynamics:
 }
 
 std::vector<ExcitationTrajectory> trainingRuns(const ExperimentOptions& options) {
-  return excitationSet(options.seed, options.quick ? 1 : 3, options.quick ? 4.0 : 15.0);
+  return excitationSet(options.seed, options.quick ? 1 : 3, options.quick ? 4.0 : 15.0,
+                       excitationRanges(oneArmConfig(options)));
 }
 
 std::vector<ExcitationTrajectory> validationRuns(const ExperimentOptions& options) {
-  return excitationSet(options.seed + 7919u, options.quick ? 1 : 2, options.quick ? 4.0 : 15.0);
+  return excitationSet(options.seed + 7919u, options.quick ? 1 : 2, options.quick ? 4.0 : 15.0,
+                       excitationRanges(oneArmConfig(options)));
 }
 
 namespace {

@@ -43,7 +43,7 @@ struct Tracking {
 void track(const ExperimentOptions& options, const ExcitationTrajectory& e, const dynamics::FrictionModel& friction,
            bool compensate, Tracking& tracking) {
   sim::BimanualSimulation simulation(oneArmConfig(options));
-  control::ComputedTorqueController controller(controllerModel(simulation), friction, lowGains());
+  control::ComputedTorqueController controller(controllerModel(simulation), friction, lowGains(simulation.config()));
   controller.setFrictionCompensation(compensate);
   const int substeps = static_cast<int>(std::lround(kControlPeriod / simulation.stepSize()));
   sim::JointState state(7);
@@ -85,10 +85,16 @@ void friction(const ExperimentOptions& options, Rows& rows) {
     fitted.push_back(fit.model);
     if (type == FrictionModelType::Advanced) rememberAdvancedFriction(options, fit.model);
     const std::string name = dynamics::toString(type);
-    dynamics::saveFrictionModel(fit.model, options.out + "/friction_" + name + ".yaml",
-                                "Identified by sim_benchmark --experiment friction --seed " +
-                                    std::to_string(options.seed) + " --arm " + armName() + " on the simulated " +
-                                    armName() + " WAM");
+    const std::string origin =
+        "Identified by sim_benchmark --experiment friction --seed " + std::to_string(options.seed) + " --arm " +
+        armName() +
+        (robotFile().empty() ? " on the simulated " + armName() + " WAM"
+                             : " --robot " + robotFile() + " on its simulated " + armName() + " arm");
+    dynamics::saveFrictionModel(fit.model, options.out + "/friction_" + name + ".yaml", origin);
+    if (type == FrictionModelType::Advanced && !frictionOut().empty()) {
+      dynamics::saveFrictionModel(fit.model, frictionOut(), origin);
+      std::printf("sim_benchmark: friction: wrote the advanced model to %s\n", frictionOut().c_str());
+    }
     std::vector<TableEntry> table(7);
     for (std::size_t v = 0; v < validation.size(); ++v) {
       const int run = first_validation + static_cast<int>(v);

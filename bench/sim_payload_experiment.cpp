@@ -95,6 +95,11 @@ KDL::Chain kdlChain(const sim::SimConfig& config) {
 }  // namespace
 
 void payload(const ExperimentOptions& options, Rows& rows) {
+  if (!robotFile().empty()) {
+    throw std::invalid_argument(
+        "payload reproduces Fig. 4.2 on the WAM (its postures and load path): --robot is for "
+        "the speed, fold_rollout and friction experiments");
+  }
   const dynamics::FrictionModel friction = advancedFriction(options);
   const sim::SimConfig config = oneArmConfig(options);
   const KDL::Chain chain = kdlChain(config);  // must outlive the estimators: KDL's solvers keep a reference
@@ -110,7 +115,7 @@ void payload(const ExperimentOptions& options, Rows& rows) {
       throw std::runtime_error("payload: cannot set the load");
     }
     const kinematics::ChainModel model = controllerModel(simulation);
-    control::ComputedTorqueController controller(model, friction, lowGains());
+    control::ComputedTorqueController controller(model, friction, lowGains(config));
     control::DisturbanceObserver observer(model, friction, observerGains());
     const Eigen::Vector3d gravity = model.gravity();
     const Eigen::Vector3d up = -gravity.normalized();  // the base frame's vertical

@@ -1,6 +1,7 @@
 // Smoke test of sim_benchmark in --quick mode: each experiment runs, writes summary.json with every field, its CSV
 // and PNG files; the quick friction and payload figures are sane (finite, ordered where the physics orders them);
 // --help answers on stdout with status 0 and bad arguments get status 2. No assertion on time.
+#include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "testing/program_output.hpp"
 
 #include <gtest/gtest.h>
@@ -123,6 +124,52 @@ TEST(SimBenchmarkSmoke, QuickFoldRolloutFollowsTheDemonstration) {
     EXPECT_GT(number(row, "realtime_factor"), 0.0);
   }
   EXPECT_NE(readTextFile(out / "summary.json").find("\"experiment\": \"fold_rollout\""), std::string::npos);
+  fs::remove_all(out);
+}
+
+// A new arm's friction in one command: the second robot's right arm identified (its plant, gains, limits and no
+// cable pairs), the advanced model written where its robot file would name it, and compensating it tracks better.
+TEST(SimBenchmarkSmoke, FrictionOfAnotherRobotsArmGoesWhereItsRobotFileNamesIt) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_robot_friction";
+  fs::remove_all(out);
+  fs::create_directories(out);
+  const std::string robot = BIMANUAL_SKILLS_SOURCE_DIR "/config/robots/offset_wrist.yaml";
+  ASSERT_EQ(runQuietly(std::string(SIM_BENCHMARK) + " --experiment friction --seed 3 --quick --out " + out.string() +
+                       " --robot " + robot + " --arm right --friction-out " + (out / "right.yaml").string()),
+            0);
+  const bimanual_skills::dynamics::FrictionModel model =
+      bimanual_skills::dynamics::loadFrictionModel((out / "right.yaml").string());
+  EXPECT_EQ(model.joints.size(), 7u);
+  EXPECT_NE(readTextFile(out / "right.yaml").find("--robot " + robot + " on its simulated right arm"),
+            std::string::npos);
+  std::map<std::string, double> mean;
+  for (const auto& row : readCsv(out / "friction_tracking.csv")) mean[row.at("compensation")] += number(row, "rms_rad");
+  EXPECT_LT(mean["advanced"], 0.5 * mean["none"]);
+  // Fig. 4.2 is the WAM's: refused with the reason on another robot.
+  EXPECT_EQ(runQuietly(std::string(SIM_BENCHMARK) + " --experiment payload --seed 3 --quick --out " + out.string() +
+                       " --robot " + robot),
+            1);
+  // An arm its robot file does not have is refused.
+  EXPECT_NE(runQuietly(std::string(SIM_BENCHMARK) + " --experiment friction --seed 3 --quick --out " + out.string() +
+                       " --robot " + robot + " --arm middle"),
+            0);
+  fs::remove_all(out);
+}
+
+TEST(SimBenchmarkSmoke, SpeedAndFoldRunOnAnotherRobot) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_robot";
+  fs::remove_all(out);
+  const std::string robot = BIMANUAL_SKILLS_SOURCE_DIR "/config/robots/offset_wrist.yaml";
+  for (const char* experiment : {"speed", "fold_rollout"}) {
+    ASSERT_EQ(runQuietly(std::string(SIM_BENCHMARK) + " --experiment " + experiment + " --seed 3 --quick --out " +
+                         out.string() + " --robot " + robot),
+              0)
+        << experiment;
+  }
+  for (const auto& row : readCsv(out / "fold_rollout.csv")) {
+    EXPECT_EQ(row.at("outcome"), "Ok") << row.at("ik_method");
+    EXPECT_LT(number(row, "max_tracking_error_rad"), 0.1) << row.at("ik_method");
+  }
   fs::remove_all(out);
 }
 
