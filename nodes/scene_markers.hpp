@@ -3,11 +3,13 @@
 /// "world"): the table as a box, the cloth as a TRIANGLE_LIST, a tool path as a LINE_STRIP.
 #pragma once
 
+#include "bimanual_skills/sim/obstacle.hpp"
 #include "bimanual_skills/sim/table.hpp"
 
 #include <ros/time.h>
 #include <visualization_msgs/Marker.h>
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <string>
 
@@ -41,22 +43,49 @@ inline geometry_msgs::Point toPoint(const Eigen::Vector3d& v) {
   return p;
 }
 
-inline visualization_msgs::Marker tableMarker(const sim::Table& table, const ros::Time& stamp) {
-  visualization_msgs::Marker m = worldMarker("table", 0, visualization_msgs::Marker::CUBE, stamp);
-  const Eigen::Quaterniond r(table.pose.rotation());
-  m.pose.position.x = table.pose.translation().x();
-  m.pose.position.y = table.pose.translation().y();
-  m.pose.position.z = table.pose.translation().z();
+/// Sets a marker's pose from a rigid transform.
+inline void setPose(visualization_msgs::Marker& m, const Eigen::Isometry3d& pose) {
+  const Eigen::Quaterniond r(pose.rotation());
+  m.pose.position.x = pose.translation().x();
+  m.pose.position.y = pose.translation().y();
+  m.pose.position.z = pose.translation().z();
   m.pose.orientation.w = r.w();
   m.pose.orientation.x = r.x();
   m.pose.orientation.y = r.y();
   m.pose.orientation.z = r.z();
+}
+
+inline visualization_msgs::Marker tableMarker(const sim::Table& table, const ros::Time& stamp) {
+  visualization_msgs::Marker m = worldMarker("table", 0, visualization_msgs::Marker::CUBE, stamp);
+  setPose(m, table.pose);
   m.scale.x = table.size.x();
   m.scale.y = table.size.y();
   m.scale.z = table.size.z();
   m.color.r = 0.55f;
   m.color.g = 0.42f;
   m.color.b = 0.3f;
+  return m;
+}
+
+/// An obstacle of the scene (a mannequin's head, neck, ...) in its shape and colour (namespace "obstacles", id k).
+inline visualization_msgs::Marker obstacleMarker(const sim::Obstacle& obstacle, int k, const ros::Time& stamp) {
+  const int type = obstacle.shape == sim::Obstacle::Shape::Box      ? visualization_msgs::Marker::CUBE
+                   : obstacle.shape == sim::Obstacle::Shape::Sphere ? visualization_msgs::Marker::SPHERE
+                                                                    : visualization_msgs::Marker::CYLINDER;
+  visualization_msgs::Marker m = worldMarker("obstacles", k, type, stamp);
+  setPose(m, obstacle.pose);
+  // rviz scales spheres and cylinders by their diameters (and a cylinder's height along its z).
+  const Eigen::Vector3d& s = obstacle.size;
+  const Eigen::Vector3d scale = obstacle.shape == sim::Obstacle::Shape::Box ? s
+                                : obstacle.shape == sim::Obstacle::Shape::Sphere
+                                    ? Eigen::Vector3d::Constant(2.0 * s[0])
+                                    : Eigen::Vector3d(2.0 * s[0], 2.0 * s[0], s[1]);
+  m.scale.x = scale.x();
+  m.scale.y = scale.y();
+  m.scale.z = scale.z();
+  m.color.r = static_cast<float>(obstacle.colour.x());
+  m.color.g = static_cast<float>(obstacle.colour.y());
+  m.color.b = static_cast<float>(obstacle.colour.z());
   return m;
 }
 

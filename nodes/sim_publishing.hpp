@@ -192,6 +192,9 @@ class SimPublishing final : public hosting::StateSink {
       visualization_msgs::MarkerArray markers;
       if (simulation_.config().has_table)
         markers.markers.push_back(tableMarker(simulation_.config().table, ros::Time()));
+      for (std::size_t k = 0; k < simulation_.config().obstacles.size(); ++k) {
+        markers.markers.push_back(obstacleMarker(simulation_.config().obstacles[k], static_cast<int>(k), ros::Time()));
+      }
       if (simulation_.hasCloth()) markers.markers.push_back(clothMarker(frame->vertices, triangles_, ros::Time()));
       markers_.publish(markers);
       if (!simulation_.hasCloth()) continue;

@@ -268,13 +268,23 @@ TEST(SimArms, TrueFrictionHoldsTheArmBelowBreakaway) {
   EXPECT_GT(sim.trueState(0).q[0] - q0[0], 0.05);
 }
 
-TEST(SimArms, TableStopsTheArm) {
-  // The lowest the tool gets when the shoulder pushes the arm down, with and without the table (top at z = 0.15).
-  const auto lowest = [](bool table) {
+TEST(SimArms, TableAndObstaclesStopTheArm) {
+  // The lowest the tool gets when the shoulder pushes the arm down: onto the table (top at z = 0.15), onto an
+  // obstacle box of the table's size, through a box that does not collide (a mark), or with nothing there.
+  enum class Under { Table, Obstacle, Mark, Nothing };
+  const auto lowest = [](Under under) {
     SimConfig config = leftArm();
-    config.has_table = table;
+    config.has_table = under == Under::Table;
     config.table.pose.translation() = Eigen::Vector3d(0.55, 0.4, 0.0);
     config.table.size = Eigen::Vector3d(0.7, 1.2, 0.3);
+    if (under == Under::Obstacle || under == Under::Mark) {
+      bs::sim::Obstacle box;
+      box.name = "box";
+      box.pose = config.table.pose;
+      box.size = config.table.size;
+      box.collides = under == Under::Obstacle;
+      config.obstacles.push_back(box);
+    }
     BimanualSimulation sim(config);
     const bs::kinematics::ChainModel& model = sim.armModel(0);
     bs::dynamics::DynamicsData data(model);
@@ -298,8 +308,10 @@ TEST(SimArms, TableStopsTheArm) {
     }
     return low;
   };
-  EXPECT_GT(lowest(true), 0.15 - 0.02);
-  EXPECT_LT(lowest(false), 0.0);
+  EXPECT_GT(lowest(Under::Table), 0.15 - 0.02);
+  EXPECT_NEAR(lowest(Under::Obstacle), lowest(Under::Table), 1e-9);
+  EXPECT_LT(lowest(Under::Mark), 0.0);
+  EXPECT_LT(lowest(Under::Nothing), 0.0);
 }
 
 TEST(SimArms, SameSeedAndCommandsGiveBitIdenticalTrajectoriesAlsoAfterReset) {

@@ -349,3 +349,45 @@ TEST(RobotFileDerivation, TheSecondRobotFileDerivesWhatItLeavesOutAndBadOnesSayW
   EXPECT_NE(refused("derive_bad_bandwidth.yaml", head + reachable + "bandwidth: -1\n").find("give 'kp' and 'kv'"),
             std::string::npos);
 }
+
+// ---- obstacles: a list or a file of them ----
+
+TEST(SimConfigFiles, ObstaclesComeFromAListOrAFileAndBadOnesAreNamed) {
+  const SimConfig scarf = SimConfig::fromYamlFile(kConfig + "/scarf_sim.yaml");
+  ASSERT_EQ(scarf.obstacles.size(), 6u);
+  const bs::sim::Obstacle& head = scarf.obstacles[4];
+  EXPECT_EQ(head.name, "head");
+  EXPECT_EQ(head.shape, bs::sim::Obstacle::Shape::Sphere);
+  EXPECT_EQ(head.size, Eigen::Vector3d(0.09, 0.0, 0.0));
+  EXPECT_EQ(head.pose.translation(), Eigen::Vector3d(0.75, 0.4, 0.7));
+  EXPECT_FALSE(scarf.obstacles[5].collides);  // the nose mark
+  EXPECT_FALSE(scarf.has_table);
+  EXPECT_TRUE(SimConfig::fromYamlFile(kConfig + "/sim.yaml").obstacles.empty());
+
+  const std::string head_yaml = "robot: " + kConfig + "/robots/wam.yaml\n";
+  const auto refused = [&](const std::string& file, const std::string& obstacles) {
+    return errorOf([&] { SimConfig::fromYamlFile(write(file, head_yaml + "obstacles:\n" + obstacles)); });
+  };
+  EXPECT_EQ(refused("obstacles_ok.yaml", "  - {name: b, shape: box, xyz: [1, 0, 0], size: [0.1, 0.2, 0.3]}\n"),
+            "no exception");
+  EXPECT_NE(
+      refused("obstacles_shape.yaml", "  - {name: b, shape: cone, size: [0.1]}\n").find("box, sphere or cylinder"),
+      std::string::npos);
+  EXPECT_NE(refused("obstacles_size.yaml", "  - {name: b, shape: cylinder, size: [0.1]}\n").find("needs 2 value(s)"),
+            std::string::npos);
+  EXPECT_NE(refused("obstacles_zero.yaml", "  - {name: b, shape: sphere, size: [0]}\n").find("'size'"),
+            std::string::npos);
+  EXPECT_NE(refused("obstacles_colour.yaml", "  - {name: b, shape: sphere, size: [0.1], colour: [2, 0, 0]}\n")
+                .find("'colour'"),
+            std::string::npos);
+  EXPECT_NE(refused("obstacles_twice.yaml",
+                    "  - {name: b, shape: sphere, size: [0.1]}\n  - {name: b, shape: sphere, size: [0.2]}\n")
+                .find("taken by another obstacle"),
+            std::string::npos);
+  EXPECT_NE(refused("obstacles_key.yaml", "  - {name: b, shape: sphere, size: [0.1], radius: 1}\n").find("radius"),
+            std::string::npos);
+  EXPECT_NE(errorOf([&] {
+              SimConfig::fromYamlFile(write("obstacles_file.yaml", head_yaml + "obstacles: no_such_scene.yaml\n"));
+            }).find("no_such_scene.yaml"),
+            std::string::npos);
+}

@@ -4,6 +4,7 @@
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bullet_arm.hpp"
 #include "bullet_conversions.hpp"
+#include "static_bodies.hpp"
 
 #include <BulletDynamics/Featherstone/btMultiBodyConstraintSolver.h>
 
@@ -58,12 +59,14 @@ struct ArmsWorld {
       table = std::make_unique<btRigidBody>(info);
       world->addRigidBody(table.get());
     }
+    obstacles = std::make_unique<StaticBodies>(*world, config.obstacles);
     for (std::size_t a = 0; a < arms.size(); ++a) {
       bullet_arms.push_back(std::make_unique<BulletArm>(arms[a], static_cast<int>(a), *world));
     }
   }
   ~ArmsWorld() {
     bullet_arms.clear();
+    obstacles.reset();
     if (table) world->removeRigidBody(table.get());
   }
   ArmsWorld(const ArmsWorld&) = delete;
@@ -76,6 +79,7 @@ struct ArmsWorld {
   std::unique_ptr<btMultiBodyDynamicsWorld> world;
   std::unique_ptr<btBoxShape> table_shape;
   std::unique_ptr<btRigidBody> table;
+  std::unique_ptr<StaticBodies> obstacles;
   std::vector<std::unique_ptr<BulletArm>> bullet_arms;
 };
 
@@ -188,7 +192,7 @@ BimanualSimulation::BimanualSimulation(const SimConfig& config, std::mt19937 rng
     m.arms.emplace_back(arm, std::move(urdf), parameters);
   }
   if (config.has_cloth) {
-    m.cloth.emplace(config.cloth, config.table, static_cast<int>(m.arms.size()), config.gravity);
+    m.cloth.emplace(config.cloth, config.table, static_cast<int>(m.arms.size()), config.gravity, config.obstacles);
     m.cloth_period = static_cast<int>(std::lround(config.cloth.step / config.step));
   }
   m.rebuildBullet();

@@ -14,6 +14,56 @@ namespace {
 using io::fail;
 
 /// Pose from `xyz` and `rpy` (roll, pitch, yaw about fixed x, y, z, as in URDF); both optional (zero).
+/// The obstacles of `node`: a list, or the name of a file (relative to `path`) whose `obstacles:` is one.
+std::vector<Obstacle> readObstacles(const YAML::Node& node, const std::string& path, const std::string& where) {
+  YAML::Node list = node;
+  std::string at = where;
+  if (node.IsScalar()) {
+    const std::string file = io::resolvePath(path, node.as<std::string>());
+    at = "obstacles file '" + file + "'";
+    const YAML::Node root = io::loadYamlFile(file, at);
+    if (!root.IsMap()) io::fail(at + ": must be a map");
+    io::checkKeys(root, at, {"obstacles"});
+    list = root["obstacles"];
+  }
+  if (!list || !list.IsSequence()) io::fail(at + ": 'obstacles' must be a list (or the name of a file with one)");
+  std::vector<Obstacle> obstacles;
+  for (std::size_t k = 0; k < list.size(); ++k) {
+    const YAML::Node item = list[k];
+    const std::string here = at + " obstacle " + std::to_string(k + 1);
+    io::checkKeys(item, here, {"name", "shape", "xyz", "rpy", "size", "colour", "friction", "collides"});
+    Obstacle o;
+    o.name = io::readString(item, "name", here);
+    const std::string shape = io::readString(item, "shape", here);
+    if (shape == "box") {
+      o.shape = Obstacle::Shape::Box;
+    } else if (shape == "sphere") {
+      o.shape = Obstacle::Shape::Sphere;
+    } else if (shape == "cylinder") {
+      o.shape = Obstacle::Shape::Cylinder;
+    } else {
+      io::fail(here + ": 'shape' must be box, sphere or cylinder (got '" + shape + "')");
+    }
+    o.pose = io::readPose(item, here);
+    const Eigen::VectorXd size = io::readVector(item, "size", here);
+    const int wanted = o.shape == Obstacle::Shape::Box ? 3 : o.shape == Obstacle::Shape::Cylinder ? 2 : 1;
+    if (size.size() != wanted) {
+      io::fail(here + ": 'size' of a " + shape + " needs " + std::to_string(wanted) +
+               " value(s) (box: extents; sphere: radius; cylinder: radius, length)");
+    }
+    o.size.head(wanted) = size;
+    if (item["colour"]) o.colour = io::readVector(item, "colour", here, 3);
+    o.friction = io::readDouble(item, "friction", here, o.friction);
+    if (item["collides"]) o.collides = io::readBool(item, "collides", here);
+    io::withContext(at, [&] { o.validate("the scene"); });
+    for (const Obstacle& other : obstacles) {
+      if (other.name == o.name) io::fail(here + ": the name '" + o.name + "' is taken by another obstacle");
+    }
+    obstacles.push_back(o);
+  }
+  return obstacles;
+}
+
 ClothParameters readCloth(const YAML::Node& node, const std::string& where, double& grasp_radius) {
   io::checkKeys(node, where,
                 {"xyz", "rpy", "size", "nodes", "mass", "stretch_stiffness", "bending_stiffness", "damping", "friction",
@@ -111,7 +161,8 @@ SimConfig SimConfig::fromYamlFile(const std::string& path, const std::string& ro
   const std::string where = "simulation file '" + path + "'";
   const YAML::Node root = io::loadYamlFile(path, where);
   if (!root.IsMap()) fail(where + ": must be a map");
-  io::checkKeys(root, where, {"robot", "urdf", "plant", "step", "seed", "gravity", "arms", "table", "cloth"});
+  io::checkKeys(root, where,
+                {"robot", "urdf", "plant", "step", "seed", "gravity", "arms", "table", "obstacles", "cloth"});
   SimConfig config;
   if (root["robot"] && (root["urdf"] || root["plant"] || root["arms"])) {
     fail(where + ": names a 'robot' file and 'urdf', 'plant' or 'arms' too: the robot file gives them");
@@ -158,6 +209,7 @@ SimConfig SimConfig::fromYamlFile(const std::string& path, const std::string& ro
     if (table["size"]) config.table.size = io::readVector(table, "size", at, 3);
     config.table.friction = io::readDouble(table, "friction", at, config.table.friction);
   }
+  if (root["obstacles"]) config.obstacles = readObstacles(root["obstacles"], path, where);
   config.has_cloth = static_cast<bool>(root["cloth"]);
   if (config.has_cloth) config.cloth = readCloth(root["cloth"], where + " cloth", config.grasp_radius);
 

@@ -5,6 +5,8 @@
 /// cloth's pull on each gripper as plain Eigen values.
 #pragma once
 
+#include "bimanual_skills/sim/obstacle.hpp"
+
 #include "bimanual_skills/sim/sim_status.hpp"
 #include "bimanual_skills/sim/table.hpp"
 
@@ -63,10 +65,11 @@ struct ClothTimings {
 /// and reports problems as a SimStatus (Bullet itself may still allocate while new contacts appear).
 class Cloth {
  public:
-  /// A flat patch at parameters.pose, a static table box, `grippers` grippers (released), gravity in the world.
+  /// A flat patch at parameters.pose, a static table box and `obstacles` (those that collide), `grippers` grippers
+  /// (released), gravity in the world.
   /// \throws std::invalid_argument for invalid parameters.
   Cloth(const ClothParameters& parameters, const Table& table, int grippers,
-        const Eigen::Vector3d& gravity = Eigen::Vector3d(0.0, 0.0, -9.81));
+        const Eigen::Vector3d& gravity = Eigen::Vector3d(0.0, 0.0, -9.81), const std::vector<Obstacle>& obstacles = {});
   ~Cloth();
   Cloth(Cloth&&) noexcept;
   Cloth& operator=(Cloth&&) noexcept;

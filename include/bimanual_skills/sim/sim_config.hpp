@@ -4,6 +4,7 @@
 #pragma once
 
 #include "bimanual_skills/sim/cloth.hpp"
+#include "bimanual_skills/sim/obstacle.hpp"
 #include "bimanual_skills/sim/plant_model.hpp"
 #include "bimanual_skills/sim/table.hpp"
 
@@ -34,6 +35,8 @@ struct SimConfig {
   Eigen::Vector3d gravity = Eigen::Vector3d(0.0, 0.0, -9.81);  ///< World frame [m/s²].
   bool has_table = true;
   Table table;
+  /// Static shapes besides the table (a mannequin): `obstacles:` a list, or the name of a file that holds one.
+  std::vector<Obstacle> obstacles;
   bool has_cloth = false;
   ClothParameters cloth;       ///< Its `step` must be a whole multiple of `step` (the cloth runs at its own rate).
   double grasp_radius = 0.04;  ///< Nodes within this distance of a tool are grasped [m].

@@ -1,0 +1,34 @@
+/// \file
+/// Static rigid shapes of a scene besides the table, such as the mannequin a scarf goes around (thesis Sec. 4.3.1):
+/// the arms and the cloth collide with them, markers and cameras show them in their colours. A simulation file lists
+/// them (`obstacles:`, or the name of a file that does; config/scenes/mannequin.yaml).
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::sim {
+
+struct Obstacle {
+  enum class Shape { Box, Sphere, Cylinder };
+  std::string name;  ///< Unique in the scene ("head", "nose_mark").
+  Shape shape = Shape::Box;
+  /// Its centre in the world; a cylinder's axis is its z axis.
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  /// Box: full extents; sphere: (radius, 0, 0); cylinder: (radius, length, 0) [m].
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();
+  Eigen::Vector3d colour = Eigen::Vector3d::Constant(0.8);  ///< RGB in [0, 1].
+  double friction = 0.5;                                    ///< Bullet friction coefficient, ≥ 0.
+  bool collides = true;  ///< false: seen, not felt (a mark painted on another shape).
+
+  /// \throws std::invalid_argument naming `where`, the obstacle and the entry out of range.
+  void validate(const std::string& where) const;
+};
+
+/// "box", "sphere", "cylinder".
+const char* toString(Obstacle::Shape shape) noexcept;
+
+}  // namespace bimanual_skills::sim
