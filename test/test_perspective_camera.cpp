@@ -216,3 +216,62 @@ TEST(HeightMapProjector, BadInputGetsAStatusAndNothingAllocates) {
   noise.dropout = 2.0;
   EXPECT_THROW(bv::PerspectiveRenderer(s, kinect(), noise), std::invalid_argument);
 }
+
+// ---- solids: a scene's static shapes (a mannequin), tessellated and drawn in their colours ----
+
+TEST(SceneSolids, TessellationsEncloseTheShapesVolumeOutwards) {
+  // Divergence theorem: Σ a·(b × c) / 6 over outward triangles is the enclosed volume (> 0), against the analytic one.
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(0.3, -0.2, 0.5);
+  pose.linear() = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1.0, 2.0, 3.0).normalized()).toRotationMatrix();
+  const auto volume = [](const std::vector<Eigen::Matrix3d>& triangles) {
+    double v = 0.0;
+    for (const Eigen::Matrix3d& t : triangles) v += t.col(0).dot(t.col(1).cross(t.col(2))) / 6.0;
+    return v;
+  };
+  bv::SceneSolid box{bv::SceneSolid::Shape::Box, pose, Eigen::Vector3d(0.1, 0.2, 0.3), Eigen::Vector3d::Ones()};
+  EXPECT_EQ(bv::solidTriangles(box).size(), 12u);
+  EXPECT_NEAR(volume(bv::solidTriangles(box)), 0.1 * 0.2 * 0.3, 1e-12);
+  bv::SceneSolid sphere{bv::SceneSolid::Shape::Sphere, pose, Eigen::Vector3d(0.09, 0.0, 0.0), Eigen::Vector3d::Ones()};
+  const double ball = 4.0 / 3.0 * M_PI * std::pow(0.09, 3);
+  EXPECT_NEAR(volume(bv::solidTriangles(sphere)) / ball, 1.0, 0.03);  // facets cut a little off
+  EXPECT_LT(volume(bv::solidTriangles(sphere)), ball);
+  bv::SceneSolid cylinder{bv::SceneSolid::Shape::Cylinder, pose, Eigen::Vector3d(0.045, 0.09, 0.0),
+                          Eigen::Vector3d::Ones()};
+  const double can = M_PI * 0.045 * 0.045 * 0.09;
+  EXPECT_NEAR(volume(bv::solidTriangles(cylinder)) / can, 1.0, 0.01);
+}
+
+TEST(PerspectiveRenderer, SolidsAreSeenInTheirColoursAtTheirDepthAndATablelessSceneHasNoTable) {
+  bv::ClothRendererParameters s = scene();
+  s.has_table = false;
+  bv::SceneSolid head{bv::SceneSolid::Shape::Sphere, Eigen::Isometry3d::Identity(), Eigen::Vector3d(0.1, 0.0, 0.0),
+                      Eigen::Vector3d(0.9, 0.1, 0.1)};
+  head.pose.translation() = Eigen::Vector3d(0.55, 0.0, 0.5);
+  s.solids.push_back(head);
+  // A camera level with the head, 1 m in front of it.
+  const bv::PinholeCamera camera =
+      bv::PinholeCamera::lookingAt(Eigen::Vector3d(1.55, 0.0, 0.5), Eigen::Vector3d(0.55, 0.0, 0.5));
+  bv::PerspectiveRenderer renderer(s, camera, perfect());
+  (void)renderer.render(Eigen::Matrix3Xd(3, 0), Eigen::Matrix3Xi(3, 0));
+  const int u = static_cast<int>(camera.cx), v = static_cast<int>(camera.cy);
+  EXPECT_NEAR(renderer.depth().at<float>(v, u), 0.9, 2e-3);  // the sphere's front, 1 m − 0.1 m
+  const cv::Vec3b bgr = renderer.bgr().at<cv::Vec3b>(v, u);
+  EXPECT_GT(bgr[2], 2 * bgr[1]);  // red
+  EXPECT_GT(bgr[2], 2 * bgr[0]);
+  // Above the head and the horizon: nothing (no table, no floor) gives no return.
+  EXPECT_TRUE(std::isnan(renderer.depth().at<float>(5, u)));
+  // Seen from the fold's camera, the table's place shows the floor 0.3 m lower.
+  bv::ClothRendererParameters empty = scene();
+  empty.has_table = false;
+  bv::PerspectiveRenderer over(empty, kinect(), perfect());
+  bv::PerspectiveRenderer with_table(scene(), kinect(), perfect());
+  (void)over.render(Eigen::Matrix3Xd(3, 0), Eigen::Matrix3Xi(3, 0));
+  (void)with_table.render(Eigen::Matrix3Xd(3, 0), Eigen::Matrix3Xi(3, 0));
+  const int cu = static_cast<int>(kinect().cx), cv_ = static_cast<int>(kinect().cy);
+  EXPECT_GT(over.depth().at<float>(cv_, cu), with_table.depth().at<float>(cv_, cu) + 0.2);
+  // A solid with a zero size is refused.
+  head.size.setZero();
+  s.solids = {head};
+  EXPECT_THROW(bv::PerspectiveRenderer(s, camera, perfect()), std::invalid_argument);
+}

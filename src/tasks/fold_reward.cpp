@@ -45,6 +45,17 @@ vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim) {
   const Eigen::Vector2d centre =
       sim.has_cloth ? Eigen::Vector2d(sim.cloth.pose.translation().head<2>()) : p.table.centre;
   p.camera = vision::TopDownCamera::covering(320, 240, 1.0, centre, top.z() + 1.5);
+  p.has_table = sim.has_table;
+  for (const sim::Obstacle& obstacle : sim.obstacles) {
+    vision::SceneSolid solid;
+    solid.shape = obstacle.shape == sim::Obstacle::Shape::Box      ? vision::SceneSolid::Shape::Box
+                  : obstacle.shape == sim::Obstacle::Shape::Sphere ? vision::SceneSolid::Shape::Sphere
+                                                                   : vision::SceneSolid::Shape::Cylinder;
+    solid.pose = obstacle.pose;
+    solid.size = obstacle.size;
+    solid.colour = obstacle.colour;
+    p.solids.push_back(solid);
+  }
   return p;
 }
 

@@ -43,6 +43,15 @@ void ClothRendererParameters::validate(const char* where) const {
     fail(where, "light_direction must be finite and non-zero");
   }
   if (!std::isfinite(ambient) || ambient < 0.0 || ambient > 1.0) fail(where, "ambient must be in [0, 1]");
+  for (const SceneSolid& solid : solids) {
+    const int used = solid.shape == SceneSolid::Shape::Box ? 3 : solid.shape == SceneSolid::Shape::Cylinder ? 2 : 1;
+    if (!solid.pose.matrix().allFinite() || !solid.size.allFinite() || (solid.size.head(used).array() <= 0.0).any()) {
+      fail(where, "a solid needs a finite pose and sizes > 0");
+    }
+    if (!solid.colour.allFinite() || (solid.colour.array() < 0.0).any() || (solid.colour.array() > 1.0).any()) {
+      fail(where, "colours must be RGB triples in [0, 1]");
+    }
+  }
   if (!std::isfinite(noise.depth_stddev) || noise.depth_stddev < 0.0) fail(where, "noise.depth_stddev must be >= 0");
   if (!std::isfinite(noise.colour_stddev) || noise.colour_stddev < 0.0) {
     fail(where, "noise.colour_stddev must be >= 0");
@@ -72,7 +81,7 @@ ClothRenderer::ClothRenderer(const ClothRendererParameters& parameters)
   for (int v = 0; v < rows; ++v) {
     for (int u = 0; u < columns; ++u) {
       const Eigen::Vector2d xy = camera.pixelCentre(u, v);
-      const bool on_table = std::abs(xy.x() - table.centre.x()) <= 0.5 * table.size.x() &&
+      const bool on_table = parameters_.has_table && std::abs(xy.x() - table.centre.x()) <= 0.5 * table.size.x() &&
                             std::abs(xy.y() - table.centre.y()) <= 0.5 * table.size.y();
       background_bgr_.at<cv::Vec3b>(v, u) = on_table ? table_bgr : floor_bgr;
       background_depth_.at<float>(v, u) = on_table ? table_depth : floor_depth;

@@ -113,19 +113,25 @@ PerspectiveRenderer::PerspectiveRenderer(const ClothRendererParameters& scene, c
       draw(a, c, d, scene_.floor_colour, false);
     }
   }
-  // The table: its top and four sides.
-  const double hx = 0.5 * table.size.x(), hy = 0.5 * table.size.y();
-  const auto corner = [&](double sx, double sy, double z) {
-    return Eigen::Vector3d(table.centre.x() + sx * hx, table.centre.y() + sy * hy, z);
-  };
-  draw(corner(-1, -1, top), corner(1, -1, top), corner(1, 1, top), scene_.table_colour, false);
-  draw(corner(-1, -1, top), corner(1, 1, top), corner(-1, 1, top), scene_.table_colour, false);
-  const double sides[4][4] = {{-1, -1, 1, -1}, {1, -1, 1, 1}, {1, 1, -1, 1}, {-1, 1, -1, -1}};
-  for (const auto& s : sides) {
-    const Eigen::Vector3d a = corner(s[0], s[1], floor), b = corner(s[2], s[3], floor), c = corner(s[2], s[3], top),
-                          d = corner(s[0], s[1], top);
-    draw(a, b, c, scene_.table_colour, false);
-    draw(a, c, d, scene_.table_colour, false);
+  // The table (when the scene has one): its top and four sides.
+  if (scene_.has_table) {
+    const double hx = 0.5 * table.size.x(), hy = 0.5 * table.size.y();
+    const auto corner = [&](double sx, double sy, double z) {
+      return Eigen::Vector3d(table.centre.x() + sx * hx, table.centre.y() + sy * hy, z);
+    };
+    draw(corner(-1, -1, top), corner(1, -1, top), corner(1, 1, top), scene_.table_colour, false);
+    draw(corner(-1, -1, top), corner(1, 1, top), corner(-1, 1, top), scene_.table_colour, false);
+    const double sides[4][4] = {{-1, -1, 1, -1}, {1, -1, 1, 1}, {1, 1, -1, 1}, {-1, 1, -1, -1}};
+    for (const auto& s : sides) {
+      const Eigen::Vector3d a = corner(s[0], s[1], floor), b = corner(s[2], s[3], floor), c = corner(s[2], s[3], top),
+                            d = corner(s[0], s[1], top);
+      draw(a, b, c, scene_.table_colour, false);
+      draw(a, c, d, scene_.table_colour, false);
+    }
+  }
+  // The solids (a mannequin), static: part of the background too.
+  for (const SceneSolid& solid : scene_.solids) {
+    for (const Eigen::Matrix3d& t : solidTriangles(solid)) draw(t.col(0), t.col(1), t.col(2), solid.colour, false);
   }
   bgr_.copyTo(background_bgr_);
   z_.copyTo(background_z_);

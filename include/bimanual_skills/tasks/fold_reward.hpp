@@ -42,7 +42,8 @@ struct FoldRewardConfig {
 /// entries kept. \throws std::invalid_argument naming `where` for another name.
 FoldRewardConfig rewardSetting(FoldRewardConfig config, const std::string& name, const std::string& where);
 
-/// The camera and table of a simulation: the table top of `sim` (height, centre, extent) and a 320 × 240 camera
+/// The camera and scene of a simulation: the table top of `sim` (height, centre, extent; none without a table), its
+/// obstacles as solids (the perspective camera draws them), and a 320 × 240 camera
 /// 1.5 m above it centred on the cloth, covering 1 m of table across (3.125 mm pixels).
 vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim);
 

@@ -9,6 +9,7 @@
 #include "bimanual_skills/vision/vision_status.hpp"
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <opencv2/core.hpp>
 
 #include <random>
@@ -23,6 +24,21 @@ struct TableTop {
   Eigen::Vector2d size = Eigen::Vector2d(0.7, 1.2);     ///< Full extents along world x and y [m], > 0.
 };
 
+/// A static solid of the scene besides the table (a mannequin's head, neck, the mark on its nose), as
+/// sim::Obstacle describes it: drawn by the perspective camera in its colour.
+struct SceneSolid {
+  enum class Shape { Box, Sphere, Cylinder };
+  Shape shape = Shape::Box;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();  ///< Its centre in the world; a cylinder's axis is its z.
+  /// Box: full extents; sphere: (radius, 0, 0); cylinder: (radius, length, 0) [m], > 0.
+  Eigen::Vector3d size = Eigen::Vector3d::Zero();
+  Eigen::Vector3d colour = Eigen::Vector3d::Constant(0.8);  ///< RGB in [0, 1].
+};
+
+/// The solid's surface as triangles (world frame, outward winding): a box's 12, a sphere of 24 × 16 facets, a
+/// cylinder of 32 sides and its two caps.
+std::vector<Eigen::Matrix3d> solidTriangles(const SceneSolid& solid);
+
 /// Sensor noise added by render(vertices, triangles, rng): independent per pixel and channel, zero mean, Gaussian
 /// of the given standard deviations. Each draw is one of the 2^16 equiprobable quantiles of N(0, 1) (tails at
 /// ±4.3 σ, rescaled to unit variance), picked by 16 bits of a SplitMix64 word; the caller's std::mt19937 seeds that
@@ -36,6 +52,10 @@ struct RenderNoise {
 struct ClothRendererParameters {
   TopDownCamera camera;
   TableTop table;
+  bool has_table = true;  ///< false: a scene without a table (the floor alone around `table`'s centre).
+  /// Static solids besides the table; the perspective camera draws them (the top-down map of the fold's reward
+  /// shows the table scene only).
+  std::vector<SceneSolid> solids;
   double floor_height = 0.0;  ///< World z of the floor seen around the table [m], below table.height.
   /// Colours as RGB in [0, 1]: a blue polo shirt (the thesis segments blue), a light wooden table, a grey floor.
   Eigen::Vector3d cloth_colour = Eigen::Vector3d(0.12, 0.28, 0.85);
