@@ -68,11 +68,12 @@ class SimPublishing final : public hosting::StateSink {
         renderer_ = std::make_unique<vision::ClothRenderer>(camera);
         camera_rng_.seed(simulation.config().seed);
       }
-      if (settings_.rgbd_rate > 0.0) {
-        rgbd_ = std::make_unique<vision::PerspectiveRenderer>(tasks::rendererFor(simulation.config()), settings_.rgbd,
-                                                              settings_.rgbd_noise);
-        rgbd_rng_.seed(simulation.config().seed + 1u);
-      }
+    }
+    // The perspective camera sees the scene with or without a cloth (a mannequin, an object to track).
+    if (settings_.rgbd_rate > 0.0) {
+      rgbd_ = std::make_unique<vision::PerspectiveRenderer>(tasks::rendererFor(simulation.config()), settings_.rgbd,
+                                                            settings_.rgbd_noise);
+      rgbd_rng_.seed(simulation.config().seed + 1u);
     }
     frames_ = std::make_unique<realtime::TripleBuffer<ClothFrame>>(frame);
     sem_init(&state_signal_, 0, 0);
@@ -122,10 +123,10 @@ class SimPublishing final : public hosting::StateSink {
     }
     snapshots_->publish();
     sem_post(&state_signal_);
-    if (simulation_.hasCloth() && (forced || t >= next_marker_ || t < last_marker_)) {
+    if ((simulation_.hasCloth() || rgbd_) && (forced || t >= next_marker_ || t < last_marker_)) {
       ClothFrame& frame = frames_->writeSlot();
       frame.time = t;
-      frame.vertices = simulation_.cloth().vertices();
+      if (simulation_.hasCloth()) frame.vertices = simulation_.cloth().vertices();
       frame.image = forced;
       frames_->publish();
       sem_post(&scene_signal_);
@@ -197,8 +198,7 @@ class SimPublishing final : public hosting::StateSink {
       }
       if (simulation_.hasCloth()) markers.markers.push_back(clothMarker(frame->vertices, triangles_, ros::Time()));
       markers_.publish(markers);
-      if (!simulation_.hasCloth()) continue;
-      cloth_.publish(clothCloud(frame->vertices, ros::Time(frame->time)));
+      if (simulation_.hasCloth()) cloth_.publish(clothCloud(frame->vertices, ros::Time(frame->time)));
       // An image every 1/camera_rate simulated seconds, and at once after a reset (time going back).
       if (renderer_ && (frame->image || frame->time >= next_image - 1e-9 || frame->time < last_time)) {
         if (renderer_->render(frame->vertices, triangles_, camera_rng_) == vision::VisionStatus::Ok) {
@@ -211,7 +211,10 @@ class SimPublishing final : public hosting::StateSink {
         next_image = frame->time + 1.0 / settings_.camera_rate;
       }
       if (rgbd_ && (frame->image || frame->time >= next_rgbd - 1e-9 || frame->time < last_time)) {
-        if (rgbd_->render(frame->vertices, triangles_, rgbd_rng_) == vision::VisionStatus::Ok) {
+        // Without a cloth there is no mesh to draw: the scene alone (EmptyMesh) is the image.
+        const vision::VisionStatus status = rgbd_->render(frame->vertices, triangles_, rgbd_rng_);
+        if (status == vision::VisionStatus::Ok ||
+            (status == vision::VisionStatus::EmptyMesh && !simulation_.hasCloth())) {
           std_msgs::Header header;
           header.stamp = ros::Time(frame->time);
           header.frame_id = kRgbdFrame;
