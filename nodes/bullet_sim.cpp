@@ -74,6 +74,8 @@ const std::string kUsage =
         "(0.05)\n"
         "  ~braking_damping      N m s/rad per joint applied when external commands are stale\n"
         "  ~initial_positions    map arm -> joint positions at start and after ~reset\n"
+        "  ~grasp_at_reset       arms whose tools hold the cloth from each reset on (e.g. [left]: the scarf, held at\n"
+        "                        its middle; default none). Refused at start when a tool holds no cloth node there\n"
         "  ~marker_rate          cloth marker and ~cloth rate [Hz of simulated time] (default 30)\n"
         "  ~camera_rate          top-down camera images per simulated second, at most marker_rate (default 30; 0: no\n"
         "                        camera)\n"
@@ -270,6 +272,12 @@ class BulletSimNode {
       joint_names_.push_back(simulation_->armModel(static_cast<int>(a)).jointNames());
       names.insert(names.end(), joint_names_.back().begin(), joint_names_.back().end());
     }
+    for (const std::string& arm : p.texts("grasp_at_reset", {})) {
+      const auto found = std::find(all_arms.begin(), all_arms.end(), arm);
+      if (found == all_arms.end()) throw std::invalid_argument("~grasp_at_reset: no arm '" + arm + "'");
+      if (!simulation_->hasCloth()) throw std::invalid_argument("~grasp_at_reset: the simulation has no cloth");
+      grasp_at_reset_.push_back(static_cast<int>(found - all_arms.begin()));
+    }
     p.warnUnknown();
     resetSimulation();
     gripper_logged_.assign(all_arms.size(), 0);
@@ -360,6 +368,15 @@ class BulletSimNode {
       throw std::invalid_argument(std::string("initial positions rejected: ") + sim::toString(status));
     }
     robot_->reset();
+    for (const int a : grasp_at_reset_) {
+      int attached = 0;
+      if (simulation_->grasp(a, &attached) != sim::SimStatus::Ok || attached == 0) {
+        throw std::invalid_argument(
+            "~grasp_at_reset: the tool of '" + simulation_->config().arms[static_cast<std::size_t>(a)].name +
+            "' holds no cloth node at reset (none within " + std::to_string(simulation_->config().grasp_radius) +
+            " m: check the cloth's pose against the arm's initial positions)");
+      }
+    }
   }
 
   void onCommand(std::size_t arm, const bimanual_skills::JointEffortCommand& message) {
@@ -569,6 +586,7 @@ class BulletSimNode {
   std::optional<sim::RobotFile> robot_file_;  ///< The robot the simulation runs (none when its file names the arms).
   bs::hosting::ScopedCounterProbe<bs::testing::AllocationCounter> probe_;  ///< The loop's allocations per cycle.
   std::vector<Eigen::VectorXd> initial_;
+  std::vector<int> grasp_at_reset_;  ///< Arms holding the cloth from each reset on.
   std::vector<std::vector<std::string>> joint_names_;
   std::vector<std::uint64_t> gripper_logged_;  ///< Publisher thread: scheduled commands logged per arm.
   std::unique_ptr<bs::nodes::SimPublishing> publishing_;

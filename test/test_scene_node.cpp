@@ -1,20 +1,25 @@
 // The scarf experiment's scene through ROS (scarf_scene.test): bullet_sim publishes the mannequin's shapes on
-// ~markers in their colours, and its perspective camera, with no cloth in the scene, sends images of the mannequin:
-// the red mark on its nose where the camera model projects it, the neck at its distance, nothing where nothing is.
+// ~markers in their colours; the scarf hangs in two halves from the left tool that holds its middle; its perspective
+// camera sends images of the mannequin, the red mark on its nose above the neck it looks at, the blue scarf, and
+// nothing where nothing is.
 #include "bimanual_skills/sim/sim_config.hpp"
 
 #include <ros/package.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <sensor_msgs/point_cloud2_iterator.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
 #include <string>
+#include <vector>
 
 namespace {
 
@@ -38,7 +43,20 @@ TEST(ScarfScene, TheMannequinIsOnTheMarkersAndInTheCamerasImages) {
     EXPECT_NEAR(m.color.r, o.colour.x(), 1e-6) << o.name;
   }
   EXPECT_EQ(obstacles, static_cast<int>(scene.obstacles.size()));
-  EXPECT_EQ(markers->markers.size(), scene.obstacles.size()) << "no table and no cloth in this scene";
+  EXPECT_EQ(markers->markers.size(), scene.obstacles.size() + 1) << "the obstacles and the scarf, no table";
+
+  // The scarf, held at its middle at (0.5, 0.15, 0.75) from the reset on: after 3 s its halves hang, 0.6 m each.
+  const ros::WallTime until = ros::WallTime::now() + ros::WallDuration(60.0);
+  while (ros::ok() && ros::Time::now().toSec() < 3.0 && ros::WallTime::now() < until) ros::WallDuration(0.05).sleep();
+  const auto scarf = ros::topic::waitForMessage<sensor_msgs::PointCloud2>("/bullet_sim/cloth", ros::Duration(30.0));
+  ASSERT_TRUE(scarf);
+  float lowest = 10.0f, highest = -10.0f;
+  for (sensor_msgs::PointCloud2ConstIterator<float> z(*scarf, "z"); z != z.end(); ++z) {
+    lowest = std::min(lowest, *z);
+    highest = std::max(highest, *z);
+  }
+  EXPECT_NEAR(highest, 0.75, 0.03) << "held at the tool";
+  EXPECT_NEAR(lowest, 0.75 - 0.6, 0.1) << "its halves hang";
 
   const auto info = ros::topic::waitForMessage<sensor_msgs::CameraInfo>("/rgbd/camera_info", ros::Duration(60.0));
   const auto image = ros::topic::waitForMessage<sensor_msgs::Image>("/rgbd/image_raw", ros::Duration(60.0));
@@ -62,10 +80,24 @@ TEST(ScarfScene, TheMannequinIsOnTheMarkersAndInTheCamerasImages) {
     }
   }
   ASSERT_GT(red, 20) << "the nose mark is not seen";
+  long blue = 0;
+  for (std::uint32_t v = 0; v < image->height; ++v) {
+    for (std::uint32_t u = 0; u < image->width; ++u) {
+      const std::uint8_t* p = &image->data[v * image->step + 3 * u];
+      blue += p[0] > 120 && p[0] > 2 * p[2] && p[0] > p[1] + 40 ? 1 : 0;
+    }
+  }
+  EXPECT_GT(blue, 500) << "the scarf is not seen";
   const double u_mark = u_sum / red, v_mark = v_sum / red;
   EXPECT_LT(v_mark, info->K[5]) << "the nose is above the neck the camera looks at";
   EXPECT_LT(std::abs(u_mark - info->K[2]), 160.0);
-  // At the image's centre (the neck): a surface about 1 m away; the top row: nothing (sky, no return).
+  // At the image's centre: the neck (radius 0.045 m) the camera looks at, from where bullet_sim put the camera; the
+  // top row: nothing (sky, no return).
+  std::vector<double> eye, target;
+  ASSERT_TRUE(ros::param::get("/bullet_sim/rgbd_eye", eye) && ros::param::get("/bullet_sim/rgbd_target", target));
+  const double to_neck =
+      std::sqrt(std::pow(eye[0] - target[0], 2) + std::pow(eye[1] - target[1], 2) + std::pow(eye[2] - target[2], 2)) -
+      0.045;
   const auto at = [&](std::uint32_t v, std::uint32_t u) {
     float z;
     std::memcpy(&z, &depth->data[v * depth->step + 4 * u], sizeof(float));
@@ -81,7 +113,7 @@ TEST(ScarfScene, TheMannequinIsOnTheMarkersAndInTheCamerasImages) {
       }
     }
   }
-  EXPECT_NEAR(centre, 1.0, 0.1);
+  EXPECT_NEAR(centre, to_neck, 0.02);
   int returns_on_top_row = 0;
   for (std::uint32_t u = 0; u < depth->width; ++u) returns_on_top_row += std::isfinite(at(0, u)) ? 1 : 0;
   EXPECT_EQ(returns_on_top_row, 0);

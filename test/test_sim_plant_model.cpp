@@ -148,7 +148,6 @@ TEST(SimConfigFiles, BadSimulationFilesNameTheFileAndTheEntry) {
       {"sim_step.yaml", head + arms + "step: -0.001\n", "'step'"},
       {"sim_table.yaml", head + arms + "table: {size: [1, 0, 1]}\n", "table 'size'"},
       {"sim_cloth_rate.yaml", head + arms + "table: {}\ncloth: {step: 0.0025}\n", "whole multiple"},
-      {"sim_cloth_table.yaml", head + arms + "cloth: {}\n", "needs the table"},
       {"sim_cloth_nodes.yaml", head + arms + "table: {}\ncloth: {nodes: [20.5, 24]}\n", "'nodes'"},
       {"sim_cloth_key.yaml", head + arms + "table: {}\ncloth: {stiffness: 1}\n", "unknown entry 'stiffness'"},
       {"sim_seed.yaml", head + arms + "seed: -3\n", "'seed'"},

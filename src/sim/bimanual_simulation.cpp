@@ -192,7 +192,8 @@ BimanualSimulation::BimanualSimulation(const SimConfig& config, std::mt19937 rng
     m.arms.emplace_back(arm, std::move(urdf), parameters);
   }
   if (config.has_cloth) {
-    m.cloth.emplace(config.cloth, config.table, static_cast<int>(m.arms.size()), config.gravity, config.obstacles);
+    m.cloth.emplace(config.cloth, config.has_table ? std::optional<Table>(config.table) : std::nullopt,
+                    static_cast<int>(m.arms.size()), config.gravity, config.obstacles);
     m.cloth_period = static_cast<int>(std::lround(config.cloth.step / config.step));
   }
   m.rebuildBullet();

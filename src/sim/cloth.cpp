@@ -160,7 +160,7 @@ const char* toString(ClothDivergence divergence) noexcept {
 
 struct Cloth::Impl {
   ClothParameters parameters;
-  Table table;
+  std::optional<Table> table;
   std::vector<Obstacle> obstacles;
   Eigen::Vector3d gravity;
   int gripper_count = 0;
@@ -339,13 +339,15 @@ void Cloth::Impl::build() {
   info.m_sparsesdf.setDefaultVoxelsz(curved ? kCurvedSdfVoxel : kSdfVoxel);
   info.m_sparsesdf.Reset();
 
-  // Table: a static box.
-  table_shape = std::make_unique<btBoxShape>(toBullet(0.5 * table.size));
-  btRigidBody::btRigidBodyConstructionInfo table_info(0.0, nullptr, table_shape.get());
-  table_info.m_startWorldTransform = toBulletTransform(table.pose);
-  table_info.m_friction = table.friction;
-  table_body = std::make_unique<btRigidBody>(table_info);
-  world->addRigidBody(table_body.get());
+  // Table: a static box (if the scene has one).
+  if (table) {
+    table_shape = std::make_unique<btBoxShape>(toBullet(0.5 * table->size));
+    btRigidBody::btRigidBodyConstructionInfo table_info(0.0, nullptr, table_shape.get());
+    table_info.m_startWorldTransform = toBulletTransform(table->pose);
+    table_info.m_friction = table->friction;
+    table_body = std::make_unique<btRigidBody>(table_info);
+    world->addRigidBody(table_body.get());
+  }
   obstacle_bodies = std::make_unique<StaticBodies>(*world, obstacles);
 
   // Grippers: heavy bodies without gravity, in a collision group that collides with nothing, parked above the
@@ -472,11 +474,11 @@ ClothDivergence Cloth::Impl::check() noexcept {
   return stretch > parameters.max_stretch ? ClothDivergence::Stretch : ClothDivergence::None;
 }
 
-Cloth::Cloth(const ClothParameters& parameters, const Table& table, int grippers, const Eigen::Vector3d& gravity,
-             const std::vector<Obstacle>& obstacles)
+Cloth::Cloth(const ClothParameters& parameters, const std::optional<Table>& table, int grippers,
+             const Eigen::Vector3d& gravity, const std::vector<Obstacle>& obstacles)
     : impl_(std::make_unique<Impl>()) {
   parameters.validate("cloth");
-  table.validate("cloth");
+  if (table) table->validate("cloth");
   for (const Obstacle& obstacle : obstacles) obstacle.validate("cloth");
   if (grippers < 0) throw std::invalid_argument("cloth: the number of grippers must be >= 0");
   if (!gravity.allFinite()) throw std::invalid_argument("cloth: gravity must be finite");

@@ -137,7 +137,6 @@ void SimConfig::validate() const {
   if (!std::isfinite(grasp_radius) || grasp_radius < 0.0) fail(where + ": 'grasp_radius' must be >= 0");
   if (has_table) table.validate(where.c_str());
   if (has_cloth) {
-    if (!has_table) fail(where + ": a cloth needs the table to lie on");
     cloth.validate(where.c_str());
     const double ratio = cloth.step / step;
     if (std::abs(ratio - std::round(ratio)) > 1e-9 * ratio || std::round(ratio) < 1.0) {

@@ -41,7 +41,8 @@ vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim) {
   p.table.height = top.z();
   p.table.centre = top.head<2>();
   p.table.size = sim.table.size.head<2>();
-  p.floor_height = top.z() - sim.table.size.z();
+  // The floor under the table, or the world's ground (z = 0) in a scene without one.
+  p.floor_height = sim.has_table ? top.z() - sim.table.size.z() : 0.0;
   const Eigen::Vector2d centre =
       sim.has_cloth ? Eigen::Vector2d(sim.cloth.pose.translation().head<2>()) : p.table.centre;
   p.camera = vision::TopDownCamera::covering(320, 240, 1.0, centre, top.z() + 1.5);

@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 
 #include <memory>
+#include <optional>
 
 namespace bimanual_skills::sim {
 
@@ -65,10 +66,10 @@ struct ClothTimings {
 /// and reports problems as a SimStatus (Bullet itself may still allocate while new contacts appear).
 class Cloth {
  public:
-  /// A flat patch at parameters.pose, a static table box and `obstacles` (those that collide), `grippers` grippers
-  /// (released), gravity in the world.
+  /// A flat patch at parameters.pose, a static table box (none: a scene without a table) and `obstacles` (those that
+  /// collide), `grippers` grippers (released), gravity in the world.
   /// \throws std::invalid_argument for invalid parameters.
-  Cloth(const ClothParameters& parameters, const Table& table, int grippers,
+  Cloth(const ClothParameters& parameters, const std::optional<Table>& table, int grippers,
         const Eigen::Vector3d& gravity = Eigen::Vector3d(0.0, 0.0, -9.81), const std::vector<Obstacle>& obstacles = {});
   ~Cloth();
   Cloth(Cloth&&) noexcept;
