@@ -1,0 +1,142 @@
+// The scarf experiment's measures: the mannequin read from its scene, the ground truth on meshes set by hand
+// (wrapped and hanging right, hanging left, half wrapped, fallen), and the camera cost on synthetic images with known
+// d and hanging sides, in the chosen reading and as printed.
+#include "bimanual_skills/sim/sim_config.hpp"
+#include "bimanual_skills/tasks/scarf.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+namespace bs = bimanual_skills;
+namespace bt = bimanual_skills::tasks;
+
+namespace {
+
+bt::Mannequin mannequin() {
+  return bt::Mannequin::fromObstacles(
+      bs::sim::SimConfig::fromYamlFile(BIMANUAL_SKILLS_SOURCE_DIR "/config/scarf_sim.yaml").obstacles);
+}
+
+constexpr int kNodesX = 60, kNodesY = 2;
+
+/// A scarf along a centre line given per column (the same for both rows across its width).
+template <typename Line>
+Eigen::Matrix3Xd scarf(const Line& line) {
+  Eigen::Matrix3Xd v(3, kNodesX * kNodesY);
+  for (int j = 0; j < kNodesY; ++j) {
+    for (int i = 0; i < kNodesX; ++i) v.col(j * kNodesX + i) = line(static_cast<double>(i) / (kNodesX - 1));
+  }
+  return v;
+}
+
+/// Hangs down from the neck's height at angle `start` (about the neck, from +x), turns `turns` × 2π around the neck
+/// 2 cm off its surface, then hangs down again where it ended; `side` scales the hanging parts' offset.
+Eigen::Matrix3Xd wrapped(const bt::Mannequin& m, double start, double turns, double drop = 0.25) {
+  const double r = m.neck_radius + 0.02;
+  return scarf([&](double s) {
+    const auto around = [&](double angle) {
+      return Eigen::Vector3d(m.neck.x() + r * std::cos(angle), m.neck.y() + r * std::sin(angle), m.neck.z());
+    };
+    const double end = start + 2.0 * M_PI * turns;
+    if (s < 0.25) return Eigen::Vector3d(around(start) + Eigen::Vector3d(0.0, 0.0, -drop * (0.25 - s) / 0.25));
+    if (s > 0.75) return Eigen::Vector3d(around(end) + Eigen::Vector3d(0.0, 0.0, -drop * (s - 0.75) / 0.25));
+    return around(start + (end - start) * (s - 0.25) / 0.5);
+  });
+}
+
+}  // namespace
+
+TEST(Scarf, TheMannequinComesFromTheScene) {
+  const bt::Mannequin m = mannequin();
+  EXPECT_EQ(m.neck, Eigen::Vector3d(0.75, 0.4, 0.575));
+  EXPECT_DOUBLE_EQ(m.neck_radius, 0.045);
+  EXPECT_DOUBLE_EQ(m.shoulders_top, 0.53);
+  EXPECT_TRUE(m.facing.isApprox(-Eigen::Vector3d::UnitX()));  // facing the robot
+  EXPECT_TRUE(m.right.isApprox(Eigen::Vector3d::UnitY()));    // a person facing −x has +y on the right
+  std::vector<bs::sim::Obstacle> headless =
+      bs::sim::SimConfig::fromYamlFile(BIMANUAL_SKILLS_SOURCE_DIR "/config/scarf_sim.yaml").obstacles;
+  headless.erase(headless.begin() + 5);  // the nose mark
+  try {
+    bt::Mannequin::fromObstacles(headless);
+    ADD_FAILURE() << "a mannequin without a nose mark";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("nose_mark"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Scarf, TheGroundTruthOnMeshesSetByHand) {
+  const bt::Mannequin m = mannequin();
+  // Once around, both ends hanging on the mannequin's right (+y): success.
+  const bt::ScarfTruth right = bt::scarfTruth(m, wrapped(m, M_PI / 2.0, 1.0), kNodesX, kNodesY);
+  EXPECT_NEAR(std::abs(right.winding), 2.0 * M_PI, 0.2);
+  EXPECT_TRUE(right.wrapped);
+  EXPECT_GT(right.hanging_right, 0);
+  EXPECT_EQ(right.hanging_left, 0);
+  EXPECT_FALSE(right.fallen);
+  EXPECT_TRUE(right.success);
+  // The same on the left (−y): wrapped, hanging wrong.
+  const bt::ScarfTruth left = bt::scarfTruth(m, wrapped(m, -M_PI / 2.0, 1.0), kNodesX, kNodesY);
+  EXPECT_TRUE(left.wrapped);
+  EXPECT_EQ(left.hanging_right, 0);
+  EXPECT_GT(left.hanging_left, 0);
+  EXPECT_FALSE(left.success);
+  // A quarter turn in front of the neck: not wrapped.
+  const bt::ScarfTruth quarter = bt::scarfTruth(m, wrapped(m, M_PI / 2.0, 0.25), kNodesX, kNodesY);
+  EXPECT_NEAR(std::abs(quarter.winding), M_PI / 2.0, 0.1);
+  EXPECT_FALSE(quarter.wrapped);
+  EXPECT_FALSE(quarter.success);
+  // On the floor: fallen.
+  const bt::ScarfTruth fallen =
+      bt::scarfTruth(m, scarf([](double s) { return Eigen::Vector3d(0.5 + 0.6 * s, 0.1, 0.02); }), kNodesX, kNodesY);
+  EXPECT_TRUE(fallen.fallen);
+  EXPECT_FALSE(fallen.success);
+  EXPECT_THROW(bt::scarfTruth(m, Eigen::Matrix3Xd(3, 5), kNodesX, kNodesY), std::invalid_argument);
+}
+
+TEST(Scarf, TheCameraCostOfSyntheticImagesWithKnownDistanceAndSides) {
+  const auto image = [](int d, int hang_u0, int hang_u1, bool nose = true) {
+    cv::Mat bgr(480, 640, CV_8UC3, cv::Scalar(40, 40, 40));
+    if (nose) cv::circle(bgr, cv::Point(320, 200), 8, cv::Scalar(0, 0, 255), cv::FILLED);
+    cv::rectangle(bgr, cv::Point(250, 200 + d), cv::Point(390, 200 + d + 18), cv::Scalar(255, 0, 0), cv::FILLED);
+    if (hang_u1 > hang_u0) {
+      cv::rectangle(bgr, cv::Point(hang_u0, 350), cv::Point(hang_u1, 470), cv::Scalar(255, 0, 0), cv::FILLED);
+    }
+    return bgr;
+  };
+  bt::ScarfCameraConfig config;  // d_ref 62 px, α 1.2, weights 10 and 3; the mannequin's right on the image's left
+  // At d_ref, hanging on the mannequin's right only: no cost.
+  bt::ScarfCameraTerms t = bt::scarfCameraTerms(image(62, 100, 200), config);
+  ASSERT_TRUE(t.nose_seen);
+  EXPECT_NEAR(t.nose_u, 320.0, 0.5);
+  EXPECT_NEAR(t.nose_v, 200.0, 0.5);
+  EXPECT_NEAR(t.d, 62.0, 1.0);
+  EXPECT_GT(t.right_pixels, 0);
+  EXPECT_EQ(t.left_pixels, 0);
+  EXPECT_EQ(t.hanging, 0);
+  EXPECT_LT(t.c_cam, 0.2);
+  // Twice d_ref: 10 (1)^1.2 = 10; hanging on the wrong side adds 3.
+  t = bt::scarfCameraTerms(image(124, 440, 540), config);
+  EXPECT_NEAR(t.c_distance, 10.0 * std::pow((t.d - 62.0) / 62.0, 1.2), 1e-9);
+  EXPECT_NEAR(t.c_distance, 10.0, 0.5);
+  EXPECT_EQ(t.hanging, 1);
+  EXPECT_NEAR(t.c_cam, t.c_distance + 3.0, 1e-12);
+  // Hanging on both sides is hanging wrong too.
+  EXPECT_EQ(bt::scarfCameraTerms(image(62, 100, 540), config).hanging, 1);
+  // As printed, the distance term never goes below the weight: no cost under 3 exists.
+  config.printed = true;
+  EXPECT_NEAR(bt::scarfCameraTerms(image(62, 100, 200), config).c_cam, 10.0, 1e-9);
+  config.printed = false;
+  // No nose mark in view: costed as the scarf nowhere near and hanging wrong.
+  t = bt::scarfCameraTerms(image(62, 100, 200, false), config);
+  EXPECT_FALSE(t.nose_seen);
+  EXPECT_EQ(t.d, 480.0);
+  EXPECT_EQ(t.hanging, 1);
+  // Bad input is refused with the reason.
+  EXPECT_THROW(bt::scarfCameraTerms(cv::Mat(), config), std::invalid_argument);
+  config.d_ref = 0.0;
+  EXPECT_THROW(bt::scarfCameraTerms(image(62, 100, 200), config), std::invalid_argument);
+}
