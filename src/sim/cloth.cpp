@@ -30,8 +30,8 @@ constexpr double kGripperInertia = 10.0;  // [kg m²], isotropic
 /// Sparse signed-distance-field cell of the soft-rigid contacts [m]. Bullet's default (0.25 m) interpolates the
 /// distance to a thin table top so coarsely that the cloth rests 2–3 cm inside it (measured); 0.05 m is exact for
 /// the table's faces. Curved obstacles need a finer field: at 0.05 m the cloth sank 1.3–1.9 cm into a 0.1 m ball
-/// (measured, test_sim_cloth); at 0.02 m 0.9–1.4 cm, at 0.01 m 0.6–1.1 cm: the rest is not the field's resolution
-/// (not yet explained; the strain limiting, which does not see obstacles, is a suspect).
+/// (measured, test_sim_cloth); at 0.02 m 0.9–1.4 cm, at 0.01 m 0.6–1.1 cm: the rest is neither the field's
+/// resolution nor the strain limiting (without it 0.8–1.3 cm at 0.02 m); not yet explained.
 constexpr double kSdfVoxel = 0.05;
 constexpr double kCurvedSdfVoxel = 0.02;
 /// Gauss-Seidel passes of the strain limiting per step (fewer leave edges above the limit after a fold's put-down;
