@@ -20,11 +20,15 @@ const char* toString(Obstacle::Shape shape) noexcept {
   return "unknown";
 }
 
+int sizeValues(Obstacle::Shape shape) noexcept {
+  return shape == Obstacle::Shape::Box ? 3 : shape == Obstacle::Shape::Cylinder ? 2 : 1;
+}
+
 void Obstacle::validate(const std::string& where) const {
   const std::string at = where + " obstacle '" + name + "'";
   if (name.empty()) throw std::invalid_argument(where + ": an obstacle needs a name");
   if (!pose.matrix().allFinite()) throw std::invalid_argument(at + ": its pose must be finite");
-  const int dimensions = shape == Shape::Box ? 3 : shape == Shape::Cylinder ? 2 : 1;
+  const int dimensions = sizeValues(shape);
   for (int i = 0; i < 3; ++i) {
     const bool used = i < dimensions;
     if (!std::isfinite(size[i]) || (used && !(size[i] > 0.0 && size[i] <= 100.0))) {

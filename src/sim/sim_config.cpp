@@ -13,7 +13,6 @@ namespace {
 
 using io::fail;
 
-/// Pose from `xyz` and `rpy` (roll, pitch, yaw about fixed x, y, z, as in URDF); both optional (zero).
 /// The obstacles of `node`: a list, or the name of a file (relative to `path`) whose `obstacles:` is one.
 std::vector<Obstacle> readObstacles(const YAML::Node& node, const std::string& path, const std::string& where) {
   YAML::Node list = node;
@@ -46,7 +45,7 @@ std::vector<Obstacle> readObstacles(const YAML::Node& node, const std::string& p
     }
     o.pose = io::readPose(item, here);
     const Eigen::VectorXd size = io::readVector(item, "size", here);
-    const int wanted = o.shape == Obstacle::Shape::Box ? 3 : o.shape == Obstacle::Shape::Cylinder ? 2 : 1;
+    const int wanted = sizeValues(o.shape);
     if (size.size() != wanted) {
       io::fail(here + ": 'size' of a " + shape + " needs " + std::to_string(wanted) +
                " value(s) (box: extents; sphere: radius; cylinder: radius, length)");

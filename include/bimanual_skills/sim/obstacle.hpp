@@ -31,4 +31,7 @@ struct Obstacle {
 /// "box", "sphere", "cylinder".
 const char* toString(Obstacle::Shape shape) noexcept;
 
+/// How many of `size`'s values a shape uses: 3 (box), 1 (sphere), 2 (cylinder).
+int sizeValues(Obstacle::Shape shape) noexcept;
+
 }  // namespace bimanual_skills::sim
