@@ -347,6 +347,27 @@ TEST(FoldOnRobot, BadInterfaceSettingsAreRefusedByName) {
 // fold_learner scores through bullet_sim's perspective RGB-D camera (rgbd/...), its depth re-projected into the
 // reward's map; a task that takes either camera for the other model is refused at once with the reason.
 TEST(FoldThroughAPerspectiveCamera, LearnsOnTheReprojectedDepthAndRefusesTheWrongModel) {
+  // The refusals first, while the learner runs and the simulator publishes (after the learning its clock may stand
+  // still, and a camera of a clock that stands still sends nothing).
+  const bs::rollout::FoldLearningConfig config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
+  bs::ros_layer::FoldRobotInterfaces robot;
+  robot.timeout = 10.0;
+  robot.camera = "rgbd";
+  robot.camera_model = "orthographic";
+  try {
+    bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
+    ADD_FAILURE() << "a perspective camera taken for the orthographic map";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("set the camera model to perspective"), std::string::npos) << e.what();
+  }
+  robot.camera = "camera";
+  robot.camera_model = "perspective";
+  try {
+    bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
+    ADD_FAILURE() << "the orthographic map taken for a perspective camera";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("set the camera model to orthographic"), std::string::npos) << e.what();
+  }
   const std::string out = learnerOutput();
   ASSERT_FALSE(out.empty()) << "fold_learner did not finish in 240 s";
   const Rollouts rollouts = readRollouts(out);
@@ -368,26 +389,6 @@ TEST(FoldThroughAPerspectiveCamera, LearnsOnTheReprojectedDepthAndRefusesTheWron
   ASSERT_FALSE(final_image.empty());
   EXPECT_EQ(final_image.cols, 320);
   EXPECT_EQ(final_image.rows, 240);
-
-  const bs::rollout::FoldLearningConfig config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
-  bs::ros_layer::FoldRobotInterfaces robot;
-  robot.timeout = 10.0;
-  robot.camera = "rgbd";
-  robot.camera_model = "orthographic";
-  try {
-    bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
-    ADD_FAILURE() << "a perspective camera taken for the orthographic map";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("set the camera model to perspective"), std::string::npos) << e.what();
-  }
-  robot.camera = "camera";
-  robot.camera_model = "perspective";
-  try {
-    bs::ros_layer::FoldOnRobotTask task(config.task, config.reward, robot);
-    ADD_FAILURE() << "the orthographic map taken for a perspective camera";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("set the camera model to orthographic"), std::string::npos) << e.what();
-  }
 }
 
 // ------------------------------------------------------------------------------------------ second_robot.test
