@@ -9,7 +9,7 @@
 #include "bimanual_skills/SetPayload.h"
 #include "bimanual_skills/SimStep.h"
 #include "bimanual_skills/hosting/control_loop.hpp"
-#include "bimanual_skills/realtime/seqlock.hpp"
+#include "bimanual_skills/hosting/simulated_robot.hpp"
 #include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
 #include "bimanual_skills/ros_layer/hosted_loop.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
@@ -106,80 +106,9 @@ const std::string kUsage =
     "  ~set_payload, ~apply_wrench (bounded), ~grasp (bimanual_skills/ClothGrasp: fails when no cloth node is in\n"
     "  reach; a stamp ahead, at most 600 s, is done by the loop in its first cycle at or after it).\n";
 
-constexpr double kNever = std::numeric_limits<double>::infinity();  ///< No gripper command scheduled.
 constexpr double kMaxGripperLead = 600.0;  ///< Simulated seconds ahead a ~grasp may be scheduled.
-
-/// When a scheduled gripper command was done (−t − 1 when it failed at t; NaN: none yet) and for when it was
-/// scheduled: written by the loop, read whole by the publisher thread and the diagnostics timer.
-struct GripperDone {
-  double at, due;
-};
-
-/// The simulation as the loop's robot: advance() steps the physics (stopping on an arm's divergence, freezing a
-/// diverged cloth), due() runs the grippers' scheduled commands.
-class SimulatedRobot final : public bs::hosting::LoopRobot {
- public:
-  explicit SimulatedRobot(sim::BimanualSimulation& simulation)
-      : simulation_(simulation), grippers_(static_cast<std::size_t>(simulation.armCount())) {}
-
-  int armCount() const noexcept override { return simulation_.armCount(); }
-  int jointCount(int arm) const noexcept override { return simulation_.jointCount(arm); }
-  sim::RobotStatus readJointState(int arm, sim::JointState& state) noexcept override {
-    return simulation_.readJointState(arm, state);
-  }
-  sim::RobotStatus writeJointTorques(int arm, const Eigen::Ref<const Eigen::VectorXd>& torque) noexcept override {
-    return simulation_.writeJointTorques(arm, torque);
-  }
-  double time() const noexcept override { return simulation_.time(); }
-  bool advance() noexcept override {
-    const sim::SimStatus status = simulation_.step();
-    cloth_diverged_ = status == sim::SimStatus::ClothDiverged;
-    if (cloth_diverged_) cloth_divergence_.store(static_cast<int>(simulation_.cloth().divergence()));
-    return status != sim::SimStatus::ArmDiverged;
-  }
-  const char* stopReason() const noexcept override {
-    return "the simulation diverged (a state became non-finite or faster than 100 rad/s); call ~reset";
-  }
-  void due(double t) noexcept override {
-    for (std::size_t a = 0; a < grippers_.size(); ++a) {
-      Gripper& g = grippers_[a];
-      if (!(t >= g.due)) continue;
-      int attached = 0;
-      const sim::SimStatus status =
-          g.grasp ? simulation_.grasp(static_cast<int>(a), &attached) : simulation_.release(static_cast<int>(a));
-      g.done.write(GripperDone{status == sim::SimStatus::Ok ? t : -t - 1.0, g.due});
-      g.due = kNever;
-    }
-  }
-
-  /// Loop thread (a request): a gripper command for arm `a` at time `at` (kNever: none, one scheduled is dropped).
-  void schedule(int a, double at, bool grasp) {
-    grippers_[static_cast<std::size_t>(a)].due = at;
-    grippers_[static_cast<std::size_t>(a)].grasp = grasp;
-  }
-  void reset() {
-    for (Gripper& g : grippers_) g.due = kNever;  // scheduled on the old clock
-    cloth_diverged_ = false;
-  }
-  bool clothDiverged() const noexcept { return cloth_diverged_; }
-  sim::ClothDivergence clothDivergence() const noexcept {
-    return static_cast<sim::ClothDivergence>(cloth_divergence_.load());
-  }
-  /// When arm a's last scheduled command was done (−t − 1 when it failed at t; NaN: none yet), and for when.
-  GripperDone done(std::size_t a) const noexcept { return grippers_[a].done.read(); }
-  std::uint64_t doneCount(std::size_t a) const noexcept { return grippers_[a].done.writes(); }
-
- private:
-  struct Gripper {
-    double due = kNever;
-    bool grasp = false;
-    bs::realtime::SeqLock<GripperDone> done{GripperDone{std::nan(""), std::nan("")}};
-  };
-  sim::BimanualSimulation& simulation_;
-  std::vector<Gripper> grippers_;
-  std::atomic<bool> cloth_diverged_{false};
-  std::atomic<int> cloth_divergence_{0};
-};
+using bs::hosting::GripperDone;
+using bs::hosting::SimulatedRobot;
 
 class BulletSimNode {
  public:
@@ -538,7 +467,7 @@ class BulletSimNode {
         message << arm << (grasp ? " grasp" : " release") << " scheduled at t = " << at << " s";
         return bs::hosting::LoopOutcome{true, message.str(), at};
       }
-      robot_->schedule(a, kNever, grasp);  // done now: one scheduled before is replaced
+      robot_->schedule(a, SimulatedRobot::kNever, grasp);  // done now: one scheduled before is replaced
       const sim::SimStatus status = grasp ? simulation_->grasp(a, &attached) : simulation_->release(a);
       const double t = simulation_->time();
       if (status != sim::SimStatus::Ok)

@@ -1,9 +1,10 @@
-// hosting::ControlLoop without ROS and without Bullet: a fake robot of two WAM arms integrated with the project's
-// forward dynamics (known ground truth), hosted controllers and arms commanded from another thread, pause and step,
-// a robot that stops, lockstep matched by stamps (repeatable bit for bit), bounded requests, bad input, and the
-// cycle's allocation count.
+// hosting::ControlLoop without ROS: a fake robot of two WAM arms integrated with the project's forward dynamics
+// (known ground truth), hosted controllers and arms commanded from another thread, pause and step, a robot that
+// stops, lockstep matched by stamps (repeatable bit for bit), bounded requests, bad input, and the cycle's allocation
+// count; and hosting::SimulatedRobot (the Bullet simulation as the loop's robot) doing scheduled gripper commands.
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/hosting/control_loop.hpp"
+#include "bimanual_skills/hosting/simulated_robot.hpp"
 #include "test_support.hpp"
 #include "testing/allocation_counter.hpp"
 
@@ -11,6 +12,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <thread>
 
 namespace bc = bimanual_skills::control;
@@ -352,4 +354,46 @@ TEST(ControlLoop, BadInputGetsAClearAnswer) {
   ASSERT_TRUE(waitFor([&] { return loop.counts().rejected_commands == 2; }));
   loop.torqueCommand(7, 0.0, three, 3);  // no such arm: ignored
   EXPECT_EQ(loop.counts().rejected_commands, 2);
+}
+
+TEST(SimulatedRobot, DoesAScheduledGripperCommandInTheFirstCycleAtOrAfterItsTimeAndDropsItOnReset) {
+  sim::SimConfig config = sim::SimConfig::fromYamlFile(BIMANUAL_SKILLS_SOURCE_DIR "/config/sim.yaml");
+  ASSERT_TRUE(config.has_cloth);
+  const auto run = [](sim::SimConfig c, double release_at, bool reset_before) {
+    sim::BimanualSimulation simulation(c);
+    bh::SimulatedRobot robot(simulation);
+    RecordingSink sink;
+    bh::LoopSettings settings = fast();
+    settings.period = simulation.stepSize();
+    settings.paused = true;
+    bh::ControlLoop loop(robot, sink, settings);
+    Running running(loop);
+    EXPECT_TRUE(std::isnan(robot.done(0).at));
+    EXPECT_TRUE(loop.call([&] {
+                      robot.schedule(0, release_at, false);
+                      if (reset_before) robot.reset();
+                      return bh::LoopOutcome{true, "", 0.0};
+                    })
+                    .success);
+    const bh::LoopOutcome stepped = loop.step(20);
+    EXPECT_TRUE(stepped.success) << stepped.message;
+    return std::make_pair(robot.done(0), robot.doneCount(0));
+  };
+  const double dt = sim::BimanualSimulation(config).stepSize();
+  const double at = 10.5 * dt, first_cycle = 11 * dt;
+  // With a cloth the release succeeds: done at the first cycle's time, for the time it was scheduled.
+  const auto [done, count] = run(config, at, false);
+  EXPECT_EQ(count, 1u);
+  EXPECT_NEAR(done.at, first_cycle, 1e-12);
+  EXPECT_EQ(done.due, at);
+  // Without a cloth it fails in the same cycle: -t - 1.
+  sim::SimConfig bare = config;
+  bare.has_cloth = false;
+  const auto [failed, failed_count] = run(bare, at, false);
+  EXPECT_EQ(failed_count, 1u);
+  EXPECT_NEAR(failed.at, -first_cycle - 1.0, 1e-12);
+  // A reset drops it: it was scheduled on the old clock.
+  const auto [dropped, dropped_count] = run(config, at, true);
+  EXPECT_EQ(dropped_count, 0u);
+  EXPECT_TRUE(std::isnan(dropped.at));
 }
