@@ -29,9 +29,9 @@ constexpr double kGripperMass = 100.0;    // [kg]
 constexpr double kGripperInertia = 10.0;  // [kg m²], isotropic
 /// Sparse signed-distance-field cell of the soft-rigid contacts [m]. Bullet's default (0.25 m) interpolates the
 /// distance to a thin table top so coarsely that the cloth rests 2–3 cm inside it (measured); 0.05 m is exact for
-/// the table's faces. Curved obstacles need a finer field: at 0.05 m the cloth sank 1.3–1.9 cm into a 0.1 m ball
-/// (measured, test_sim_cloth); at 0.02 m 0.9–1.4 cm, at 0.01 m 0.6–1.1 cm: the rest is neither the field's
-/// resolution nor the strain limiting (without it 0.8–1.3 cm at 0.02 m); not yet explained.
+/// the table's faces. Curved obstacles get a finer field (at 0.05 m the cloth sank 1.3–1.9 cm into a 0.1 m ball, at
+/// 0.02 m 0.9–1.4 cm, measured); what remains is taken out by projecting the nodes out of the obstacles' exact shapes
+/// (Impl::projectOutOfObstacles).
 constexpr double kSdfVoxel = 0.05;
 constexpr double kCurvedSdfVoxel = 0.02;
 /// Gauss-Seidel passes of the strain limiting per step (fewer leave edges above the limit after a fold's put-down;
@@ -206,6 +206,7 @@ struct Cloth::Impl {
   void updateTethers() noexcept;
   void limitStrain(double dt) noexcept;
   void pinHeldNodes(double dt) noexcept;
+  void projectOutOfObstacles() noexcept;
   /// Adds to constraint_pull[gripper] the pull of moving `node` by `correction` this step (nothing for −1).
   void pull(int gripper, const btSoftBody::Node& node, const btVector3& correction) noexcept;
 };
@@ -302,6 +303,89 @@ void Cloth::Impl::limitStrain(double dt) noexcept {
   }
   for (int i = 0; i < n; ++i) {
     soft->m_nodes[i].m_v += (soft->m_nodes[i].m_x - start_x[static_cast<std::size_t>(i)]) / dt;
+  }
+}
+
+namespace {
+
+/// Signed distance from `p` to the surface of `o` (negative inside) and the outward normal there, both in the world.
+double signedDistance(const Obstacle& o, const Eigen::Vector3d& p, Eigen::Vector3d& normal) noexcept {
+  const Eigen::Vector3d x = o.pose.inverse() * p;  // in the obstacle's frame
+  Eigen::Vector3d n_local = Eigen::Vector3d::UnitZ();
+  double d = 0.0;
+  switch (o.shape) {
+    case Obstacle::Shape::Sphere: {
+      const double r = x.norm();
+      if (r > 1e-12) n_local = x / r;
+      d = r - o.size.x();
+      break;
+    }
+    case Obstacle::Shape::Cylinder: {
+      const double rho = x.head<2>().norm(), radius = o.size.x(), half = 0.5 * o.size.y();
+      const Eigen::Vector3d radial =
+          rho > 1e-12 ? Eigen::Vector3d(x.x() / rho, x.y() / rho, 0.0) : Eigen::Vector3d::UnitX();
+      const double side = rho - radius, cap = std::abs(x.z()) - half;
+      const Eigen::Vector3d axial(0.0, 0.0, x.z() >= 0.0 ? 1.0 : -1.0);
+      if (side > 0.0 && cap > 0.0) {  // beyond the rim
+        const Eigen::Vector3d e = side * radial + cap * axial;
+        d = e.norm();
+        n_local = e / d;
+      } else if (side > cap) {
+        d = side;
+        n_local = radial;
+      } else {
+        d = cap;
+        n_local = axial;
+      }
+      break;
+    }
+    case Obstacle::Shape::Box: {
+      const Eigen::Vector3d q = x.cwiseAbs() - 0.5 * o.size;
+      if ((q.array() > 0.0).any()) {
+        const Eigen::Vector3d e = q.cwiseMax(0.0).cwiseProduct(x.cwiseSign());
+        d = e.norm();
+        n_local = e / d;
+      } else {
+        Eigen::Index axis = 0;
+        d = q.maxCoeff(&axis);
+        n_local = Eigen::Vector3d::Zero();
+        n_local[axis] = x[axis] >= 0.0 ? 1.0 : -1.0;
+      }
+      break;
+    }
+  }
+  normal = o.pose.linear() * n_local;
+  return d;
+}
+
+}  // namespace
+
+// Bullet's soft-rigid contacts sample each shape's distance on a sparse field, which lets the cloth sink a centimetre
+// and more into small curved shapes (a neck, a head: see kCurvedSdfVoxel). The obstacles are primitives whose
+// distance is known exactly: after the step, a free node closer to one than the cloth's margin is put on the margin,
+// loses the velocity into the surface and, by Coulomb friction, as much of its sliding velocity (the fabric's
+// friction times the obstacle's).
+void Cloth::Impl::projectOutOfObstacles() noexcept {
+  const double margin = parameters.thickness;
+  const int n = soft->m_nodes.size();
+  for (const Obstacle& o : obstacles) {
+    if (!o.collides) continue;
+    const double mu = parameters.friction * o.friction;
+    for (int i = 0; i < n; ++i) {
+      if (owner[static_cast<std::size_t>(i)] >= 0) continue;
+      btSoftBody::Node& node = soft->m_nodes[i];
+      Eigen::Vector3d normal;
+      const double d = signedDistance(o, toEigen(node.m_x), normal);
+      if (!(d < margin)) continue;
+      node.m_x += toBullet(normal * (margin - d));
+      Eigen::Vector3d v = toEigen(node.m_v);
+      const double vn = v.dot(normal);
+      if (vn >= 0.0) continue;
+      const Eigen::Vector3d tangential = v - vn * normal;
+      const double slide = tangential.norm(), stop = mu * -vn;
+      v = slide > stop ? Eigen::Vector3d(tangential * (1.0 - stop / slide)) : Eigen::Vector3d::Zero();
+      node.m_v = toBullet(v);
+    }
   }
 }
 
@@ -578,6 +662,7 @@ SimStatus Cloth::step() noexcept {
   for (Vector6d& w : m.constraint_pull) w.setZero();
   m.pinHeldNodes(dt);
   if (m.parameters.strain_limit >= 0.0) m.limitStrain(dt);
+  m.projectOutOfObstacles();
   const auto stepped = Clock::now();
   const double self_seconds = m.world->self_collision_seconds - self_before;
   m.timings.bullet += seconds(start, stepped) - self_seconds;
