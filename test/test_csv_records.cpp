@@ -1,11 +1,15 @@
-// io::CsvAppender and io::dropPartialRecord: whole records, a partial last line cut off on reopening.
+// io::CsvAppender and io::dropPartialRecord: whole records, a partial last line cut off on reopening; the fields of a
+// record: quoted text with commas and quotes, numbers read back bit for bit, bad numbers refused.
 #include "io/csv_records.hpp"
 #include "testing/program_output.hpp"
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
+#include <stdexcept>
 
 namespace fs = std::filesystem;
 using bimanual_skills::testing::readTextFile;
@@ -33,4 +37,24 @@ TEST(CsvRecords, AppendsWholeRecordsAndDropsAPartialLastLine) {
   EXPECT_EQ(bimanual_skills::io::dropPartialRecord(path), 17u);
   EXPECT_EQ(fs::file_size(path), 0u);
   fs::remove(path);
+}
+
+TEST(CsvRecords, FieldsRoundTrip) {
+  namespace io = bimanual_skills::io;
+  const std::string reason = "arm 0 is \"far\", off by 0.3 rad\nat t = 1 s";
+  const std::vector<std::string> fields =
+      io::splitCsv("IDR,1," + io::quotedField(reason) + ",," + io::exactNumber(0.1 + 0.2));
+  ASSERT_EQ(fields.size(), 5u);
+  EXPECT_EQ(fields[2], "arm 0 is \"far\", off by 0.3 rad at t = 1 s");
+  EXPECT_EQ(fields[3], "");
+  EXPECT_EQ(io::parseNumber(fields[4], "here"), 0.1 + 0.2);  // bit for bit
+  for (const double v : {-1e-300, 6.02214076e23, std::numeric_limits<double>::denorm_min()}) {
+    EXPECT_EQ(io::parseNumber(io::exactNumber(v), "here"), v);
+  }
+  EXPECT_EQ(io::parseInteger("42", "here"), 42);
+  for (const char* bad : {"", "1.5x", "x", " 1"}) {
+    EXPECT_THROW(io::parseNumber(bad, "here"), std::invalid_argument) << bad;
+  }
+  EXPECT_THROW(io::parseInteger("1.5", "here"), std::invalid_argument);
+  EXPECT_THROW(io::parseInteger("1e12", "here"), std::invalid_argument);
 }

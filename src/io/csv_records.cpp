@@ -4,7 +4,11 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
 #include <utility>
@@ -18,6 +22,69 @@ namespace {
 }
 
 }  // namespace
+
+std::vector<std::string> splitCsv(const std::string& line) {
+  std::vector<std::string> out(1);
+  bool quoted = false;
+  for (std::size_t i = 0; i < line.size(); ++i) {
+    const char c = line[i];
+    if (quoted) {
+      if (c == '"' && i + 1 < line.size() && line[i + 1] == '"') {
+        out.back() += '"';
+        ++i;
+      } else if (c == '"') {
+        quoted = false;
+      } else {
+        out.back() += c;
+      }
+    } else if (c == '"') {
+      quoted = true;
+    } else if (c == ',') {
+      out.emplace_back();
+    } else {
+      out.back() += c;
+    }
+  }
+  return out;
+}
+
+std::string quotedField(const std::string& text) {
+  std::string out = "\"";
+  for (const char c : text) {
+    if (c == '\n') {
+      out += ' ';
+    } else {
+      if (c == '"') out += '"';
+      out += c;
+    }
+  }
+  return out + '"';
+}
+
+std::string exactNumber(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.17g", value);
+  return buffer;
+}
+
+double parseNumber(const std::string& text, const std::string& where) {
+  // strtod, not stod: a denormal written by exactNumber() must read back (stod refuses it as out of range).
+  char* end = nullptr;
+  const double value =
+      text.empty() || std::isspace(static_cast<unsigned char>(text.front())) ? 0.0 : std::strtod(text.c_str(), &end);
+  if (end != text.c_str() + text.size() || text.empty()) {
+    throw std::invalid_argument(where + ": '" + text + "' is not a number");
+  }
+  return value;
+}
+
+int parseInteger(const std::string& text, const std::string& where) {
+  const double value = parseNumber(text, where);
+  if (value != std::floor(value) || std::abs(value) > 2147483647.0) {
+    throw std::invalid_argument(where + ": '" + text + "' is not an integer");
+  }
+  return static_cast<int>(value);
+}
 
 std::size_t dropPartialRecord(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDWR);

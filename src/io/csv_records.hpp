@@ -5,8 +5,19 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
 namespace bimanual_skills::io {
+
+/// The fields of one CSV line; a field in double quotes may hold commas and doubled quotes.
+std::vector<std::string> splitCsv(const std::string& line);
+/// `text` as one quoted CSV field (quotes doubled, newlines as spaces).
+std::string quotedField(const std::string& text);
+/// `value` with every digit a double has (%.17g): read back bit for bit.
+std::string exactNumber(double value);
+/// A whole field as a number or integer. \throws std::invalid_argument naming `where` and the text.
+double parseNumber(const std::string& text, const std::string& where);
+int parseInteger(const std::string& text, const std::string& where);
 
 /// Cuts a final line without its newline off `path` (truncating the file to the end of its last whole record).
 /// Returns the number of bytes dropped (0 for a whole file or no file). \throws std::runtime_error on I/O errors.
