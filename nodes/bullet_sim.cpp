@@ -513,7 +513,7 @@ class BulletSimNode {
   std::unique_ptr<sim::BimanualSimulation> simulation_;
   std::unique_ptr<SimulatedRobot> robot_;
   std::optional<sim::RobotFile> robot_file_;  ///< The robot the simulation runs (none when its file names the arms).
-  bs::hosting::ScopedCounterProbe<bs::testing::AllocationCounter> probe_;  ///< The loop's allocations per cycle.
+  bs::realtime::ScopedCounterProbe<bs::testing::AllocationCounter> probe_;  ///< The loop's allocations per cycle.
   std::vector<Eigen::VectorXd> initial_;
   std::vector<int> grasp_at_reset_;  ///< Arms holding the cloth from each reset on.
   std::vector<std::vector<std::string>> joint_names_;

@@ -86,7 +86,7 @@ class RecordingSink final : public bh::StateSink {
   std::atomic<long> handed_{0};
 };
 
-using CountingProbe = bh::ScopedCounterProbe<bimanual_skills::testing::AllocationCounter>;
+using CountingProbe = bimanual_skills::realtime::ScopedCounterProbe<bimanual_skills::testing::AllocationCounter>;
 
 bc::ArmControllerConfig controllerConfig() {
   return bimanual_skills::test_support::loopControllerConfig();

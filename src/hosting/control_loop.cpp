@@ -69,7 +69,7 @@ struct ControlLoop::Request {
   }
 };
 
-ControlLoop::ControlLoop(LoopRobot& robot, StateSink& sink, LoopSettings settings, CycleProbe* probe)
+ControlLoop::ControlLoop(LoopRobot& robot, StateSink& sink, LoopSettings settings, realtime::CycleProbe* probe)
     : robot_(robot),
       sink_(sink),
       probe_(probe),

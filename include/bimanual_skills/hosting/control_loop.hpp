@@ -12,6 +12,7 @@
 #pragma once
 
 #include "bimanual_skills/control/realtime_arm_controller.hpp"
+#include "bimanual_skills/realtime/cycle_probe.hpp"
 #include "bimanual_skills/realtime/loop_pacer.hpp"
 #include "bimanual_skills/realtime/period_recorder.hpp"
 #include "bimanual_skills/realtime/triple_buffer.hpp"
@@ -27,7 +28,6 @@
 #include <limits>
 #include <memory>
 #include <mutex>
-#include <optional>
 #include <string>
 #include <vector>
 
@@ -63,37 +63,6 @@ class StateSink {
   StateSink() = default;
   StateSink(const StateSink&) = default;
   StateSink& operator=(const StateSink&) = default;
-};
-
-/// Measures a part of the cycle (the loop's allocation count, say); begin() and end() bracket the control part and
-/// the robot's advance() apart. Real-time safe.
-class CycleProbe {
- public:
-  virtual ~CycleProbe() = default;
-  virtual void begin() noexcept = 0;
-  /// Events (allocations, say) since begin().
-  virtual std::size_t end() noexcept = 0;
-
- protected:
-  CycleProbe() = default;
-  CycleProbe(const CycleProbe&) = default;
-  CycleProbe& operator=(const CycleProbe&) = default;
-};
-
-/// A CycleProbe over a scoped counter (a type whose constructor starts counting and whose `allocations()` gives the
-/// count since), such as the package's testing::AllocationCounter.
-template <typename Counter>
-class ScopedCounterProbe final : public CycleProbe {
- public:
-  void begin() noexcept override { counter_.emplace(); }
-  std::size_t end() noexcept override {
-    const std::size_t n = counter_->allocations();
-    counter_.reset();
-    return n;
-  }
-
- private:
-  std::optional<Counter> counter_;
 };
 
 struct LoopSettings {
@@ -136,7 +105,7 @@ class ControlLoop {
  public:
   /// For `robot`'s arms (none hosted or commanded yet); `probe` (may be null) brackets the cycle's parts. Keeps
   /// references to robot, sink and probe. \throws std::invalid_argument for bad settings.
-  ControlLoop(LoopRobot& robot, StateSink& sink, LoopSettings settings, CycleProbe* probe = nullptr);
+  ControlLoop(LoopRobot& robot, StateSink& sink, LoopSettings settings, realtime::CycleProbe* probe = nullptr);
   ~ControlLoop();
   ControlLoop(const ControlLoop&) = delete;
   ControlLoop& operator=(const ControlLoop&) = delete;
@@ -200,7 +169,7 @@ class ControlLoop {
 
   LoopRobot& robot_;
   StateSink& sink_;
-  CycleProbe* probe_;
+  realtime::CycleProbe* probe_;
   LoopSettings settings_;
   realtime::LoopPacer pacer_;
   std::vector<std::unique_ptr<Arm>> arms_;
