@@ -57,14 +57,14 @@ Eigen::Matrix3Xd wrapped(const bt::Mannequin& m, double start, double turns) {
 
 TEST(Scarf, TheMannequinComesFromTheScene) {
   const bt::Mannequin m = mannequin();
-  EXPECT_EQ(m.neck, Eigen::Vector3d(0.75, 0.4, 0.575));
+  EXPECT_EQ(m.neck, Eigen::Vector3d(0.5, 0.4, 0.4));
   EXPECT_DOUBLE_EQ(m.neck_radius, 0.045);
-  EXPECT_DOUBLE_EQ(m.shoulders_top, 0.53);
+  EXPECT_DOUBLE_EQ(m.shoulders_top, 0.355);
   EXPECT_TRUE(m.facing.isApprox(-Eigen::Vector3d::UnitX()));  // facing the robot
   EXPECT_TRUE(m.right.isApprox(Eigen::Vector3d::UnitY()));    // a person facing −x has +y on the right
   std::vector<bs::sim::Obstacle> headless =
       bs::sim::SimConfig::fromYamlFile(BIMANUAL_SKILLS_SOURCE_DIR "/config/scarf_sim.yaml").obstacles;
-  headless.erase(headless.begin() + 5);  // the nose mark
+  headless.erase(headless.begin() + 5);  // the nose mark (after the floor, torso, shoulders, neck, head)
   try {
     bt::Mannequin::fromObstacles(headless);
     ADD_FAILURE() << "a mannequin without a nose mark";
@@ -94,6 +94,18 @@ TEST(Scarf, TheGroundTruthOnMeshesSetByHand) {
   EXPECT_NEAR(std::abs(quarter.winding), M_PI / 2.0, 0.1);
   EXPECT_FALSE(quarter.wrapped);
   EXPECT_FALSE(quarter.success);
+  // Wound round the neck with both ends resting on the shoulders' right edge, 2 cm below their top: not hanging.
+  bt::ScarfTruth resting =
+      bt::scarfTruth(m, scarf([&](double s) {
+                       const double angle = M_PI / 2.0 + 2.0 * M_PI * s;
+                       const double r = m.neck_radius + 0.02 + (s < 0.1 || s > 0.9 ? 0.13 : 0.0);
+                       const double z = s < 0.1 || s > 0.9 ? m.shoulders_top - 0.02 : m.neck.z();
+                       return Eigen::Vector3d(m.neck.x() + r * std::cos(angle), m.neck.y() + r * std::sin(angle), z);
+                     }),
+                     kNodesX, kNodesY);
+  EXPECT_TRUE(resting.wrapped);
+  EXPECT_EQ(resting.hanging_right + resting.hanging_left, 0);
+  EXPECT_FALSE(resting.success) << "wound, but hanging nowhere";
   // On the floor: fallen.
   const bt::ScarfTruth fallen =
       bt::scarfTruth(m, scarf([](double s) { return Eigen::Vector3d(0.5 + 0.6 * s, 0.1, 0.02); }), kNodesX, kNodesY);
@@ -146,15 +158,15 @@ TEST(Scarf, TheCameraCostOfSyntheticImagesWithKnownDistanceAndSides) {
   EXPECT_THROW(bt::scarfCameraTerms(image(62, 100, 200), config), std::invalid_argument);
 }
 
-// The camera cost on the scene's own rendering (the perspective camera of config/scarf_start.yaml): a scarf wrapped
-// once around the neck and hanging on the mannequin's right costs under 3 (the thesis' success) and is a success;
-// the same hanging on its left costs 3 more.
+// The camera cost on the scene's own rendering (the perspective camera of config/scarf_start.yaml, d_ref from its
+// projection of the neck): a scarf wrapped once around the neck and hanging on the mannequin's right costs under 3
+// (the thesis' success) and is a success; the same hanging on its left costs 3 more.
 TEST(Scarf, TheCameraCostOfTheRenderedSceneAgreesWithTheGroundTruth) {
   const bs::sim::SimConfig scene =
       bs::sim::SimConfig::fromYamlFile(BIMANUAL_SKILLS_SOURCE_DIR "/config/scarf_sim.yaml");
   const bt::Mannequin m = bt::Mannequin::fromObstacles(scene.obstacles);
   const bs::vision::PinholeCamera camera = bs::vision::PinholeCamera::lookingAt(
-      Eigen::Vector3d(0.1, 1.05, 0.8), Eigen::Vector3d(0.75, 0.4, 0.62));  // config/scarf_start.yaml
+      Eigen::Vector3d(-0.45, 0.4, 0.62), Eigen::Vector3d(0.5, 0.4, 0.4));  // config/scarf_start.yaml
   bs::vision::DepthSensorNoise perfect;
   perfect.axial = perfect.dropout = perfect.edge_dropout = perfect.grazing = perfect.colour_stddev = 0.0;
   bs::vision::PerspectiveRenderer renderer(bt::rendererFor(scene), camera, perfect);
@@ -176,7 +188,9 @@ TEST(Scarf, TheCameraCostOfTheRenderedSceneAgreesWithTheGroundTruth) {
     triangles.col(2 * i) << i, i + 1, kNodesX + i + 1;
     triangles.col(2 * i + 1) << i, kNodesX + i + 1, kNodesX + i;
   }
-  const bt::ScarfCameraConfig config;
+  bt::ScarfCameraConfig config;
+  config.d_ref = bt::referenceDistance(m, camera);
+  config.hanging_level = bt::hangingLevel(m, camera);
   for (const double start : {M_PI / 2.0, -M_PI / 2.0}) {
     const Eigen::Matrix3Xd mesh = band(start);
     ASSERT_EQ(renderer.render(mesh, triangles), bs::vision::VisionStatus::Ok);
@@ -184,12 +198,28 @@ TEST(Scarf, TheCameraCostOfTheRenderedSceneAgreesWithTheGroundTruth) {
     const bt::ScarfTruth truth = bt::scarfTruth(m, mesh, kNodesX, kNodesY);
     ASSERT_TRUE(t.nose_seen);
     ASSERT_TRUE(t.scarf_seen);
-    std::printf("hanging %s: d = %.1f px, right %d, left %d px, c_cam = %.2f; truth: winding %.2f, success %d\n",
-                start > 0 ? "right" : "left", t.d, t.right_pixels, t.left_pixels, t.c_cam, truth.winding,
-                truth.success ? 1 : 0);
+    std::printf(
+        "hanging %s: d = %.1f px (d_ref %.1f), right %d, left %d px, c_cam = %.2f; truth: winding %.2f, success %d\n",
+        start > 0 ? "right" : "left", t.d, config.d_ref, t.right_pixels, t.left_pixels, t.c_cam, truth.winding,
+        truth.success ? 1 : 0);
     EXPECT_LT(t.c_distance, 3.0) << "the scarf around the neck, near d_ref below the nose";
     EXPECT_EQ(t.hanging, start > 0 ? 0 : 1);
     EXPECT_EQ(truth.success, start > 0);
     EXPECT_EQ(t.c_cam < 3.0, truth.success);
   }
+}
+
+// d_ref is the nose-to-neck distance in the camera's image: by hand for a camera level with the nose looking along the
+// mannequin's facing direction back at it; refused for a camera that sees the neck above the nose (upside down).
+TEST(Scarf, TheReferenceDistanceIsTheNeckSeenFromTheCamera) {
+  const bt::Mannequin m = mannequin();
+  const Eigen::Vector3d eye = m.nose + 1.0 * m.facing;  // 1 m in front of the nose, looking back at it
+  const bs::vision::PinholeCamera camera = bs::vision::PinholeCamera::lookingAt(eye, m.nose);
+  const Eigen::Vector3d top = m.neck + m.facing * m.neck_radius + Eigen::Vector3d(0.0, 0.0, 0.5 * m.neck_length);
+  const double depth = (top - eye).dot(-m.facing);
+  EXPECT_NEAR(bt::referenceDistance(m, camera), camera.fy * (m.nose.z() - top.z()) / depth, 1e-9);
+  EXPECT_GT(bt::hangingLevel(m, camera), bt::referenceDistance(m, camera));
+  const bs::vision::PinholeCamera upside_down =
+      bs::vision::PinholeCamera::lookingAt(eye, m.nose, -Eigen::Vector3d::UnitZ());
+  EXPECT_THROW(bt::referenceDistance(m, upside_down), std::invalid_argument);
 }

@@ -74,19 +74,42 @@ ScarfTruth scarfTruth(const Mannequin& m, const Eigen::Matrix3Xd& vertices, int 
     t.winding += wrapAngle(angle_b - angle_a);
   }
   t.wrapped = std::abs(t.winding) >= M_PI;
-  // Hanging nodes: below the shoulders' top and off the neck's column; their side by the mannequin's right.
-  bool above = false;
-  for (Eigen::Index k = 0; k < vertices.cols(); ++k) {
-    const Eigen::Vector3d p = vertices.col(k);
-    above = above || p.z() > m.shoulders_top;
-    if (p.z() >= m.shoulders_top) continue;
+  // Hanging: the centre line's points below the shoulders' top and off the neck's column, on the mannequin's right
+  // or left (the centre line, not the edges: a 15 cm wide end hanging in front of the chest reaches both sides of
+  // a 9 cm neck with its edges).
+  for (int i = 0; i < nodes_x; ++i) {
+    const Eigen::Vector3d p = line.col(i);
+    if (p.z() >= m.shoulders_top - kHangingDrop) continue;
     const double side = (p - m.neck).dot(m.right);
     if (side > m.neck_radius) ++t.hanging_right;
     if (side < -m.neck_radius) ++t.hanging_left;
   }
-  t.fallen = !above;
+  t.fallen = (vertices.row(2).array() <= m.shoulders_top).all();
   t.success = t.wrapped && t.hanging_right > 0 && t.hanging_left == 0 && !t.fallen;
   return t;
+}
+
+namespace {
+
+/// Image rows from the nose mark's centre down to `point` [px].
+double belowTheNose(const Mannequin& m, const vision::PinholeCamera& camera, const Eigen::Vector3d& point) {
+  Eigen::Vector3d nose, at;
+  if (!camera.project(m.nose, nose) || !camera.project(point, at) || !(at.y() > nose.y())) {
+    throw std::invalid_argument("scarf camera: the camera does not see the neck below the nose mark");
+  }
+  return at.y() - nose.y();
+}
+
+}  // namespace
+
+double referenceDistance(const Mannequin& m, const vision::PinholeCamera& camera) {
+  return belowTheNose(m, camera, m.neck + m.facing * m.neck_radius + Eigen::Vector3d(0.0, 0.0, 0.5 * m.neck_length));
+}
+
+double hangingLevel(const Mannequin& m, const vision::PinholeCamera& camera) {
+  Eigen::Vector3d point = m.neck + m.facing * m.neck_radius;
+  point.z() = m.shoulders_top - kHangingDrop;
+  return belowTheNose(m, camera, point);
 }
 
 void ScarfCameraConfig::validate(const std::string& where) const {
@@ -95,6 +118,9 @@ void ScarfCameraConfig::validate(const std::string& where) const {
   if (!(distance_weight >= 0.0) || !(hanging_weight >= 0.0) || !std::isfinite(distance_weight) ||
       !std::isfinite(hanging_weight)) {
     throw std::invalid_argument(where + ": the weights must be finite and >= 0");
+  }
+  if (!(hanging_level >= 0.0) || !std::isfinite(hanging_level)) {
+    throw std::invalid_argument(where + ": hanging_level must be >= 0 px");
   }
   if (band < 1) throw std::invalid_argument(where + ": band must be >= 1 px");
   if (min_pixels < 1) throw std::invalid_argument(where + ": min_pixels must be >= 1");
@@ -127,8 +153,9 @@ ScarfCameraTerms scarfCameraTerms(const cv::Mat& bgr, const ScarfCameraConfig& c
         }
       }
     }
-    // Hanging: the scarf well below the neck (two d_ref under the nose), off the nose's column band.
-    const int hang_from = static_cast<int>(t.nose_v + 2.0 * config.d_ref);
+    // Hanging: the scarf well below the neck (hanging_level under the nose), off the nose's column band.
+    const int hang_from =
+        static_cast<int>(t.nose_v + (config.hanging_level > 0.0 ? config.hanging_level : 2.0 * config.d_ref));
     for (int v = std::max(0, hang_from); v < bgr.rows; ++v) {
       const unsigned char* row = scarf.ptr<unsigned char>(v);
       for (int u = 0; u < bgr.cols; ++u) {

@@ -6,6 +6,7 @@
 #pragma once
 
 #include "bimanual_skills/sim/obstacle.hpp"
+#include "bimanual_skills/vision/perspective_camera.hpp"
 
 #include <Eigen/Core>
 #include <opencv2/core.hpp>
@@ -34,11 +35,16 @@ struct ScarfTruth {
   /// |winding| ≥ π when it passes behind the neck.
   double winding = 0.0;
   bool wrapped = false;
-  /// Nodes hanging (below the shoulders' top, away from the neck) on the mannequin's right and left.
+  /// Points of the centre line (one per node along the length) hanging more than kHangingDrop below the shoulders'
+  /// top, away from the neck, on the mannequin's right and left: a wound band resting on the shoulders' edge is not
+  /// hanging.
   int hanging_right = 0, hanging_left = 0;
   bool fallen = false;   ///< No node above the shoulders' top: the scarf left the mannequin.
   bool success = false;  ///< Wrapped, hanging on the right and not on the left, not fallen.
 };
+
+/// How far below the shoulders' top a node hangs [m].
+constexpr double kHangingDrop = 0.05;
 
 /// The ground truth of `vertices` (3 × nodes_x · nodes_y, node (i, j) at column j · nodes_x + i, i along the
 /// scarf's length), as sim::Cloth numbers them.
@@ -54,6 +60,9 @@ struct ScarfCameraConfig {
   /// success: by default the distance term is 10 (|d − d_ref| / d_ref)^α (zero at d_ref); `printed` keeps the
   /// formula as printed.
   bool printed = false;
+  /// How far below the nose mark scarf pixels count as hanging [px] (the thesis: "the part hanging on the sides up to
+  /// a certain level"); 0: 2 d_ref.
+  double hanging_level = 0.0;
   /// Half-width of the column band around the nose mark in which the scarf's top is looked for [px].
   int band = 40;
   /// Whether the mannequin's right is the image's left (a camera facing the mannequin) or its right.
@@ -78,6 +87,15 @@ struct ScarfCameraTerms {
   int hanging = 1;                        ///< I_hanging: 0 when the scarf hangs right and not left, else 1.
   double c_distance = 0.0, c_cam = 0.0;   ///< The distance term and c_cam = it + w_h I_hanging.
 };
+
+/// d_ref for `camera`: the image distance [px] from the nose mark's centre down to the front of the neck's top, where
+/// a scarf wound round the neck shows its top edge (the thesis' 62 px were its camera's; this is the same place
+/// seen by another). \throws std::invalid_argument when the camera does not see both points below one another.
+double referenceDistance(const Mannequin& mannequin, const vision::PinholeCamera& camera);
+
+/// The hanging level for `camera`: the image distance [px] from the nose mark's centre down to kHangingDrop below the
+/// shoulders' top in front of the neck, as scarfTruth() counts hanging nodes. \throws as referenceDistance().
+double hangingLevel(const Mannequin& mannequin, const vision::PinholeCamera& camera);
 
 /// c_cam of a colour image (bgr8): segmentation by HSV thresholds, then d, the hanging side and the cost. An image
 /// without the nose mark costs as if the scarf were nowhere near (d = the image's height) and hanging wrong.
