@@ -697,27 +697,27 @@ TEST(FoldRolloutTask, PolicyEncodingRoundTrips) {
       }
       Eigen::VectorXd w(r * kernels);
       for (Eigen::Index i = 0; i < w.size(); ++i) w[i] = normal(rng);
-      const Eigen::VectorXd encoded = br::FoldRolloutTask::encode(omega, w);
+      const Eigen::VectorXd encoded = br::encodeCoordinatedPolicy(omega, w);
       std::vector<Eigen::MatrixXd> decoded;
       Eigen::VectorXd weights;
-      ASSERT_TRUE(br::FoldRolloutTask::decode(encoded, dofs, kernels, decoded, weights));
+      ASSERT_TRUE(br::decodeCoordinatedPolicy(encoded, dofs, kernels, decoded, weights));
       EXPECT_EQ(weights, w);
       ASSERT_EQ(decoded.size(), omega.size());
       for (std::size_t s = 0; s < omega.size(); ++s) EXPECT_EQ(decoded[s], omega[s]);
       // Truncated, padded, or with a header that does not fit: refused.
       std::vector<Eigen::MatrixXd> unused;
-      EXPECT_FALSE(br::FoldRolloutTask::decode(encoded.head(encoded.size() - 1), dofs, kernels, unused, weights));
+      EXPECT_FALSE(br::decodeCoordinatedPolicy(encoded.head(encoded.size() - 1), dofs, kernels, unused, weights));
       Eigen::VectorXd longer(encoded.size() + 1);
       longer << encoded, 0.0;
-      EXPECT_FALSE(br::FoldRolloutTask::decode(longer, dofs, kernels, unused, weights));
+      EXPECT_FALSE(br::decodeCoordinatedPolicy(longer, dofs, kernels, unused, weights));
       Eigen::VectorXd bad = encoded;
       bad[1] = 13;
-      EXPECT_FALSE(br::FoldRolloutTask::decode(bad, dofs, kernels, unused, weights));
+      EXPECT_FALSE(br::decodeCoordinatedPolicy(bad, dofs, kernels, unused, weights));
       bad[1] = NAN;
-      EXPECT_FALSE(br::FoldRolloutTask::decode(bad, dofs, kernels, unused, weights));
+      EXPECT_FALSE(br::decodeCoordinatedPolicy(bad, dofs, kernels, unused, weights));
     }
   }
   std::vector<Eigen::MatrixXd> unused;
   Eigen::VectorXd weights;
-  EXPECT_FALSE(br::FoldRolloutTask::decode(Eigen::VectorXd(), dofs, kernels, unused, weights));
+  EXPECT_FALSE(br::decodeCoordinatedPolicy(Eigen::VectorXd(), dofs, kernels, unused, weights));
 }

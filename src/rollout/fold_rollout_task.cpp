@@ -12,39 +12,6 @@ FoldRolloutTask::FoldRolloutTask(const tasks::ClothFoldConfig& task, const tasks
       reward_(reward, task_.simConfig().cloth.length * task_.simConfig().cloth.width, task_.idealFoldVertices(),
               task_.clothTriangles()) {}
 
-Eigen::VectorXd FoldRolloutTask::encode(const std::vector<Eigen::MatrixXd>& coordination,
-                                        const Eigen::VectorXd& weights) {
-  Eigen::Index size = 2 + weights.size();
-  for (const Eigen::MatrixXd& omega : coordination) size += omega.size();
-  Eigen::VectorXd out(size);
-  out[0] = static_cast<double>(coordination.size());
-  out[1] = coordination.empty() ? 0.0 : static_cast<double>(coordination.front().cols());
-  out.segment(2, weights.size()) = weights;
-  Eigen::Index at = 2 + weights.size();
-  for (const Eigen::MatrixXd& omega : coordination) {
-    out.segment(at, omega.size()) = Eigen::Map<const Eigen::VectorXd>(omega.data(), omega.size());
-    at += omega.size();
-  }
-  return out;
-}
-
-bool FoldRolloutTask::decode(const Eigen::VectorXd& parameters, int dofs, int basis,
-                             std::vector<Eigen::MatrixXd>& coordination, Eigen::VectorXd& weights) {
-  if (parameters.size() < 2 || !std::isfinite(parameters[0]) || !std::isfinite(parameters[1])) return false;
-  const double ns = parameters[0], r = parameters[1];
-  if (ns != std::floor(ns) || r != std::floor(r) || ns < 1 || ns > 20 || r < 1 || r > dofs) return false;
-  const auto matrices = static_cast<Eigen::Index>(ns), latent = static_cast<Eigen::Index>(r);
-  if (parameters.size() != 2 + latent * basis + matrices * dofs * latent) return false;
-  weights = parameters.segment(2, latent * basis);
-  coordination.clear();
-  Eigen::Index at = 2 + latent * basis;
-  for (Eigen::Index s = 0; s < matrices; ++s) {
-    coordination.push_back(Eigen::Map<const Eigen::MatrixXd>(parameters.data() + at, dofs, latent));
-    at += dofs * latent;
-  }
-  return true;
-}
-
 std::vector<std::string> FoldRolloutTask::termNames() const {
   return names();
 }
@@ -56,8 +23,8 @@ std::vector<std::string> FoldRolloutTask::names() {
 }
 
 Eigen::VectorXd FoldRolloutTask::initialParameters() const {
-  return encode({Eigen::MatrixXd::Identity(tasks::ClothFoldTask::kDofs, tasks::ClothFoldTask::kDofs)},
-                task_.demonstrationParameters());
+  return encodeCoordinatedPolicy({Eigen::MatrixXd::Identity(tasks::ClothFoldTask::kDofs, tasks::ClothFoldTask::kDofs)},
+                                 task_.demonstrationParameters());
 }
 
 tasks::FoldRewardTerms FoldRolloutTask::termsOf(const RolloutResult& result) {
@@ -98,7 +65,8 @@ tasks::FoldRewardTerms FoldRolloutTask::score(const tasks::FoldRollout& rollout,
 RolloutResult FoldRolloutTask::run(const Eigen::VectorXd& parameters, std::uint32_t seed) {
   std::vector<Eigen::MatrixXd> coordination;
   Eigen::VectorXd weights;
-  if (decode(parameters, tasks::ClothFoldTask::kDofs, task_.policyBasisSize(), coordination, weights)) {
+  if (decodeCoordinatedPolicy(parameters, tasks::ClothFoldTask::kDofs, task_.policyBasisSize(), coordination,
+                              weights)) {
     last_ = task_.run(coordination, weights, seed);
   } else {
     last_ = tasks::FoldRollout{};

@@ -142,13 +142,13 @@ class PlanarViaPointRollout : public RolloutTask {
 
   std::vector<std::string> termNames() const override { return {"via_point_1_error", "via_point_2_error"}; }
   Eigen::VectorXd initialParameters() const override {
-    return FoldRolloutTask::encode(dmp_->coordination(), dmp_->weights());
+    return encodeCoordinatedPolicy(dmp_->coordination(), dmp_->weights());
   }
 
   RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override {
     std::vector<Eigen::MatrixXd> coordination;
     Eigen::VectorXd weights;
-    if (!FoldRolloutTask::decode(parameters, task_.dofs(), dmp_->basisSize(), coordination, weights) ||
+    if (!decodeCoordinatedPolicy(parameters, task_.dofs(), dmp_->basisSize(), coordination, weights) ||
         static_cast<int>(coordination.size()) != dmp_->matrices() || !parameters.allFinite()) {
       return invalidPolicy(2, "the parameters do not encode a finite coordinated policy of " +
                                   std::to_string(task_.dofs()) + " DoF, " + std::to_string(dmp_->kernels()) +

@@ -20,7 +20,7 @@
 /// Target bimanual_skills_rollout (rollout floor). Offline: allocates and throws std::invalid_argument.
 #pragma once
 
-#include "bimanual_skills/learning/coordinated_reps.hpp"
+#include "bimanual_skills/rollout/dmp_learning.hpp"
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
 #include "bimanual_skills/tasks/cloth_fold.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
@@ -35,30 +35,6 @@
 #include <vector>
 
 namespace bimanual_skills::rollout {
-
-/// How the policy follows the rollouts.
-enum class PolicySearch {
-  Reps,    ///< REPS on the latent weights (reusing earlier rollouts), then the variant's coordination rule.
-  Pi2Cma,  ///< PI2-CMA (learning/pi2.hpp, h = 10) on the weights, the reward as a terminal cost, the covariance
-           ///< memory λ as REPS'; no reuse.
-  CmaEs,   ///< CMA-ES (Hansen 2006): the best half by log-rank weights, CovarianceAdaptation; no reuse.
-};
-
-/// A DR-DMP variant of Tables 7.1–7.2, by the thesis' name, or a peer on the standard DMP.
-struct DrDmpVariant {
-  std::string name;
-  int matrices = 1;     ///< N_s
-  int latent_dims = 1;  ///< Initial r.
-  learning::CoordinationRule rule = learning::CoordinationRule::Fixed;
-  double eta = 0.0;  ///< η of the CMU (infinity: r fixed).
-  PolicySearch search = PolicySearch::Reps;
-};
-
-/// "DR-DMP0(r)" (fixed PCA coordination; r = d is the standard DMP), "DR-DMP_CMU(r)", "DR-DMP_MCMU(Ns,r)",
-/// "IDR-DMP_CMU" and "IDR-DMP_MCMU(Ns)" (r = d, reduced by η) for `dofs` DoF; and the peers "PI2-CMA" and "CMA-ES"
-/// on the standard DMP's weights (r = d, fixed coordination).
-/// \throws std::invalid_argument for another name or r outside [1, dofs], N_s < 1.
-DrDmpVariant parseDrDmpVariant(const std::string& name, int dofs, double eta);
 
 struct FoldLearningConfig {
   tasks::ClothFoldConfig task;
@@ -98,14 +74,6 @@ struct FoldLearningConfig {
 /// `config` with the reward's renderer (camera, table) set from the task's simulation file, its noise kept.
 /// \throws std::invalid_argument for an unreadable simulation file.
 FoldLearningConfig withSimulationRenderer(FoldLearningConfig config);
-
-/// What a rollout was.
-enum class RolloutKind {
-  Sample,      ///< Drawn from the policy (exploration).
-  Policy,      ///< The mean policy without exploration (one per epoch, before its update).
-  Repetition,  ///< The initial mean policy again, another sensor-noise seed (the reward's variance).
-};
-const char* toString(RolloutKind kind) noexcept;
 
 /// One finished rollout, as written to DIR/rollouts.csv.
 struct FoldRolloutRecord {
@@ -170,12 +138,6 @@ struct FoldLearningObserver {
   /// Polled between rollouts: true stops the learning (learn() then throws std::runtime_error("stopped")); what
   /// finished is on disk.
   std::function<bool()> stop;
-};
-
-/// The learning stopped because the robot kept failing (FoldLearningConfig::robot_retries, robot_fault_limit).
-class RobotFaults : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
 };
 
 class FoldLearner {

@@ -4,6 +4,7 @@
 /// Target bimanual_skills_rollout.
 #pragma once
 
+#include "bimanual_skills/rollout/coordinated_parameters.hpp"
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
 #include "bimanual_skills/tasks/cloth_fold.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
@@ -21,18 +22,11 @@ class RecordedFoldTask {
   virtual const tasks::FoldRollout& lastRecording() const = 0;
 };
 
+/// Its parameters: a coordinated policy of the fold's 12 DoF (encodeCoordinatedPolicy()).
 class FoldRolloutTask : public RolloutTask {
  public:
   /// \throws std::invalid_argument as ClothFoldTask and FoldReward.
   FoldRolloutTask(const tasks::ClothFoldConfig& task, const tasks::FoldRewardConfig& reward);
-
-  /// A coordinated policy as one vector: [N_s, r, ω (r × n, latent DoF by latent DoF), vec(Ω_1), …,
-  /// vec(Ω_Ns)] with each Ω_s (12 × r) column by column.
-  static Eigen::VectorXd encode(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& weights);
-  /// The inverse of encode(); false when `parameters` holds no policy of `dofs` DoF and `basis` weights per latent
-  /// DoF (n: ClothFoldTask::policyBasisSize(), the kernels and the goal's weight).
-  static bool decode(const Eigen::VectorXd& parameters, int dofs, int basis, std::vector<Eigen::MatrixXd>& coordination,
-                     Eigen::VectorXd& weights);
 
   /// r_acceleration, r_color, r_depth, fill_ratio, mean_gradient, area_ratio, aspect, fold_quality, fold_distance,
   /// fold_displacement, r_goal, goal_iou, goal_mismatch, r_fold, fold_mismatch, fold_edge, fold_single,

@@ -320,7 +320,7 @@ std::vector<std::string> FoldOnRobotTask::termNames() const {
 }
 
 Eigen::VectorXd FoldOnRobotTask::initialParameters() const {
-  return rollout::FoldRolloutTask::encode(
+  return rollout::encodeCoordinatedPolicy(
       {Eigen::MatrixXd::Identity(tasks::ClothFoldTask::kDofs, tasks::ClothFoldTask::kDofs)},
       task_.demonstrationParameters());
 }
@@ -876,7 +876,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     reason += "; recovery: " + recover();
   };
   try {
-    if (!rollout::FoldRolloutTask::decode(parameters, tasks::ClothFoldTask::kDofs, task_.policyBasisSize(),
+    if (!rollout::decodeCoordinatedPolicy(parameters, tasks::ClothFoldTask::kDofs, task_.policyBasisSize(),
                                           coordination, weights)) {
       throw Failure{tasks::FoldOutcome::InvalidPolicy,
                     "the parameters do not encode a coordinated policy of 12 DoF and " +

@@ -1,0 +1,127 @@
+/// \file
+/// The scarf-placing task of thesis Sec. 4.3.1 on the simulated WAM: one arm holds a scarf and moves it by a joint-
+/// space DMP (25 kernels per joint) tracked by the computed-torque controller with its friction model, while the
+/// other arm holds still; the arm's disturbance observer estimates the interaction torques. After the motion the
+/// tool lets go, the scarf settles on the mannequin and a colour camera 1 m from it scores the result.
+///
+/// Cost (thesis): C = Σ_t c_t + c_T, c_t a quadratic form of the DMP's commanded accelerations, c_T = c_cam +
+/// c_torque with c_cam from the camera (tasks/scarf.hpp) and c_torque the mean absolute estimated interaction torque
+/// over the motion. The scarf mesh's ground truth (wrapped, hanging right and not left) is kept beside it for the
+/// experimenter; the cost never uses it. Target bimanual_skills_tasks.
+#pragma once
+
+#include "bimanual_skills/primitives/dr_dmp.hpp"
+#include "bimanual_skills/realtime/cycle_probe.hpp"
+#include "bimanual_skills/sim/sim_config.hpp"
+#include "bimanual_skills/tasks/cloth_fold.hpp"
+#include "bimanual_skills/tasks/scarf.hpp"
+#include "bimanual_skills/vision/perspective_camera.hpp"
+
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::tasks {
+
+struct ScarfTaskConfig {
+  std::string sim_config;  ///< A simulation file with the mannequin and a scarf (config/scarf_sim.yaml).
+  /// bullet_sim's overrides of the scene (config/scarf_start.yaml): `initial_positions: {ARM: [...]}` (the holding
+  /// arm's start, where its tool holds the scarf), `rgbd_eye` and `rgbd_target` (the camera). One file for both
+  /// backends.
+  std::string start;
+  std::string arm = "left";  ///< The arm that holds the scarf; the others hold their start.
+  int kernels = 25;          ///< DMP kernels per joint (thesis: 25).
+  double duration = 5.0;     ///< Of the motion [s].
+  /// Before the motion the scarf, grasped at the start, comes to hang; after it the tool waits, lets go (`release`)
+  /// and the scarf settles [s].
+  double hold_before = 1.0, hold_after = 0.3, settle = 2.0;
+  bool release = true;
+  /// The demonstration: the tool's positions [m, world] after its start with the start's orientation, each solved by
+  /// global IK closest to the one before, reached in equal times (minimum jerk in joint space). Deliberately not
+  /// achieving the task.
+  std::vector<Eigen::Vector3d> demo_waypoints;
+  double max_tracking_error = 0.3;  ///< Joint tracking error beyond which the rollout fails [rad].
+  double path_rate = 50.0;          ///< Samples per second of the recorded tool and joint paths.
+  double cloth_rate = 0.0;          ///< Scarf meshes recorded per second (ScarfRollout::cloth_frames); 0: none.
+
+  ScarfCameraConfig camera;
+  /// camera.d_ref and camera.hanging_level from the start file's camera (referenceDistance(), hangingLevel())
+  /// instead of their values.
+  bool from_camera = true;
+  /// c_t = acceleration_weight ‖q̈_ref‖² dt per period (summed: [rad²/s³]); c_torque = torque_weight × the mean over
+  /// the motion of the mean over the joints of |τ̂_ext| [N m] (0: the cost without the observer's term).
+  double acceleration_weight = 0.01, torque_weight = 1.0;
+  double failure_cost = 30.0;  ///< The cost of a rollout that failed (above any c_cam of a seen scene).
+
+  /// \throws std::invalid_argument naming the entry out of range.
+  void validate() const;
+};
+
+struct ScarfRollout {
+  FoldOutcome outcome = FoldOutcome::Ok;
+  std::string reason;
+  /// The cost and its terms: cost = c_acceleration + c_cam + c_torque (failure_cost when not Ok).
+  double cost = 0.0, c_acceleration = 0.0, c_cam = 0.0, c_torque = 0.0;
+  double acceleration = 0.0;     ///< Σ ‖q̈_ref‖² dt over the motion [rad²/s³].
+  double mean_abs_torque = 0.0;  ///< Mean over the motion and the joints of |τ̂_ext| (the observer) [N m].
+  double peak_abs_torque = 0.0;  ///< Largest |τ̂_ext,i| over the motion [N m].
+  /// The simulator's truth over the motion: mean and peak force of the scarf on the tool [N].
+  double mean_tool_force = 0.0, peak_tool_force = 0.0;
+  double max_tracking_error = 0.0;  ///< [rad]
+  int grasped_nodes = 0;
+  std::size_t control_allocations = 0;  ///< What run()'s probe counted in the control parts.
+  ScarfCameraTerms camera;
+  ScarfTruth truth;
+  Eigen::MatrixXd joint_path;  ///< Measured joint positions of the holding arm (7 × samples).
+  Eigen::Matrix3Xd tool_path;  ///< Its tool's positions (world).
+  Eigen::VectorXd path_times;  ///< [s]
+  std::vector<Eigen::Matrix3Xd> cloth_frames;
+  Eigen::VectorXd cloth_times;
+  Eigen::Matrix3Xd cloth_vertices;  ///< The final scarf (world).
+  cv::Mat bgr;                      ///< The camera's final colour image (what c_cam scored).
+  double simulated_seconds = 0.0, wall_seconds = 0.0;
+};
+
+/// The task. Construction builds the simulation, controllers, camera and demonstration (allocates, throws
+/// std::invalid_argument with the reason); run() starts every rollout from a new simulation. One object per thread.
+class ScarfTask {
+ public:
+  explicit ScarfTask(const ScarfTaskConfig& config);
+  ~ScarfTask();
+  ScarfTask(const ScarfTask&) = delete;
+  ScarfTask& operator=(const ScarfTask&) = delete;
+
+  /// Joints of the holding arm: the DMP's DoF.
+  int dofs() const noexcept;
+  /// The DR-DMP parameters of the policy with `matrices` coordination matrices (kernels, no goal offsets).
+  primitives::DrDmpParameters forcingParameters(int matrices) const;
+  /// The demonstration's joint path (samples × dofs, every demonstrationStep()): what the DMP is fitted to.
+  const Eigen::MatrixXd& demonstrationTrajectory() const noexcept;
+  double demonstrationStep() const noexcept;
+  /// The demonstration's standard DMP (Ω = I): its latent weights, dofs × kernels, joint by joint.
+  Eigen::VectorXd demonstrationWeights() const;
+
+  /// One rollout of a coordinated policy f = Ω^t W g(x) (primitives::DrDmp) from the demonstration's start to its
+  /// goal, with the simulation's and the camera's noise seeded by `seed`. Sizes that do not fit or non-finite
+  /// values: InvalidPolicy. `probe`, if any, brackets the control part of every period (the DMP's step, each arm's
+  /// state, controller, observer and torque), its counts summed in ScarfRollout::control_allocations.
+  ScarfRollout run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights,
+                   std::uint32_t seed, realtime::CycleProbe* probe = nullptr);
+
+  const ScarfTaskConfig& config() const noexcept;
+  const sim::SimConfig& simConfig() const noexcept;
+  const Mannequin& mannequin() const noexcept;
+  const vision::PinholeCamera& camera() const noexcept;
+  /// The holding arm's start (joint positions).
+  const Eigen::VectorXd& startPosition() const noexcept;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace bimanual_skills::tasks

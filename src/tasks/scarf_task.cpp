@@ -1,0 +1,408 @@
+#include "bimanual_skills/tasks/scarf_task.hpp"
+
+#include "bimanual_skills/control/computed_torque_controller.hpp"
+#include "bimanual_skills/control/disturbance_observer.hpp"
+#include "bimanual_skills/dynamics/friction_yaml.hpp"
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/signal/acceleration_sign.hpp"
+#include "bimanual_skills/sim/bimanual_simulation.hpp"
+#include "bimanual_skills/tasks/fold_reward.hpp"
+#include "io/yaml_io.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace bimanual_skills::tasks {
+
+namespace {
+
+/// Samples per second of the scripted demonstration the DMP is fitted to.
+constexpr double kDemonstrationRate = 100.0;
+/// |q̈_ref| below this counts as no acceleration for the observer's friction sign [rad/s²].
+constexpr double kAccelerationDeadBand = 1e-3;
+
+double minimumJerk(double s) {
+  return s * s * s * (10.0 + s * (-15.0 + 6.0 * s));
+}
+
+}  // namespace
+
+void ScarfTaskConfig::validate() const {
+  if (kernels < 2 || !(duration > 0.0) || !(hold_before >= 0.0) || !(hold_after >= 0.0) || !(settle >= 0.0) ||
+      !(max_tracking_error > 0.0) || !(path_rate > 0.0) || !(cloth_rate >= 0.0)) {
+    throw std::invalid_argument(
+        "scarf task: kernels >= 2, a positive duration, tracking limit and path rate, holds, settle and cloth rate >= "
+        "0");
+  }
+  if (!(acceleration_weight >= 0.0) || !(torque_weight >= 0.0) || !std::isfinite(acceleration_weight) ||
+      !std::isfinite(torque_weight) || !(failure_cost > 0.0) || !std::isfinite(failure_cost)) {
+    throw std::invalid_argument("scarf task: finite acceleration_weight, torque_weight >= 0 and failure_cost > 0");
+  }
+  for (const Eigen::Vector3d& w : demo_waypoints) {
+    if (!w.allFinite()) throw std::invalid_argument("scarf task: a demonstration waypoint is not finite");
+  }
+  camera.validate("scarf task camera");
+}
+
+struct ScarfTask::Impl {
+  ScarfTaskConfig config;
+  sim::SimConfig sim_config;
+  Mannequin mannequin;
+  int arm = 0;
+  std::vector<Eigen::VectorXd> start;  ///< Every arm's start.
+  control::ComputedTorqueGains gains;
+  std::vector<dynamics::FrictionModel> friction;
+  std::vector<bool> with_friction;
+  vision::PinholeCamera camera;
+  std::unique_ptr<vision::PerspectiveRenderer> renderer;
+  Eigen::MatrixXd demonstration;  ///< samples × 7
+  primitives::DrDmpParameters dmp;
+  Eigen::VectorXd demonstration_weights;
+
+  /// The joint path through the waypoints: each a tool pose (the start's orientation) solved by global IK closest to
+  /// the previous one, joined by minimum-jerk segments of equal time in joint space.
+  void demonstrate(const sim::BimanualSimulation& simulation) {
+    const kinematics::ChainModel& model = simulation.armModel(arm);
+    const Eigen::Isometry3d base = simulation.basePose(arm);
+    kinematics::ChainData fk(model);
+    const Eigen::VectorXd& q0 = start[static_cast<std::size_t>(arm)];
+    (void)kinematics::forwardKinematics(model, fk, q0);
+    const Eigen::Isometry3d tool0 = fk.tipPose();
+    kinematics::GlobalIkParameters parameters;
+    parameters.mode = kinematics::SolutionMode::ClosestToSeed;
+    parameters.timeout = 10.0;  // never binding: the attempt cap ends the search, the same on any machine
+    parameters.max_attempts = 200;
+    kinematics::GlobalIkSolver solver(model, parameters);
+    std::vector<Eigen::VectorXd> keys{q0};
+    for (std::size_t w = 0; w < config.demo_waypoints.size(); ++w) {
+      Eigen::Isometry3d target = tool0;
+      target.translation() = base.inverse() * config.demo_waypoints[w];
+      Eigen::VectorXd q(model.nq());
+      if (solver.solve(target, keys.back(), q).status != kinematics::IkStatus::Converged) {
+        throw std::invalid_argument("scarf task: demonstration waypoint " + std::to_string(w + 1) +
+                                    " is out of the arm's reach with the start's tool orientation");
+      }
+      keys.push_back(q);
+    }
+    const int samples = static_cast<int>(std::lround(config.duration * kDemonstrationRate)) + 1;
+    const int segments = static_cast<int>(keys.size()) - 1;
+    demonstration.resize(samples, model.nq());
+    for (int k = 0; k < samples; ++k) {
+      if (segments == 0) {
+        demonstration.row(k) = keys.front().transpose();
+        continue;
+      }
+      const double u = static_cast<double>(k) / (samples - 1) * segments;
+      const auto s = static_cast<std::size_t>(std::min(static_cast<int>(u), segments - 1));
+      const double a = minimumJerk(u - static_cast<double>(s));
+      demonstration.row(k) = ((1.0 - a) * keys[s] + a * keys[s + 1]).transpose();
+    }
+    const primitives::DrDmpFit fit =
+        primitives::DrDmp::fit(dmp, {demonstration}, 1.0 / kDemonstrationRate, model.nq(), 0.0);
+    // The standard DMP's weights (Ω = I): the fit's latent weights mapped back through its coordination.
+    const Eigen::MatrixXd& omega = fit.dmp.coordination().front();
+    const Eigen::Map<const Eigen::MatrixXd> latent(fit.latent_weights.data(), dmp.basisSize(), model.nq());
+    const Eigen::MatrixXd weights = omega * latent.transpose();  // dofs × kernels
+    demonstration_weights =
+        Eigen::Map<const Eigen::VectorXd>(Eigen::MatrixXd(weights.transpose()).data(), weights.size());
+  }
+};
+
+ScarfTask::ScarfTask(const ScarfTaskConfig& config) : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  config.validate();
+  m.config = config;
+  m.sim_config = sim::SimConfig::fromYamlFile(config.sim_config);
+  if (!m.sim_config.has_cloth) throw std::invalid_argument("scarf task: '" + config.sim_config + "' has no scarf");
+  m.mannequin = Mannequin::fromObstacles(m.sim_config.obstacles);
+  const sim::BimanualSimulation simulation(m.sim_config);
+  m.arm = simulation.armIndex(config.arm);
+  if (m.arm < 0) throw std::invalid_argument("scarf task: no arm '" + config.arm + "' in '" + config.sim_config + "'");
+  for (const sim::ArmConfig& a : m.sim_config.arms) {
+    if (a.start.size() == 0) throw std::invalid_argument("scarf task: arm '" + a.name + "' has no start posture");
+    m.start.push_back(a.start);
+  }
+  // The start file: the holding arm's posture and the camera, as bullet_sim reads them.
+  const std::string where = "scarf start file '" + config.start + "'";
+  const YAML::Node root = io::loadYamlFile(config.start, where);
+  const int n = simulation.jointCount(m.arm);
+  m.start[static_cast<std::size_t>(m.arm)] =
+      io::readVector(io::required(root, "initial_positions", where), config.arm, where + " initial_positions", n);
+  m.camera = vision::PinholeCamera::lookingAt(io::readVector(root, "rgbd_eye", where, 3),
+                                              io::readVector(root, "rgbd_target", where, 3));
+  m.renderer = std::make_unique<vision::PerspectiveRenderer>(rendererFor(m.sim_config), m.camera);
+  if (config.from_camera) {
+    m.config.camera.d_ref = referenceDistance(m.mannequin, m.camera);
+    m.config.camera.hanging_level = hangingLevel(m.mannequin, m.camera);
+  }
+
+  m.gains.kp = m.sim_config.kp;
+  m.gains.kv = m.sim_config.kv;
+  if (m.gains.kp.size() == 0 || m.gains.kv.size() == 0) {
+    throw std::invalid_argument("scarf task: no controller gains in the robot file of '" + config.sim_config + "'");
+  }
+  for (int a = 0; a < simulation.armCount(); ++a) {
+    const std::string& file = m.sim_config.arms[static_cast<std::size_t>(a)].friction_file;
+    m.with_friction.push_back(!file.empty());
+    if (file.empty()) {
+      dynamics::FrictionModel none;
+      none.joints.assign(static_cast<std::size_t>(simulation.jointCount(a)), dynamics::JointFriction{});
+      m.friction.push_back(none);
+    } else {
+      m.friction.push_back(dynamics::loadFrictionModel(file));
+    }
+  }
+  m.dmp.dmp.kernels = config.kernels;
+  m.demonstrate(simulation);
+}
+
+ScarfTask::~ScarfTask() = default;
+
+int ScarfTask::dofs() const noexcept {
+  return static_cast<int>(impl_->demonstration.cols());
+}
+
+primitives::DrDmpParameters ScarfTask::forcingParameters(int matrices) const {
+  primitives::DrDmpParameters p = impl_->dmp;
+  p.matrices = matrices;
+  return p;
+}
+
+const Eigen::MatrixXd& ScarfTask::demonstrationTrajectory() const noexcept {
+  return impl_->demonstration;
+}
+
+double ScarfTask::demonstrationStep() const noexcept {
+  return 1.0 / kDemonstrationRate;
+}
+
+Eigen::VectorXd ScarfTask::demonstrationWeights() const {
+  return impl_->demonstration_weights;
+}
+
+const ScarfTaskConfig& ScarfTask::config() const noexcept {
+  return impl_->config;
+}
+
+const sim::SimConfig& ScarfTask::simConfig() const noexcept {
+  return impl_->sim_config;
+}
+
+const Mannequin& ScarfTask::mannequin() const noexcept {
+  return impl_->mannequin;
+}
+
+const vision::PinholeCamera& ScarfTask::camera() const noexcept {
+  return impl_->camera;
+}
+
+const Eigen::VectorXd& ScarfTask::startPosition() const noexcept {
+  return impl_->start[static_cast<std::size_t>(impl_->arm)];
+}
+
+ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights,
+                            std::uint32_t seed, realtime::CycleProbe* probe) {
+  Impl& m = *impl_;
+  const ScarfTaskConfig& c = m.config;
+  ScarfRollout out;
+  const auto wall_start = std::chrono::steady_clock::now();
+  const auto fail = [&](FoldOutcome outcome, const std::string& reason, double t) {
+    out.outcome = outcome;
+    out.reason = reason + (t >= 0.0 ? " at t = " + std::to_string(t) + " s" : std::string());
+  };
+  std::unique_ptr<primitives::DrDmp> dmp;
+  try {
+    if (!latent_weights.allFinite()) throw std::invalid_argument("non-finite weights");
+    for (const Eigen::MatrixXd& omega : coordination) {
+      if (!omega.allFinite()) throw std::invalid_argument("a non-finite coordination matrix");
+    }
+    const Eigen::VectorXd q0 = m.demonstration.row(0).transpose();
+    const Eigen::VectorXd g = m.demonstration.bottomRows(1).transpose();
+    dmp = std::make_unique<primitives::DrDmp>(forcingParameters(static_cast<int>(coordination.size())), coordination,
+                                              latent_weights, q0, g, c.duration);
+  } catch (const std::invalid_argument& e) {
+    fail(FoldOutcome::InvalidPolicy, std::string("the policy does not fit the task's DMP: ") + e.what(), -1.0);
+    out.cost = c.failure_cost;
+    return out;
+  }
+
+  sim::SimConfig sim_config = m.sim_config;
+  sim_config.seed = seed;
+  sim::BimanualSimulation simulation(sim_config);
+  std::vector<sim::ArmState> start;
+  for (const Eigen::VectorXd& q : m.start) start.push_back({q, Eigen::VectorXd::Zero(q.size())});
+  if (simulation.reset(start) != sim::SimStatus::Ok) throw std::logic_error("scarf task: reset rejected");
+  if (simulation.grasp(m.arm, &out.grasped_nodes) != sim::SimStatus::Ok || out.grasped_nodes == 0) {
+    fail(FoldOutcome::GraspFailed, "the tool holds no scarf node at its start", -1.0);
+    out.cost = c.failure_cost;
+    return out;
+  }
+  const int arms = simulation.armCount();
+  std::vector<std::unique_ptr<control::ComputedTorqueController>> controllers;
+  std::vector<std::unique_ptr<control::DisturbanceObserver>> observers;
+  std::vector<sim::JointState> measured;
+  std::vector<Eigen::VectorXd> applied;
+  for (int a = 0; a < arms; ++a) {
+    const kinematics::ChainModel& model = simulation.armModel(a);
+    controllers.push_back(
+        std::make_unique<control::ComputedTorqueController>(model, m.friction[static_cast<std::size_t>(a)], m.gains));
+    controllers.back()->setFrictionCompensation(m.with_friction[static_cast<std::size_t>(a)]);
+    control::ObserverGains gains = control::ObserverGains::diagonal(model.nq(), 10.0, 0.0, 100.0, 0.0, 10.0);
+    gains.rate_hz = 1.0 / simulation.stepSize();
+    observers.push_back(
+        std::make_unique<control::DisturbanceObserver>(model, m.friction[static_cast<std::size_t>(a)], gains));
+    measured.emplace_back(model.nq());
+    simulation.readJointState(a, measured.back());
+    observers.back()->reset(measured.back().position, measured.back().velocity);
+    applied.push_back(Eigen::VectorXd::Zero(model.nq()));
+  }
+
+  const double dt = simulation.stepSize();
+  const int move_start = static_cast<int>(std::lround(c.hold_before / dt));
+  const int move_end = move_start + static_cast<int>(std::lround(c.duration / dt));
+  const int release = move_end + static_cast<int>(std::lround(c.hold_after / dt));
+  const int steps = release + static_cast<int>(std::lround(c.settle / dt));
+  const int path_every = std::max(1, static_cast<int>(std::lround(1.0 / (c.path_rate * dt))));
+  const int cloth_every =
+      c.cloth_rate > 0.0 ? std::max(1, static_cast<int>(std::lround(1.0 / (c.cloth_rate * dt)))) : 0;
+  const int n = dofs();
+  const kinematics::ChainModel& model = simulation.armModel(m.arm);
+  primitives::DrDmpState state = dmp->initialState();
+  Eigen::VectorXd q_ref = m.start[static_cast<std::size_t>(m.arm)], qd_ref = Eigen::VectorXd::Zero(n),
+                  qdd_ref = Eigen::VectorXd::Zero(n), torque, accel_sign(n);
+  std::vector<Eigen::VectorXd> joints;
+  std::vector<Eigen::Vector3d> tools;
+  std::vector<double> path_times, cloth_times;
+  double torque_sum = 0.0, force_sum = 0.0;
+  int torque_samples = 0;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
+  torque.resize(n);
+  // Why the control part stopped the rollout (described outside it: it allocates nothing).
+  enum class Stop { None, DmpNotFinite, OutOfLimits, Tracking, ControllerInput };
+  for (int k = 0; k < steps && out.outcome == FoldOutcome::Ok; ++k) {
+    const double t = simulation.time();
+    if (k == release && c.release) (void)simulation.release(m.arm);
+    const bool moving = k >= move_start && k < move_end;
+    Stop stop = Stop::None;
+    int stopped_arm = 0;
+    double tracking = 0.0;
+    // The control part of the period: the DMP's step, then every arm's state read, controller, observer and torque.
+    if (probe != nullptr) probe->begin();
+    if (moving) {
+      if (dmp->step(state, dt) == primitives::DmpStatus::InvalidInput || !state.dmp.y.allFinite()) {
+        stop = Stop::DmpNotFinite;
+      } else {
+        q_ref = state.dmp.y;
+        qd_ref = state.dmp.yd;
+        qdd_ref = state.dmp.ydd;
+        out.acceleration += qdd_ref.squaredNorm() * dt;
+        if (!model.withinLimits(q_ref, 0.0)) stop = Stop::OutOfLimits;
+      }
+    } else if (k == move_end) {
+      qd_ref.setZero();
+      qdd_ref.setZero();
+    }
+    for (int a = 0; a < arms && stop == Stop::None; ++a) {
+      const auto i = static_cast<std::size_t>(a);
+      sim::JointState& s = measured[i];
+      simulation.readJointState(a, s);
+      const bool holding = a == m.arm;
+      const Eigen::VectorXd& reference = holding ? q_ref : m.start[i];
+      tracking = (reference - s.position).cwiseAbs().maxCoeff();
+      stopped_arm = a;
+      if (holding) out.max_tracking_error = std::max(out.max_tracking_error, tracking);
+      if (tracking > c.max_tracking_error) {
+        stop = Stop::Tracking;
+        break;
+      }
+      if (controllers[i]->update(s.position, s.velocity, reference, holding ? qd_ref : zero, holding ? qdd_ref : zero,
+                                 torque) == control::ControlStatus::InvalidInput) {
+        stop = Stop::ControllerInput;
+        break;
+      }
+      if (holding) {
+        signal::signWithDeadBand(qdd_ref, kAccelerationDeadBand, accel_sign);
+      } else {
+        accel_sign.setZero();
+      }
+      (void)observers[i]->update(s.position, s.velocity, applied[i], accel_sign);
+      applied[i] = torque;
+      simulation.writeJointTorques(a, torque);
+      if (holding && k >= move_start && k < release) {
+        const Eigen::VectorXd& tau = observers[i]->externalTorque();
+        torque_sum += tau.cwiseAbs().mean();
+        out.peak_abs_torque = std::max(out.peak_abs_torque, tau.cwiseAbs().maxCoeff());
+        const double force = simulation.clothWrench(a).head<3>().norm();
+        force_sum += force;
+        out.peak_tool_force = std::max(out.peak_tool_force, force);
+        ++torque_samples;
+      }
+    }
+    if (probe != nullptr) out.control_allocations += probe->end();
+    switch (stop) {
+      case Stop::None:
+        break;
+      case Stop::DmpNotFinite:
+        fail(FoldOutcome::InvalidPolicy, "the DMP's references are not finite", t);
+        break;
+      case Stop::OutOfLimits:
+        fail(FoldOutcome::OutOfLimits, "the DMP's references leave the joint limits", t);
+        break;
+      case Stop::Tracking:
+        fail(FoldOutcome::ControllerFailed,
+             "arm " + std::to_string(stopped_arm) + " is " + std::to_string(tracking) + " rad off its references", t);
+        break;
+      case Stop::ControllerInput:
+        fail(FoldOutcome::ControllerFailed, "invalid controller input on arm " + std::to_string(stopped_arm), t);
+        break;
+    }
+    if (out.outcome != FoldOutcome::Ok) break;
+    if (k % path_every == 0) {
+      path_times.push_back(t);
+      joints.push_back(measured[static_cast<std::size_t>(m.arm)].position);
+      tools.push_back(simulation.toolPose(m.arm).translation());
+    }
+    if (cloth_every > 0 && k % cloth_every == 0) {
+      out.cloth_frames.push_back(simulation.cloth().vertices());
+      cloth_times.push_back(t);
+    }
+    const sim::SimStatus status = simulation.step();
+    if (status == sim::SimStatus::ArmDiverged) fail(FoldOutcome::SimulationDiverged, "an arm diverged", t);
+    if (status == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the scarf diverged", t);
+  }
+  out.mean_abs_torque = torque_samples > 0 ? torque_sum / torque_samples : 0.0;
+  out.mean_tool_force = torque_samples > 0 ? force_sum / torque_samples : 0.0;
+  const std::size_t samples = path_times.size();
+  out.joint_path.resize(n, static_cast<Eigen::Index>(samples));
+  out.tool_path.resize(3, static_cast<Eigen::Index>(samples));
+  for (std::size_t i = 0; i < samples; ++i) {
+    out.joint_path.col(static_cast<Eigen::Index>(i)) = joints[i];
+    out.tool_path.col(static_cast<Eigen::Index>(i)) = tools[i];
+  }
+  path_times.resize(samples);
+  out.path_times = Eigen::Map<const Eigen::VectorXd>(path_times.data(), static_cast<Eigen::Index>(samples));
+  out.cloth_times =
+      Eigen::Map<const Eigen::VectorXd>(cloth_times.data(), static_cast<Eigen::Index>(cloth_times.size()));
+  out.cloth_vertices = simulation.cloth().vertices();
+  const sim::ClothParameters& cloth = simulation.cloth().parameters();
+  out.truth = scarfTruth(m.mannequin, out.cloth_vertices, cloth.nodes_x, cloth.nodes_y);
+  std::mt19937 rng(seed);
+  if (m.renderer->render(out.cloth_vertices, simulation.cloth().triangles(), rng) == vision::VisionStatus::Ok) {
+    out.bgr = m.renderer->bgr().clone();
+    out.camera = scarfCameraTerms(out.bgr, c.camera);
+  } else {
+    out.camera = scarfCameraTerms(cv::Mat(m.camera.height, m.camera.width, CV_8UC3, cv::Scalar(0, 0, 0)), c.camera);
+  }
+  out.c_acceleration = c.acceleration_weight * out.acceleration;
+  out.c_torque = c.torque_weight * out.mean_abs_torque;
+  out.c_cam = out.camera.c_cam;
+  out.cost = out.outcome == FoldOutcome::Ok ? out.c_acceleration + out.c_cam + out.c_torque : c.failure_cost;
+  out.simulated_seconds = simulation.time();
+  out.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  return out;
+}
+
+}  // namespace bimanual_skills::tasks

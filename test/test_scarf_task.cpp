@@ -1,0 +1,138 @@
+// The scarf task on the simulated WAM (config/scarf_learning.yaml): the demonstration fails the way it was chosen to
+// (the scarf not wound round the neck), a loop 4 cm tighter wins on the camera and on the mesh's ground truth, a
+// rollout is repeatable bit for bit for a seed, the cost is the sum of its terms (the observer's term removable),
+// the control part of every period allocates nothing, and bad policies and bad files get a clear answer.
+#include "bimanual_skills/rollout/coordinated_parameters.hpp"
+#include "bimanual_skills/rollout/scarf_learning.hpp"
+#include "bimanual_skills/tasks/scarf_task.hpp"
+#include "testing/allocation_counter.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace br = bimanual_skills::rollout;
+namespace bt = bimanual_skills::tasks;
+
+namespace {
+
+br::ScarfLearningConfig shipped() {
+  return br::ScarfLearningConfig::fromYamlFile(BIMANUAL_SKILLS_SOURCE_DIR "/config/scarf_learning.yaml");
+}
+
+/// The demonstration's loop with another radius about the neck's axis (same angles, heights and timing).
+std::vector<Eigen::Vector3d> withRadius(const std::vector<Eigen::Vector3d>& loop, double radius) {
+  std::vector<Eigen::Vector3d> out;
+  const Eigen::Vector2d neck(0.5, 0.4);  // config/scenes/mannequin.yaml
+  for (const Eigen::Vector3d& p : loop) {
+    const Eigen::Vector2d radial = (p.head<2>() - neck).normalized();
+    out.emplace_back(neck.x() + radius * radial.x(), neck.y() + radius * radial.y(), p.z());
+  }
+  return out;
+}
+
+bt::ScarfRollout demonstration(bt::ScarfTask& task, std::uint32_t seed,
+                               bimanual_skills::realtime::CycleProbe* probe = nullptr) {
+  const int d = task.dofs();
+  return task.run({Eigen::MatrixXd::Identity(d, d)}, task.demonstrationWeights(), seed, probe);
+}
+
+}  // namespace
+
+TEST(ScarfTask, TheDemonstrationFailsAsChosenAndIsRepeatableAndTheControlAllocatesNothing) {
+  bt::ScarfTask task(shipped().task);
+  EXPECT_EQ(task.dofs(), 7);
+  EXPECT_EQ(task.demonstrationWeights().size(), 7 * 25);
+  bimanual_skills::realtime::ScopedCounterProbe<bimanual_skills::testing::AllocationCounter> probe;
+  const bt::ScarfRollout r = demonstration(task, 1, &probe);
+  ASSERT_EQ(r.outcome, bt::FoldOutcome::Ok) << r.reason;
+  std::printf(
+      "demonstration: cost %.3f (acceleration %.3f, camera %.3f, torque %.3f), d %.1f px (d_ref %.1f), "
+      "winding %.2f rad, success %d; %.2f s simulated in %.2f s\n",
+      r.cost, r.c_acceleration, r.c_cam, r.c_torque, r.camera.d, task.config().camera.d_ref, r.truth.winding,
+      r.truth.success ? 1 : 0, r.simulated_seconds, r.wall_seconds);
+  EXPECT_GT(r.cost, 3.0) << "the thesis' success threshold";
+  EXPECT_FALSE(r.truth.wrapped);
+  EXPECT_FALSE(r.truth.success);
+  EXPECT_NEAR(r.cost, r.c_acceleration + r.c_cam + r.c_torque, 1e-12);
+  EXPECT_NEAR(r.c_torque, task.config().torque_weight * r.mean_abs_torque, 1e-12);
+  EXPECT_NEAR(r.c_acceleration, task.config().acceleration_weight * r.acceleration, 1e-12);
+  EXPECT_GT(r.mean_abs_torque, 0.0);
+  EXPECT_GT(r.mean_tool_force, 0.5) << "the scarf hangs from the tool";
+  EXPECT_EQ(r.control_allocations, 0u);
+  EXPECT_EQ(r.joint_path.cols(), r.path_times.size());
+  EXPECT_GT(r.path_times.size(), 100);
+  // The same seed, the same rollout, to the bit.
+  const bt::ScarfRollout again = demonstration(task, 1);
+  EXPECT_EQ(again.cost, r.cost);
+  EXPECT_EQ(again.cloth_vertices, r.cloth_vertices);
+  // Without the observer's term the cost is lower by exactly it.
+  bt::ScarfTaskConfig without = task.config();
+  without.torque_weight = 0.0;
+  bt::ScarfTask plain(without);
+  const bt::ScarfRollout p = demonstration(plain, 1);
+  EXPECT_EQ(p.c_torque, 0.0);
+  EXPECT_NEAR(p.cost, r.cost - r.c_torque, 1e-9);
+}
+
+TEST(ScarfTask, ALoopFourCentimetresTighterWindsTheScarfOnTheCameraAndInTruth) {
+  bt::ScarfTaskConfig config = shipped().task;
+  config.demo_waypoints = withRadius(config.demo_waypoints, 0.17);
+  bt::ScarfTask task(config);
+  const bt::ScarfRollout r = demonstration(task, 1);
+  ASSERT_EQ(r.outcome, bt::FoldOutcome::Ok) << r.reason;
+  std::printf("0.17 m loop: cost %.3f, c_cam %.3f, d %.1f px, winding %.2f rad, hanging right %d left %d\n", r.cost,
+              r.c_cam, r.camera.d, r.truth.winding, r.truth.hanging_right, r.truth.hanging_left);
+  EXPECT_LT(r.cost, 3.0);
+  EXPECT_TRUE(r.truth.wrapped);
+  EXPECT_TRUE(r.truth.success);
+  EXPECT_EQ(r.camera.hanging, 0);
+}
+
+TEST(ScarfTask, BadPoliciesAndFilesGetAClearAnswer) {
+  const br::ScarfLearningConfig config = shipped();
+  br::ScarfRolloutTask task(config.task);
+  const int d = task.task().dofs();
+  // A policy with a NaN weight, one of the wrong size, garbage.
+  Eigen::VectorXd weights = task.task().demonstrationWeights();
+  weights[3] = std::numeric_limits<double>::quiet_NaN();
+  const bt::ScarfRollout nan = task.task().run({Eigen::MatrixXd::Identity(d, d)}, weights, 1);
+  EXPECT_EQ(nan.outcome, bt::FoldOutcome::InvalidPolicy);
+  EXPECT_EQ(nan.cost, config.task.failure_cost);
+  EXPECT_NE(nan.reason.find("weights"), std::string::npos) << nan.reason;
+  const br::RolloutResult garbage = task.run(Eigen::VectorXd::Constant(5, 1.0), 1);
+  EXPECT_FALSE(garbage.ok);
+  EXPECT_EQ(garbage.outcome, "InvalidPolicy");
+  EXPECT_EQ(garbage.reward, -config.task.failure_cost);
+  EXPECT_EQ(garbage.terms.size(), static_cast<Eigen::Index>(br::ScarfRolloutTask::names().size()));
+  // The rollout task's own parameters run the demonstration.
+  const br::RolloutResult initial = task.run(task.initialParameters(), 1);
+  EXPECT_TRUE(initial.ok) << initial.reason;
+  EXPECT_EQ(initial.trajectory.rows(), 3);
+  // Files and settings at fault are named.
+  const auto refused = [](bt::ScarfTaskConfig c, const std::string& expected) {
+    try {
+      bt::ScarfTask t(c);
+      ADD_FAILURE() << "accepted; expected a refusal naming " << expected;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  };
+  bt::ScarfTaskConfig c = config.task;
+  c.arm = "third";
+  refused(c, "third");
+  c = config.task;
+  c.kernels = 1;
+  refused(c, "kernels");
+  c = config.task;
+  c.start = "/nonexistent/start.yaml";
+  refused(c, "/nonexistent/start.yaml");
+  c = config.task;
+  c.demo_waypoints.push_back(Eigen::Vector3d(3.0, 0.0, 0.5));  // far out of reach
+  refused(c, "waypoint 9");
+  c = config.task;
+  c.torque_weight = -1.0;
+  refused(c, "torque_weight");
+}
