@@ -1,6 +1,6 @@
 // Experiments on the physics simulator (issue 11), as one seeded program:
 //
-//   sim_benchmark --experiment speed|friction|payload|fold_rollout|all --seed S --out DIR [--quick]
+//   sim_benchmark --experiment speed|friction|payload|fold_rollout|scarf_rollout|all --seed S --out DIR [--quick]
 //
 // speed: wall-clock speed of the simulation on one core (the process is pinned to CPU 0), as simulated seconds per
 // wall-clock second of BimanualSimulation::step() calls, with Bullet's share of that time:
@@ -19,11 +19,16 @@
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
+#include "bimanual_skills/realtime/cycle_probe.hpp"
+#include "bimanual_skills/rollout/fold_learning.hpp"
+#include "bimanual_skills/rollout/scarf_learning.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/tasks/cloth_fold.hpp"
+#include "bimanual_skills/tasks/scarf_task.hpp"
 #include "cli/package_share.hpp"
 #include "experiment_cli.hpp"
 #include "sim_experiments.hpp"
+#include "testing/allocation_counter.hpp"
 
 #include <sched.h>
 
@@ -37,6 +42,7 @@
 #include <iostream>
 #include <stdexcept>
 #include <string>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -435,6 +441,65 @@ void foldRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows) 
   }
 }
 
+/// scarf_rollout: in one run, interleaved, the scarf task's demonstration (config/scarf_learning.yaml) and the fold's
+/// (config/fold_demo.yaml, the robot file's friction models as its learning has them), each on one core: wall time
+/// per simulated second and per cloth node, the median of the repetitions; and what the scarf's control part
+/// allocated (tasks::ScarfTask::run's probe, counting every allocation of the control part of every period).
+void scarfRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows) {
+  const bs::rollout::ScarfLearningConfig scarf_config =
+      bs::rollout::ScarfLearningConfig::fromYamlFile(bs::cli::packageFile("config/scarf_learning.yaml"));
+  const bs::rollout::FoldLearningConfig fold_config =
+      bs::rollout::FoldLearningConfig::fromYamlFile(bs::cli::packageFile("config/fold_demo.yaml"));
+  bs::tasks::ScarfTask scarf(scarf_config.task);
+  bs::tasks::ClothFoldTask fold(fold_config.task);
+  const int scarf_nodes = static_cast<int>(scarf.scarfTriangles().maxCoeff()) + 1;
+  const int fold_nodes = fold.simConfig().cloth.nodes_x * fold.simConfig().cloth.nodes_y;
+  const int repetitions = options.quick ? 1 : 5;
+  std::vector<double> scarf_cost, fold_cost;  // wall µs per simulated second and node
+  std::size_t allocations = 0;
+  double scarf_simulated = 0.0, fold_simulated = 0.0;
+  bs::realtime::ScopedCounterProbe<bs::testing::AllocationCounter> probe;
+  for (int k = 0; k < repetitions; ++k) {
+    const bs::tasks::FoldRollout f = fold.run(fold.demonstrationParameters());
+    fold_simulated = f.simulated_seconds;
+    fold_cost.push_back(1e6 * f.wall_seconds / f.simulated_seconds / fold_nodes);
+    const int d = scarf.dofs();
+    const bs::tasks::ScarfRollout r = scarf.run({Eigen::MatrixXd::Identity(d, d)}, scarf.demonstrationWeights(),
+                                                static_cast<std::uint32_t>(options.seed + k), &probe);
+    scarf_simulated = r.simulated_seconds;
+    allocations += r.control_allocations;
+    scarf_cost.push_back(1e6 * r.wall_seconds / r.simulated_seconds / scarf_nodes);
+  }
+  const auto median = [](std::vector<double> v) {
+    std::sort(v.begin(), v.end());
+    return v[v.size() / 2];
+  };
+  std::ofstream csv(options.out + "/scarf_rollout.csv");
+  csv << "task,cloth_nodes,simulated_s,repetitions,us_per_simulated_s_per_node_median,control_allocations\n";
+  csv << "fold," << fold_nodes << ',' << fold_simulated << ',' << repetitions << ',' << median(fold_cost) << ",\n";
+  csv << "scarf," << scarf_nodes << ',' << scarf_simulated << ',' << repetitions << ',' << median(scarf_cost) << ','
+      << allocations << '\n';
+  std::printf(
+      "sim_benchmark: scarf_rollout: fold %d nodes, %.1f s simulated: %.2f us of wall time per simulated s "
+      "and node; scarf %d nodes, %.1f s: %.2f us (median of %d, interleaved); the scarf's control part "
+      "allocated %zu times\n",
+      fold_nodes, fold_simulated, median(fold_cost), scarf_nodes, scarf_simulated, median(scarf_cost), repetitions,
+      allocations);
+  std::fflush(stdout);
+  for (const auto& [task, nodes, cost] : {std::make_tuple("fold", fold_nodes, median(fold_cost)),
+                                          std::make_tuple("scarf", scarf_nodes, median(scarf_cost))}) {
+    bs::bench::JsonRow row;
+    row.add("experiment", "scarf_rollout")
+        .add("setting", std::string("rollout_") + task)
+        .add("cloth_nodes", nodes)
+        .add("us_per_simulated_s_per_node", cost)
+        .add("repetitions", repetitions)
+        .add("control_allocations", std::string(task) == "scarf" ? static_cast<double>(allocations) : 0.0)
+        .add("cpu", 0);
+    rows.push_back(row);
+  }
+}
+
 /// The experiments of this program, in the order `all` runs them.
 const std::vector<std::pair<std::string, std::function<void(const Options&, std::vector<bs::bench::JsonRow>&)>>>
     kExperiments = {
@@ -442,6 +507,7 @@ const std::vector<std::pair<std::string, std::function<void(const Options&, std:
         {"friction", bs::bench::sim_experiments::friction},
         {"payload", bs::bench::sim_experiments::payload},
         {"fold_rollout", foldRollout},
+        {"scarf_rollout", scarfRollout},
 };
 
 }  // namespace
@@ -457,7 +523,9 @@ int main(int argc, char** argv) {
       "writes DIR/friction_*.csv and the fitted models as YAML. payload: thesis Fig. 4.2, the tool's vertical force\n"
       "estimated by our observer and KDL's for 0-2 kg; writes DIR/payload*.csv. fold_rollout: one 10 s rollout of\n"
       "the cloth-folding task's demonstration with the CLIK methods ED and CTP+SD+SVF (real-time factor, reference\n"
-      "and tracking errors); writes DIR/fold_rollout.csv. all: every experiment. Each writes\n"
+      "and tracking errors); writes DIR/fold_rollout.csv. scarf_rollout: the scarf task's demonstration against the\n"
+      "fold's in one run, wall time per simulated second and cloth node, and the scarf's control allocations;\n"
+      "writes DIR/scarf_rollout.csv. all: every experiment. Each writes\n"
       "DIR/summary.json; friction and payload also PNG plots and tables.md. --quick: short runs (a few seconds).";
   for (const auto& [name, function] : kExperiments) program.experiments.push_back(name);
   program.experiments.push_back("all");

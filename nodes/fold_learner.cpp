@@ -7,9 +7,9 @@
 #include "bimanual_skills/ros_layer/camera_messages.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
-#include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "bimanual_skills/tasks/fold_quality.hpp"
 #include "io/summary_json.hpp"
+#include "learner_shell.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
 
@@ -26,7 +26,6 @@
 
 #include <algorithm>
 #include <array>
-#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -296,29 +295,11 @@ class FoldLearnerNode {
  private:
   /// A dispatcher to the rollout workers when ~worker_namespace or ~workers is set, else null (threads here).
   std::unique_ptr<br::Evaluator> makeDispatcher() {
-    bs::ros_layer::WorkerSelection selection;
-    parameters_.accept("workers");
-    parameters_.accept("worker_namespace");
-    const double timeout = parameters_.number("worker_timeout", br::DispatchConfig{}.timeout, 1e-3, 1e6);
-    const int share = parameters_.integer("share", 0, 0, 1000000);
-    if (!bs::ros_layer::readWorkerSelection(private_node_, selection)) return nullptr;
-    selection.task = "fold";
-    selection.config = std::filesystem::absolute(config_path_).string();
-    br::DispatchConfig dispatch;
-    dispatch.timeout = timeout;
-    dispatch.share = static_cast<std::size_t>(share);
-    dispatch.log = [](const std::string& line, bool fault) {
-      if (fault) {
-        ROS_WARN("fold_learner: %s", line.c_str());
-      } else {
-        ROS_INFO("fold_learner: %s", line.c_str());
-      }
-    };
-    dispatch.batch = [this](const br::DispatchStats& s) { onBatch(s); };
-    dispatching_ = true;
-    workers_where_ = selection.names.empty() ? selection.space : "~workers";
-    return std::make_unique<br::Dispatcher>(std::make_unique<bs::ros_layer::TopicWorkerDirectory>(selection),
-                                            br::FoldRolloutTask::kTerms, dispatch);
+    std::unique_ptr<br::Evaluator> dispatcher =
+        bs::nodes::workerDispatcher(parameters_, private_node_, "fold", config_path_, br::FoldRolloutTask::kTerms,
+                                    "fold_learner", workers_where_, [this](const br::DispatchStats& s) { onBatch(s); });
+    dispatching_ = dispatcher != nullptr;
+    return dispatcher;
   }
 
   /// The rollouts on the robot through ROS, one at a time.
@@ -514,10 +495,7 @@ class FoldLearnerNode {
   void writeRunImages(const br::FoldLearningResult& result) {
     std::filesystem::create_directories(out_ + "/final_runs");
     for (const br::FoldRunResult& run : result.runs) {
-      std::string name = run.algorithm;
-      for (char& c : name) {
-        if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
-      }
+      const std::string name = bs::nodes::fileName(run.algorithm);
       cv::Mat bgr, depth;
       renderFinal(run.final_policy, bgr, depth);
       const std::string path = out_ + "/final_runs/" + name + "_run_" + std::to_string(run.run);

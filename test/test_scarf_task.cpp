@@ -4,6 +4,7 @@
 // the control part of every period allocates nothing, and bad policies and bad files get a clear answer.
 #include "bimanual_skills/rollout/coordinated_parameters.hpp"
 #include "bimanual_skills/rollout/scarf_learning.hpp"
+#include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/tasks/scarf_task.hpp"
 #include "testing/allocation_counter.hpp"
 
@@ -61,6 +62,10 @@ TEST(ScarfTask, TheDemonstrationFailsAsChosenAndIsRepeatableAndTheControlAllocat
   EXPECT_NEAR(r.c_acceleration, task.config().acceleration_weight * r.acceleration, 1e-12);
   EXPECT_GT(r.mean_abs_torque, 0.0);
   EXPECT_GT(r.mean_tool_force, 0.5) << "the scarf hangs from the tool";
+  std::printf("observer as a force on the tool: mean error %.3f N, largest %.3f N; the scarf's force %.3f N mean\n",
+              r.mean_force_error, r.max_force_error, r.mean_tool_force);
+  EXPECT_GT(r.mean_force_error, 0.0);
+  EXPECT_LE(r.mean_force_error, r.max_force_error);
   EXPECT_EQ(r.control_allocations, 0u);
   EXPECT_EQ(r.joint_path.cols(), r.path_times.size());
   EXPECT_GT(r.path_times.size(), 100);
@@ -107,10 +112,17 @@ TEST(ScarfTask, BadPoliciesAndFilesGetAClearAnswer) {
   EXPECT_EQ(garbage.outcome, "InvalidPolicy");
   EXPECT_EQ(garbage.reward, -config.task.failure_cost);
   EXPECT_EQ(garbage.terms.size(), static_cast<Eigen::Index>(br::ScarfRolloutTask::names().size()));
-  // The rollout task's own parameters run the demonstration.
+  // The rollout task's own parameters run the demonstration; a rollout worker's task (the registry's "scarf" of the
+  // same file) gives the same result to the bit.
   const br::RolloutResult initial = task.run(task.initialParameters(), 1);
   EXPECT_TRUE(initial.ok) << initial.reason;
   EXPECT_EQ(initial.trajectory.rows(), 3);
+  const br::RolloutResult worker =
+      br::makeRolloutTask("scarf", BIMANUAL_SKILLS_SOURCE_DIR "/config/scarf_learning.yaml")
+          ->run(task.initialParameters(), 1);
+  EXPECT_EQ(worker.reward, initial.reward);
+  EXPECT_EQ(worker.terms, initial.terms);
+  EXPECT_THROW(br::makeRolloutTask("scarf", ""), std::invalid_argument);
   // Files and settings at fault are named.
   const auto refused = [](bt::ScarfTaskConfig c, const std::string& expected) {
     try {

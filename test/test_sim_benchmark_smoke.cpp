@@ -186,3 +186,20 @@ TEST(SimBenchmarkSmoke, HelpAndBadArguments) {
   EXPECT_EQ(runQuietly(program + " --experiment speed --seed 1"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment speed --seed 1 --out /tmp/x --fast"), 2);
 }
+
+TEST(SimBenchmarkSmoke, QuickScarfRolloutComparesItWithTheFold) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_sim_benchmark_scarf";
+  fs::remove_all(out);
+  ASSERT_EQ(
+      runQuietly(std::string(SIM_BENCHMARK) + " --experiment scarf_rollout --seed 3 --quick --out " + out.string()), 0);
+  const auto rows = readCsv(out / "scarf_rollout.csv");
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0].at("task"), "fold");
+  EXPECT_EQ(rows[1].at("task"), "scarf");
+  EXPECT_EQ(number(rows[1], "cloth_nodes"), 180.0);
+  EXPECT_GT(number(rows[0], "us_per_simulated_s_per_node_median"), 0.0);
+  EXPECT_GT(number(rows[1], "us_per_simulated_s_per_node_median"), 0.0);
+  EXPECT_EQ(number(rows[1], "control_allocations"), 0.0) << "the scarf's control part allocated";
+  EXPECT_NE(readTextFile(out / "summary.json").find("\"experiment\": \"scarf_rollout\""), std::string::npos);
+  fs::remove_all(out);
+}

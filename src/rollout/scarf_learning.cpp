@@ -135,6 +135,8 @@ std::vector<std::string> ScarfRolloutTask::names() {
           "peak_abs_torque",
           "mean_tool_force",
           "peak_tool_force",
+          "mean_force_error",
+          "max_force_error",
           "max_tracking_error",
           "d",
           "hanging",
@@ -175,9 +177,10 @@ RolloutResult ScarfRolloutTask::run(const Eigen::VectorXd& parameters, std::uint
   out.wall_seconds = r.wall_seconds;
   out.terms.resize(static_cast<Eigen::Index>(names().size()));
   out.terms << r.cost, r.c_acceleration, r.c_cam, r.c_torque, r.acceleration, r.mean_abs_torque, r.peak_abs_torque,
-      r.mean_tool_force, r.peak_tool_force, r.max_tracking_error, r.camera.d, r.camera.hanging, r.camera.right_pixels,
-      r.camera.left_pixels, r.truth.winding, r.truth.wrapped ? 1.0 : 0.0, r.truth.hanging_right, r.truth.hanging_left,
-      r.truth.fallen ? 1.0 : 0.0, r.truth.success ? 1.0 : 0.0, r.simulated_seconds;
+      r.mean_tool_force, r.peak_tool_force, r.mean_force_error, r.max_force_error, r.max_tracking_error, r.camera.d,
+      r.camera.hanging, r.camera.right_pixels, r.camera.left_pixels, r.truth.winding, r.truth.wrapped ? 1.0 : 0.0,
+      r.truth.hanging_right, r.truth.hanging_left, r.truth.fallen ? 1.0 : 0.0, r.truth.success ? 1.0 : 0.0,
+      r.simulated_seconds;
   out.trajectory = r.tool_path;
   return out;
 }

@@ -2,6 +2,7 @@
 
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "bimanual_skills/rollout/scarf_learning.hpp"
 #include "bimanual_skills/tasks/dr_tasks.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
 #include "io/yaml_io.hpp"
@@ -127,7 +128,7 @@ std::unique_ptr<RolloutTask> makeMultimodal() {
 }
 
 /// Table 7.3's planar via-point task with a DR-DMP: the policy is a coordinated policy vector
-/// (FoldRolloutTask::encode) over the DR-DMP fitted to the task's demonstrations; the exploration outside the latent
+/// (encodeCoordinatedPolicy) over the DR-DMP fitted to the task's demonstrations; the exploration outside the latent
 /// space is drawn from the rollout's seed.
 class PlanarViaPointRollout : public RolloutTask {
  public:
@@ -224,12 +225,20 @@ std::unique_ptr<RolloutTask> makeFold(const std::string& config) {
   return std::make_unique<FoldRolloutTask>(c.task, c.reward);
 }
 
+std::unique_ptr<RolloutTask> makeScarf(const std::string& config) {
+  if (config.empty()) throw std::invalid_argument("task 'scarf' needs a scarf learning file as its configuration");
+  return std::make_unique<ScarfRolloutTask>(ScarfLearningConfig::fromYamlFile(config).task);
+}
+
 }  // namespace
 
 const std::vector<RolloutTaskInfo>& rolloutTasks() {
   static const std::vector<RolloutTaskInfo> tasks = {
       {"fold", "a fold learning file (config/fold_demo.yaml)",
-       "the two simulated WAMs fold the cloth, scored by the file's reward (a policy: FoldRolloutTask::encode)"},
+       "the two simulated WAMs fold the cloth, scored by the file's reward (a policy: encodeCoordinatedPolicy)"},
+      {"scarf", "a scarf learning file (config/scarf_learning.yaml)",
+       "the simulated WAM puts a scarf round a mannequin's neck, thesis Sec. 4.3.1 (a policy: "
+       "encodeCoordinatedPolicy)"},
       {"quadratic", "optional YAML with dimension (10) and noise (0)",
        "-|theta|^2/n plus seeded noise, no simulation: measures the dispatch's own cost"},
       {"bottles", "optional YAML with crossing_term (true: reward 6.18; false: 6.17)",
@@ -237,7 +246,7 @@ const std::vector<RolloutTaskInfo>& rolloutTasks() {
       {"circle", "YAML with urdf, base, tip and the demonstration's seed (config/circle_task.yaml)",
        "the WAM tool traces a circle, thesis Fig. 6.14 (a 7-DoF DMP)"},
       {"planar_viapoint", "optional YAML with dofs (10), seed (1), kernels (5), matrices (1), exploration (0.316)",
-       "thesis Table 7.3: a planar arm through two via-points, a DR-DMP policy (FoldRolloutTask::encode)"},
+       "thesis Table 7.3: a planar arm through two via-points, a DR-DMP policy (encodeCoordinatedPolicy)"},
       {"viapoint", "none",
        "Stulp's 1-D DMP through a via-point (ps_benchmark pi2viapoint; terms: the step costs PI2 learns from, then "
        "the via-point's error; reward: minus the summed step costs)"},
@@ -247,6 +256,7 @@ const std::vector<RolloutTaskInfo>& rolloutTasks() {
 
 std::unique_ptr<RolloutTask> makeRolloutTask(const std::string& name, const std::string& config) {
   if (name == "fold") return makeFold(config);
+  if (name == "scarf") return makeScarf(config);
   if (name == "quadratic") return makeQuadratic(config);
   if (name == "bottles") return makeBottles(config);
   if (name == "circle") return makeCircle(config);

@@ -21,6 +21,8 @@ namespace {
 
 /// Samples per second of the scripted demonstration the DMP is fitted to.
 constexpr double kDemonstrationRate = 100.0;
+/// Damping of the observer's torques mapped to a force on the tool (ScarfRollout::mean_force_error).
+constexpr double kForceDamping = 0.1;
 /// |q̈_ref| below this counts as no acceleration for the observer's friction sign [rad/s²].
 constexpr double kAccelerationDeadBand = 1e-3;
 
@@ -53,11 +55,13 @@ struct ScarfTask::Impl {
   Mannequin mannequin;
   int arm = 0;
   std::vector<Eigen::VectorXd> start;  ///< Every arm's start.
+  std::vector<std::vector<std::string>> joint_names;
   control::ComputedTorqueGains gains;
   std::vector<dynamics::FrictionModel> friction;
   std::vector<bool> with_friction;
   vision::PinholeCamera camera;
   std::unique_ptr<vision::PerspectiveRenderer> renderer;
+  Eigen::Matrix3Xi triangles;     ///< The scarf's.
   Eigen::MatrixXd demonstration;  ///< samples × 7
   primitives::DrDmpParameters dmp;
   Eigen::VectorXd demonstration_weights;
@@ -155,6 +159,8 @@ ScarfTask::ScarfTask(const ScarfTaskConfig& config) : impl_(std::make_unique<Imp
       m.friction.push_back(dynamics::loadFrictionModel(file));
     }
   }
+  m.triangles = simulation.cloth().triangles();
+  for (int a = 0; a < simulation.armCount(); ++a) m.joint_names.push_back(simulation.armModel(a).jointNames());
   m.dmp.dmp.kernels = config.kernels;
   m.demonstrate(simulation);
 }
@@ -201,6 +207,31 @@ const vision::PinholeCamera& ScarfTask::camera() const noexcept {
 
 const Eigen::VectorXd& ScarfTask::startPosition() const noexcept {
   return impl_->start[static_cast<std::size_t>(impl_->arm)];
+}
+
+int ScarfTask::arm() const noexcept {
+  return impl_->arm;
+}
+
+const std::vector<Eigen::VectorXd>& ScarfTask::starts() const noexcept {
+  return impl_->start;
+}
+
+const std::vector<std::vector<std::string>>& ScarfTask::jointNames() const noexcept {
+  return impl_->joint_names;
+}
+
+const Eigen::Matrix3Xi& ScarfTask::scarfTriangles() const noexcept {
+  return impl_->triangles;
+}
+
+cv::Mat ScarfTask::cameraImage(const Eigen::Matrix3Xd& vertices) {
+  if (vertices.cols() != impl_->triangles.maxCoeff() + 1) {
+    throw std::invalid_argument("scarf task: a mesh of " + std::to_string(vertices.cols()) +
+                                " nodes is not the scarf's");
+  }
+  (void)impl_->renderer->render(vertices, impl_->triangles);
+  return impl_->renderer->bgr().clone();
 }
 
 ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights,
@@ -276,7 +307,10 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
   std::vector<Eigen::VectorXd> joints;
   std::vector<Eigen::Vector3d> tools;
   std::vector<double> path_times, cloth_times;
-  double torque_sum = 0.0, force_sum = 0.0;
+  double torque_sum = 0.0, force_sum = 0.0, error_sum = 0.0;
+  kinematics::ChainData jacobian(model);
+  Eigen::Matrix<double, 6, 6> jjt;
+  Eigen::Matrix<double, 6, 1> estimated;
   int torque_samples = 0;
   const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
   torque.resize(n);
@@ -360,6 +394,19 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
         break;
     }
     if (out.outcome != FoldOutcome::Ok) break;
+    if (k >= move_start && k < release) {
+      // The observer's estimate as a force on the tool, against the scarf's (both in the world frame).
+      const sim::JointState& s = measured[static_cast<std::size_t>(m.arm)];
+      (void)kinematics::computeJacobian(model, jacobian, s.position);
+      jjt.noalias() = jacobian.jacobian * jacobian.jacobian.transpose();
+      jjt.diagonal().array() += kForceDamping * kForceDamping;
+      estimated.noalias() = jacobian.jacobian * observers[static_cast<std::size_t>(m.arm)]->externalTorque();
+      estimated = jjt.ldlt().solve(estimated);
+      const Eigen::Vector3d force = simulation.basePose(m.arm).linear() * estimated.head<3>();
+      const double error = (force - simulation.clothWrench(m.arm).head<3>()).norm();
+      error_sum += error;
+      out.max_force_error = std::max(out.max_force_error, error);
+    }
     if (k % path_every == 0) {
       path_times.push_back(t);
       joints.push_back(measured[static_cast<std::size_t>(m.arm)].position);
@@ -375,6 +422,7 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
   }
   out.mean_abs_torque = torque_samples > 0 ? torque_sum / torque_samples : 0.0;
   out.mean_tool_force = torque_samples > 0 ? force_sum / torque_samples : 0.0;
+  out.mean_force_error = torque_samples > 0 ? error_sum / torque_samples : 0.0;
   const std::size_t samples = path_times.size();
   out.joint_path.resize(n, static_cast<Eigen::Index>(samples));
   out.tool_path.resize(3, static_cast<Eigen::Index>(samples));

@@ -30,7 +30,7 @@ class ScarfRolloutTask : public RolloutTask {
   explicit ScarfRolloutTask(const tasks::ScarfTaskConfig& config);
 
   /// cost, c_acceleration, c_cam, c_torque, acceleration, mean_abs_torque, peak_abs_torque, mean_tool_force,
-  /// peak_tool_force, max_tracking_error, d, hanging, right_pixels, left_pixels (the camera's), winding, wrapped,
+  /// peak_tool_force, mean_force_error, max_force_error, max_tracking_error, d, hanging, right_pixels, left_pixels (the camera's), winding, wrapped,
   /// hanging_right, hanging_left, fallen, success (the scarf mesh's truth), simulated_seconds.
   std::vector<std::string> termNames() const override { return names(); }
   static std::vector<std::string> names();

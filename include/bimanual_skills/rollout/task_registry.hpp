@@ -19,6 +19,7 @@ struct RolloutTaskInfo {
 
 /// Every task makeRolloutTask() builds:
 /// - "fold": FoldRolloutTask, the cloth fold of a fold learning file (config/fold_demo.yaml).
+/// - "scarf": ScarfRolloutTask, the scarf of a scarf learning file (config/scarf_learning.yaml).
 /// - "quadratic": reward −‖θ‖²/n + σ ε with ε ~ N(0, 1) drawn from the rollout's seed; no simulation, so a batch
 ///   of it measures what the dispatch itself costs. Its optional YAML file sets `dimension` (n, default 10) and
 ///   `noise` (σ, default 0).

@@ -71,6 +71,10 @@ struct ScarfRollout {
   double peak_abs_torque = 0.0;  ///< Largest |τ̂_ext,i| over the motion [N m].
   /// The simulator's truth over the motion: mean and peak force of the scarf on the tool [N].
   double mean_tool_force = 0.0, peak_tool_force = 0.0;
+  /// The observer's estimate as a force on the tool, F̂ = (J Jᵀ + λ² I)⁻¹ J τ̂ (the wrench whose Jᵀ F best gives
+  /// τ̂, damped λ = 0.1), against the scarf's force on the tool: mean and largest |F̂ − F| over the motion [N]. Other
+  /// contacts (the arm against the mannequin) are in F̂ and not in F.
+  double mean_force_error = 0.0, max_force_error = 0.0;
   double max_tracking_error = 0.0;  ///< [rad]
   int grasped_nodes = 0;
   std::size_t control_allocations = 0;  ///< What run()'s probe counted in the control parts.
@@ -118,6 +122,15 @@ class ScarfTask {
   const vision::PinholeCamera& camera() const noexcept;
   /// The holding arm's start (joint positions).
   const Eigen::VectorXd& startPosition() const noexcept;
+  /// The holding arm's index; every arm's start and joint names (as the robot file gives them).
+  int arm() const noexcept;
+  const std::vector<Eigen::VectorXd>& starts() const noexcept;
+  const std::vector<std::vector<std::string>>& jointNames() const noexcept;
+  /// The scarf's triangles (indices into its nodes, as ScarfRollout's meshes number them).
+  const Eigen::Matrix3Xi& scarfTriangles() const noexcept;
+  /// The camera's colour image of the scene with the scarf as `vertices` (no sensor noise): pictures of a rollout.
+  /// \throws std::invalid_argument for a mesh of another size.
+  cv::Mat cameraImage(const Eigen::Matrix3Xd& vertices);
 
  private:
   struct Impl;

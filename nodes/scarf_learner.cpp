@@ -1,0 +1,363 @@
+// scarf_learner: the simulated WAM learns to put a scarf round a mannequin's neck (thesis Sec. 4.3.1) while rviz
+// watches. A thin shell over rollout::DmpLearner and rollout::ScarfRolloutTask: it runs the learning (on threads
+// here or on rollout workers), publishes each rollout (scarf, tool path, camera image), prints the progress, and
+// writes the results and the pictures of Figs. 4.7-4.9.
+#include "bimanual_skills/rollout/scarf_learning.hpp"
+#include "bimanual_skills/ros_layer/camera_messages.hpp"
+#include "bimanual_skills/ros_layer/parameters.hpp"
+#include "io/summary_json.hpp"
+#include "learner_shell.hpp"
+#include "node_cli.hpp"
+#include "scene_markers.hpp"
+
+#include <ros/package.h>
+#include <ros/ros.h>
+#include <sensor_msgs/JointState.h>
+#include <tf2_ros/static_transform_broadcaster.h>
+#include <visualization_msgs/MarkerArray.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace bs = bimanual_skills;
+namespace br = bimanual_skills::rollout;
+namespace bt = bimanual_skills::tasks;
+
+namespace {
+
+const char* const kUsage =
+    "usage: rosrun bimanual_skills scarf_learner [_config:=FILE] [_out:=DIR] [_jobs:=N] [_runs:=N] [_updates:=N]\n"
+    "                                           [_rollouts:=N] [_seed:=S] [_torque_weight:=W]\n"
+    "                                           [_replay_best:=true|false]\n"
+    "                                           [_worker_namespace:=NS | _workers:=NAME,NAME,...] "
+    "[_worker_timeout:=S]\n"
+    "\n"
+    "The simulated WAM learns to put a scarf round a mannequin's neck (thesis Sec. 4.3.1, Figs. 4.7-4.9): a\n"
+    "joint-space DMP (25 kernels per joint) fitted to a poor demonstration, run by the computed-torque controllers\n"
+    "with the friction model, costed by the DMP's accelerations, the disturbance observer's interaction torques and a\n"
+    "colour camera (HSV segmentation of scarf and nose mark), learned by PI2-CMA on a second layer of Gaussians (the\n"
+    "thesis' setting; REPS/IDR-DMP and CMA-ES beside it). The scarf mesh's ground truth (wound round the neck,\n"
+    "hanging right and not left) is recorded beside the cost and never learned from. Rollouts run in parallel, are\n"
+    "written to DIR as they finish, and a restarted run resumes where it stopped.\n"
+    "\n"
+    "Parameters (private):\n"
+    "  ~config       learning file (default: the package's config/scarf_learning.yaml)\n"
+    "  ~out          results directory (default: scarf_learning in the working directory)\n"
+    "  ~jobs, ~runs, ~updates, ~rollouts, ~seed, ~algorithms  instead of the learning file's (a list of\n"
+    "                algorithms, e.g. rosparam set scarf_learner/algorithms \"[PI2-CMA, IDR-DMP_CMU]\")\n"
+    "  ~torque_weight  weight of the observer's term c_torque instead of the file's (0: the cost without it)\n"
+    "  ~replay_best  after learning, replay the best final policy on the topics in a loop until shut down\n"
+    "                (default false: exit when done)\n"
+    "  ~worker_namespace, ~workers  run the rollouts on rollout workers (task scarf; they read ~config on their\n"
+    "                host); ~worker_timeout [s] (default 60). Not with ~torque_weight (set it in the file)\n"
+    "\n"
+    "Writes into DIR: rollouts.csv, rollout_parameters.csv (every rollout as it finishes), epochs.csv, "
+    "robot_faults.csv,\n"
+    "summary.json (one row per algorithm, run and epoch), camera.csv (the camera's measures of the pictures),\n"
+    "initial.png (the demonstration's final camera image), final_runs/ALGORITHM_run_K.png (every run's final\n"
+    "policy), filmstrip.png (the best final policy, every second of the motion); plot with\n"
+    "scripts/plot_scarf_learning.py DIR (learning_curve.png, Fig. 4.8; camera_views.png, Fig. 4.7).\n"
+    "\n"
+    "Topics: /joint_states (sensor_msgs/JointState: the last rollout's final pose, or the replay), ~scene\n"
+    "  (visualization_msgs/MarkerArray: the mannequin), ~scarf (Marker TRIANGLE_LIST: the last\n"
+    "  rollout's final scarf), ~tool_paths (MarkerArray: the last rollouts' tool paths, red = worst to green = best),\n"
+    "  ~camera/image_raw with ~camera/camera_info (the last rollout's final colour image; frame scarf_camera on\n"
+    "  /tf_static), ~camera/depth/image_raw.\n";
+
+constexpr const char* kCameraFrame = "scarf_camera";
+constexpr std::size_t kPathsShown = 12;
+
+class ScarfLearnerNode {
+ public:
+  ScarfLearnerNode() : private_node_("~"), parameters_(private_node_, "scarf_learner") {
+    const std::string package = ros::package::getPath("bimanual_skills");
+    config_path_ = parameters_.text("config", package + "/config/scarf_learning.yaml");
+    out_ = parameters_.text("out", "scarf_learning");
+    replay_best_ = parameters_.boolean("replay_best", false);
+    config_ = br::ScarfLearningConfig::fromYamlFile(config_path_);
+    br::DmpLearningConfig& l = config_.learning;
+    l.jobs = parameters_.integer("jobs", l.jobs, 0, 256);
+    l.runs = parameters_.integer("runs", l.runs, 1, 1000);
+    l.updates = parameters_.integer("updates", l.updates, 0, 10000);
+    l.rollouts = parameters_.integer("rollouts", l.rollouts, 2, 10000);
+    l.seed = static_cast<std::uint32_t>(parameters_.number("seed", l.seed, 0.0, 4294967295.0));
+    l.algorithms = parameters_.texts("algorithms", l.algorithms);
+    const bool reweighted = parameters_.has("torque_weight");
+    config_.task.torque_weight = parameters_.number("torque_weight", config_.task.torque_weight, 0.0, 1e6);
+    l.validate(7);
+    std::string workers;
+    std::unique_ptr<br::Evaluator> evaluator =
+        bs::nodes::workerDispatcher(parameters_, private_node_, "scarf", config_path_,
+                                    br::ScarfRolloutTask::names().size(), "scarf_learner", workers);
+    if (evaluator && reweighted) {
+      throw std::invalid_argument(
+          "~torque_weight is not for rollout workers: they read the learning file, set it there");
+    }
+    parameters_.warnUnknown();
+    task_ = std::make_unique<br::ScarfRolloutTask>(config_.task);
+    if (!evaluator) {
+      evaluator = std::make_unique<br::ParallelEvaluator>(
+          [this] { return std::make_unique<br::ScarfRolloutTask>(config_.task); }, l.jobs);
+    }
+    scene_publisher_ = private_node_.advertise<visualization_msgs::MarkerArray>("scene", 1, true);
+    scarf_publisher_ = private_node_.advertise<visualization_msgs::Marker>("scarf", 1, true);
+    path_publisher_ = private_node_.advertise<visualization_msgs::MarkerArray>("tool_paths", 1, true);
+    camera_ = bs::ros_layer::RgbdPublisher(private_node_, true);
+    joint_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10, true);
+    publishScene();
+
+    br::DmpLearningObserver observer;
+    observer.rollout = [this](const br::DmpRolloutRecord& record, br::RolloutTask* task) { onRollout(record, task); };
+    observer.epoch = [this](const br::DmpEpochStats& s) { onEpoch(s); };
+    observer.robot_fault = [](const br::DmpRolloutRecord& r, int attempt, const std::string& reason, bool retry) {
+      ROS_WARN("scarf_learner: %s run %d epoch %d rollout %d failed on the robot (attempt %d): %s%s",
+               r.algorithm.c_str(), r.run, r.epoch, r.index, attempt, reason.c_str(),
+               retry ? "; running it again" : "");
+    };
+    observer.stop = [] { return !ros::ok(); };
+    learner_ =
+        std::make_unique<br::DmpLearner>(br::scarfTaskModel(task_->task()), l, out_, std::move(evaluator), observer);
+  }
+
+  void run() {
+    const br::DmpLearningConfig& l = config_.learning;
+    std::printf(
+        "scarf_learner: %zu algorithm(s) x %d run(s) x %d updates x %d rollouts, seed %u, d_ref %.1f px, "
+        "torque weight %g, into %s\n",
+        l.algorithms.size(), l.runs, l.updates, l.rollouts, l.seed, task_->task().config().camera.d_ref,
+        config_.task.torque_weight, out_.c_str());
+    std::fflush(stdout);
+    const br::DmpLearningResult result = learner_->learn();
+    std::printf("scarf_learner: %d rollouts run, %d taken from %s, %d robot faults, %.0f s\n", result.ran,
+                result.resumed, out_.c_str(), result.robot_faults, result.seconds);
+    writeSummary(result);
+    const br::DmpRolloutRecord* best = writePictures(result);
+    if (replay_best_ && best != nullptr) replay(*best);
+  }
+
+ private:
+  void publishScene() {
+    visualization_msgs::MarkerArray scene;
+    const std::vector<bs::sim::Obstacle>& obstacles = task_->task().simConfig().obstacles;
+    for (std::size_t k = 0; k < obstacles.size(); ++k) {
+      scene.markers.push_back(bs::nodes::obstacleMarker(obstacles[k], static_cast<int>(k), ros::Time()));
+    }
+    scene_publisher_.publish(scene);
+    const bs::vision::PinholeCamera& camera = task_->task().camera();
+    broadcaster_.sendTransform(bs::ros_layer::cameraTransform(camera, "world", kCameraFrame, ros::Time(0)));
+  }
+
+  void onRollout(const br::DmpRolloutRecord& record, br::RolloutTask* task) {
+    if (record.result.trajectory.rows() == 3 && record.result.trajectory.cols() > 1) {
+      paths_.push_back({record.result.reward, record.result.trajectory});
+      if (paths_.size() > kPathsShown) paths_.erase(paths_.begin());
+      publishPaths();
+    }
+    const auto* scarf = dynamic_cast<br::ScarfRolloutTask*>(task);
+    if (scarf == nullptr) return;
+    const bt::ScarfRollout& r = scarf->lastRollout();
+    if (r.cloth_vertices.cols() > 0) {
+      scarf_publisher_.publish(bs::nodes::clothMarker(r.cloth_vertices, task_->task().scarfTriangles(), ros::Time()));
+    }
+    if (r.joint_path.cols() > 0) publishJoints(r.joint_path.col(r.joint_path.cols() - 1));
+    if (!r.bgr.empty()) {
+      std_msgs::Header header;
+      header.stamp = ros::Time::now();
+      header.frame_id = kCameraFrame;
+      const cv::Mat depth(r.bgr.rows, r.bgr.cols, CV_32FC1, cv::Scalar(std::numeric_limits<float>::quiet_NaN()));
+      camera_.publish(
+          bs::ros_layer::RgbdFrame(header, r.bgr, depth, bs::ros_layer::cameraInfo(task_->task().camera(), header)));
+    }
+  }
+
+  /// The holding arm at `q`, the others at their start.
+  void publishJoints(const Eigen::VectorXd& q) {
+    const bt::ScarfTask& task = task_->task();
+    sensor_msgs::JointState state;
+    state.header.stamp = ros::Time::now();
+    for (std::size_t a = 0; a < task.jointNames().size(); ++a) {
+      const Eigen::VectorXd& position = static_cast<int>(a) == task.arm() ? q : task.starts()[a];
+      for (std::size_t j = 0; j < task.jointNames()[a].size(); ++j) {
+        state.name.push_back(task.jointNames()[a][j]);
+        state.position.push_back(position[static_cast<Eigen::Index>(j)]);
+      }
+    }
+    joint_publisher_.publish(state);
+  }
+
+  /// The best final policy again with the scarf recorded at 10 Hz, played on the topics until shut down.
+  void replay(const br::DmpRolloutRecord& best) {
+    bt::ScarfTaskConfig config = config_.task;
+    config.cloth_rate = 10.0;
+    bt::ScarfTask task(config);
+    const bt::ScarfRollout r = task.run(best.coordination, best.weights, best.seed);
+    if (r.cloth_frames.empty() || r.path_times.size() == 0) return;
+    std::printf("scarf_learner: replaying %s run %d's final policy (cost %.3f) until shut down\n",
+                best.algorithm.c_str(), best.run, r.cost);
+    std::fflush(stdout);
+    ros::WallRate rate(10.0);
+    while (ros::ok()) {
+      for (std::size_t k = 0; k < r.cloth_frames.size() && ros::ok(); ++k) {
+        const double t = r.cloth_times[static_cast<Eigen::Index>(k)];
+        Eigen::Index sample = 0;
+        while (sample + 1 < r.path_times.size() && r.path_times[sample + 1] <= t) ++sample;
+        publishJoints(r.joint_path.col(sample));
+        scarf_publisher_.publish(bs::nodes::clothMarker(r.cloth_frames[k], task.scarfTriangles(), ros::Time()));
+        rate.sleep();
+      }
+      ros::WallDuration(1.0).sleep();
+    }
+  }
+
+  void publishPaths() {
+    visualization_msgs::MarkerArray array;
+    double best = -std::numeric_limits<double>::infinity(), worst = std::numeric_limits<double>::infinity();
+    for (const auto& [reward, path] : paths_) {
+      best = std::max(best, reward);
+      worst = std::min(worst, reward);
+    }
+    for (std::size_t k = 0; k < paths_.size(); ++k) {
+      visualization_msgs::Marker m =
+          bs::nodes::pathMarker("tool_paths", static_cast<int>(k), paths_[k].second, 0.004, ros::Time());
+      const double good = best > worst ? (paths_[k].first - worst) / (best - worst) : 1.0;
+      m.color.r = static_cast<float>(1.0 - good);
+      m.color.g = static_cast<float>(good);
+      m.color.a = 0.8f;
+      array.markers.push_back(m);
+    }
+    path_publisher_.publish(array);
+  }
+
+  void onEpoch(const br::DmpEpochStats& s) {
+    const br::DmpLearningConfig& l = config_.learning;
+    std::printf(
+        "scarf_learner: %s run %d/%d epoch %d/%d: noise-free policy cost %.3f%s%s; rollouts %.3f +- %.3f, "
+        "%d/%d wound and hanging right, %d failed\n",
+        s.algorithm.c_str(), s.run + 1, l.runs, s.epoch, l.updates, -s.policy_reward,
+        s.policy_failed ? " (failed)" : "", s.policy_success ? " (wound, hanging right)" : "", -s.mean_reward,
+        s.std_reward, s.successes, l.rollouts, s.failures);
+    std::fflush(stdout);
+  }
+
+  void writeSummary(const br::DmpLearningResult& result) const {
+    const std::vector<std::string> terms = br::ScarfRolloutTask::names();
+    std::vector<bs::io::JsonRow> rows;
+    for (const br::DmpRunResult& run : result.runs) {
+      for (const br::DmpEpochStats& s : run.epochs) {
+        bs::io::JsonRow row;
+        row.add("algorithm", s.algorithm)
+            .add("run", s.run)
+            .add("epoch", s.epoch)
+            .add("policy_cost", -s.policy_reward)
+            .add("policy_success", s.policy_success)
+            .add("policy_failed", s.policy_failed)
+            .add("rollout_cost_mean", -s.mean_reward)
+            .add("rollout_cost_std", s.std_reward)
+            .add("rollout_successes", s.successes)
+            .add("rollout_failures", s.failures);
+        for (std::size_t t = 0; t < terms.size(); ++t) {
+          row.add("rollout_mean_" + terms[t], s.term_means[static_cast<Eigen::Index>(t)]);
+        }
+        rows.push_back(row);
+      }
+    }
+    bs::io::writeSummaryJson(out_ + "/summary.json", {"scarf_learner", "scarf", config_.learning.seed, false}, rows);
+  }
+
+  /// The demonstration's and every run's final policy again (the same rollouts: same policy, same seed), with the
+  /// scarf recorded for the filmstrip of the best.
+  const br::DmpRolloutRecord* writePictures(const br::DmpLearningResult& result) {
+    if (result.runs.empty()) return nullptr;
+    bt::ScarfTaskConfig pictures = config_.task;
+    pictures.cloth_rate = 1.0;
+    bt::ScarfTask task(pictures);
+    std::filesystem::create_directories(out_ + "/final_runs");
+    std::ofstream csv(out_ + "/camera.csv");
+    csv << "picture,algorithm,run,cost,d,d_ref,hanging,right_pixels,left_pixels,c_cam,nose_u,nose_v,success\n";
+    const auto shoot = [&](const br::DmpRolloutRecord& record, const std::string& name) {
+      const bt::ScarfRollout r = task.run(record.coordination, record.weights, record.seed);
+      if (!r.bgr.empty()) cv::imwrite(out_ + "/" + name, r.bgr);
+      csv << name << ',' << record.algorithm << ',' << record.run << ',' << r.cost << ',' << r.camera.d << ','
+          << task.config().camera.d_ref << ',' << r.camera.hanging << ',' << r.camera.right_pixels << ','
+          << r.camera.left_pixels << ',' << r.camera.c_cam << ',' << r.camera.nose_u << ',' << r.camera.nose_v << ','
+          << (r.truth.success ? 1 : 0) << '\n';
+      return r;
+    };
+    shoot(result.runs.front().initial_policy, "initial.png");
+    const br::DmpRunResult* best = nullptr;
+    for (const br::DmpRunResult& run : result.runs) {
+      shoot(run.final_policy,
+            "final_runs/" + bs::nodes::fileName(run.algorithm) + "_run_" + std::to_string(run.run) + ".png");
+      if (best == nullptr || run.final_policy.result.reward > best->final_policy.result.reward) best = &run;
+    }
+    // The best final policy's filmstrip (Fig. 4.9): the camera's view every second, cropped to the mannequin.
+    const bt::ScarfRollout film =
+        task.run(best->final_policy.coordination, best->final_policy.weights, best->final_policy.seed);
+    std::vector<cv::Mat> frames;
+    for (const Eigen::Matrix3Xd& vertices : film.cloth_frames) {
+      cv::Mat frame = task.cameraImage(vertices);
+      cv::putText(frame, "t = " + std::to_string(static_cast<int>(frames.size())) + " s", cv::Point(12, 30),
+                  cv::FONT_HERSHEY_SIMPLEX, 0.8, cv::Scalar(255, 255, 255), 2);
+      cv::Mat half;
+      cv::resize(frame, half, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
+      frames.push_back(half);
+    }
+    if (!frames.empty()) {
+      const std::size_t columns = 6;
+      while (frames.size() % columns != 0) frames.push_back(cv::Mat::zeros(frames.front().size(), CV_8UC3));
+      std::vector<cv::Mat> rows;
+      for (std::size_t k = 0; k < frames.size(); k += columns) {
+        cv::Mat row;
+        cv::hconcat(std::vector<cv::Mat>(frames.begin() + static_cast<long>(k),
+                                         frames.begin() + static_cast<long>(k + columns)),
+                    row);
+        rows.push_back(row);
+      }
+      cv::Mat strip;
+      cv::vconcat(rows, strip);
+      cv::imwrite(out_ + "/filmstrip.png", strip);
+    }
+    std::printf("scarf_learner: pictures in %s (initial.png, final_runs/, filmstrip.png of %s run %d, camera.csv)\n",
+                out_.c_str(), best->algorithm.c_str(), best->run);
+    return &best->final_policy;
+  }
+
+  ros::NodeHandle node_, private_node_;
+  bs::ros_layer::ParameterReader parameters_;
+  std::string config_path_, out_;
+  bool replay_best_ = false;
+  br::ScarfLearningConfig config_;
+  std::unique_ptr<br::ScarfRolloutTask> task_;
+  std::unique_ptr<br::DmpLearner> learner_;
+  ros::Publisher scene_publisher_, scarf_publisher_, path_publisher_, joint_publisher_;
+  bs::ros_layer::RgbdPublisher camera_;
+  tf2_ros::StaticTransformBroadcaster broadcaster_;
+  std::vector<std::pair<double, Eigen::Matrix3Xd>> paths_;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bs::nodes::handleCommandLine(argc, argv, kUsage);
+  ros::init(argc, argv, "scarf_learner");
+  const ros::NodeHandle keep_alive;
+  try {
+    ScarfLearnerNode node;
+    node.run();
+  } catch (const std::exception& e) {
+    if (!ros::ok() && std::string(e.what()) == "stopped") {
+      ROS_WARN("scarf_learner: stopped; the finished rollouts are on disk, run again to resume");
+      return 0;
+    }
+    ROS_FATAL("scarf_learner: %s", e.what());
+    return 1;
+  }
+  return 0;
+}
