@@ -55,8 +55,8 @@ void useArm(const std::string& name);
 std::string& armName();
 
 /// What the controllers know of the arm: the simulation's rigid-body model with the data-sheet reflected rotor
-/// inertias (no friction: that is identified). The plant file's rotor inertias stand for the data sheet's: for the
-/// WAM they are those of shared/reference/wam.md.
+/// inertias (no friction: that is identified). The robot file's plant's rotor inertias stand for the data sheet's
+/// (for the WAM those of shared/reference/wam.md), whatever plant --plant gives the simulation.
 kinematics::ChainModel controllerModel(const sim::BimanualSimulation& simulation);
 
 /// Computed-torque gains of the low-gain (compliant) controller of Sec. 4.2: the robot file's (the WAM's are about a

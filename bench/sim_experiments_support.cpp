@@ -107,8 +107,11 @@ sim::SimConfig oneArmConfig(const ExperimentOptions& options) {
 }
 
 kinematics::ChainModel controllerModel(const sim::BimanualSimulation& simulation) {
-  const sim::SimConfig& config = simulation.config();
-  const Eigen::VectorXd& rotor = config.plant.arm(config.arms.front().name).rotor_inertia;
+  // The robot's own plant file stands for the data sheet, also when --plant gives the simulation another plant (a
+  // diagnosis changes the arm, not what its controllers know of it).
+  const sim::SimConfig robot =
+      sim::SimConfig::fromYamlFile(bimanual_skills::cli::packageFile("config/sim.yaml"), robotFile());
+  const Eigen::VectorXd& rotor = robot.plant.arm(simulation.config().arms.front().name).rotor_inertia;
   const int n = simulation.armModel(0).nq();
   return simulation.armModel(0).withRotorInertia(rotor.size() == n ? rotor : Eigen::VectorXd::Zero(n));
 }
