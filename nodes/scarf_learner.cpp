@@ -297,17 +297,17 @@ class ScarfLearnerNode {
             "final_runs/" + bs::nodes::fileName(run.algorithm) + "_run_" + std::to_string(run.run) + ".png");
       if (best == nullptr || run.final_policy.result.reward > best->final_policy.result.reward) best = &run;
     }
-    // The best final policy's filmstrip (Fig. 4.9): the camera's view every second, cropped to the mannequin.
+    // The best final policy's filmstrip (Fig. 4.9): the camera's view every second, cut to the mannequin and scarf
+    // (the image's middle half across, the lower five sixths).
     const bt::ScarfRollout film =
         task.run(best->final_policy.coordination, best->final_policy.weights, best->final_policy.seed);
     std::vector<cv::Mat> frames;
     for (const Eigen::Matrix3Xd& vertices : film.cloth_frames) {
-      cv::Mat frame = task.cameraImage(vertices);
-      cv::putText(frame, "t = " + std::to_string(static_cast<int>(frames.size())) + " s", cv::Point(12, 30),
-                  cv::FONT_HERSHEY_SIMPLEX, 0.8, cv::Scalar(255, 255, 255), 2);
-      cv::Mat half;
-      cv::resize(frame, half, cv::Size(), 0.5, 0.5, cv::INTER_AREA);
-      frames.push_back(half);
+      const cv::Mat image = task.cameraImage(vertices);
+      cv::Mat frame = image(cv::Rect(image.cols / 4, image.rows / 6, image.cols / 2, image.rows * 5 / 6)).clone();
+      cv::putText(frame, "t = " + std::to_string(static_cast<int>(frames.size())) + " s", cv::Point(10, 28),
+                  cv::FONT_HERSHEY_SIMPLEX, 0.7, cv::Scalar(255, 255, 255), 2);
+      frames.push_back(frame);
     }
     if (!frames.empty()) {
       const std::size_t columns = 6;
