@@ -477,9 +477,10 @@ TEST(TaskRegistry, BuildsTheTasksByNameAndRefusesUnknownOnes) {
     br::makeRolloutTask("juggle", "");
     FAIL() << "expected an error";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("unknown rollout task 'juggle' (known: fold, quadratic, bottles, circle, "
-                                         "planar_viapoint, viapoint, multimodal)"),
-              std::string::npos)
+    EXPECT_NE(
+        std::string(e.what()).find("unknown rollout task 'juggle' (known: fold, scarf, quadratic, bottles, circle, "
+                                   "planar_viapoint, viapoint, multimodal)"),
+        std::string::npos)
         << e.what();
   }
   EXPECT_THROW(br::makeRolloutTask("fold", ""), std::invalid_argument);

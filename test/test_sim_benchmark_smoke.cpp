@@ -179,7 +179,8 @@ TEST(SimBenchmarkSmoke, HelpAndBadArguments) {
   const int status = std::system((program + " --help > " + help.string() + " 2>/dev/null").c_str());
   ASSERT_TRUE(WIFEXITED(status));
   EXPECT_EQ(WEXITSTATUS(status), 0);
-  EXPECT_NE(readTextFile(help).find("usage: sim_benchmark --experiment speed|friction|payload|fold_rollout|all"),
+  EXPECT_NE(readTextFile(help).find(
+                "usage: sim_benchmark --experiment speed|friction|payload|fold_rollout|scarf_rollout|all"),
             std::string::npos);
   EXPECT_EQ(runQuietly(program + " --experiment nope --seed 1 --out /tmp/x"), 2);
   EXPECT_EQ(runQuietly(program + " --experiment speed --seed -4 --out /tmp/x"), 2);

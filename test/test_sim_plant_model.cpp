@@ -358,7 +358,7 @@ TEST(SimConfigFiles, ObstaclesComeFromAListOrAFileAndBadOnesAreNamed) {
   EXPECT_EQ(head.name, "head");
   EXPECT_EQ(head.shape, bs::sim::Obstacle::Shape::Sphere);
   EXPECT_EQ(head.size, Eigen::Vector3d(0.09, 0.0, 0.0));
-  EXPECT_EQ(head.pose.translation(), Eigen::Vector3d(0.75, 0.4, 0.7));
+  EXPECT_EQ(head.pose.translation(), Eigen::Vector3d(0.5, 0.4, 0.525));
   EXPECT_FALSE(scarf.obstacles[5].collides);  // the nose mark
   EXPECT_FALSE(scarf.has_table);
   EXPECT_TRUE(SimConfig::fromYamlFile(kConfig + "/sim.yaml").obstacles.empty());
