@@ -77,7 +77,7 @@ class SimFixture : public ::testing::Test {
       wrenches_[arm] = node_.subscribe<geometry_msgs::WrenchStamped>(
           "/" + arm + "/estimated_wrench", 1000, [this, arm](const geometry_msgs::WrenchStamped::ConstPtr& m) {
             const std::lock_guard<std::mutex> lock(mutex_);
-            force_z_[arm].push_back(m->wrench.force.z);
+            force_z_[arm].emplace_back(m->header.stamp.toSec(), m->wrench.force.z);
           });
       commands_[arm] = node_.advertise<trajectory_msgs::JointTrajectory>("/" + arm + "/command", 1, true);
       clients_[arm] = std::make_unique<Client>(node_, "/" + arm + "/follow_joint_trajectory", false);
@@ -152,10 +152,18 @@ class SimFixture : public ::testing::Test {
     return done();
   }
 
-  /// Waits for `seconds` of simulated time (at most 30× that in wall time).
-  static void waitSim(double seconds) {
+  /// Waits for `seconds` of simulated time (at most 30× that in wall time); a clock that does not get there is a
+  /// failure that says where the simulated clock and this process' callbacks stood.
+  void waitSim(double seconds) {
     const ros::Time end = ros::Time::now() + ros::Duration(seconds);
-    waitWall([&] { return ros::Time::now() >= end; }, 30.0 * seconds + 10.0);
+    if (waitWall([&] { return ros::Time::now() >= end; }, 30.0 * seconds + 10.0)) return;
+    const std::lock_guard<std::mutex> lock(mutex_);
+    const double now = bimanual_skills::realtime::monotonicSeconds();
+    ADD_FAILURE() << "the simulated clock did not reach " << end.toSec() << " s: this process' clock stands at "
+                  << ros::Time::now().toSec() << " s; the last /clock message ("
+                  << (clock_samples_.empty() ? -1.0 : clock_samples_.back().second) << " s) came "
+                  << (clock_samples_.empty() ? -1.0 : now - clock_samples_.back().first)
+                  << " s of wall time ago; the last joint state is stamped " << last_stamp_ << " s";
   }
 
   std::vector<double> armPositions(const std::string& arm) {
@@ -187,10 +195,10 @@ class SimFixture : public ::testing::Test {
     return {clients_[arm]->getState(), result ? *result : Result()};
   }
 
-  /// A swing of the left arm's joints 1, 2 and 4 (a 4 s period) for 6 s from q0, as one trajectory.
+  /// A swing of the left arm's joints 1, 2 and 4 (a 4 s period) for 10 s from q0, as one trajectory.
   static trajectory_msgs::JointTrajectory swing(const std::vector<double>& q0) {
     std::vector<std::vector<double>> points;
-    for (int p = 1; p <= 60; ++p) {
+    for (int p = 1; p <= 100; ++p) {
       std::vector<double> q = q0;
       const double phase = std::sin(2.0 * M_PI * 0.1 * p / 4.0);
       q[0] += 0.3 * phase;
@@ -201,26 +209,31 @@ class SimFixture : public ::testing::Test {
     return trajectory("left", points, 0.1);
   }
 
-  /// Mean vertical force the left controller estimates over [2, 6] s of a swing.
+  /// Mean vertical force the left controller estimates over [2, 10] s of a swing (two periods), by the estimates'
+  /// stamps (the robot's clock: however late this process takes them).
   double meanForceWhileSwinging() {
     const std::vector<double> q0 = armPositions("left");
+    const double start = ros::Time::now().toSec();
     commands_["left"].publish(swing(q0));
-    waitSim(2.0);
-    {
-      const std::lock_guard<std::mutex> lock(mutex_);
-      force_z_["left"].clear();
-    }
-    waitSim(4.0);
-    std::vector<double> forces;
-    {
-      const std::lock_guard<std::mutex> lock(mutex_);
-      forces = force_z_["left"];
-    }
-    waitSim(0.5);
-    EXPECT_GT(forces.size(), 20u);  // at publish_rate (100 Hz) of wall time
+    const bool swung = waitWall(
+        [&] {
+          const std::lock_guard<std::mutex> lock(mutex_);
+          return !force_z_["left"].empty() && force_z_["left"].back().first >= start + 10.5;
+        },
+        30.0 * 10.5 + 10.0);
+    EXPECT_TRUE(swung) << "no estimated wrench stamped 10.5 s after the swing's start (" << start << " s)";
     double sum = 0.0;
-    for (double f : forces) sum += f;
-    return forces.empty() ? std::nan("") : sum / static_cast<double>(forces.size());
+    std::size_t count = 0;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      for (const auto& [stamp, force] : force_z_["left"]) {
+        if (stamp < start + 2.0 || stamp > start + 10.0) continue;
+        sum += force;
+        ++count;
+      }
+    }
+    EXPECT_GT(count, 400u);  // publish_rate (100 Hz) of the robot's clock over 8 s
+    return count == 0 ? std::nan("") : sum / static_cast<double>(count);
   }
 
   bool setPayload(double mass) {
@@ -330,7 +343,7 @@ class SimFixture : public ::testing::Test {
   std::mutex mutex_;
   std::map<std::string, double> positions_, max_error_;
   std::map<std::string, long> controller_state_count_;
-  std::map<std::string, std::vector<double>> force_z_;
+  std::map<std::string, std::vector<std::pair<double, double>>> force_z_;  ///< (stamp [s], force z [N])
   std::map<std::string, std::map<std::string, std::string>> diagnostics_values_;
   std::vector<std::pair<double, double>> clock_samples_;  ///< (wall, simulated) seconds
   double last_stamp_ = -1.0;
