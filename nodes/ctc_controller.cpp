@@ -57,7 +57,8 @@ const std::string kUsage =
     "(geometry_msgs/WrenchStamped, base frame), tool_paths (visualization_msgs/MarkerArray), /diagnostics.\n";
 
 /// [s] A state stamped this much before the last one is a reset (the clock may not have followed yet), not a
-/// reordered message.
+/// reordered message. So is one stamped at a timeline's start (t = 0: a simulation reset less than this after its own
+/// start; a robot's stamps are wall-clock times).
 constexpr double kResetJump = 1.0;
 
 class CtcControllerNode {
@@ -161,9 +162,9 @@ class CtcControllerNode {
     const double stamp = message.header.stamp.toSec();
     double now = ros::Time::now().toSec();
     // A stamp that does not advance is a duplicate or a reordered message, unless the clock went back too or the
-    // stamps jumped back by more than kResetJump (a simulation reset), which the controller restarts on.
+    // stamps jumped back by more than kResetJump or to t = 0 (a simulation reset), which the controller restarts on.
     const bool back = has_stamp_ && stamp <= last_stamp_ && now >= last_stamp_;
-    if (back && last_stamp_ - stamp <= kResetJump) {
+    if (back && last_stamp_ - stamp <= kResetJump && !(stamp <= 0.0 && last_stamp_ > 0.0)) {
       ++(stamp == last_stamp_ ? duplicates_ : reordered_);
       return;
     }
