@@ -1,0 +1,218 @@
+/// \file
+/// What a rollout on a robot needs of its ROS interfaces, whatever the task: each arm's FollowJointTrajectory action
+/// and controller state, the scene's reset (a std_srvs/Trigger), the grippers (bimanual_skills/ClothGrasp, stamped
+/// commands kept by the gripper's loop), a simulator's pause and step, the camera's colour, depth and CameraInfo, and
+/// optionally the cloth's ground truth (sensor_msgs/PointCloud2). Every wait has a wall-clock limit, service calls
+/// included (callWithin); a wait for the robot's motion counts it from the robot clock's last step. A step that fails
+/// throws RobotFault with its outcome and the reason. Messages across a reset count as the reset scene's only once
+/// they are of it (a simulator's clock goes back, a robot's goes on), however late this process reads them.
+/// Used by FoldOnRobotTask and ScarfOnRobotTask. Target bimanual_skills_ros_robot. Offline: allocates; one object per
+/// thread of rollouts.
+#pragma once
+
+#include "bimanual_skills/FollowJointTrajectoryAction.h"
+#include "bimanual_skills/JointTrajectoryControllerState.h"
+#include "bimanual_skills/ros_layer/bounded_call.hpp"
+#include "bimanual_skills/tasks/cloth_fold.hpp"
+
+#include <actionlib/client/simple_action_client.h>
+#include <ros/callback_queue.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <tf2_ros/buffer.h>
+#include <tf2_ros/transform_listener.h>
+#include <Eigen/Core>
+
+#include <functional>
+#include <limits>
+#include <memory>
+#include <mutex>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace bimanual_skills::ros_layer {
+
+/// A failed step of a rollout on the robot: how it ended and why.
+struct RobotFault {
+  tasks::FoldOutcome outcome;
+  std::string reason;
+};
+
+/// Where the robot's interfaces are and how long a rollout may wait for them (the learners' ~ros_* parameters).
+struct RobotInterfaces {
+  std::string reset_service = "bullet_sim/reset";  ///< std_srvs/Trigger
+  std::string grasp_service = "bullet_sim/grasp";  ///< bimanual_skills/ClothGrasp
+  /// std_srvs/SetBool pausing a simulator's clock while a rollout's goals travel; "" on a robot (its clock is the
+  /// wall's, and start_delay is their time on the way).
+  std::string pause_service = "bullet_sim/pause";
+  /// bimanual_skills/SimStep of a simulator: with the pause service, the rollout runs as one ~step from its start to
+  /// its images, so that the images and the cloth observed are of that moment exactly, however late this process
+  /// reads them; "" on a robot (or to let the simulator run free).
+  std::string step_service = "bullet_sim/step";
+  std::vector<std::string> arms = {"left", "right"};  ///< Namespaces of the arms' actions and states, left first.
+  std::string camera = "camera";           ///< CAMERA/image_raw, CAMERA/camera_info, CAMERA/depth/image_raw, ...
+  std::string cloth = "bullet_sim/cloth";  ///< Ground truth of the cloth; "" when the robot has none.
+  /// Parameter where a simulator gives the digest of its world (sim::SimConfig::worldDigest): the task refuses to
+  /// start when it differs from the learning's simulation file. Absent (a real robot) or "": not checked.
+  std::string world_digest = "bullet_sim/world_digest";
+  /// Longest wall-clock wait for any one interface [s], service calls included; a wait for the robot's motion counts
+  /// it from the robot clock's last step (a 0.1x simulator or a long motion on hardware does not time out).
+  double timeout = 30.0;
+  /// Longest wall-clock wait for the reset service [s]: the one deliberately longer wait, since on hardware a person
+  /// sets the scene: longer than operator_prompt's ~timeout (600 s), so that its refusal comes across.
+  double reset_timeout = 660.0;
+
+  /// \throws std::invalid_argument naming the field that is out of range, after `what` ("fold on the robot").
+  void validate(const std::string& what) const;
+};
+
+class RobotConnection {
+ public:
+  using Client = actionlib::SimpleActionClient<bimanual_skills::FollowJointTrajectoryAction>;
+  /// A colour and a depth image of one stamp of the scene since the last reset, as they come (on the spinner).
+  using FrameHandler =
+      std::function<void(const sensor_msgs::ImageConstPtr& colour, const sensor_msgs::ImageConstPtr& depth)>;
+  /// A cloth cloud of the scene since the last reset, as it comes (on the spinner).
+  using ClothHandler = std::function<void(const sensor_msgs::PointCloud2ConstPtr& cloud)>;
+
+  /// One arm's action and the states its controller reported.
+  struct Arm {
+    std::string name;
+    std::vector<std::string> joints;
+    std::unique_ptr<Client> client;
+  };
+  /// The latest camera messages (and the cloth's cloud) of one moment.
+  struct Frame {
+    sensor_msgs::ImageConstPtr image, depth;
+    sensor_msgs::CameraInfoConstPtr info;
+    sensor_msgs::PointCloud2ConstPtr cloth;
+  };
+  /// The states recorded since record(true): per arm their stamps, positions, and the largest tracking error.
+  struct Recorded {
+    std::vector<std::vector<double>> times;
+    std::vector<std::vector<Eigen::VectorXd>> positions;
+    double max_error = 0.0;
+    /// The indices of the samples every arm has (their states share the controllers' stamps), thinned to about
+    /// `rate` per second of their stamps.
+    std::vector<std::size_t> every(double rate) const;
+  };
+
+  /// Subscribes, waits up to `robot.timeout` for the pause service (if one is named) and the camera's first
+  /// CameraInfo, and checks the simulator's world against `sim_config` on `robot_file`; the arms' actions come with
+  /// connectArms(). `joints[a]` are arm a's joint names. \throws std::runtime_error with the reason (after `what`).
+  RobotConnection(const RobotInterfaces& robot, std::vector<std::vector<std::string>> joints, const std::string& what,
+                  const std::string& sim_config, const std::string& robot_file, FrameHandler on_frame,
+                  ClothHandler on_cloth);
+  ~RobotConnection();
+  RobotConnection(const RobotConnection&) = delete;
+  RobotConnection& operator=(const RobotConnection&) = delete;
+
+  ros::NodeHandle& node() { return *node_; }
+  tf2_ros::Buffer& tf() { return tf_; }
+  const RobotInterfaces& interfaces() const noexcept { return robot_; }
+  std::size_t arms() const noexcept { return arms_.size(); }
+  Arm& arm(std::size_t a) { return *arms_[a]; }
+  /// The camera's first CameraInfo (from the constructor).
+  const sensor_msgs::CameraInfo& firstCameraInfo() const { return *first_info_; }
+
+  /// Polls `done` for at most the timeout of wall time; with `while_clock_runs` (a wait for the robot's motion) the
+  /// limit counts from the robot clock's last step instead. Throws RobotFault (RobotFailed) naming `what`.
+  void waitFor(const std::function<bool()>& done, const std::string& what, bool while_clock_runs = false);
+  /// Calls `service` (a service's name) within `timeout`; throws RobotFault (RobotFailed) naming `what` when there
+  /// is no server, the call fails or no answer comes in time. The response's own success is the caller's to check.
+  template <typename Service>
+  void call(const std::string& service, Service& request, double timeout, const std::string& what) {
+    ros::ServiceClient client = node_->serviceClient<Service>(service);
+    const CallOutcome outcome = callWithin(client, request, timeout);
+    if (outcome == CallOutcome::Answered) return;
+    std::ostringstream message;
+    message << what << " (" << client.getService() << "): " << describe(outcome);
+    if (outcome != CallOutcome::Failed) message << " within " << timeout << " s";
+    throw RobotFault{tasks::FoldOutcome::RobotFailed, message.str()};
+  }
+
+  /// New action clients for the arms, and the wait for their servers.
+  void connectArms();
+  /// Resets the scene and waits for the arms' states of it; returns the robot's time of the reset scene's third
+  /// state.
+  ros::Time reset();
+  /// Closes or opens arm a's gripper now (GraspFailed when closing grasps nothing).
+  void grasp(std::size_t a, bool close);
+  /// Asks arm a's gripper to open at `release` of the robot's clock; throws when the service does it at another time.
+  void scheduleRelease(std::size_t a, const ros::Time& release);
+  /// Pauses or resumes the simulator's clock (pause_service); pausing waits until the clock here has reached the
+  /// paused time.
+  void pause(bool paused);
+  bool paused() const noexcept { return paused_; }
+  double pausedAt() const noexcept { return paused_at_; }
+  /// After a failed rollout: resumes a simulator this object paused, if it is still there, without waiting for it.
+  void resumeAfterFailure() noexcept;
+  /// Steps a paused simulator to `until` [s of its clock] at `dt` per step; throws with the reason.
+  void stepUntil(double until, double dt, const std::string& what);
+  void waitUntil(const ros::Time& time, const std::string& what);
+  /// Waits for arm a's goal to end: RobotFailed when its server goes, ControllerFailed when it does not succeed.
+  void waitForGoal(std::size_t a, const std::string& what);
+  /// Whether arm a's server went or its goal ended other than SUCCEEDED; whether its controller answered the goal.
+  bool goalFailed(std::size_t a) const;
+  bool goalAnswered(std::size_t a) const;
+  /// Cancels every arm's goal.
+  void cancelGoals();
+  /// Every arm's last measured positions; throws before any state came.
+  std::vector<Eigen::VectorXd> measuredPositions();
+  /// Moves the arms to `targets` in `time` [s] and waits at most `time + timeout` of wall time (the recovery after
+  /// a failure, on a robot that may be down): whether every arm got there. Throws when an arm is gone.
+  bool moveWithin(const std::vector<Eigen::VectorXd>& targets, double time, double timeout);
+  /// Opens every gripper within `timeout` each; says how it went ("left's gripper opened, ...").
+  std::string openGrippers(double timeout) noexcept;
+
+  /// Starts (clearing what was recorded) or stops recording the arms' states.
+  void record(bool on);
+  Recorded recorded();
+  /// The camera's colour, depth and CameraInfo of one moment (within 20 ms), and the cloth's cloud if
+  /// `with_cloth` and the robot has one, stamped at `after` or later and not ahead of this process' clock.
+  Frame frame(const ros::Time& after, bool with_cloth);
+
+  /// The shortest time (at least `shortest`) to move between configurations as rest-to-rest quintics within half
+  /// the joints' velocity limits `limits[a]` [s].
+  static double moveTime(const std::vector<Eigen::VectorXd>& from, const std::vector<Eigen::VectorXd>& to,
+                         const std::vector<Eigen::VectorXd>& limits, double shortest);
+
+  /// A camera or cloth message stamped further ahead of this process's clock [s] is of another timeline (a
+  /// simulator's, before its reset) and not used.
+  static constexpr double kAheadOfClock = 0.5;
+
+ private:
+  struct ArmState;
+  void checkWorld(const std::string& what, const std::string& sim_config, const std::string& robot_file) const;
+  /// Under mutex_: whether a camera or cloth message stamped `stamp` belongs to the scene since the last reset.
+  bool sceneCounts(double stamp);
+
+  RobotInterfaces robot_;
+  FrameHandler on_frame_;
+  ClothHandler on_cloth_;
+  ros::CallbackQueue queue_;
+  std::unique_ptr<ros::NodeHandle> node_;
+  std::unique_ptr<ros::AsyncSpinner> spinner_;
+  std::vector<std::unique_ptr<Arm>> arms_;
+  std::vector<std::unique_ptr<ArmState>> states_;
+  ros::Subscriber image_sub_, depth_sub_, info_sub_, cloth_sub_;
+  std::vector<ros::Subscriber> state_subs_;
+  std::mutex mutex_;  ///< Guards the latest messages and the arms' states (written by the spinner's threads).
+  sensor_msgs::ImageConstPtr image_, depth_;
+  sensor_msgs::CameraInfoConstPtr info_, first_info_;
+  sensor_msgs::PointCloud2ConstPtr cloth_;
+  /// The camera's and the cloth's messages across a reset (under mutex_), as the arms' states: the latest stamp seen,
+  /// and the window that does not count while a reset runs (see reset()); outside a reset everything counts.
+  double scene_last_stamp_ = -std::numeric_limits<double>::infinity();
+  double scene_before_reset_ = std::numeric_limits<double>::infinity();
+  double scene_reset_answered_ = std::numeric_limits<double>::infinity();
+  tf2_ros::Buffer tf_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
+  bool paused_ = false;     ///< Whether this object paused the simulator (and must resume it).
+  double paused_at_ = 0.0;  ///< The simulator's time when it last paused [s].
+};
+
+}  // namespace bimanual_skills::ros_layer
