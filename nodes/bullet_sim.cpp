@@ -100,7 +100,7 @@ const std::string kUsage =
     "  its stamp answers) for external controllers.\n"
     "  Each hosted controller serves ARM/command (trajectory_msgs/JointTrajectory), ARM/follow_joint_trajectory\n"
     "  (bimanual_skills/FollowJointTrajectory action), ARM/set_mode and publishes ARM/state, ARM/estimated_wrench,\n"
-    "  ARM/tool_paths.\n"
+    "  ARM/estimated_external_torque (sensor_msgs/JointState, effort: the observer's joint torques), ARM/tool_paths.\n"
     "Sets ~world_digest: sim::SimConfig::worldDigest of ~config (with its URDF and plant files).\n"
     "Services: ~reset (std_srvs/Trigger), ~pause (std_srvs/SetBool), ~step (bimanual_skills/SimStep, bounded),\n"
     "  ~set_payload, ~apply_wrench (bounded), ~grasp (bimanual_skills/ClothGrasp: fails when no cloth node is in\n"

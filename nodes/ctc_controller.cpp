@@ -54,7 +54,8 @@ const std::string kUsage =
     "Trajectory action) and set_mode (bimanual_skills/SetControlMode); publishes effort_command\n"
     "(bimanual_skills/JointEffortCommand, stamped with the joint state it answers), state "
     "(bimanual_skills/JointTrajectoryControllerState), estimated_wrench\n"
-    "(geometry_msgs/WrenchStamped, base frame), tool_paths (visualization_msgs/MarkerArray), /diagnostics.\n";
+    "(geometry_msgs/WrenchStamped, base frame), estimated_external_torque (sensor_msgs/JointState, effort: the\n"
+    "observer's joint torques), tool_paths (visualization_msgs/MarkerArray), /diagnostics.\n";
 
 /// [s] A state stamped this much before the last one is a reset (the clock may not have followed yet), not a
 /// reordered message. So is one stamped at a timeline's start (t = 0: a simulation reset less than this after its own

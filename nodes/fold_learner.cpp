@@ -305,14 +305,8 @@ class FoldLearnerNode {
   /// The rollouts on the robot through ROS, one at a time.
   std::unique_ptr<br::Evaluator> makeRobotBackend() {
     bs::ros_layer::FoldRobotInterfaces robot;
-    robot.reset_service = parameters_.text("reset_service", robot.reset_service);
-    robot.grasp_service = parameters_.text("grasp_service", robot.grasp_service);
-    robot.pause_service = parameters_.text("pause_service", robot.pause_service);
-    robot.step_service = parameters_.text("step_service", robot.step_service);
+    bs::nodes::readRobotInterfaces(parameters_, robot);
     robot.arms = parameters_.texts("arms", robot.arms);
-    robot.camera = parameters_.text("camera", robot.camera);
-    robot.cloth = parameters_.text("cloth_topic", robot.cloth);
-    robot.world_digest = parameters_.text("world_digest_param", robot.world_digest);
     robot.camera_model = parameters_.text("camera_model", robot.camera_model);
     robot.world_frame = parameters_.text("world_frame", robot.world_frame);
     robot.min_coverage = parameters_.number("min_coverage", robot.min_coverage, 0.0, 1.0);
@@ -320,8 +314,6 @@ class FoldLearnerNode {
     robot.approach_height = parameters_.number("approach_height", robot.approach_height, 0.0, 0.5);
     robot.trajectory_rate = parameters_.number("trajectory_rate", robot.trajectory_rate, 1.0, 1000.0);
     robot.start_delay = parameters_.number("start_delay", robot.start_delay, 0.0, 10.0);
-    robot.timeout = parameters_.number("robot_timeout", robot.timeout, 0.1, 3600.0);
-    robot.reset_timeout = parameters_.number("reset_timeout", robot.reset_timeout, 0.1, 86400.0);
     robot.validate();
     robot_backend_ = true;
     const br::FoldLearningConfig config = config_;

@@ -5,6 +5,7 @@
 
 #include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/ros_layer/robot/robot_connection.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 
 #include <ros/ros.h>
@@ -29,6 +30,20 @@ inline std::string fileName(std::string text) {
 /// the registry's `task` configured by `config` (a path valid on the workers' hosts); null when neither is set (the
 /// rollouts run on threads here). `where` is told where the workers are; `batch` hears each batch's statistics.
 /// \throws std::invalid_argument for bad parameters.
+/// The robot's interfaces a learner's ROS backend reads (~reset_service, ~grasp_service, ~pause_service,
+/// ~step_service, ~camera, ~cloth_topic, ~world_digest_param, ~robot_timeout, ~reset_timeout), its defaults kept.
+inline void readRobotInterfaces(ros_layer::ParameterReader& parameters, ros_layer::RobotInterfaces& robot) {
+  robot.reset_service = parameters.text("reset_service", robot.reset_service);
+  robot.grasp_service = parameters.text("grasp_service", robot.grasp_service);
+  robot.pause_service = parameters.text("pause_service", robot.pause_service);
+  robot.step_service = parameters.text("step_service", robot.step_service);
+  robot.camera = parameters.text("camera", robot.camera);
+  robot.cloth = parameters.text("cloth_topic", robot.cloth);
+  robot.world_digest = parameters.text("world_digest_param", robot.world_digest);
+  robot.timeout = parameters.number("robot_timeout", robot.timeout, 0.1, 3600.0);
+  robot.reset_timeout = parameters.number("reset_timeout", robot.reset_timeout, 0.1, 86400.0);
+}
+
 inline std::unique_ptr<rollout::Evaluator> workerDispatcher(
     ros_layer::ParameterReader& parameters, const ros::NodeHandle& private_node, const std::string& task,
     const std::string& config, std::size_t terms, const std::string& node, std::string& where,

@@ -5,6 +5,7 @@
 #include "bimanual_skills/rollout/scarf_learning.hpp"
 #include "bimanual_skills/ros_layer/camera_messages.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/ros_layer/robot/scarf_on_robot.hpp"
 #include "io/summary_json.hpp"
 #include "learner_shell.hpp"
 #include "node_cli.hpp"
@@ -35,7 +36,7 @@ namespace {
 const char* const kUsage =
     "usage: rosrun bimanual_skills scarf_learner [_config:=FILE] [_out:=DIR] [_jobs:=N] [_runs:=N] [_updates:=N]\n"
     "                                           [_rollouts:=N] [_seed:=S] [_torque_weight:=W]\n"
-    "                                           [_replay_best:=true|false]\n"
+    "                                           [_replay_best:=true|false] [_backend:=sim|ros [robot parameters]]\n"
     "                                           [_worker_namespace:=NS | _workers:=NAME,NAME,...] "
     "[_worker_timeout:=S]\n"
     "\n"
@@ -57,15 +58,32 @@ const char* const kUsage =
     "                (default false: exit when done)\n"
     "  ~worker_namespace, ~workers  run the rollouts on rollout workers (task scarf; they read ~config on their\n"
     "                host); ~worker_timeout [s] (default 60). Not with ~torque_weight (set it in the file)\n"
+    "  ~backend      sim (default): the rollouts run in this process's own simulation (or on rollout workers);\n"
+    "                ros: one at a time on a robot through its ROS interfaces only: bullet_sim's scarf scene\n"
+    "                (roslaunch bimanual_skills scarf.launch backend:=ros) or a real arm. Each rollout: "
+    "~reset_service\n"
+    "                (the arm at the start file's posture, the scarf in its tool), the policy as one\n"
+    "                ARM/follow_joint_trajectory goal, ~grasp_service opens the tool at the planned instant, the\n"
+    "                scarf settles; c_torque from ARM/estimated_external_torque (the arm's controller's observer),\n"
+    "                c_cam from ~camera's colour image (its CameraInfo and pose on tf must be the start file's\n"
+    "                camera). A failure is a failed rollout with its reason; a robot's is retried (robot_faults.csv).\n"
+    "  robot parameters (with ~backend ros): ~reset_service (default bullet_sim/reset), ~grasp_service\n"
+    "                (bullet_sim/grasp), ~pause_service, ~step_service (bullet_sim/pause, /step; \"\" on a robot),\n"
+    "                ~arm_namespace (left), ~camera (rgbd), ~cloth_topic (bullet_sim/cloth: the scarf's truth; \"\":\n"
+    "                none), ~world_digest_param, ~world_frame (world), ~trajectory_rate (100 Hz), ~start_delay\n"
+    "                (0.5 s), ~move_time (2 s), ~robot_timeout (30 s: every wait, service calls included),\n"
+    "                ~reset_timeout (660 s)\n"
     "\n"
     "Writes into DIR: rollouts.csv, rollout_parameters.csv (every rollout as it finishes), epochs.csv, "
     "robot_faults.csv,\n"
     "summary.json (one row per algorithm, run and epoch), camera.csv (the camera's measures of the pictures),\n"
     "initial.png (the demonstration's final camera image), final_runs/ALGORITHM_run_K.png (every run's final\n"
-    "policy), filmstrip.png (the best final policy, every second of the motion); plot with\n"
+    "policy), filmstrip.png (the best final policy, every second of the motion; not with _backend:=ros, whose\n"
+    "pictures are the robot camera's: robot_images/ALGORITHM_run_K_epoch_E.png of every noise-free policy); plot with\n"
     "scripts/plot_scarf_learning.py DIR (learning_curve.png, Fig. 4.8; camera_views.png, Fig. 4.7).\n"
     "\n"
-    "Topics: /joint_states (sensor_msgs/JointState: the last rollout's final pose, or the replay), ~scene\n"
+    "Topics: /joint_states (sensor_msgs/JointState: the last rollout's final pose, or the replay; not with\n"
+    "  _backend:=ros, whose robot publishes its own), ~scene\n"
     "  (visualization_msgs/MarkerArray: the mannequin), ~scarf (Marker TRIANGLE_LIST: the last\n"
     "  rollout's final scarf), ~tool_paths (MarkerArray: the last rollouts' tool paths, red = worst to green = best),\n"
     "  ~camera/image_raw with ~camera/camera_info (the last rollout's final colour image; frame scarf_camera on\n"
@@ -100,6 +118,10 @@ class ScarfLearnerNode {
       throw std::invalid_argument(
           "~torque_weight is not for rollout workers: they read the learning file, set it there");
     }
+    if (parameters_.text("backend", "sim", {"sim", "ros"}) == "ros") {
+      if (evaluator) throw std::invalid_argument("~backend ros runs the rollouts on the robot, not on workers");
+      evaluator = makeRobotBackend();
+    }
     parameters_.warnUnknown();
     task_ = std::make_unique<br::ScarfRolloutTask>(config_.task);
     if (!evaluator) {
@@ -110,7 +132,7 @@ class ScarfLearnerNode {
     scarf_publisher_ = private_node_.advertise<visualization_msgs::Marker>("scarf", 1, true);
     path_publisher_ = private_node_.advertise<visualization_msgs::MarkerArray>("tool_paths", 1, true);
     camera_ = bs::ros_layer::RgbdPublisher(private_node_, true);
-    joint_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10, true);
+    if (!robot_backend_) joint_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10, true);
     publishScene();
 
     br::DmpLearningObserver observer;
@@ -139,10 +161,26 @@ class ScarfLearnerNode {
                 result.resumed, out_.c_str(), result.robot_faults, result.seconds);
     writeSummary(result);
     const br::DmpRolloutRecord* best = writePictures(result);
-    if (replay_best_ && best != nullptr) replay(*best);
+    if (replay_best_ && best != nullptr && !robot_backend_) replay(*best);
   }
 
  private:
+  /// The rollouts on the robot through ROS, one at a time.
+  std::unique_ptr<br::Evaluator> makeRobotBackend() {
+    bs::ros_layer::ScarfRobotInterfaces robot;
+    bs::nodes::readRobotInterfaces(parameters_, robot);
+    robot.arms = {parameters_.text("arm_namespace", robot.arms.front())};
+    robot.world_frame = parameters_.text("world_frame", robot.world_frame);
+    robot.trajectory_rate = parameters_.number("trajectory_rate", robot.trajectory_rate, 1.0, 1000.0);
+    robot.start_delay = parameters_.number("start_delay", robot.start_delay, 0.0, 10.0);
+    robot.move_time = parameters_.number("move_time", robot.move_time, 0.1, 60.0);
+    robot.validate();
+    robot_backend_ = true;
+    const bt::ScarfTaskConfig task = config_.task;
+    return std::make_unique<br::ParallelEvaluator>(
+        [task, robot] { return std::make_unique<bs::ros_layer::ScarfOnRobotTask>(task, robot); }, 1);
+  }
+
   void publishScene() {
     visualization_msgs::MarkerArray scene;
     const std::vector<bs::sim::Obstacle>& obstacles = task_->task().simConfig().obstacles;
@@ -160,13 +198,21 @@ class ScarfLearnerNode {
       if (paths_.size() > kPathsShown) paths_.erase(paths_.begin());
       publishPaths();
     }
-    const auto* scarf = dynamic_cast<br::ScarfRolloutTask*>(task);
+    const auto* scarf = dynamic_cast<br::RecordedScarfTask*>(task);
     if (scarf == nullptr) return;
     const bt::ScarfRollout& r = scarf->lastRollout();
+    if (robot_backend_ && record.kind == br::RolloutKind::Policy && !r.bgr.empty()) {
+      // The robot camera's image of every noise-free policy: the run's pictures.
+      const std::string name = "robot_images/" + bs::nodes::fileName(record.algorithm) + "_run_" +
+                               std::to_string(record.run) + "_epoch_" + std::to_string(record.epoch) + ".png";
+      std::filesystem::create_directories(out_ + "/robot_images");
+      cv::imwrite(out_ + "/" + name, r.bgr);
+    }
     if (r.cloth_vertices.cols() > 0) {
       scarf_publisher_.publish(bs::nodes::clothMarker(r.cloth_vertices, task_->task().scarfTriangles(), ros::Time()));
     }
-    if (r.joint_path.cols() > 0) publishJoints(r.joint_path.col(r.joint_path.cols() - 1));
+    // The robot publishes its own joint states.
+    if (r.joint_path.cols() > 0 && !robot_backend_) publishJoints(r.joint_path.col(r.joint_path.cols() - 1));
     if (!r.bgr.empty()) {
       std_msgs::Header header;
       header.stamp = ros::Time::now();
@@ -275,6 +321,10 @@ class ScarfLearnerNode {
   /// scarf recorded for the filmstrip of the best.
   const br::DmpRolloutRecord* writePictures(const br::DmpLearningResult& result) {
     if (result.runs.empty()) return nullptr;
+    if (robot_backend_) {
+      writeRobotPictures(result);
+      return nullptr;
+    }
     bt::ScarfTaskConfig pictures = config_.task;
     pictures.cloth_rate = 1.0;
     bt::ScarfTask task(pictures);
@@ -329,10 +379,43 @@ class ScarfLearnerNode {
     return &best->final_policy;
   }
 
+  /// With the robot backend: initial.png and final_runs/ are the robot camera's images of those policies (as
+  /// taken, from robot_images/), camera.csv their measures as the rollouts recorded them.
+  void writeRobotPictures(const br::DmpLearningResult& result) const {
+    const std::vector<std::string> terms = br::ScarfRolloutTask::names();
+    const auto term = [&](const br::DmpRolloutRecord& r, const std::string& name) {
+      const auto at = std::find(terms.begin(), terms.end(), name) - terms.begin();
+      return at < r.result.terms.size() ? r.result.terms[at] : std::numeric_limits<double>::quiet_NaN();
+    };
+    std::filesystem::create_directories(out_ + "/final_runs");
+    std::ofstream csv(out_ + "/camera.csv");
+    csv << "picture,algorithm,run,cost,d,d_ref,hanging,right_pixels,left_pixels,c_cam,nose_u,nose_v,success\n";
+    const auto copy = [&](const br::DmpRolloutRecord& record, const std::string& name) {
+      const std::string taken = out_ + "/robot_images/" + bs::nodes::fileName(record.algorithm) + "_run_" +
+                                std::to_string(record.run) + "_epoch_" + std::to_string(record.epoch) + ".png";
+      std::error_code error;
+      std::filesystem::copy_file(taken, out_ + "/" + name, std::filesystem::copy_options::overwrite_existing, error);
+      if (error) ROS_WARN("scarf_learner: no robot image %s (%s)", taken.c_str(), error.message().c_str());
+      csv << name << ',' << record.algorithm << ',' << record.run << ',' << -record.result.reward << ','
+          << term(record, "d") << ',' << config_.task.camera.d_ref << ',' << term(record, "hanging") << ','
+          << term(record, "right_pixels") << ',' << term(record, "left_pixels") << ',' << term(record, "c_cam") << ",,,"
+          << term(record, "success") << '\n';
+    };
+    copy(result.runs.front().initial_policy, "initial.png");
+    for (const br::DmpRunResult& run : result.runs) {
+      copy(run.final_policy,
+           "final_runs/" + bs::nodes::fileName(run.algorithm) + "_run_" + std::to_string(run.run) + ".png");
+    }
+    std::printf(
+        "scarf_learner: the robot camera's pictures in %s (initial.png, final_runs/, robot_images/, "
+        "camera.csv)\n",
+        out_.c_str());
+  }
+
   ros::NodeHandle node_, private_node_;
   bs::ros_layer::ParameterReader parameters_;
   std::string config_path_, out_;
-  bool replay_best_ = false;
+  bool replay_best_ = false, robot_backend_ = false;
   br::ScarfLearningConfig config_;
   std::unique_ptr<br::ScarfRolloutTask> task_;
   std::unique_ptr<br::DmpLearner> learner_;

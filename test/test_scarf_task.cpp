@@ -80,6 +80,16 @@ TEST(ScarfTask, TheDemonstrationFailsAsChosenAndIsRepeatableAndTheControlAllocat
   const bt::ScarfRollout p = demonstration(plain, 1);
   EXPECT_EQ(p.c_torque, 0.0);
   EXPECT_NEAR(p.cost, r.cost - r.c_torque, 1e-9);
+  // The references a robot is sent (ScarfTask::plan) are the ones the rollout ran: the same accelerations to the bit,
+  // the motion's last reference where its measured path ends up, and a truth of the final mesh as the rollout's.
+  const bt::ScarfPlan plan = task.plan({Eigen::MatrixXd::Identity(7, 7)}, task.demonstrationWeights());
+  ASSERT_EQ(plan.outcome, bt::FoldOutcome::Ok) << plan.reason;
+  EXPECT_EQ(plan.acceleration_cost, r.acceleration);
+  EXPECT_EQ(plan.position.cols(), plan.move_end - plan.move_start);
+  EXPECT_NEAR(plan.end * plan.dt, r.simulated_seconds, 1e-9);
+  EXPECT_LT((plan.position.rightCols(1) - r.joint_path.rightCols(1)).cwiseAbs().maxCoeff(), 0.02);
+  EXPECT_EQ(task.truthOf(r.cloth_vertices).winding, r.truth.winding);
+  EXPECT_THROW(task.truthOf(Eigen::Matrix3Xd::Zero(3, 5)), std::invalid_argument);
 }
 
 TEST(ScarfTask, ALoopFourCentimetresTighterWindsTheScarfOnTheCameraAndInTruth) {
@@ -107,6 +117,11 @@ TEST(ScarfTask, BadPoliciesAndFilesGetAClearAnswer) {
   EXPECT_EQ(nan.outcome, bt::FoldOutcome::InvalidPolicy);
   EXPECT_EQ(nan.cost, config.task.failure_cost);
   EXPECT_NE(nan.reason.find("weights"), std::string::npos) << nan.reason;
+  EXPECT_EQ(task.task().plan({Eigen::MatrixXd::Identity(d, d)}, weights).outcome, bt::FoldOutcome::InvalidPolicy);
+  // Weights that throw the arm beyond its joint limits: refused before any motion.
+  const bt::ScarfPlan wild =
+      task.task().plan({Eigen::MatrixXd::Identity(d, d)}, Eigen::VectorXd::Constant(weights.size(), 5e4));
+  EXPECT_EQ(wild.outcome, bt::FoldOutcome::OutOfLimits) << wild.reason;
   const br::RolloutResult garbage = task.run(Eigen::VectorXd::Constant(5, 1.0), 1);
   EXPECT_FALSE(garbage.ok);
   EXPECT_EQ(garbage.outcome, "InvalidPolicy");

@@ -43,7 +43,8 @@ ArmControllerState::ArmControllerState(int n)
       desired_velocity(Eigen::VectorXd::Zero(n)),
       desired_acceleration(Eigen::VectorXd::Zero(n)),
       position_error(Eigen::VectorXd::Zero(n)),
-      velocity_error(Eigen::VectorXd::Zero(n)) {}
+      velocity_error(Eigen::VectorXd::Zero(n)),
+      external_torque(Eigen::VectorXd::Zero(n)) {}
 
 namespace {
 
@@ -183,6 +184,7 @@ void RealtimeArmController::publishState(double stamp, ControllerStatus status,
   s.position_error = controller_.trackingError();
   s.velocity_error = s.desired_velocity - qd;
   s.wrench = controller_.estimatedWrench();
+  s.external_torque = controller_.estimatedExternalTorque();
   monitorGoal(stamp, status);
   s.mode = controller_.mode();
   s.goal_id = goal_id_;

@@ -168,7 +168,10 @@ RolloutResult ScarfRolloutTask::run(const Eigen::VectorXd& parameters, std::uint
                    " DoF and " + std::to_string(task_.config().kernels) + " weights per latent DoF";
     last_.cost = task_.config().failure_cost;
   }
-  const tasks::ScarfRollout& r = last_;
+  return resultOf(last_);
+}
+
+RolloutResult ScarfRolloutTask::resultOf(const tasks::ScarfRollout& r) {
   RolloutResult out;
   out.ok = r.outcome == tasks::FoldOutcome::Ok;
   out.outcome = tasks::toString(r.outcome);

@@ -7,6 +7,7 @@
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/WrenchStamped.h>
+#include <sensor_msgs/JointState.h>
 #include <visualization_msgs/MarkerArray.h>
 
 #include <chrono>
@@ -31,7 +32,8 @@ const char* const kControllerParameterHelp =
     "                        the observer integrates the measured dt; a mismatch is warned about)\n"
     "  state_timeout         joint states older than this [s] are stale: no torque, hold on recovery (0.05)\n"
     "  initial_mode          gravity_compensation | hold (default hold)\n"
-    "  publish_rate          state, estimated_wrench and action feedback rate [Hz] (default 100)\n"
+    "  publish_rate          state, estimated_wrench, estimated_external_torque and action feedback rate [Hz]\n"
+    "                        (default 100)\n"
     "  trajectory_capacity   most points of one trajectory (default 2000)\n"
     "  stop_deceleration, min_stop_time  a cancel, a path violation or a hold stops the arm over\n"
     "                        max(min_stop_time, 2 max|qd| / stop_deceleration) [rad/s^2, s] (5, 0.05)\n"
@@ -143,6 +145,9 @@ ArmControllerInterface::ArmControllerInterface(ros::NodeHandle node, ParameterRe
 
   state_publisher_ = node_.advertise<bimanual_skills::JointTrajectoryControllerState>("state", 10);
   wrench_publisher_ = node_.advertise<geometry_msgs::WrenchStamped>("estimated_wrench", 10);
+  // The observer's joint torques (sensor_msgs/JointState, effort only): what a learning's cost reads of it (the
+  // scarf's c_torque), as franka_ros' tau_ext_hat_filtered.
+  torque_publisher_ = node_.advertise<sensor_msgs::JointState>("estimated_external_torque", 10);
   path_publisher_ = node_.advertise<visualization_msgs::MarkerArray>("tool_paths", 1);
   diagnostics_publisher_ = node_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
   command_subscriber_ = node_.subscribe("command", 10, &ArmControllerInterface::onCommand, this);
@@ -435,6 +440,11 @@ void ArmControllerInterface::onPublish(const ros::SteadyTimerEvent&) {
   wrench.wrench.torque.y = s.wrench[4];
   wrench.wrench.torque.z = s.wrench[5];
   wrench_publisher_.publish(wrench);
+  sensor_msgs::JointState torque;
+  torque.header.stamp = stamp;
+  torque.name = joint_names_;
+  assign(torque.effort, s.external_torque);
+  torque_publisher_.publish(torque);
   publishToolPaths(s, stamp);
 }
 

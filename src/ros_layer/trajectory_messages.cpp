@@ -119,4 +119,14 @@ TrajectoryError resolveTolerances(const std::vector<bimanual_skills::JointTolera
   return {};
 }
 
+trajectory_msgs::JointTrajectoryPoint trajectoryPoint(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                                      const Eigen::VectorXd& qdd, double t) {
+  trajectory_msgs::JointTrajectoryPoint p;
+  p.positions.assign(q.data(), q.data() + q.size());
+  p.velocities.assign(qd.data(), qd.data() + qd.size());
+  p.accelerations.assign(qdd.data(), qdd.data() + qdd.size());
+  p.time_from_start = ros::Duration(t);
+  return p;
+}
+
 }  // namespace bimanual_skills::ros_layer

@@ -65,6 +65,22 @@ struct ScarfTask::Impl {
   Eigen::MatrixXd demonstration;  ///< samples × 7
   primitives::DrDmpParameters dmp;
   Eigen::VectorXd demonstration_weights;
+  std::unique_ptr<kinematics::ChainModel> model;           ///< The holding arm's.
+  Eigen::Isometry3d base = Eigen::Isometry3d::Identity();  ///< Its base frame in the world.
+
+  /// The policy's DMP from the demonstration's start to its goal. \throws std::invalid_argument when it does not fit.
+  std::unique_ptr<primitives::DrDmp> dmpOf(const std::vector<Eigen::MatrixXd>& coordination,
+                                           const Eigen::VectorXd& latent_weights) const {
+    if (!latent_weights.allFinite()) throw std::invalid_argument("non-finite weights");
+    for (const Eigen::MatrixXd& omega : coordination) {
+      if (!omega.allFinite()) throw std::invalid_argument("a non-finite coordination matrix");
+    }
+    primitives::DrDmpParameters parameters = dmp;
+    parameters.matrices = static_cast<int>(coordination.size());
+    const Eigen::VectorXd q0 = demonstration.row(0).transpose();
+    const Eigen::VectorXd g = demonstration.bottomRows(1).transpose();
+    return std::make_unique<primitives::DrDmp>(parameters, coordination, latent_weights, q0, g, config.duration);
+  }
 
   /// The joint path through the waypoints: each a tool pose (the start's orientation) solved by global IK closest to
   /// the previous one, joined by minimum-jerk segments of equal time in joint space.
@@ -160,6 +176,8 @@ ScarfTask::ScarfTask(const ScarfTaskConfig& config) : impl_(std::make_unique<Imp
     }
   }
   m.triangles = simulation.cloth().triangles();
+  m.model = std::make_unique<kinematics::ChainModel>(simulation.armModel(m.arm));
+  m.base = simulation.basePose(m.arm);
   for (int a = 0; a < simulation.armCount(); ++a) m.joint_names.push_back(simulation.armModel(a).jointNames());
   m.dmp.dmp.kernels = config.kernels;
   m.demonstrate(simulation);
@@ -205,6 +223,14 @@ const vision::PinholeCamera& ScarfTask::camera() const noexcept {
   return impl_->camera;
 }
 
+const kinematics::ChainModel& ScarfTask::armModel() const noexcept {
+  return *impl_->model;
+}
+
+const Eigen::Isometry3d& ScarfTask::basePose() const noexcept {
+  return impl_->base;
+}
+
 const Eigen::VectorXd& ScarfTask::startPosition() const noexcept {
   return impl_->start[static_cast<std::size_t>(impl_->arm)];
 }
@@ -234,6 +260,67 @@ cv::Mat ScarfTask::cameraImage(const Eigen::Matrix3Xd& vertices) {
   return impl_->renderer->bgr().clone();
 }
 
+void scoreScarfRollout(const ScarfTaskConfig& config, ScarfRollout& rollout) {
+  rollout.c_acceleration = config.acceleration_weight * rollout.acceleration;
+  rollout.c_torque = config.torque_weight * rollout.mean_abs_torque;
+  rollout.c_cam = rollout.camera.c_cam;
+  rollout.cost = rollout.outcome == FoldOutcome::Ok ? rollout.c_acceleration + rollout.c_cam + rollout.c_torque
+                                                    : config.failure_cost;
+}
+
+ScarfPlan ScarfTask::plan(const std::vector<Eigen::MatrixXd>& coordination,
+                          const Eigen::VectorXd& latent_weights) const {
+  const Impl& m = *impl_;
+  const ScarfTaskConfig& c = m.config;
+  ScarfPlan out;
+  out.dt = m.sim_config.step;
+  out.move_start = static_cast<int>(std::lround(c.hold_before / out.dt));
+  out.move_end = out.move_start + static_cast<int>(std::lround(c.duration / out.dt));
+  out.release = out.move_end + static_cast<int>(std::lround(c.hold_after / out.dt));
+  out.end = out.release + static_cast<int>(std::lround(c.settle / out.dt));
+  std::unique_ptr<primitives::DrDmp> dmp;
+  try {
+    dmp = m.dmpOf(coordination, latent_weights);
+  } catch (const std::invalid_argument& e) {
+    out.outcome = FoldOutcome::InvalidPolicy;
+    out.reason = std::string("the policy does not fit the task's DMP: ") + e.what();
+    return out;
+  }
+  // As run() steps it: one DMP step per period of the motion, the reference of that period.
+  const int steps = out.move_end - out.move_start, n = dofs();
+  out.position.resize(n, steps);
+  out.velocity.resize(n, steps);
+  out.acceleration.resize(n, steps);
+  primitives::DrDmpState state = dmp->initialState();
+  for (int j = 0; j < steps; ++j) {
+    const double t = (out.move_start + j) * out.dt;
+    if (dmp->step(state, out.dt) == primitives::DmpStatus::InvalidInput || !state.dmp.y.allFinite()) {
+      out.outcome = FoldOutcome::InvalidPolicy;
+      out.reason = "the DMP's references are not finite at t = " + std::to_string(t) + " s";
+      return out;
+    }
+    out.position.col(j) = state.dmp.y;
+    out.velocity.col(j) = state.dmp.yd;
+    out.acceleration.col(j) = state.dmp.ydd;
+    out.acceleration_cost += state.dmp.ydd.squaredNorm() * out.dt;
+    if (!m.model->withinLimits(state.dmp.y, 0.0)) {
+      out.outcome = FoldOutcome::OutOfLimits;
+      out.reason = "the DMP's references leave the joint limits at t = " + std::to_string(t) + " s";
+      return out;
+    }
+  }
+  return out;
+}
+
+ScarfTruth ScarfTask::truthOf(const Eigen::Matrix3Xd& vertices) const {
+  const sim::ClothParameters& cloth = impl_->sim_config.cloth;
+  if (vertices.cols() != static_cast<Eigen::Index>(cloth.nodes_x) * cloth.nodes_y) {
+    throw std::invalid_argument("a scarf mesh of " + std::to_string(vertices.cols()) + " nodes, the task's has " +
+                                std::to_string(cloth.nodes_x * cloth.nodes_y));
+  }
+  return scarfTruth(impl_->mannequin, vertices, cloth.nodes_x, cloth.nodes_y);
+}
+
 ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights,
                             std::uint32_t seed, realtime::CycleProbe* probe) {
   Impl& m = *impl_;
@@ -246,14 +333,7 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
   };
   std::unique_ptr<primitives::DrDmp> dmp;
   try {
-    if (!latent_weights.allFinite()) throw std::invalid_argument("non-finite weights");
-    for (const Eigen::MatrixXd& omega : coordination) {
-      if (!omega.allFinite()) throw std::invalid_argument("a non-finite coordination matrix");
-    }
-    const Eigen::VectorXd q0 = m.demonstration.row(0).transpose();
-    const Eigen::VectorXd g = m.demonstration.bottomRows(1).transpose();
-    dmp = std::make_unique<primitives::DrDmp>(forcingParameters(static_cast<int>(coordination.size())), coordination,
-                                              latent_weights, q0, g, c.duration);
+    dmp = m.dmpOf(coordination, latent_weights);
   } catch (const std::invalid_argument& e) {
     fail(FoldOutcome::InvalidPolicy, std::string("the policy does not fit the task's DMP: ") + e.what(), -1.0);
     out.cost = c.failure_cost;
@@ -444,10 +524,7 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
   } else {
     out.camera = scarfCameraTerms(cv::Mat(m.camera.height, m.camera.width, CV_8UC3, cv::Scalar(0, 0, 0)), c.camera);
   }
-  out.c_acceleration = c.acceleration_weight * out.acceleration;
-  out.c_torque = c.torque_weight * out.mean_abs_torque;
-  out.c_cam = out.camera.c_cam;
-  out.cost = out.outcome == FoldOutcome::Ok ? out.c_acceleration + out.c_cam + out.c_torque : c.failure_cost;
+  scoreScarfRollout(c, out);
   out.simulated_seconds = simulation.time();
   out.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
   return out;

@@ -70,6 +70,7 @@ struct ArmControllerState {
   Eigen::VectorXd desired_position, desired_velocity, desired_acceleration;
   Eigen::VectorXd position_error, velocity_error;                            ///< q_d − q, q̇_d − q̇.
   Eigen::Matrix<double, 6, 1> wrench = Eigen::Matrix<double, 6, 1>::Zero();  ///< Estimated tool wrench, base frame.
+  Eigen::VectorXd external_torque;  ///< The observer's estimated external joint torques τ̂_ext [N m].
   std::uint64_t goal_id = 0;
   GoalState goal = GoalState::None;
   /// Stamp of the update that started goal_id's trajectory [s] (NaN before it started).

@@ -24,23 +24,33 @@ struct ScarfLearningConfig {
   static ScarfLearningConfig fromYamlFile(const std::string& path);
 };
 
-class ScarfRolloutTask : public RolloutTask {
+/// A scarf task that keeps its last rollout (in this process's simulation, or as a robot's interfaces gave it).
+class RecordedScarfTask {
+ public:
+  virtual ~RecordedScarfTask() = default;
+  virtual const tasks::ScarfRollout& lastRollout() const = 0;
+};
+
+class ScarfRolloutTask : public RolloutTask, public RecordedScarfTask {
  public:
   /// \throws std::invalid_argument as ScarfTask.
   explicit ScarfRolloutTask(const tasks::ScarfTaskConfig& config);
 
   /// cost, c_acceleration, c_cam, c_torque, acceleration, mean_abs_torque, peak_abs_torque, mean_tool_force,
-  /// peak_tool_force, mean_force_error, max_force_error, max_tracking_error, d, hanging, right_pixels, left_pixels (the camera's), winding, wrapped,
-  /// hanging_right, hanging_left, fallen, success (the scarf mesh's truth), simulated_seconds.
+  /// peak_tool_force, mean_force_error, max_force_error, max_tracking_error, d, hanging, right_pixels, left_pixels (the
+  /// camera's), winding, wrapped, hanging_right, hanging_left, fallen, success (the scarf mesh's truth),
+  /// simulated_seconds.
   std::vector<std::string> termNames() const override { return names(); }
   static std::vector<std::string> names();
   /// The demonstration: one coordination matrix Ω = I and its standard DMP's weights.
   Eigen::VectorXd initialParameters() const override;
   /// One rollout of the encoded policy, the reward −cost; its trajectory summary is the tool's path (3 × samples).
   RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override;
+  /// A rollout's result: ok, outcome, reason, reward −cost, its terms in names()'s order, the tool's path.
+  static RolloutResult resultOf(const tasks::ScarfRollout& rollout);
 
   tasks::ScarfTask& task() noexcept { return task_; }
-  const tasks::ScarfRollout& lastRollout() const noexcept { return last_; }
+  const tasks::ScarfRollout& lastRollout() const override { return last_; }
 
  private:
   tasks::ScarfTask task_;

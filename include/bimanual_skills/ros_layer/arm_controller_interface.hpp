@@ -2,7 +2,7 @@
 /// The ROS side of one arm's controller, whoever runs its real-time loop (a simulator's or a hardware driver's
 /// loop thread, or a node driven by joint-state messages): the `command` topic and the `follow_joint_trajectory`
 /// action (trajectory_msgs in, joint_trajectory_controller's semantics), the `set_mode` service, and the `state`,
-/// `estimated_wrench`, `tool_paths` and /diagnostics outputs, all served from non-real-time threads and joined to
+/// `estimated_wrench`, `estimated_external_torque`, `tool_paths` and /diagnostics outputs, all served from non-real-time threads and joined to
 /// the loop only through control::RealtimeArmController's lock-free handoffs.
 #pragma once
 
@@ -33,7 +33,7 @@ struct ControllerSettings {
   control::ArmControllerConfig config;
   dynamics::FrictionModel friction;
   control::ControllerMode initial_mode = control::ControllerMode::Hold;
-  double publish_rate = 100.0;                       ///< [Hz] of state, estimated_wrench and action feedback.
+  double publish_rate = 100.0;                       ///< [Hz] of state, the estimates and action feedback.
   control::TrajectoryTolerances default_tolerances;  ///< When a goal does not set them.
   double loop_timeout = 0.5;  ///< [s of the robot's clock] without a control cycle: the active goal is aborted.
 };
@@ -123,7 +123,7 @@ class ArmControllerInterface {
   double clock_at_state_ = 0.0;     ///< This process's ROS time when the last state came [s].
   double last_published_ = -1e300;  ///< Stamp of the last state published [s].
 
-  ros::Publisher state_publisher_, wrench_publisher_, path_publisher_, diagnostics_publisher_;
+  ros::Publisher state_publisher_, wrench_publisher_, torque_publisher_, path_publisher_, diagnostics_publisher_;
   ros::Subscriber command_subscriber_;
   ros::ServiceServer mode_service_;
   std::unique_ptr<Server> server_;

@@ -23,6 +23,10 @@ struct TrajectoryError {
   explicit operator bool() const { return code != 0; }
 };
 
+/// A trajectory point at `t` [s from the trajectory's start] with positions, velocities and accelerations.
+trajectory_msgs::JointTrajectoryPoint trajectoryPoint(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
+                                                      const Eigen::VectorXd& qdd, double t);
+
 /// Converts `message` for an arm whose joints are `joints` into waypoints with times relative to `start`, the
 /// trajectory's own start: header.stamp, or `now` (the clock of the controller's stamps) when that is zero. The
 /// points at or before `now` are dropped. Refuses (before allocating for the points) a trajectory of more than

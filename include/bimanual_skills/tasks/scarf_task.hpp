@@ -90,6 +90,23 @@ struct ScarfRollout {
   double simulated_seconds = 0.0, wall_seconds = 0.0;
 };
 
+/// A policy's joint references as a robot runs them (ScarfOnRobotTask), on the simulation's step dt from the
+/// rollout's start: the hold (hold_before) at the start, the DMP's motion, then its last point held.
+struct ScarfPlan {
+  FoldOutcome outcome = FoldOutcome::Ok;
+  std::string reason;
+  double dt = 0.001;
+  /// Steps of the motion's start, its end, the release and the images (the settled scarf).
+  int move_start = 0, move_end = 0, release = 0, end = 0;
+  /// The DMP's references over the motion: column j is the reference of step move_start + j.
+  Eigen::MatrixXd position, velocity, acceleration;
+  double acceleration_cost = 0.0;  ///< Σ ‖q̈_ref‖² dt over the motion [rad²/s³] (ScarfRollout::acceleration).
+};
+
+/// The cost's terms of a rollout from its measures (acceleration, mean_abs_torque, camera, outcome), as run()
+/// computes them: c_acceleration, c_torque, c_cam and cost.
+void scoreScarfRollout(const ScarfTaskConfig& config, ScarfRollout& rollout);
+
 /// The task. Construction builds the simulation, controllers, camera and demonstration (allocates, throws
 /// std::invalid_argument with the reason); run() starts every rollout from a new simulation. One object per thread.
 class ScarfTask {
@@ -116,10 +133,21 @@ class ScarfTask {
   ScarfRollout run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights,
                    std::uint32_t seed, realtime::CycleProbe* probe = nullptr);
 
+  /// The references run() would give its controller, without simulating: InvalidPolicy or OutOfLimits (with the
+  /// reason) when the DMP's references are not finite or leave the joint limits.
+  ScarfPlan plan(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights) const;
+  /// The scarf's ground truth of a final mesh (its nodes, as ScarfRollout numbers them). \throws
+  /// std::invalid_argument for a mesh of another size.
+  ScarfTruth truthOf(const Eigen::Matrix3Xd& vertices) const;
+
   const ScarfTaskConfig& config() const noexcept;
   const sim::SimConfig& simConfig() const noexcept;
   const Mannequin& mannequin() const noexcept;
   const vision::PinholeCamera& camera() const noexcept;
+  /// The holding arm's chain (its joint limits and velocity limits).
+  const kinematics::ChainModel& armModel() const noexcept;
+  /// The holding arm's base frame in the world.
+  const Eigen::Isometry3d& basePose() const noexcept;
   /// The holding arm's start (joint positions).
   const Eigen::VectorXd& startPosition() const noexcept;
   /// The holding arm's index; every arm's start and joint names (as the robot file gives them).

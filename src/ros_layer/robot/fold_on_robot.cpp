@@ -7,13 +7,12 @@
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
 #include "bimanual_skills/ros_layer/camera_contract.hpp"
+#include "bimanual_skills/ros_layer/trajectory_messages.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 
 #include <cv_bridge/cv_bridge.h>
-#include <sensor_msgs/point_cloud2_iterator.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
-#include <tf2_eigen/tf2_eigen.h>
 
 #include <algorithm>
 #include <chrono>
@@ -36,16 +35,6 @@ constexpr double kPathRate = 50.0;
 /// duration]: it is done on a robot that may be down.
 constexpr double kRecoveryTimeout = 3.0;
 
-trajectory_msgs::JointTrajectoryPoint point(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
-                                            const Eigen::VectorXd& qdd, double t) {
-  trajectory_msgs::JointTrajectoryPoint p;
-  p.positions.assign(q.data(), q.data() + q.size());
-  p.velocities.assign(qd.data(), qd.data() + qd.size());
-  p.accelerations.assign(qdd.data(), qdd.data() + qdd.size());
-  p.time_from_start = ros::Duration(t);
-  return p;
-}
-
 }  // namespace
 
 void FoldRobotInterfaces::validate() const {
@@ -66,18 +55,6 @@ void FoldRobotInterfaces::validate() const {
 }
 
 namespace {
-
-/// The cloth's nodes of a point cloud with float x, y, z fields; false for a cloud without them.
-bool cloudVertices(const sensor_msgs::PointCloud2& cloud, Eigen::Matrix3Xd& vertices) {
-  try {
-    vertices.resize(3, static_cast<Eigen::Index>(cloud.width) * cloud.height);
-    sensor_msgs::PointCloud2ConstIterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z");
-    for (Eigen::Index i = 0; i < vertices.cols(); ++i, ++x, ++y, ++z) vertices.col(i) << *x, *y, *z;
-    return true;
-  } catch (const std::exception&) {
-    return false;
-  }
-}
 
 /// Appends a camera frame at time t to a recording.
 void addFrame(tasks::FoldRollout& recording, double t, const cv::Mat& bgr, const cv::Mat& depth) {
@@ -183,7 +160,7 @@ void FoldOnRobotTask::onCloth(const sensor_msgs::PointCloud2ConstPtr& cloud) {
   if (!recording_frames_ || t < next_cloth_) return;
   next_cloth_ = t + kClothPeriod;
   Eigen::Matrix3Xd vertices;
-  if (!cloudVertices(*cloud, vertices)) return;
+  if (!RobotConnection::cloudVertices(*cloud, vertices)) return;
   recording_.cloth_frames.push_back(vertices);
   recording_.cloth_times.conservativeResize(recording_.cloth_times.size() + 1);
   recording_.cloth_times[recording_.cloth_times.size() - 1] = t;
@@ -205,13 +182,8 @@ std::string FoldOnRobotTask::cameraProblem(const sensor_msgs::CameraInfo& info) 
   std::string problem = cameraInfoProblem(info, model, map);
   if (!problem.empty()) return problem;
   Eigen::Isometry3d pose;
-  try {
-    pose = tf2::transformToEigen(connection_->tf().lookupTransform(robot_.world_frame, info.header.frame_id,
-                                                                   ros::Time(0), ros::Duration(robot_.timeout)));
-  } catch (const tf2::TransformException& e) {
-    return "no transform from " + robot_.world_frame + " to its frame " + info.header.frame_id + " on tf (" + e.what() +
-           ")";
-  }
+  problem = connection_->cameraPose(info, robot_.world_frame, pose);
+  if (!problem.empty()) return problem;
   if (model == CameraModel::Orthographic) return orthographicPoseProblem(pose, map);
   const std::lock_guard<std::mutex> lock(mutex_);  // the recording's projection reads it on the spinner
   camera_ = pinholeCamera(info, pose);
@@ -236,8 +208,8 @@ void FoldOnRobotTask::moveToStart() {
     goal.trajectory.joint_names = arm.joints;
     const Eigen::VectorXd& q = task_.startPositions()[a];
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(q.size());
-    goal.trajectory.points.push_back(point(above_start_[a], zero, zero, up));
-    goal.trajectory.points.push_back(point(q, zero, zero, up + down));
+    goal.trajectory.points.push_back(trajectoryPoint(above_start_[a], zero, zero, up));
+    goal.trajectory.points.push_back(trajectoryPoint(q, zero, zero, up + down));
     arm.client->sendGoal(goal);
   }
   for (std::size_t a = 0; a < 2; ++a) connection_->waitForGoal(a, "move to the start");
@@ -280,7 +252,7 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
     goal.trajectory.joint_names = arm.joints;
     for (int k = 0; k <= plan.release; k += every) {
       goal.trajectory.points.push_back(
-          point(plan.position[a].col(k), plan.velocity[a].col(k), plan.acceleration[a].col(k), k * plan.dt));
+          trajectoryPoint(plan.position[a].col(k), plan.velocity[a].col(k), plan.acceleration[a].col(k), k * plan.dt));
     }
     for (const std::string& joint : arm.joints) {
       bimanual_skills::JointTolerance tolerance;
@@ -388,7 +360,7 @@ tasks::FoldRewardTerms FoldOnRobotTask::observe(const ros::Time& after, double a
   if (cloth) {
     Eigen::Matrix3Xd vertices;
     try {  // a cloud without x, y, z or of another cloth is the robot's fault, not the learner's
-      if (!cloudVertices(*cloth, vertices)) throw std::invalid_argument("no float fields x, y, z");
+      if (!RobotConnection::cloudVertices(*cloth, vertices)) throw std::invalid_argument("no float fields x, y, z");
       const tasks::FoldQuality fold = task_.foldQualityOf(vertices);
       terms.fold_quality = fold.q;
       terms.fold_distance = fold.distance;

@@ -2,10 +2,13 @@
 
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/SimStep.h"
+#include "bimanual_skills/ros_layer/trajectory_messages.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 
+#include <sensor_msgs/point_cloud2_iterator.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
+#include <tf2_eigen/tf2_eigen.h>
 
 #include <algorithm>
 #include <chrono>
@@ -462,12 +465,8 @@ bool RobotConnection::moveWithin(const std::vector<Eigen::VectorXd>& targets, do
     if (!arm.client->isServerConnected()) throw RobotFault{tasks::FoldOutcome::RobotFailed, arm.name + " is gone"};
     bimanual_skills::FollowJointTrajectoryGoal goal;
     goal.trajectory.joint_names = arm.joints;
-    trajectory_msgs::JointTrajectoryPoint point;
-    point.positions.assign(targets[a].data(), targets[a].data() + targets[a].size());
-    point.velocities.assign(targets[a].size(), 0.0);
-    point.accelerations.assign(targets[a].size(), 0.0);
-    point.time_from_start = ros::Duration(time);
-    goal.trajectory.points.push_back(point);
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(targets[a].size());
+    goal.trajectory.points.push_back(trajectoryPoint(targets[a], zero, zero, time));
     arm.client->sendGoal(goal);
   }
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(time + timeout);
@@ -524,6 +523,28 @@ RobotConnection::Recorded RobotConnection::recorded() {
     out.max_error = std::max(out.max_error, arm->max_error);
   }
   return out;
+}
+
+std::string RobotConnection::cameraPose(const sensor_msgs::CameraInfo& info, const std::string& world_frame,
+                                        Eigen::Isometry3d& pose) {
+  try {
+    pose = tf2::transformToEigen(
+        tf_.lookupTransform(world_frame, info.header.frame_id, ros::Time(0), ros::Duration(robot_.timeout)));
+    return "";
+  } catch (const tf2::TransformException& e) {
+    return "no transform from " + world_frame + " to its frame " + info.header.frame_id + " on tf (" + e.what() + ")";
+  }
+}
+
+bool RobotConnection::cloudVertices(const sensor_msgs::PointCloud2& cloud, Eigen::Matrix3Xd& vertices) {
+  try {
+    vertices.resize(3, static_cast<Eigen::Index>(cloud.width) * cloud.height);
+    sensor_msgs::PointCloud2ConstIterator<float> x(cloud, "x"), y(cloud, "y"), z(cloud, "z");
+    for (Eigen::Index i = 0; i < vertices.cols(); ++i, ++x, ++y, ++z) vertices.col(i) << *x, *y, *z;
+    return true;
+  } catch (const std::exception&) {
+    return false;
+  }
 }
 
 std::vector<std::size_t> RobotConnection::Recorded::every(double rate) const {

@@ -24,6 +24,7 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 
 #include <functional>
 #include <limits>
@@ -111,7 +112,6 @@ class RobotConnection {
   RobotConnection& operator=(const RobotConnection&) = delete;
 
   ros::NodeHandle& node() { return *node_; }
-  tf2_ros::Buffer& tf() { return tf_; }
   const RobotInterfaces& interfaces() const noexcept { return robot_; }
   std::size_t arms() const noexcept { return arms_.size(); }
   Arm& arm(std::size_t a) { return *arms_[a]; }
@@ -179,6 +179,12 @@ class RobotConnection {
   /// the joints' velocity limits `limits[a]` [s].
   static double moveTime(const std::vector<Eigen::VectorXd>& from, const std::vector<Eigen::VectorXd>& to,
                          const std::vector<Eigen::VectorXd>& limits, double shortest);
+
+  /// The pose of `info`'s frame in `world_frame` from tf (waiting up to the timeout); "" or why there is none.
+  std::string cameraPose(const sensor_msgs::CameraInfo& info, const std::string& world_frame, Eigen::Isometry3d& pose);
+
+  /// The cloth's nodes of a point cloud with float x, y, z fields; false for a cloud without them.
+  static bool cloudVertices(const sensor_msgs::PointCloud2& cloud, Eigen::Matrix3Xd& vertices);
 
   /// A camera or cloth message stamped further ahead of this process's clock [s] is of another timeline (a
   /// simulator's, before its reset) and not used.

@@ -1,0 +1,320 @@
+#include "bimanual_skills/ros_layer/robot/scarf_on_robot.hpp"
+
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/rollout/coordinated_parameters.hpp"
+#include "bimanual_skills/rollout/scarf_learning.hpp"
+#include "bimanual_skills/ros_layer/camera_contract.hpp"
+#include "bimanual_skills/ros_layer/trajectory_messages.hpp"
+
+#include <cv_bridge/cv_bridge.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace bimanual_skills::ros_layer {
+
+namespace {
+
+/// Samples per second of the measured paths in a result.
+constexpr double kPathRate = 50.0;
+/// Longest wait for each step of the recovery after a failed rollout [s of wall time, beyond the motion's own].
+constexpr double kRecoveryTimeout = 3.0;
+/// The reset must leave the arm this close to the task's start, else it is moved there first [rad].
+constexpr double kAtStart = 0.01;
+/// How far the camera may be from the task's: its intrinsics [px], its position [m] and its orientation [rad]. The
+/// cost's d_ref and hanging level are pixels of the task's camera.
+constexpr double kIntrinsicsTolerance = 0.5, kPositionTolerance = 0.01, kAngleTolerance = 0.01;
+
+}  // namespace
+
+void ScarfRobotInterfaces::validate() const {
+  const auto fail = [](const std::string& what) { throw std::invalid_argument("scarf on the robot: " + what); };
+  RobotInterfaces::validate("scarf on the robot");
+  if (arms.size() != 1)
+    fail("one arm (the one holding the scarf) is needed, " + std::to_string(arms.size()) + " given");
+  if (world_frame.empty()) fail("the world frame needs a name");
+  if (!(trajectory_rate >= 1.0) || !(trajectory_rate <= 1000.0)) fail("trajectory_rate must lie in [1, 1000] Hz");
+  if (!(start_delay >= 0.0) || !(start_delay <= 10.0)) fail("start_delay must lie in [0, 10] s");
+  if (!(move_time > 0.0) || !std::isfinite(move_time)) fail("move_time must be finite and > 0");
+}
+
+ScarfOnRobotTask::ScarfOnRobotTask(const tasks::ScarfTaskConfig& task, const ScarfRobotInterfaces& robot)
+    : task_(task), robot_(robot) {
+  robot_.validate();
+  connection_ = std::make_unique<RobotConnection>(
+      robot_, std::vector<std::vector<std::string>>{task_.jointNames()[static_cast<std::size_t>(task_.arm())]},
+      "scarf on the robot", task.sim_config, "", nullptr, nullptr);
+  torque_sub_ = connection_->node().subscribe<sensor_msgs::JointState>(
+      robot_.arms.front() + "/estimated_external_torque", 1000,
+      [this](const sensor_msgs::JointStateConstPtr& m) { onTorque(m); });
+  const std::string problem = cameraProblem(connection_->firstCameraInfo());
+  if (!problem.empty()) {
+    throw std::runtime_error("scarf on the robot: the camera " + connection_->node().resolveName(robot_.camera) +
+                             " cannot be used: " + problem);
+  }
+  try {
+    connection_->connectArms();
+  } catch (const RobotFault& f) {
+    throw std::runtime_error("scarf on the robot: " + f.reason);
+  }
+}
+
+ScarfOnRobotTask::~ScarfOnRobotTask() {
+  torque_sub_.shutdown();  // its callback before the connection's spinner and queue go
+  connection_.reset();
+}
+
+std::vector<std::string> ScarfOnRobotTask::termNames() const {
+  return rollout::ScarfRolloutTask::names();
+}
+
+Eigen::VectorXd ScarfOnRobotTask::initialParameters() const {
+  const int d = task_.dofs();
+  return rollout::encodeCoordinatedPolicy({Eigen::MatrixXd::Identity(d, d)}, task_.demonstrationWeights());
+}
+
+void ScarfOnRobotTask::onTorque(const sensor_msgs::JointStateConstPtr& message) {
+  const double t = message->header.stamp.toSec();
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (t < torque_from_ || t >= torque_to_ || message->effort.empty()) return;
+  double sum = 0.0;
+  for (const double tau : message->effort) {
+    sum += std::abs(tau);
+    torque_peak_ = std::max(torque_peak_, std::abs(tau));
+  }
+  torque_sum_ += sum / static_cast<double>(message->effort.size());
+  ++torque_samples_;
+}
+
+std::string ScarfOnRobotTask::cameraProblem(const sensor_msgs::CameraInfo& info) {
+  if (info.P[8] == 0.0 && info.P[9] == 0.0 && info.P[10] == 0.0 && info.P[11] == 1.0) {
+    return "it is an orthographic camera (P's third row is [0 0 0 1]); the cost needs the task's perspective camera";
+  }
+  std::string problem = cameraInfoProblem(info, CameraModel::Perspective, vision::TopDownCamera{});
+  if (!problem.empty()) return problem;
+  Eigen::Isometry3d pose;
+  problem = connection_->cameraPose(info, robot_.world_frame, pose);
+  if (!problem.empty()) return problem;
+  const vision::PinholeCamera seen = pinholeCamera(info, pose), &expected = task_.camera();
+  std::ostringstream why;
+  if (seen.width != expected.width || seen.height != expected.height) {
+    why << "its images are " << seen.width << " x " << seen.height << ", the task's camera's " << expected.width
+        << " x " << expected.height;
+  } else if (std::max({std::abs(seen.fx - expected.fx), std::abs(seen.fy - expected.fy),
+                       std::abs(seen.cx - expected.cx), std::abs(seen.cy - expected.cy)}) > kIntrinsicsTolerance) {
+    why << "its intrinsics (fx, fy, cx, cy) = (" << seen.fx << ", " << seen.fy << ", " << seen.cx << ", " << seen.cy
+        << ") px are not the task's (" << expected.fx << ", " << expected.fy << ", " << expected.cx << ", "
+        << expected.cy << ")";
+  } else {
+    const double offset = (seen.pose.translation() - expected.pose.translation()).norm();
+    const double angle = Eigen::AngleAxisd(seen.pose.linear().transpose() * expected.pose.linear()).angle();
+    if (offset > kPositionTolerance || angle > kAngleTolerance) {
+      why << "its frame " << info.header.frame_id << " lies " << offset << " m and " << angle
+          << " rad from the task's camera (the start file's rgbd_eye and rgbd_target; d_ref and the hanging level "
+             "are pixels of that camera)";
+    }
+  }
+  return why.str();
+}
+
+void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
+  const tasks::ScarfTaskConfig& c = task_.config();
+  const Eigen::VectorXd& start = task_.startPosition();
+  const std::vector<Eigen::VectorXd> limits = {task_.armModel().velocityLimits()};
+  // The arm at the task's start, holding the scarf (the reset's, or a move there).
+  const Eigen::VectorXd at = connection_->measuredPositions().front();
+  if ((at - start).cwiseAbs().maxCoeff() > kAtStart) {
+    RobotConnection::Arm& arm = connection_->arm(0);
+    bimanual_skills::FollowJointTrajectoryGoal goal;
+    goal.trajectory.joint_names = arm.joints;
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(start.size());
+    goal.trajectory.points.push_back(
+        trajectoryPoint(start, zero, zero, RobotConnection::moveTime({at}, {start}, limits, robot_.move_time)));
+    arm.client->sendGoal(goal);
+    connection_->waitForGoal(0, "move to the start");
+  }
+  // A simulator stands still until the controller has the goal: the scarf hangs for hold_before exactly.
+  if (!robot_.pause_service.empty()) connection_->pause(true);
+  const ros::Time origin = ros::Time::now() + ros::Duration(robot_.start_delay);
+  origin_ = origin.toSec();
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    torque_from_ = origin.toSec() + plan.move_start * plan.dt;
+    torque_to_ = origin.toSec() + plan.release * plan.dt;
+    torque_sum_ = torque_peak_ = 0.0;
+    torque_samples_ = 0;
+  }
+  connection_->record(true);
+  // One goal: the start held until the motion, the DMP's references (every point's time that of its period in the
+  // in-process task), then the last one held.
+  RobotConnection::Arm& arm = connection_->arm(0);
+  bimanual_skills::FollowJointTrajectoryGoal goal;
+  goal.trajectory.header.stamp = origin;
+  goal.trajectory.joint_names = arm.joints;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(start.size());
+  // Held until the period before the motion's first (column 0 is the reference of period move_start).
+  if (plan.move_start > 1)
+    goal.trajectory.points.push_back(trajectoryPoint(start, zero, zero, (plan.move_start - 1) * plan.dt));
+  const int every = std::max(1, static_cast<int>(std::lround(1.0 / (robot_.trajectory_rate * plan.dt))));
+  const auto last = static_cast<int>(plan.position.cols()) - 1;
+  for (int j = 0;; j = std::min(j + every, last)) {
+    goal.trajectory.points.push_back(trajectoryPoint(plan.position.col(j), plan.velocity.col(j),
+                                                     plan.acceleration.col(j), (plan.move_start + j) * plan.dt));
+    if (j == last) break;
+  }
+  goal.trajectory.points.push_back(trajectoryPoint(plan.position.col(last), zero, zero, plan.move_end * plan.dt));
+  for (const std::string& joint : arm.joints) {
+    bimanual_skills::JointTolerance tolerance;
+    tolerance.name = joint;
+    tolerance.position = c.max_tracking_error;
+    goal.path_tolerance.push_back(tolerance);
+  }
+  arm.client->sendGoal(goal);
+  if (connection_->paused()) {
+    connection_->waitFor([&] { return connection_->goalAnswered(0); }, "the arm's controller (the motion's goal)");
+    if (connection_->goalFailed(0)) connection_->waitForGoal(0, "motion");
+  }
+  if (c.release) connection_->scheduleRelease(0, origin + ros::Duration(plan.release * plan.dt));
+  const ros::Time end = origin + ros::Duration(plan.end * plan.dt);
+  if (connection_->paused() && !robot_.step_service.empty()) {
+    connection_->stepUntil(end.toSec(), plan.dt, "stepping the simulator through the motion");
+  } else if (connection_->paused()) {
+    connection_->pause(false);
+  }
+  connection_->waitFor([&] { return connection_->goalFailed(0) || ros::Time::now() >= end; },
+                       "the robot's clock (the scarf settling)", true);
+  connection_->waitForGoal(0, "motion");
+  connection_->record(false);
+
+  // The cost's terms: the plan's accelerations, the controller's observer, the camera's colour image.
+  last_.acceleration = plan.acceleration_cost;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (torque_samples_ == 0) {
+      throw RobotFault{tasks::FoldOutcome::RobotFailed,
+                       "no " + connection_->node().resolveName(robot_.arms.front() + "/estimated_external_torque") +
+                           " during the motion (c_torque is the arm's controller's observer)"};
+    }
+    last_.mean_abs_torque = torque_sum_ / static_cast<double>(torque_samples_);
+    last_.peak_abs_torque = torque_peak_;
+    torque_to_ = -1.0;
+  }
+  const RobotConnection::Frame frame = connection_->frame(end, true);
+  const std::string problem = cameraProblem(*frame.info);
+  if (!problem.empty()) {
+    throw RobotFault{tasks::FoldOutcome::RobotFailed, "the camera " + robot_.camera + " cannot be used: " + problem};
+  }
+  try {
+    last_.bgr = cv_bridge::toCvCopy(frame.image, "bgr8")->image;
+  } catch (const cv_bridge::Exception& e) {
+    throw RobotFault{tasks::FoldOutcome::RobotFailed, std::string("unreadable camera image: ") + e.what()};
+  }
+  if (last_.bgr.cols != task_.camera().width || last_.bgr.rows != task_.camera().height) {
+    throw RobotFault{tasks::FoldOutcome::RobotFailed, "the camera's image is " + std::to_string(last_.bgr.cols) +
+                                                          " x " + std::to_string(last_.bgr.rows) +
+                                                          ", its camera_info " + std::to_string(frame.info->width) +
+                                                          " x " + std::to_string(frame.info->height)};
+  }
+  last_.camera = tasks::scarfCameraTerms(last_.bgr, c.camera);
+  if (frame.cloth) {
+    try {  // a cloud without x, y, z or of another scarf is the robot's fault, not the learner's
+      if (!RobotConnection::cloudVertices(*frame.cloth, last_.cloth_vertices)) {
+        throw std::invalid_argument("no float fields x, y, z");
+      }
+      last_.truth = task_.truthOf(last_.cloth_vertices);
+    } catch (const std::exception& e) {
+      throw RobotFault{tasks::FoldOutcome::RobotFailed, "unusable scarf cloud " + robot_.cloth + ": " + e.what()};
+    }
+  }
+  if (connection_->paused()) connection_->pause(false);  // a simulator stepped to the settled scarf runs on
+  last_.simulated_seconds = plan.end * plan.dt;
+}
+
+std::string ScarfOnRobotTask::recover() noexcept {
+  std::string done = connection_->openGrippers(kRecoveryTimeout);
+  try {
+    const Eigen::VectorXd& start = task_.startPosition();
+    const double time =
+        RobotConnection::moveTime(connection_->measuredPositions(), {start}, {task_.armModel().velocityLimits()}, 0.5);
+    done += connection_->moveWithin({start}, time, std::min(robot_.timeout, kRecoveryTimeout))
+                ? ", the arm back at its start"
+                : ", the arm not back at its start";
+  } catch (const RobotFault& f) {
+    done += ", the arm not back at its start (" + f.reason + ")";
+  } catch (const std::exception& e) {
+    done += std::string(", the recovery stopped: ") + e.what();
+  }
+  return done;
+}
+
+rollout::RolloutResult ScarfOnRobotTask::run(const Eigen::VectorXd& parameters, std::uint32_t /*seed*/) {
+  const auto wall_start = std::chrono::steady_clock::now();
+  const tasks::ScarfTaskConfig& c = task_.config();
+  last_ = tasks::ScarfRollout{};
+  // Inside the simulator only: NaN on a robot.
+  last_.mean_tool_force = last_.peak_tool_force = std::numeric_limits<double>::quiet_NaN();
+  last_.mean_force_error = last_.max_force_error = std::numeric_limits<double>::quiet_NaN();
+  bool moved = false;
+  try {
+    std::vector<Eigen::MatrixXd> coordination;
+    Eigen::VectorXd weights;
+    if (!rollout::decodeCoordinatedPolicy(parameters, task_.dofs(), c.kernels, coordination, weights)) {
+      throw RobotFault{tasks::FoldOutcome::InvalidPolicy, "the parameters do not encode a coordinated policy of " +
+                                                              std::to_string(task_.dofs()) + " DoF and " +
+                                                              std::to_string(c.kernels) + " weights per latent DoF"};
+    }
+    const tasks::ScarfPlan plan = task_.plan(coordination, weights);
+    last_.acceleration = plan.acceleration_cost;
+    if (plan.outcome != tasks::FoldOutcome::Ok) throw RobotFault{plan.outcome, plan.reason};
+    if (reconnect_) {
+      connection_->connectArms();
+      reconnect_ = false;
+    }
+    // A simulator left paused (a learner stopped while it stood still) goes on first.
+    if (!robot_.pause_service.empty()) connection_->pause(false);
+    (void)connection_->reset();
+    moved = true;
+    runPlan(plan);
+  } catch (const RobotFault& fault) {
+    last_.outcome = fault.outcome;
+    last_.reason = fault.reason;
+  } catch (const std::exception& e) {
+    // Anything else the ROS layer throws fails this rollout, not the learning.
+    last_.outcome = tasks::FoldOutcome::RobotFailed;
+    last_.reason = std::string("the ROS layer failed: ") + e.what();
+  }
+  if (last_.outcome != tasks::FoldOutcome::Ok) {
+    connection_->cancelGoals();
+    reconnect_ = reconnect_ || last_.outcome == tasks::FoldOutcome::RobotFailed;
+    connection_->resumeAfterFailure();  // the recovery needs the clock
+    if (moved) last_.reason += "; recovery: " + recover();
+  }
+  connection_->resumeAfterFailure();
+  // The measured joint and tool paths.
+  connection_->record(false);
+  const RobotConnection::Recorded recorded = connection_->recorded();
+  last_.max_tracking_error = recorded.max_error;
+  const std::vector<std::size_t> samples = recorded.every(kPathRate);
+  const auto count = static_cast<Eigen::Index>(samples.size());
+  last_.path_times.resize(count);
+  last_.joint_path.resize(task_.dofs(), count);
+  last_.tool_path.resize(3, count);
+  kinematics::ChainData data(task_.armModel());
+  for (std::size_t k = 0; k < samples.size(); ++k) {
+    const auto i = static_cast<Eigen::Index>(k);
+    const Eigen::VectorXd& q = recorded.positions.front()[samples[k]];
+    last_.path_times[i] = recorded.times.front()[samples[k]] - origin_;
+    last_.joint_path.col(i) = q;
+    (void)kinematics::forwardKinematics(task_.armModel(), data, q);
+    last_.tool_path.col(i) = task_.basePose() * data.tipPose().translation();
+  }
+  tasks::scoreScarfRollout(c, last_);
+  last_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  return rollout::ScarfRolloutTask::resultOf(last_);
+}
+
+}  // namespace bimanual_skills::ros_layer

@@ -1,0 +1,197 @@
+// rostest (test/scarf_on_robot.test): the scarf through the ROS backend against sim.launch's scarf scene.
+// 1. The demonstration as a ScarfOnRobotTask rollout: it finishes, its cost is the sum of its terms, c_t is the
+//    in-process task's to the bit (the same plan), c_torque comes from the arm's controller's observer, c_cam from
+//    the RGB-D camera's colour image (640 x 480), the scarf's truth from bullet_sim's cloud.
+// 2. Settings that cannot work are refused with the reason: two arms, a camera that is not the task's.
+// 3. A short learning (PI2-CMA, 2 epochs x 3 rollouts) through ROS with bullet_sim killed (SIGKILL) after its second
+//    rollout: the rollout that meets the dead simulator fails with the reason (its service by name), is retried, and
+//    the learning stops after robot_fault_limit faults in a row, saying why; nothing the dead robot did is learned
+//    from.
+#include "bimanual_skills/rollout/dmp_learning.hpp"
+#include "bimanual_skills/rollout/parallel_evaluator.hpp"
+#include "bimanual_skills/rollout/scarf_learning.hpp"
+#include "bimanual_skills/ros_layer/robot/scarf_on_robot.hpp"
+#include "node_pid.hpp"
+
+#include <ros/ros.h>
+
+#include <gtest/gtest.h>
+
+#include <signal.h>
+#include <sys/types.h>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <stdexcept>
+#include <string>
+
+namespace bs = bimanual_skills;
+namespace br = bimanual_skills::rollout;
+
+namespace {
+
+br::ScarfLearningConfig shipped() {
+  std::string path;
+  ros::param::get("~config", path);
+  return br::ScarfLearningConfig::fromYamlFile(path);
+}
+
+/// The robot's interfaces with waits short enough for a test, long enough for a loaded machine.
+bs::ros_layer::ScarfRobotInterfaces robot() {
+  bs::ros_layer::ScarfRobotInterfaces r;
+  r.timeout = 10.0;
+  r.reset_timeout = 10.0;
+  return r;
+}
+
+double term(const br::RolloutResult& result, const std::string& name) {
+  const std::vector<std::string> names = br::ScarfRolloutTask::names();
+  return result.terms[std::find(names.begin(), names.end(), name) - names.begin()];
+}
+
+}  // namespace
+
+TEST(ScarfOnRobot, RunsTheDemonstrationAsTheTaskDoesInProcess) {
+  const br::ScarfLearningConfig config = shipped();
+  bs::ros_layer::ScarfOnRobotTask task(config.task, robot());
+  const br::RolloutResult r = task.run(task.initialParameters(), 1);
+  ASSERT_TRUE(r.ok) << r.outcome << ": " << r.reason;
+  const bs::tasks::ScarfRollout& last = task.lastRollout();
+  br::ScarfRolloutTask local(config.task);
+  const br::RolloutResult in_process = local.run(local.initialParameters(), 1);
+  std::printf(
+      "the demonstration through ROS: cost %.3f (c_t %.3f, c_cam %.3f with d %.1f px, c_torque %.3f), winding %.2f "
+      "rad, tracking error %.3f rad, in %.2f s; in-process: cost %.3f (c_cam %.3f with d %.1f px, c_torque %.3f), "
+      "winding %.2f rad\n",
+      last.cost, last.c_acceleration, last.c_cam, last.camera.d, last.c_torque, last.truth.winding,
+      last.max_tracking_error, r.wall_seconds, -in_process.reward, term(in_process, "c_cam"), term(in_process, "d"),
+      term(in_process, "c_torque"), term(in_process, "winding"));
+  EXPECT_NEAR(last.cost, last.c_acceleration + last.c_cam + last.c_torque, 1e-12);
+  EXPECT_EQ(last.c_acceleration, term(in_process, "c_acceleration")) << "the same plan, the same c_t";
+  EXPECT_GT(last.mean_abs_torque, 0.0);
+  EXPECT_GE(last.peak_abs_torque, last.mean_abs_torque);
+  // The controller's observer (its FIR filtered) against the task's own: the same order of magnitude.
+  EXPECT_GT(last.mean_abs_torque, 0.3 * term(in_process, "mean_abs_torque"));
+  EXPECT_LT(last.mean_abs_torque, 3.0 * term(in_process, "mean_abs_torque"));
+  EXPECT_TRUE(std::isnan(last.mean_tool_force)) << "the simulator's inside is not the robot's to tell";
+  EXPECT_EQ(last.bgr.cols, 640);
+  EXPECT_EQ(last.bgr.rows, 480);
+  EXPECT_TRUE(last.camera.nose_seen);
+  EXPECT_TRUE(last.camera.scarf_seen);
+  EXPECT_EQ(last.cloth_vertices.cols(), 180) << "bullet_sim's scarf cloud";
+  EXPECT_LT(last.max_tracking_error, 0.2);
+  EXPECT_GT(last.path_times.size(), 100);
+  EXPECT_NEAR(last.simulated_seconds, 10.3, 1e-9);
+  EXPECT_EQ(r.trajectory.rows(), 3);
+  // The tool's measured path ends where the in-process one does (the same references, another controller).
+  EXPECT_LT((r.trajectory.rightCols(1) - in_process.trajectory.rightCols(1)).norm(), 0.02);
+}
+
+TEST(ScarfOnRobot, SettingsThatCannotWorkAreRefusedWithTheReason) {
+  const br::ScarfLearningConfig config = shipped();
+  const auto refused = [&](bs::ros_layer::ScarfRobotInterfaces interfaces, const std::string& expected) {
+    try {
+      bs::ros_layer::ScarfOnRobotTask task(config.task, interfaces);
+      ADD_FAILURE() << "accepted; expected a refusal naming " << expected;
+    } catch (const std::exception& e) {
+      std::printf("refused: %s\n", e.what());
+      EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+    }
+  };
+  bs::ros_layer::ScarfRobotInterfaces r = robot();
+  r.arms = {"left", "right"};
+  refused(r, "one arm");
+  r = robot();
+  r.trajectory_rate = 0.0;
+  refused(r, "trajectory_rate");
+  // bullet_sim's top-down camera: an orthographic map, not the task's perspective camera.
+  r = robot();
+  r.camera = "camera";
+  refused(r, "the camera /camera cannot be used: it is an orthographic camera");
+  // The task's camera elsewhere: the cost's pixel thresholds would be another camera's.
+  bs::tasks::ScarfTaskConfig moved = config.task;
+  const std::string start = ::testing::TempDir() + "/scarf_start_moved.yaml";
+  {
+    std::ifstream in(config.task.start);
+    std::ofstream out(start);
+    for (std::string line; std::getline(in, line);) {
+      out << (line.rfind("rgbd_eye:", 0) == 0 ? "rgbd_eye: [-0.45, 0.45, 0.62]" : line) << '\n';
+    }
+  }
+  moved.start = start;
+  try {
+    bs::ros_layer::ScarfOnRobotTask task(moved, robot());
+    ADD_FAILURE() << "a camera 5 cm from the task's was accepted";
+  } catch (const std::runtime_error& e) {
+    std::printf("refused: %s\n", e.what());
+    EXPECT_NE(std::string(e.what()).find("from the task's camera"), std::string::npos) << e.what();
+  }
+}
+
+// Last: it kills the simulator.
+TEST(ScarfOnRobot, ALearningWithAKilledSimulatorStopsWithTheReason) {
+  br::ScarfLearningConfig config = shipped();
+  br::DmpLearningConfig& l = config.learning;
+  l.algorithms = {"PI2-CMA"};
+  l.runs = 1;
+  l.updates = 1;
+  l.rollouts = 3;
+  l.robot_retries = 1;
+  l.robot_fault_limit = 2;
+  const std::string dir = ::testing::TempDir() + "/scarf_on_robot";
+  std::filesystem::remove_all(dir);
+  const pid_t simulator = static_cast<pid_t>(bs::test::nodePid("/bullet_sim"));
+  ASSERT_GT(simulator, 0) << "no /bullet_sim node answers getPid";
+  const bs::ros_layer::ScarfRobotInterfaces interfaces = robot();
+  const bs::tasks::ScarfTaskConfig task = config.task;
+  int finished = 0, faults = 0;
+  br::DmpLearningObserver observer;
+  observer.rollout = [&](const br::DmpRolloutRecord& record, br::RolloutTask*) {
+    std::printf("  rollout %s %d: %s, cost %.3f\n", br::toString(record.kind), record.index,
+                record.result.outcome.c_str(), -record.result.reward);
+    if (++finished == 2) {
+      std::printf("  bullet_sim killed (SIGKILL)\n");
+      ::kill(simulator, SIGKILL);
+    }
+  };
+  observer.robot_fault = [&](const br::DmpRolloutRecord&, int attempt, const std::string& reason, bool retry) {
+    std::printf("  robot fault, attempt %d: %s%s\n", attempt, reason.c_str(), retry ? "; running it again" : "");
+    ++faults;
+  };
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    br::DmpLearner(
+        br::scarfTaskModel(bs::tasks::ScarfTask(task)), l, dir,
+        std::make_unique<br::ParallelEvaluator>(
+            [task, interfaces] { return std::make_unique<bs::ros_layer::ScarfOnRobotTask>(task, interfaces); }, 1),
+        observer)
+        .learn();
+    ADD_FAILURE() << "the learning went on with a dead simulator";
+  } catch (const br::RobotFaults& e) {
+    std::printf("the learning stopped after %.1f s: %s\n",
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), e.what());
+    EXPECT_NE(std::string(e.what()).find("2 times in a row (robot_fault_limit 2)"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("within 10 s"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(finished, 2);
+  EXPECT_EQ(faults, 2);
+  int lines = -1;  // the header
+  std::ifstream rollouts(dir + "/rollouts.csv");
+  for (std::string line; std::getline(rollouts, line); ++lines) {
+    EXPECT_EQ(line.find("RobotFailed"), std::string::npos) << "a robot's fault was learned from: " << line;
+  }
+  EXPECT_EQ(lines, 2);
+  std::ifstream faults_csv(dir + "/robot_faults.csv");
+  std::string header, first;
+  std::getline(faults_csv, header);
+  std::getline(faults_csv, first);
+  EXPECT_NE(first.find("/bullet_sim/"), std::string::npos) << "the simulator's interface by name: " << first;
+}
+
+int main(int argc, char** argv) {
+  ::testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_scarf_on_robot");
+  ros::NodeHandle keep_alive;
+  return RUN_ALL_TESTS();
+}
