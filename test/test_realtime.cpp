@@ -170,6 +170,7 @@ struct Loop {
   Eigen::VectorXd q = (Eigen::VectorXd(7) << 0.0, 0.6, 0.0, 1.6, 0.0, 0.4, 0.0).finished();
   Eigen::VectorXd qd = Eigen::VectorXd::Zero(7), qdd = Eigen::VectorXd::Zero(7), tau = Eigen::VectorXd::Zero(7);
   Eigen::VectorXd none;
+  Eigen::VectorXd external = Eigen::VectorXd::Zero(7);  ///< Torques the world applies to the joints [N m].
   double t = 0.0;
 
   static bc::ArmControllerConfig config() { return bimanual_skills::test_support::loopControllerConfig(); }
@@ -177,7 +178,7 @@ struct Loop {
 
   bc::ControllerStatus step(bc::RealtimeArmController& controller) {
     const bc::ControllerStatus status = controller.update(t, t, q, qd, none, tau);
-    (void)bd::forwardDynamics(model, data, q, qd, tau, qdd);
+    (void)bd::forwardDynamics(model, data, q, qd, tau + external, qdd);
     qd += 0.001 * qdd;
     q += 0.001 * qd;
     t += 0.001;
@@ -201,6 +202,18 @@ bc::ArmControllerState run(Loop& loop, bc::RealtimeArmController& controller, in
   const bc::ArmControllerState* state = controller.latestState();
   EXPECT_NE(state, nullptr);
   return state ? *state : bc::ArmControllerState(7);
+}
+
+// The state hands out the disturbance observer's joint torques (what ARM/estimated_external_torque publishes): held
+// against a constant push on joints 2 and 4, they converge to it.
+TEST(RealtimeArmController, ItsStateCarriesTheObserversExternalTorques) {
+  Loop loop;
+  bc::RealtimeArmController controller(loop.model, Loop::friction(), Loop::config());
+  run(loop, controller, 50);
+  loop.external << 0.0, 3.0, 0.0, -2.0, 0.0, 0.0, 0.0;
+  const bc::ArmControllerState state = run(loop, controller, 2000);
+  ASSERT_EQ(state.external_torque.size(), 7);
+  EXPECT_LT((state.external_torque - loop.external).cwiseAbs().maxCoeff(), 0.1) << state.external_torque.transpose();
 }
 
 TEST(RealtimeArmController, GoalsSucceedOrReportTheViolatedTolerance) {

@@ -162,6 +162,10 @@ struct Cloth::Impl {
   ClothParameters parameters;
   std::optional<Table> table;
   std::vector<Obstacle> obstacles;
+  /// Per obstacle: the world-to-obstacle transform, and the sphere about its centre that contains it (a node farther
+  /// from it than the margin cannot touch it: projectOutOfObstacles skips it).
+  std::vector<Eigen::Isometry3d> obstacle_inverse;
+  std::vector<double> obstacle_radius;
   Eigen::Vector3d gravity;
   int gripper_count = 0;
 
@@ -308,9 +312,24 @@ void Cloth::Impl::limitStrain(double dt) noexcept {
 
 namespace {
 
-/// Signed distance from `p` to the surface of `o` (negative inside) and the outward normal there, both in the world.
-double signedDistance(const Obstacle& o, const Eigen::Vector3d& p, Eigen::Vector3d& normal) noexcept {
-  const Eigen::Vector3d x = o.pose.inverse() * p;  // in the obstacle's frame
+/// The radius of the smallest sphere about `o`'s centre that contains it [m].
+double boundingRadius(const Obstacle& o) noexcept {
+  switch (o.shape) {
+    case Obstacle::Shape::Sphere:
+      return o.size.x();
+    case Obstacle::Shape::Cylinder:
+      return std::hypot(o.size.x(), 0.5 * o.size.y());
+    case Obstacle::Shape::Box:
+      break;
+  }
+  return 0.5 * o.size.norm();
+}
+
+/// Signed distance from `p` to the surface of `o` (negative inside) and the outward normal there, both in the world;
+/// `inverse` is o.pose.inverse().
+double signedDistance(const Obstacle& o, const Eigen::Isometry3d& inverse, const Eigen::Vector3d& p,
+                      Eigen::Vector3d& normal) noexcept {
+  const Eigen::Vector3d x = inverse * p;  // in the obstacle's frame
   Eigen::Vector3d n_local = Eigen::Vector3d::UnitZ();
   double d = 0.0;
   switch (o.shape) {
@@ -368,14 +387,19 @@ double signedDistance(const Obstacle& o, const Eigen::Vector3d& p, Eigen::Vector
 void Cloth::Impl::projectOutOfObstacles() noexcept {
   const double margin = parameters.thickness;
   const int n = soft->m_nodes.size();
-  for (const Obstacle& o : obstacles) {
+  for (std::size_t k = 0; k < obstacles.size(); ++k) {
+    const Obstacle& o = obstacles[k];
     if (!o.collides) continue;
     const double mu = parameters.friction * o.friction;
+    const Eigen::Vector3d centre = o.pose.translation();
+    const double reach = obstacle_radius[k] + margin;
     for (int i = 0; i < n; ++i) {
       if (owner[static_cast<std::size_t>(i)] >= 0) continue;
       btSoftBody::Node& node = soft->m_nodes[i];
+      const Eigen::Vector3d x = toEigen(node.m_x);
+      if ((x - centre).squaredNorm() >= reach * reach) continue;  // beyond the margin of its bounding sphere
       Eigen::Vector3d normal;
-      const double d = signedDistance(o, toEigen(node.m_x), normal);
+      const double d = signedDistance(o, obstacle_inverse[k], x, normal);
       if (!(d < margin)) continue;
       node.m_x += toBullet(normal * (margin - d));
       Eigen::Vector3d v = toEigen(node.m_v);
@@ -571,6 +595,10 @@ Cloth::Cloth(const ClothParameters& parameters, const std::optional<Table>& tabl
   impl_->gravity = gravity;
   impl_->gripper_count = grippers;
   impl_->obstacles = obstacles;
+  for (const Obstacle& obstacle : obstacles) {
+    impl_->obstacle_inverse.push_back(obstacle.pose.inverse());
+    impl_->obstacle_radius.push_back(boundingRadius(obstacle));
+  }
   impl_->build();
 }
 
