@@ -380,26 +380,28 @@ class ScarfLearnerNode {
   }
 
   /// With the robot backend: initial.png and final_runs/ are the robot camera's images of those policies (as
-  /// taken, from robot_images/), camera.csv their measures as the rollouts recorded them.
+  /// taken, from robot_images/), camera.csv their camera measures.
   void writeRobotPictures(const br::DmpLearningResult& result) const {
-    const std::vector<std::string> terms = br::ScarfRolloutTask::names();
-    const auto term = [&](const br::DmpRolloutRecord& r, const std::string& name) {
-      const auto at = std::find(terms.begin(), terms.end(), name) - terms.begin();
-      return at < r.result.terms.size() ? r.result.terms[at] : std::numeric_limits<double>::quiet_NaN();
-    };
     std::filesystem::create_directories(out_ + "/final_runs");
     std::ofstream csv(out_ + "/camera.csv");
     csv << "picture,algorithm,run,cost,d,d_ref,hanging,right_pixels,left_pixels,c_cam,nose_u,nose_v,success\n";
+    const std::vector<std::string> terms = br::ScarfRolloutTask::names();
+    const auto success = std::find(terms.begin(), terms.end(), "success") - terms.begin();
     const auto copy = [&](const br::DmpRolloutRecord& record, const std::string& name) {
       const std::string taken = out_ + "/robot_images/" + bs::nodes::fileName(record.algorithm) + "_run_" +
                                 std::to_string(record.run) + "_epoch_" + std::to_string(record.epoch) + ".png";
-      std::error_code error;
-      std::filesystem::copy_file(taken, out_ + "/" + name, std::filesystem::copy_options::overwrite_existing, error);
-      if (error) ROS_WARN("scarf_learner: no robot image %s (%s)", taken.c_str(), error.message().c_str());
-      csv << name << ',' << record.algorithm << ',' << record.run << ',' << -record.result.reward << ','
-          << term(record, "d") << ',' << config_.task.camera.d_ref << ',' << term(record, "hanging") << ','
-          << term(record, "right_pixels") << ',' << term(record, "left_pixels") << ',' << term(record, "c_cam") << ",,,"
-          << term(record, "success") << '\n';
+      const cv::Mat bgr = cv::imread(taken);
+      if (bgr.empty()) {
+        ROS_WARN("scarf_learner: no robot image %s (a resumed rollout's, or a failed one's)", taken.c_str());
+        return;
+      }
+      cv::imwrite(out_ + "/" + name, bgr);
+      const bt::ScarfCameraConfig& camera = task_->task().config().camera;  // d_ref and the level of this camera
+      const bt::ScarfCameraTerms c = bt::scarfCameraTerms(bgr, camera);
+      csv << name << ',' << record.algorithm << ',' << record.run << ',' << -record.result.reward << ',' << c.d << ','
+          << camera.d_ref << ',' << c.hanging << ',' << c.right_pixels << ',' << c.left_pixels << ',' << c.c_cam << ','
+          << c.nose_u << ',' << c.nose_v << ','
+          << (success < record.result.terms.size() ? record.result.terms[success] : 0.0) << '\n';
     };
     copy(result.runs.front().initial_policy, "initial.png");
     for (const br::DmpRunResult& run : result.runs) {
@@ -407,8 +409,7 @@ class ScarfLearnerNode {
            "final_runs/" + bs::nodes::fileName(run.algorithm) + "_run_" + std::to_string(run.run) + ".png");
     }
     std::printf(
-        "scarf_learner: the robot camera's pictures in %s (initial.png, final_runs/, robot_images/, "
-        "camera.csv)\n",
+        "scarf_learner: the robot camera's pictures in %s (initial.png, final_runs/, robot_images/, camera.csv)\n",
         out_.c_str());
   }
 
