@@ -171,6 +171,7 @@ struct Loop {
   Eigen::VectorXd qd = Eigen::VectorXd::Zero(7), qdd = Eigen::VectorXd::Zero(7), tau = Eigen::VectorXd::Zero(7);
   Eigen::VectorXd none;
   Eigen::VectorXd external = Eigen::VectorXd::Zero(7);  ///< Torques the world applies to the joints [N m].
+  Eigen::VectorXd applied = Eigen::VectorXd::Zero(7);   ///< tau + external (no allocation per step).
   double t = 0.0;
 
   static bc::ArmControllerConfig config() { return bimanual_skills::test_support::loopControllerConfig(); }
@@ -178,7 +179,8 @@ struct Loop {
 
   bc::ControllerStatus step(bc::RealtimeArmController& controller) {
     const bc::ControllerStatus status = controller.update(t, t, q, qd, none, tau);
-    (void)bd::forwardDynamics(model, data, q, qd, tau + external, qdd);
+    applied.noalias() = tau + external;
+    (void)bd::forwardDynamics(model, data, q, qd, applied, qdd);
     qd += 0.001 * qdd;
     q += 0.001 * qd;
     t += 0.001;

@@ -80,7 +80,12 @@ Eigen::VectorXd ScarfOnRobotTask::initialParameters() const {
 void ScarfOnRobotTask::onTorque(const sensor_msgs::JointStateConstPtr& message) {
   const double t = message->header.stamp.toSec();
   const std::lock_guard<std::mutex> lock(mutex_);
-  if (t < torque_from_ || t >= torque_to_ || message->effort.empty()) return;
+  // A message of another size or with a non-finite value is not an estimate of this arm: not counted (none at all
+  // fails the rollout as the robot's).
+  if (t < torque_from_ || t >= torque_to_ || message->effort.size() != static_cast<std::size_t>(task_.dofs()) ||
+      !std::all_of(message->effort.begin(), message->effort.end(), [](double v) { return std::isfinite(v); })) {
+    return;
+  }
   double sum = 0.0;
   for (const double tau : message->effort) {
     sum += std::abs(tau);
@@ -195,9 +200,11 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   {
     const std::lock_guard<std::mutex> lock(mutex_);
     if (torque_samples_ == 0) {
-      throw RobotFault{tasks::FoldOutcome::RobotFailed,
-                       "no " + connection_->node().resolveName(robot_.arms.front() + "/estimated_external_torque") +
-                           " during the motion (c_torque is the arm's controller's observer)"};
+      throw RobotFault{
+          tasks::FoldOutcome::RobotFailed,
+          "no " + connection_->node().resolveName(robot_.arms.front() + "/estimated_external_torque") +
+              " of the arm's " + std::to_string(task_.dofs()) +
+              " joints with finite values during the motion (c_torque is the arm's controller's observer)"};
     }
     last_.mean_abs_torque = torque_sum_ / static_cast<double>(torque_samples_);
     last_.peak_abs_torque = torque_peak_;
