@@ -1,8 +1,10 @@
 #include "bimanual_skills/signal/acceleration_sign.hpp"
 #include "bimanual_skills/signal/fir_filter.hpp"
+#include "bimanual_skills/signal/target_tracker.hpp"
 #include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
+#include <Eigen/QR>
 
 #include <cmath>
 #include <complex>
@@ -116,4 +118,153 @@ TEST(Signal, SignWithDeadBand) {
   EXPECT_EQ(sign, banded);
   bs::signWithDeadBand(values, 0.0, sign);
   EXPECT_EQ(sign, exact);
+}
+
+// ---- the tracked target (constant-velocity Kalman filter) ----
+
+namespace {
+
+using Update = bs::TargetTracker::Update;
+
+/// A target at p0 + v t seen at 30 Hz with noise σ per axis, a tenth of the frames dropped (seeded).
+struct Track {
+  Eigen::Vector3d p0{0.4, -0.1, 0.2}, v{0.2, 0.05, -0.03};
+  double sigma = 0.005;
+  std::mt19937 rng{11};
+  Eigen::Vector3d at(double t) const { return p0 + v * t; }
+  Eigen::Vector3d seen(double t) {
+    std::normal_distribution<double> noise(0.0, sigma);
+    return at(t) + Eigen::Vector3d(noise(rng), noise(rng), noise(rng));
+  }
+  Eigen::Matrix3d r() const { return Eigen::Matrix3d::Identity() * sigma * sigma; }
+};
+
+}  // namespace
+
+// Against the truth: the filtered position is closer to the target than the camera's, the velocity found, and the
+// filter consistent (its normalised innovations average χ²₃'s mean, 3); updates and predictions allocate nothing.
+TEST(TargetTracker, FollowsAConstantVelocityTargetBetterThanItsMeasurements) {
+  bs::TargetTrackerConfig config;
+  config.acceleration_noise = 1e-4;
+  bs::TargetTracker tracker(config);
+  Track track;
+  std::bernoulli_distribution dropped(0.1);
+  bool first = true;
+  double raw = 0.0, filtered = 0.0, nis = 0.0;
+  int n = 0, accepted = 0;
+  Eigen::Vector3d p, v;
+  Eigen::Matrix3d c;
+  for (int k = 0; k < 300; ++k) {
+    const double t = k / 30.0;
+    if (dropped(track.rng)) continue;
+    const Eigen::Vector3d z = track.seen(t);
+    Update u;
+    {
+      NoAllocGuard guard;
+      u = tracker.update(t, z, track.r());
+      ASSERT_TRUE(tracker.predict(t, p, v, c));
+    }
+    EXPECT_EQ(u, first ? Update::Started : Update::Accepted) << "frame " << k;
+    first = false;
+    if (t < 1.0) continue;  // the first second: the velocity is being found
+    raw += (z - track.at(t)).squaredNorm();
+    filtered += (p - track.at(t)).squaredNorm();
+    nis += tracker.lastInnovation();
+    ++n;
+    accepted += u == Update::Accepted;
+  }
+  raw = std::sqrt(raw / n);
+  filtered = std::sqrt(filtered / n);
+  std::printf("over %d frames: camera %.2f mm rms, filtered %.2f mm rms; mean NIS %.2f (3 expected)\n", n, 1e3 * raw,
+              1e3 * filtered, nis / n);
+  EXPECT_LT(filtered, 0.5 * raw);
+  EXPECT_LT((v - track.v).norm(), 0.01);
+  EXPECT_NEAR(nis / n, 3.0, 0.6);
+  EXPECT_EQ(accepted, n);
+  // Predicted ahead (a control loop between frames): the target's own extrapolation, the uncertainty growing.
+  Eigen::Vector3d p_ahead, v_ahead;
+  Eigen::Matrix3d c_ahead;
+  ASSERT_TRUE(tracker.predict(10.2, p_ahead, v_ahead, c_ahead));
+  EXPECT_LT((p_ahead - track.at(10.2)).norm(), 0.005);
+  EXPECT_GT(c_ahead.trace(), c.trace());
+}
+
+// An independent reference: with no process noise and a flat velocity prior, the Kalman filter's last estimate is the
+// least-squares line through all the measurements (a brute-force fit here).
+TEST(TargetTracker, WithoutProcessNoiseItIsTheLeastSquaresLine) {
+  bs::TargetTrackerConfig config;
+  config.acceleration_noise = 1e-12;
+  config.initial_speed = 1e4;
+  config.lost_after = 10.0;
+  bs::TargetTracker tracker(config);
+  Track track;
+  std::vector<double> times;
+  std::vector<Eigen::Vector3d> seen;
+  for (int k = 0; k < 60; ++k) {
+    const double t = 0.05 * k + (k % 3) * 0.01;  // irregular frames
+    times.push_back(t);
+    seen.push_back(track.seen(t));
+    ASSERT_NE(tracker.update(t, seen.back(), track.r()), Update::Invalid);
+  }
+  Eigen::MatrixXd a(static_cast<Eigen::Index>(times.size()), 2);
+  for (std::size_t i = 0; i < times.size(); ++i) a.row(static_cast<Eigen::Index>(i)) << 1.0, times[i] - times.back();
+  Eigen::Vector3d p, v;
+  Eigen::Matrix3d c;
+  ASSERT_TRUE(tracker.predict(times.back(), p, v, c));
+  for (int axis = 0; axis < 3; ++axis) {
+    Eigen::VectorXd b(static_cast<Eigen::Index>(seen.size()));
+    for (std::size_t i = 0; i < seen.size(); ++i) b[static_cast<Eigen::Index>(i)] = seen[i][axis];
+    const Eigen::Vector2d line = a.colPivHouseholderQr().solve(b);  // position at the last time, velocity
+    EXPECT_NEAR(p[axis], line[0], 1e-6) << "axis " << axis;
+    EXPECT_NEAR(v[axis], line[1], 1e-5) << "axis " << axis;
+  }
+}
+
+// A jump is not followed; a target that stays away, or unseen for lost_after, is lost and the next frame starts anew.
+// Bad input is refused without touching the track.
+TEST(TargetTracker, RejectsJumpsLosesTheTargetAndRefusesBadInput) {
+  bs::TargetTrackerConfig config;
+  config.reject_limit = 3;
+  bs::TargetTracker tracker(config);
+  Track track;
+  double t = 0.0;
+  for (int k = 0; k < 60; ++k, t += 1.0 / 30.0) ASSERT_NE(tracker.update(t, track.seen(t), track.r()), Update::Invalid);
+  // One outlier half a metre off: rejected, the track goes on.
+  EXPECT_EQ(tracker.update(t, track.at(t) + Eigen::Vector3d(0.5, 0.0, 0.0), track.r()), Update::Rejected);
+  EXPECT_GT(tracker.lastInnovation(), config.gate);
+  t += 1.0 / 30.0;
+  EXPECT_EQ(tracker.update(t, track.seen(t), track.r()), Update::Accepted);
+  // The object moved (three frames in a row elsewhere): lost, then a new track where it is.
+  const Eigen::Vector3d elsewhere(0.0, 0.5, 0.3);
+  for (int k = 0; k < 3; ++k) {
+    t += 1.0 / 30.0;
+    EXPECT_EQ(tracker.update(t, elsewhere, track.r()), Update::Rejected);
+  }
+  EXPECT_FALSE(tracker.tracking(t));
+  t += 1.0 / 30.0;
+  EXPECT_EQ(tracker.update(t, elsewhere, track.r()), Update::Started);
+  Eigen::Vector3d p, v;
+  Eigen::Matrix3d c;
+  ASSERT_TRUE(tracker.predict(t, p, v, c));
+  EXPECT_EQ(p, elsewhere);
+  // Unseen for longer than lost_after: lost.
+  EXPECT_TRUE(tracker.tracking(t + 0.4));
+  EXPECT_FALSE(tracker.tracking(t + 0.6));
+  EXPECT_FALSE(tracker.predict(t + 0.6, p, v, c));
+  // Bad input: NaN, a covariance that is not positive definite or not symmetric, a duplicate or reordered frame.
+  const double last = t;
+  EXPECT_EQ(tracker.update(t + 0.01, Eigen::Vector3d(std::nan(""), 0.0, 0.0), track.r()), Update::Invalid);
+  EXPECT_EQ(tracker.update(t + 0.01, elsewhere, -track.r()), Update::Invalid);
+  Eigen::Matrix3d skew = track.r();
+  skew(0, 1) = 1e-6;
+  EXPECT_EQ(tracker.update(t + 0.01, elsewhere, skew), Update::Invalid);
+  EXPECT_EQ(tracker.update(last, elsewhere, track.r()), Update::Invalid);
+  EXPECT_EQ(tracker.update(last - 0.1, elsewhere, track.r()), Update::Invalid);
+  EXPECT_EQ(tracker.lastAccepted(), last);
+  EXPECT_EQ(tracker.update(t + 0.02, elsewhere, track.r()), Update::Accepted);
+  bs::TargetTrackerConfig bad;
+  bad.gate = -1.0;
+  EXPECT_THROW(bs::TargetTracker{bad}, std::invalid_argument);
+  tracker.reset();
+  EXPECT_FALSE(tracker.tracking(t));
 }
