@@ -129,4 +129,13 @@ trajectory_msgs::JointTrajectoryPoint trajectoryPoint(const Eigen::VectorXd& q, 
   return p;
 }
 
+std::vector<bimanual_skills::JointTolerance> pathTolerances(const std::vector<std::string>& joints, double position) {
+  std::vector<bimanual_skills::JointTolerance> tolerances(joints.size());
+  for (std::size_t j = 0; j < joints.size(); ++j) {
+    tolerances[j].name = joints[j];
+    tolerances[j].position = position;
+  }
+  return tolerances;
+}
+
 }  // namespace bimanual_skills::ros_layer

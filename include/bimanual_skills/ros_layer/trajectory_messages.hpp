@@ -27,6 +27,9 @@ struct TrajectoryError {
 trajectory_msgs::JointTrajectoryPoint trajectoryPoint(const Eigen::VectorXd& q, const Eigen::VectorXd& qd,
                                                       const Eigen::VectorXd& qdd, double t);
 
+/// A path tolerance of `position` [rad] on each of `joints` (a FollowJointTrajectory goal's path_tolerance).
+std::vector<bimanual_skills::JointTolerance> pathTolerances(const std::vector<std::string>& joints, double position);
+
 /// Converts `message` for an arm whose joints are `joints` into waypoints with times relative to `start`, the
 /// trajectory's own start: header.stamp, or `now` (the clock of the controller's stamps) when that is zero. The
 /// points at or before `now` are dropped. Refuses (before allocating for the points) a trajectory of more than

@@ -216,20 +216,8 @@ void FoldOnRobotTask::moveToStart() {
 }
 
 std::string FoldOnRobotTask::recover() noexcept {
-  std::string done = connection_->openGrippers(kRecoveryTimeout);
-  try {
-    // Up to the configurations above the start, timed from the velocity limits, if the arms still answer.
-    const double time =
-        RobotConnection::moveTime(connection_->measuredPositions(), above_start_, velocityLimits(), 0.5);
-    done += connection_->moveWithin(above_start_, time, std::min(robot_.timeout, kRecoveryTimeout))
-                ? ", the arms retracted above their start"
-                : ", the arms not retracted";
-  } catch (const RobotFault& f) {
-    done += ", the arms not retracted (" + f.reason + ")";
-  } catch (const std::exception& e) {
-    done += std::string(", the recovery stopped: ") + e.what();
-  }
-  return done;
+  return connection_->recover(above_start_, velocityLimits(), kRecoveryTimeout, "the arms retracted above their start",
+                              "the arms not retracted");
 }
 
 ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
@@ -254,12 +242,7 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
       goal.trajectory.points.push_back(
           trajectoryPoint(plan.position[a].col(k), plan.velocity[a].col(k), plan.acceleration[a].col(k), k * plan.dt));
     }
-    for (const std::string& joint : arm.joints) {
-      bimanual_skills::JointTolerance tolerance;
-      tolerance.name = joint;
-      tolerance.position = task_.config().max_tracking_error;
-      goal.path_tolerance.push_back(tolerance);
-    }
+    goal.path_tolerance = pathTolerances(arm.joints, task_.config().max_tracking_error);
     arm.client->sendGoal(goal);
   }
   if (connection_->paused()) {

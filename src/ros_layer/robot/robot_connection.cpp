@@ -503,6 +503,21 @@ std::string RobotConnection::openGrippers(double timeout) noexcept {
   return done;
 }
 
+std::string RobotConnection::recover(const std::vector<Eigen::VectorXd>& targets,
+                                     const std::vector<Eigen::VectorXd>& limits, double timeout,
+                                     const std::string& moved, const std::string& not_moved) noexcept {
+  std::string done = openGrippers(timeout);
+  try {
+    const double time = moveTime(measuredPositions(), targets, limits, 0.5);
+    done += ", " + (moveWithin(targets, time, std::min(robot_.timeout, timeout)) ? moved : not_moved);
+  } catch (const RobotFault& f) {
+    done += ", " + not_moved + " (" + f.reason + ")";
+  } catch (const std::exception& e) {
+    done += std::string(", the recovery stopped: ") + e.what();
+  }
+  return done;
+}
+
 void RobotConnection::record(bool on) {
   const std::lock_guard<std::mutex> lock(mutex_);
   for (const auto& arm : states_) {

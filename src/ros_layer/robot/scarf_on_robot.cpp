@@ -172,12 +172,7 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
     if (j == last) break;
   }
   goal.trajectory.points.push_back(trajectoryPoint(plan.position.col(last), zero, zero, plan.move_end * plan.dt));
-  for (const std::string& joint : arm.joints) {
-    bimanual_skills::JointTolerance tolerance;
-    tolerance.name = joint;
-    tolerance.position = c.max_tracking_error;
-    goal.path_tolerance.push_back(tolerance);
-  }
+  goal.path_tolerance = pathTolerances(arm.joints, c.max_tracking_error);
   arm.client->sendGoal(goal);
   if (connection_->paused()) {
     connection_->waitFor([&] { return connection_->goalAnswered(0); }, "the arm's controller (the motion's goal)");
@@ -195,8 +190,7 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   connection_->waitForGoal(0, "motion");
   connection_->record(false);
 
-  // The cost's terms: the plan's accelerations, the controller's observer, the camera's colour image.
-  last_.acceleration = plan.acceleration_cost;
+  // The cost's terms (the plan's accelerations are in already): the controller's observer, the camera's colour image.
   {
     const std::lock_guard<std::mutex> lock(mutex_);
     if (torque_samples_ == 0) {
@@ -242,20 +236,8 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
 }
 
 std::string ScarfOnRobotTask::recover() noexcept {
-  std::string done = connection_->openGrippers(kRecoveryTimeout);
-  try {
-    const Eigen::VectorXd& start = task_.startPosition();
-    const double time =
-        RobotConnection::moveTime(connection_->measuredPositions(), {start}, {task_.armModel().velocityLimits()}, 0.5);
-    done += connection_->moveWithin({start}, time, std::min(robot_.timeout, kRecoveryTimeout))
-                ? ", the arm back at its start"
-                : ", the arm not back at its start";
-  } catch (const RobotFault& f) {
-    done += ", the arm not back at its start (" + f.reason + ")";
-  } catch (const std::exception& e) {
-    done += std::string(", the recovery stopped: ") + e.what();
-  }
-  return done;
+  return connection_->recover({task_.startPosition()}, {task_.armModel().velocityLimits()}, kRecoveryTimeout,
+                              "the arm back at its start", "the arm not back at its start");
 }
 
 rollout::RolloutResult ScarfOnRobotTask::run(const Eigen::VectorXd& parameters, std::uint32_t /*seed*/) {

@@ -162,11 +162,10 @@ class RobotConnection {
   void cancelGoals();
   /// Every arm's last measured positions; throws before any state came.
   std::vector<Eigen::VectorXd> measuredPositions();
-  /// Moves the arms to `targets` in `time` [s] and waits at most `time + timeout` of wall time (the recovery after
-  /// a failure, on a robot that may be down): whether every arm got there. Throws when an arm is gone.
-  bool moveWithin(const std::vector<Eigen::VectorXd>& targets, double time, double timeout);
-  /// Opens every gripper within `timeout` each; says how it went ("left's gripper opened, ...").
-  std::string openGrippers(double timeout) noexcept;
+  /// After a failed rollout that moved the robot: opens the grippers, then moves the arms to `targets` timed from
+  /// the velocity limits `limits`, each step bounded by `timeout`; says how it went, with `moved` or `not_moved`.
+  std::string recover(const std::vector<Eigen::VectorXd>& targets, const std::vector<Eigen::VectorXd>& limits,
+                      double timeout, const std::string& moved, const std::string& not_moved) noexcept;
 
   /// Starts (clearing what was recorded) or stops recording the arms' states.
   void record(bool on);
@@ -192,6 +191,11 @@ class RobotConnection {
 
  private:
   struct ArmState;
+  /// Moves the arms to `targets` in `time` [s] and waits at most `time + timeout` of wall time (the recovery after
+  /// a failure, on a robot that may be down): whether every arm got there. Throws when an arm is gone.
+  bool moveWithin(const std::vector<Eigen::VectorXd>& targets, double time, double timeout);
+  /// Opens every gripper within `timeout` each; says how it went ("left's gripper opened, ...").
+  std::string openGrippers(double timeout) noexcept;
   void checkWorld(const std::string& what, const std::string& sim_config, const std::string& robot_file) const;
   /// Under mutex_: whether a camera or cloth message stamped `stamp` belongs to the scene since the last reset.
   bool sceneCounts(double stamp);
