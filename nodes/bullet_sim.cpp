@@ -103,8 +103,9 @@ const std::string kUsage =
     "  ARM/estimated_external_torque (sensor_msgs/JointState, effort: the observer's joint torques), ARM/tool_paths.\n"
     "Sets ~world_digest: sim::SimConfig::worldDigest of ~config (with its URDF and plant files).\n"
     "Services: ~reset (std_srvs/Trigger), ~pause (std_srvs/SetBool), ~step (bimanual_skills/SimStep, bounded),\n"
-    "  ~set_payload, ~apply_wrench (bounded), ~grasp (bimanual_skills/ClothGrasp: fails when no cloth node is in\n"
-    "  reach; a stamp ahead, at most 600 s, is done by the loop in its first cycle at or after it).\n";
+    "  ~set_payload, ~apply_wrench (bounded), ~grasp (bimanual_skills/ClothGrasp: takes the cloth nodes and the\n"
+    "  moving object in reach, fails when there are none; a stamp ahead, at most 600 s, is done by the loop in its\n"
+    "  first cycle at or after it).\n";
 
 constexpr double kMaxGripperLead = 600.0;  ///< Simulated seconds ahead a ~grasp may be scheduled.
 using bs::hosting::GripperDone;
@@ -459,7 +460,8 @@ class BulletSimNode {
       return true;
     }
     int attached = 0;
-    const auto r = loop_->call([this, a, grasp, arm, at, &attached] {
+    bool object = false;
+    const auto r = loop_->call([this, a, grasp, arm, at, &attached, &object] {
       std::ostringstream message;
       message << std::fixed << std::setprecision(6);
       if (at > simulation_->time()) {  // ahead: the loop does it at its time (SimulatedRobot::due)
@@ -468,17 +470,26 @@ class BulletSimNode {
         return bs::hosting::LoopOutcome{true, message.str(), at};
       }
       robot_->schedule(a, SimulatedRobot::kNever, grasp);  // done now: one scheduled before is replaced
-      const sim::SimStatus status = grasp ? simulation_->grasp(a, &attached) : simulation_->release(a);
+      const bool held = simulation_->hasObject() && simulation_->objectHolder() == a;
+      const sim::SimStatus status = grasp ? simulation_->grasp(a, &attached, &object) : simulation_->release(a);
       const double t = simulation_->time();
       if (status != sim::SimStatus::Ok)
         return bs::hosting::LoopOutcome{false, "failed: " + std::string(sim::toString(status)), t};
-      if (grasp && attached == 0) {
-        message << arm << " grasped nothing: no free cloth node within " << simulation_->config().grasp_radius
-                << " m of its tool";
+      const sim::SimConfig& config = simulation_->config();
+      if (grasp && attached == 0 && !object) {
+        message << arm << " grasped nothing:";
+        if (config.has_cloth) message << " no free cloth node within " << config.grasp_radius << " m of its tool;";
+        if (config.has_object) {
+          const Eigen::Vector3d point = simulation_->objectPose().translation() + config.object.grasp_point;
+          message << " the object's grasp point is " << (simulation_->toolPose(a).translation() - point).norm()
+                  << " m from its tool (grasp_radius " << config.object.grasp_radius << " m)";
+        }
         return bs::hosting::LoopOutcome{false, message.str(), t};
       }
-      return bs::hosting::LoopOutcome{
-          true, grasp ? arm + " grasped " + std::to_string(attached) + " cloth nodes" : arm + " released the cloth", t};
+      if (!grasp) return bs::hosting::LoopOutcome{true, arm + (held ? " let the object go" : " released the cloth"), t};
+      message << arm << " grasped " << (object ? "the object" : "") << (object && attached > 0 ? " and " : "");
+      if (attached > 0) message << attached << " cloth nodes";
+      return bs::hosting::LoopOutcome{true, message.str(), t};
     });
     response.success = r.success;
     response.nodes = attached;

@@ -1,8 +1,9 @@
 /// \file
 /// bullet_sim's publishing, off the loop thread: the loop hands each cycle's joint states (hosting::StateSink) and,
 /// at the marker rate, the cloth to two threads through triple buffers and semaphores. The first publishes /clock
-/// and joint_states (and logs the grippers' scheduled commands); the second the scene markers, ~cloth and, at their
-/// rates, the top-down camera's images and the perspective RGB-D camera's (rgbd/...).
+/// and joint_states (and logs the grippers' scheduled commands); the second the scene markers, ~cloth, the moving
+/// object's true motion (~object_truth) and, at their rates, the top-down camera's images and the perspective RGB-D
+/// camera's (rgbd/...).
 #pragma once
 
 #include "bimanual_skills/hosting/control_loop.hpp"
@@ -13,6 +14,7 @@
 #include "bimanual_skills/vision/cloth_renderer.hpp"
 #include "scene_markers.hpp"
 
+#include <nav_msgs/Odometry.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/JointState.h>
@@ -74,7 +76,9 @@ class SimPublishing final : public hosting::StateSink {
       rgbd_ = std::make_unique<vision::PerspectiveRenderer>(tasks::rendererFor(simulation.config()), settings_.rgbd,
                                                             settings_.rgbd_noise);
       rgbd_rng_.seed(simulation.config().seed + 1u);
+      if (simulation.hasObject()) rgbd_->addMovingSolid(tasks::sceneSolid(simulation.config().object.body));
     }
+    frame.object = simulation.hasObject() ? simulation.objectPose() : Eigen::Isometry3d::Identity();
     frames_ = std::make_unique<realtime::TripleBuffer<ClothFrame>>(frame);
     sem_init(&state_signal_, 0, 0);
     sem_init(&scene_signal_, 0, 0);
@@ -82,6 +86,7 @@ class SimPublishing final : public hosting::StateSink {
     clock_ = node.advertise<rosgraph_msgs::Clock>("/clock", 10);
     markers_ = private_node.advertise<visualization_msgs::MarkerArray>("markers", 1, true);
     cloth_ = private_node.advertise<sensor_msgs::PointCloud2>("cloth", 1, true);
+    if (simulation.hasObject()) object_ = private_node.advertise<nav_msgs::Odometry>("object_truth", 10);
     std::vector<geometry_msgs::TransformStamped> frames;
     if (renderer_) {
       camera_ = ros_layer::RgbdPublisher(node, false);
@@ -123,10 +128,16 @@ class SimPublishing final : public hosting::StateSink {
     }
     snapshots_->publish();
     sem_post(&state_signal_);
-    if ((simulation_.hasCloth() || rgbd_) && (forced || t >= next_marker_ || t < last_marker_)) {
+    if ((simulation_.hasCloth() || rgbd_ || simulation_.hasObject()) &&
+        (forced || t >= next_marker_ || t < last_marker_)) {
       ClothFrame& frame = frames_->writeSlot();
       frame.time = t;
       if (simulation_.hasCloth()) frame.vertices = simulation_.cloth().vertices();
+      if (simulation_.hasObject()) {
+        frame.object = simulation_.objectPose();
+        frame.object_velocity = simulation_.objectVelocity();
+        frame.object_holder = simulation_.objectHolder();
+      }
       frame.image = forced;
       frames_->publish();
       sem_post(&scene_signal_);
@@ -147,6 +158,9 @@ class SimPublishing final : public hosting::StateSink {
     double time = 0.0;
     Eigen::Matrix3Xd vertices;
     bool image = false;  ///< The camera's images of this frame too, whatever the camera's rate.
+    Eigen::Isometry3d object = Eigen::Isometry3d::Identity();  ///< The moving object, when the scene has one.
+    Eigen::Vector3d object_velocity = Eigen::Vector3d::Zero();
+    int object_holder = -1;
   };
 
   /// Waits for the loop's signal, at most 0.1 s (so that a stopping node is seen).
@@ -197,6 +211,15 @@ class SimPublishing final : public hosting::StateSink {
         markers.markers.push_back(obstacleMarker(simulation_.config().obstacles[k], static_cast<int>(k), ros::Time()));
       }
       if (simulation_.hasCloth()) markers.markers.push_back(clothMarker(frame->vertices, triangles_, ros::Time()));
+      if (simulation_.hasObject()) {
+        sim::Obstacle body = simulation_.config().object.body;
+        body.pose = frame->object;
+        visualization_msgs::Marker object = obstacleMarker(body, 0, ros::Time());
+        object.ns = "object";
+        markers.markers.push_back(object);
+        object_.publish(objectTruth(*frame));
+        if (rgbd_) rgbd_->setMovingPose(0, frame->object);
+      }
       markers_.publish(markers);
       if (simulation_.hasCloth()) cloth_.publish(clothCloud(frame->vertices, ros::Time(frame->time)));
       // An image every 1/camera_rate simulated seconds, and at once after a reset (time going back).
@@ -225,6 +248,24 @@ class SimPublishing final : public hosting::StateSink {
       }
       last_time = frame->time;
     }
+  }
+
+  /// The object's true pose and velocity (world frame; child frame: its name).
+  nav_msgs::Odometry objectTruth(const ClothFrame& frame) const {
+    nav_msgs::Odometry truth;
+    truth.header.stamp = ros::Time(frame.time);
+    truth.header.frame_id = "world";
+    truth.child_frame_id = simulation_.config().object.body.name;
+    const Eigen::Quaterniond q(frame.object.linear());
+    truth.pose.pose.position = toPoint(frame.object.translation());
+    truth.pose.pose.orientation.w = q.w();
+    truth.pose.pose.orientation.x = q.x();
+    truth.pose.pose.orientation.y = q.y();
+    truth.pose.pose.orientation.z = q.z();
+    truth.twist.twist.linear.x = frame.object_velocity.x();
+    truth.twist.twist.linear.y = frame.object_velocity.y();
+    truth.twist.twist.linear.z = frame.object_velocity.z();
+    return truth;
   }
 
   /// The cloth's nodes (world frame) as a point cloud, in the simulation's node order.
@@ -256,7 +297,7 @@ class SimPublishing final : public hosting::StateSink {
   std::unique_ptr<vision::PerspectiveRenderer> rgbd_;  ///< The perspective RGB-D camera (scene thread); null without.
   std::mt19937 rgbd_rng_;
   tf2_ros::StaticTransformBroadcaster camera_frame_;
-  ros::Publisher joint_states_, clock_, markers_, cloth_;
+  ros::Publisher joint_states_, clock_, markers_, cloth_, object_;
   ros_layer::RgbdPublisher camera_, rgbd_camera_;
   sem_t state_signal_{}, scene_signal_{};
   std::atomic<bool> running_{true};

@@ -26,6 +26,8 @@ PACKAGES=(
   libactionlib-dev libactionlib-msgs-dev python3-actionlib python3-actionlib-msgs
   # teaching by hand: rviz interactive markers (teach_demonstration)
   libinteractive-markers-dev
+  # object tracking: the object's true motion (nav_msgs/Odometry), colour and depth images in step (message_filters)
+  libnav-msgs-dev python3-nav-msgs libmessage-filters-dev
   # build and test
   cmake g++ make colcon python3-colcon-ros python3-colcon-cmake python3-colcon-test-result python3-colcon-bash
   libgtest-dev googletest libbenchmark-dev

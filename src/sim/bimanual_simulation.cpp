@@ -60,6 +60,17 @@ struct ArmsWorld {
       world->addRigidBody(table.get());
     }
     obstacles = std::make_unique<StaticBodies>(*world, config.obstacles);
+    if (config.has_object && config.object.body.collides) {
+      // Kinematic: the path (or the gripper) moves it, contacts do not; Bullet takes its velocity from the motion
+      // state's change over a step.
+      object_shape = obstacleShape(config.object.body);
+      btRigidBody::btRigidBodyConstructionInfo info(0.0, &object_motion, object_shape.get());
+      info.m_friction = config.object.body.friction;
+      object = std::make_unique<btRigidBody>(info);
+      object->setCollisionFlags(object->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
+      object->setActivationState(DISABLE_DEACTIVATION);
+      world->addRigidBody(object.get());
+    }
     for (std::size_t a = 0; a < arms.size(); ++a) {
       bullet_arms.push_back(std::make_unique<BulletArm>(arms[a], static_cast<int>(a), *world));
     }
@@ -67,7 +78,14 @@ struct ArmsWorld {
   ~ArmsWorld() {
     bullet_arms.clear();
     obstacles.reset();
+    if (object) world->removeRigidBody(object.get());
     if (table) world->removeRigidBody(table.get());
+  }
+
+  /// Moves the kinematic object (when the arms feel it) to `pose` over the next step.
+  void moveObject(const Eigen::Isometry3d& pose) noexcept {
+    if (!object) return;
+    object_motion.setWorldTransform(toBulletTransform(pose));
   }
   ArmsWorld(const ArmsWorld&) = delete;
   ArmsWorld& operator=(const ArmsWorld&) = delete;
@@ -80,6 +98,9 @@ struct ArmsWorld {
   std::unique_ptr<btBoxShape> table_shape;
   std::unique_ptr<btRigidBody> table;
   std::unique_ptr<StaticBodies> obstacles;
+  std::unique_ptr<btCollisionShape> object_shape;
+  btDefaultMotionState object_motion;
+  std::unique_ptr<btRigidBody> object;
   std::vector<std::unique_ptr<BulletArm>> bullet_arms;
 };
 
@@ -120,6 +141,11 @@ struct BimanualSimulation::Impl {
   std::unique_ptr<ArmsWorld> bullet;
   std::optional<Cloth> cloth;
   int cloth_period = 1;  ///< Arm steps per cloth step.
+  std::optional<ObjectPath> object_path;
+  int object_holder = -1;       ///< The arm holding the object, −1 for none.
+  bool object_resting = false;  ///< Let go: it rests at object_pose until reset.
+  Eigen::Isometry3d object_pose = Eigen::Isometry3d::Identity(), object_in_tool = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d object_velocity = Eigen::Vector3d::Zero();
   long step_index = 0;
   double time = 0.0;
   bool arms_diverged = false;
@@ -168,12 +194,38 @@ struct BimanualSimulation::Impl {
     if (cloth_pull) add(model.nq(), arm.cloth_wrench.head<3>(), arm.cloth_wrench.tail<3>());
   }
 
+  /// The object where it is at time `t` (on its path, resting, or in its holder's gripper at the current state).
+  void placeObject(double t) noexcept {
+    if (!object_path) return;
+    if (object_holder >= 0) {
+      Arm& arm = arms[static_cast<std::size_t>(object_holder)];
+      Eigen::Isometry3d tool;
+      Vector6d twist;
+      toolMotion(arm, arm.urdf.base_pose, tool, twist);
+      const Eigen::Isometry3d pose = tool * object_in_tool;
+      object_velocity = twist.head<3>() + twist.tail<3>().cross(pose.translation() - tool.translation());
+      object_pose = pose;
+    } else if (object_resting) {
+      object_velocity.setZero();
+    } else {
+      const ObjectPathSample sample = object_path->at(t);
+      object_pose.setIdentity();
+      object_pose.translation() = sample.position;
+      object_velocity = sample.velocity;
+    }
+  }
+
   void rebuildBullet() {
     bullet.reset();
     std::vector<UrdfArm> urdf_arms;
     for (const Arm& arm : arms) urdf_arms.push_back(arm.urdf);
     bullet = std::make_unique<ArmsWorld>(urdf_arms, config);
     for (std::size_t a = 0; a < arms.size(); ++a) bullet->bullet_arms[a]->setState(arms[a].state.q, arms[a].state.qd);
+    if (object_path) {
+      placeObject(time);
+      bullet->object_motion.setWorldTransform(toBulletTransform(object_pose));
+      if (bullet->object) bullet->object->setWorldTransform(toBulletTransform(object_pose));
+    }
   }
 };
 
@@ -196,6 +248,7 @@ BimanualSimulation::BimanualSimulation(const SimConfig& config, std::mt19937 rng
                     static_cast<int>(m.arms.size()), config.gravity, config.obstacles);
     m.cloth_period = static_cast<int>(std::lround(config.cloth.step / config.step));
   }
+  if (config.has_object) m.object_path.emplace(config.object.path);
   m.rebuildBullet();
   m.measure();
 }
@@ -273,6 +326,11 @@ SimStatus BimanualSimulation::step() noexcept {
     for (int j = 0; j < body.getNumLinks(); ++j) body.addJointTorque(j, arm.rigid_body_torque[j]);
     arm.qd_before = arm.state.qd;
   }
+  if (m.object_path) {
+    // Where the object will be at the step's end (in a gripper: where it is now, one step behind the tool).
+    if (m.object_holder < 0) m.placeObject(m.time + dt);
+    m.bullet->moveObject(m.object_pose);
+  }
   const auto plant_done = Clock::now();
   m.bullet->world->stepSimulation(dt, 0, dt);
   const auto bullet_done = Clock::now();
@@ -298,6 +356,7 @@ SimStatus BimanualSimulation::step() noexcept {
   }
   m.measure();
   m.time = static_cast<double>(++m.step_index) * dt;
+  if (m.object_holder >= 0 && !m.arms_diverged) m.placeObject(m.time);
   const auto done = Clock::now();
   m.timings.total += seconds(start, done);
   m.timings.bullet_arms += seconds(plant_done, bullet_done);
@@ -416,23 +475,63 @@ const Cloth& BimanualSimulation::cloth() const {
   return *impl_->cloth;
 }
 
-SimStatus BimanualSimulation::grasp(int arm, int* attached) noexcept {
+SimStatus BimanualSimulation::grasp(int arm, int* attached, bool* object) noexcept {
+  Impl& m = *impl_;
   if (attached != nullptr) *attached = 0;
-  if (!impl_->cloth) return SimStatus::NoCloth;
+  if (object != nullptr) *object = false;
+  if (!m.cloth && !m.object_path) return SimStatus::NoCloth;
   if (arm < 0 || arm >= armCount()) return SimStatus::UnknownArm;
-  Impl::Arm& a = impl_->arms[static_cast<std::size_t>(arm)];
+  Impl::Arm& a = m.arms[static_cast<std::size_t>(arm)];
   Eigen::Isometry3d pose;
   Vector6d twist;
-  impl_->toolMotion(a, a.urdf.base_pose, pose, twist);
-  if (const SimStatus s = impl_->cloth->setGripperMotion(arm, pose, twist); s != SimStatus::Ok) return s;
-  return impl_->cloth->grasp(arm, impl_->config.grasp_radius, attached);
+  m.toolMotion(a, a.urdf.base_pose, pose, twist);
+  if (m.object_path && m.object_holder < 0) {
+    const Eigen::Vector3d grasp_point = m.object_pose.translation() + m.config.object.grasp_point;
+    if ((pose.translation() - grasp_point).norm() <= m.config.object.grasp_radius) {
+      m.object_holder = arm;
+      m.object_resting = false;
+      m.object_in_tool = pose.inverse(Eigen::Isometry) * m.object_pose;
+    }
+  }
+  if (object != nullptr) *object = m.object_holder == arm;
+  if (!m.cloth) return SimStatus::Ok;
+  if (const SimStatus s = m.cloth->setGripperMotion(arm, pose, twist); s != SimStatus::Ok) return s;
+  return m.cloth->grasp(arm, m.config.grasp_radius, attached);
 }
 
 SimStatus BimanualSimulation::release(int arm) noexcept {
-  if (!impl_->cloth) return SimStatus::NoCloth;
+  Impl& m = *impl_;
+  if (!m.cloth && !m.object_path) return SimStatus::NoCloth;
   if (arm < 0 || arm >= armCount()) return SimStatus::UnknownArm;
-  impl_->arms[static_cast<std::size_t>(arm)].cloth_wrench.setZero();
-  return impl_->cloth->release(arm);
+  if (m.object_holder == arm) {
+    m.object_holder = -1;
+    m.object_resting = true;
+    m.object_velocity.setZero();
+  }
+  if (!m.cloth) return SimStatus::Ok;
+  m.arms[static_cast<std::size_t>(arm)].cloth_wrench.setZero();
+  return m.cloth->release(arm);
+}
+
+bool BimanualSimulation::hasObject() const noexcept {
+  return impl_->object_path.has_value();
+}
+
+const Eigen::Isometry3d& BimanualSimulation::objectPose() const noexcept {
+  return impl_->object_pose;
+}
+
+const Eigen::Vector3d& BimanualSimulation::objectVelocity() const noexcept {
+  return impl_->object_velocity;
+}
+
+int BimanualSimulation::objectHolder() const noexcept {
+  return impl_->object_holder;
+}
+
+const ObjectPath& BimanualSimulation::objectPath() const {
+  if (!impl_->object_path) throw std::logic_error("bimanual simulation: built without a moving object");
+  return *impl_->object_path;
 }
 
 const Vector6d& BimanualSimulation::clothWrench(int arm) const noexcept {
@@ -461,10 +560,12 @@ SimStatus BimanualSimulation::reset(const std::vector<ArmState>& state) {
     for (HeldWrench& w : arm.wrenches) w = HeldWrench();
     arm.plant.resetFriction(arm.state.qd);
   }
-  m.rebuildBullet();
-  if (m.cloth) m.cloth->reset();
   m.step_index = 0;
   m.time = 0.0;
+  m.object_holder = -1;
+  m.object_resting = false;
+  m.rebuildBullet();
+  if (m.cloth) m.cloth->reset();
   m.arms_diverged = false;
   m.measure();
   return SimStatus::Ok;

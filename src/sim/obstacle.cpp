@@ -42,22 +42,22 @@ void Obstacle::validate(const std::string& where) const {
   if (!(friction >= 0.0 && friction <= 100.0)) throw std::invalid_argument(at + ": 'friction' must lie in [0, 100]");
 }
 
+std::unique_ptr<btCollisionShape> obstacleShape(const Obstacle& obstacle) {
+  switch (obstacle.shape) {
+    case Obstacle::Shape::Sphere:
+      return std::make_unique<btSphereShape>(obstacle.size[0]);
+    case Obstacle::Shape::Cylinder:
+      return std::make_unique<btCylinderShapeZ>(btVector3(obstacle.size[0], obstacle.size[0], 0.5 * obstacle.size[1]));
+    case Obstacle::Shape::Box:
+      break;
+  }
+  return std::make_unique<btBoxShape>(toBullet(Eigen::Vector3d(0.5 * obstacle.size)));
+}
+
 StaticBodies::StaticBodies(btDynamicsWorld& world, const std::vector<Obstacle>& obstacles) : world_(world) {
   for (const Obstacle& obstacle : obstacles) {
     if (!obstacle.collides) continue;
-    std::unique_ptr<btCollisionShape> shape;
-    switch (obstacle.shape) {
-      case Obstacle::Shape::Box:
-        shape = std::make_unique<btBoxShape>(toBullet(Eigen::Vector3d(0.5 * obstacle.size)));
-        break;
-      case Obstacle::Shape::Sphere:
-        shape = std::make_unique<btSphereShape>(obstacle.size[0]);
-        break;
-      case Obstacle::Shape::Cylinder:
-        shape =
-            std::make_unique<btCylinderShapeZ>(btVector3(obstacle.size[0], obstacle.size[0], 0.5 * obstacle.size[1]));
-        break;
-    }
+    std::unique_ptr<btCollisionShape> shape = obstacleShape(obstacle);
     btRigidBody::btRigidBodyConstructionInfo info(0.0, nullptr, shape.get());
     info.m_startWorldTransform = toBulletTransform(obstacle.pose);
     info.m_friction = obstacle.friction;

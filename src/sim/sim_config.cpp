@@ -13,6 +13,68 @@ namespace {
 
 using io::fail;
 
+/// A rigid body's name, shape, size, colour, friction and whether the arms feel it (an obstacle's or the object's).
+Obstacle readBody(const YAML::Node& item, const std::string& here) {
+  Obstacle o;
+  o.name = io::readString(item, "name", here);
+  const std::string shape = io::readString(item, "shape", here);
+  if (shape == "box") {
+    o.shape = Obstacle::Shape::Box;
+  } else if (shape == "sphere") {
+    o.shape = Obstacle::Shape::Sphere;
+  } else if (shape == "cylinder") {
+    o.shape = Obstacle::Shape::Cylinder;
+  } else {
+    io::fail(here + ": 'shape' must be box, sphere or cylinder (got '" + shape + "')");
+  }
+  const Eigen::VectorXd size = io::readVector(item, "size", here);
+  const int wanted = sizeValues(o.shape);
+  if (size.size() != wanted) {
+    io::fail(here + ": 'size' of a " + shape + " needs " + std::to_string(wanted) +
+             " value(s) (box: extents; sphere: radius; cylinder: radius, length)");
+  }
+  o.size.head(wanted) = size;
+  if (item["colour"]) o.colour = io::readVector(item, "colour", here, 3);
+  o.friction = io::readDouble(item, "friction", here, o.friction);
+  if (item["collides"]) o.collides = io::readBool(item, "collides", here);
+  return o;
+}
+
+/// The moving object of `node` (`object:`).
+MovingObject readObject(const YAML::Node& node, const std::string& here) {
+  io::checkKeys(node, here,
+                {"name", "shape", "size", "colour", "friction", "collides", "grasp_point", "grasp_radius", "path"});
+  MovingObject object;
+  object.body = readBody(node, here);
+  if (node["grasp_point"]) object.grasp_point = io::readVector(node, "grasp_point", here, 3);
+  object.grasp_radius = io::readDouble(node, "grasp_radius", here, object.grasp_radius);
+  const YAML::Node path = node["path"];
+  if (!path || !path.IsMap()) io::fail(here + ": needs a map 'path'");
+  const std::string at = here + " path";
+  io::checkKeys(path, at,
+                {"centre", "size", "max_speed", "max_acceleration", "min_speed_ratio", "pause_probability", "pause",
+                 "away_probability", "away", "start_pause", "duration", "seed"});
+  ObjectPathConfig& p = object.path;
+  if (path["centre"]) p.centre = io::readVector(path, "centre", at, 3);
+  if (path["size"]) p.size = io::readVector(path, "size", at, 3);
+  p.max_speed = io::readDouble(path, "max_speed", at, p.max_speed);
+  p.max_acceleration = io::readDouble(path, "max_acceleration", at, p.max_acceleration);
+  p.min_speed_ratio = io::readDouble(path, "min_speed_ratio", at, p.min_speed_ratio);
+  p.pause_probability = io::readDouble(path, "pause_probability", at, p.pause_probability);
+  if (path["pause"]) p.pause = io::readVector(path, "pause", at, 2);
+  p.away_probability = io::readDouble(path, "away_probability", at, p.away_probability);
+  if (path["away"]) p.away = io::readVector(path, "away", at, 3);
+  p.start_pause = io::readDouble(path, "start_pause", at, p.start_pause);
+  p.duration = io::readDouble(path, "duration", at, p.duration);
+  if (path["seed"]) {
+    const double seed = io::readDouble(path, "seed", at);
+    if (seed < 0 || seed > 4294967295.0 || seed != std::floor(seed)) io::fail(at + ": 'seed' must be in [0, 2^32)");
+    p.seed = static_cast<std::uint32_t>(seed);
+  }
+  object.validate(here);
+  return object;
+}
+
 /// The obstacles of `node`: a list, or the name of a file (relative to `path`) whose `obstacles:` is one.
 std::vector<Obstacle> readObstacles(const YAML::Node& node, const std::string& path, const std::string& where) {
   YAML::Node list = node;
@@ -31,29 +93,8 @@ std::vector<Obstacle> readObstacles(const YAML::Node& node, const std::string& p
     const YAML::Node item = list[k];
     const std::string here = at + " obstacle " + std::to_string(k + 1);
     io::checkKeys(item, here, {"name", "shape", "xyz", "rpy", "size", "colour", "friction", "collides"});
-    Obstacle o;
-    o.name = io::readString(item, "name", here);
-    const std::string shape = io::readString(item, "shape", here);
-    if (shape == "box") {
-      o.shape = Obstacle::Shape::Box;
-    } else if (shape == "sphere") {
-      o.shape = Obstacle::Shape::Sphere;
-    } else if (shape == "cylinder") {
-      o.shape = Obstacle::Shape::Cylinder;
-    } else {
-      io::fail(here + ": 'shape' must be box, sphere or cylinder (got '" + shape + "')");
-    }
+    Obstacle o = readBody(item, here);
     o.pose = io::readPose(item, here);
-    const Eigen::VectorXd size = io::readVector(item, "size", here);
-    const int wanted = sizeValues(o.shape);
-    if (size.size() != wanted) {
-      io::fail(here + ": 'size' of a " + shape + " needs " + std::to_string(wanted) +
-               " value(s) (box: extents; sphere: radius; cylinder: radius, length)");
-    }
-    o.size.head(wanted) = size;
-    if (item["colour"]) o.colour = io::readVector(item, "colour", here, 3);
-    o.friction = io::readDouble(item, "friction", here, o.friction);
-    if (item["collides"]) o.collides = io::readBool(item, "collides", here);
     io::withContext(at, [&] { o.validate("the scene"); });
     for (const Obstacle& other : obstacles) {
       if (other.name == o.name) io::fail(here + ": the name '" + o.name + "' is taken by another obstacle");
@@ -120,6 +161,15 @@ void Table::validate(const char* where) const {
   }
 }
 
+void MovingObject::validate(const std::string& where) const {
+  body.validate(where);
+  path.validate(where + " path");
+  if (!grasp_point.allFinite() || grasp_point.norm() > 1.0) {
+    fail(where + ": 'grasp_point' must be finite, within 1 m of the object's centre");
+  }
+  if (!(grasp_radius > 0.0 && grasp_radius <= 1.0)) fail(where + ": 'grasp_radius' must lie in (0, 1] m");
+}
+
 void SimConfig::validate() const {
   const std::string where = "simulation configuration";
   if (urdf_path.empty()) fail(where + ": 'urdf' is empty");
@@ -135,6 +185,12 @@ void SimConfig::validate() const {
   if (!gravity.allFinite()) fail(where + ": 'gravity' must be finite");
   if (!std::isfinite(grasp_radius) || grasp_radius < 0.0) fail(where + ": 'grasp_radius' must be >= 0");
   if (has_table) table.validate(where.c_str());
+  if (has_object) {
+    object.validate(where + " object");
+    for (const Obstacle& o : obstacles) {
+      if (o.name == object.body.name) fail(where + ": the object's name '" + o.name + "' is taken by an obstacle");
+    }
+  }
   if (has_cloth) {
     cloth.validate(where.c_str());
     const double ratio = cloth.step / step;
@@ -160,7 +216,7 @@ SimConfig SimConfig::fromYamlFile(const std::string& path, const std::string& ro
   const YAML::Node root = io::loadYamlFile(path, where);
   if (!root.IsMap()) fail(where + ": must be a map");
   io::checkKeys(root, where,
-                {"robot", "urdf", "plant", "step", "seed", "gravity", "arms", "table", "obstacles", "cloth"});
+                {"robot", "urdf", "plant", "step", "seed", "gravity", "arms", "table", "obstacles", "object", "cloth"});
   SimConfig config;
   if (root["robot"] && (root["urdf"] || root["plant"] || root["arms"])) {
     fail(where + ": names a 'robot' file and 'urdf', 'plant' or 'arms' too: the robot file gives them");
@@ -208,6 +264,8 @@ SimConfig SimConfig::fromYamlFile(const std::string& path, const std::string& ro
     config.table.friction = io::readDouble(table, "friction", at, config.table.friction);
   }
   if (root["obstacles"]) config.obstacles = readObstacles(root["obstacles"], path, where);
+  config.has_object = static_cast<bool>(root["object"]);
+  if (config.has_object) config.object = readObject(root["object"], where + " object");
   config.has_cloth = static_cast<bool>(root["cloth"]);
   if (config.has_cloth) config.cloth = readCloth(root["cloth"], where + " cloth", config.grasp_radius);
 

@@ -13,6 +13,9 @@
 
 namespace bimanual_skills::sim {
 
+/// The collision shape of an obstacle (or the moving object) in its own frame.
+std::unique_ptr<btCollisionShape> obstacleShape(const Obstacle& obstacle);
+
 class StaticBodies {
  public:
   /// Adds a static body to `world` for every obstacle that collides (marks are not felt).

@@ -47,17 +47,19 @@ vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim) {
       sim.has_cloth ? Eigen::Vector2d(sim.cloth.pose.translation().head<2>()) : p.table.centre;
   p.camera = vision::TopDownCamera::covering(320, 240, 1.0, centre, top.z() + 1.5);
   p.has_table = sim.has_table;
-  for (const sim::Obstacle& obstacle : sim.obstacles) {
-    vision::SceneSolid solid;
-    solid.shape = obstacle.shape == sim::Obstacle::Shape::Box      ? vision::SceneSolid::Shape::Box
-                  : obstacle.shape == sim::Obstacle::Shape::Sphere ? vision::SceneSolid::Shape::Sphere
-                                                                   : vision::SceneSolid::Shape::Cylinder;
-    solid.pose = obstacle.pose;
-    solid.size = obstacle.size;
-    solid.colour = obstacle.colour;
-    p.solids.push_back(solid);
-  }
+  for (const sim::Obstacle& obstacle : sim.obstacles) p.solids.push_back(sceneSolid(obstacle));
   return p;
+}
+
+vision::SceneSolid sceneSolid(const sim::Obstacle& body) {
+  vision::SceneSolid solid;
+  solid.shape = body.shape == sim::Obstacle::Shape::Box      ? vision::SceneSolid::Shape::Box
+                : body.shape == sim::Obstacle::Shape::Sphere ? vision::SceneSolid::Shape::Sphere
+                                                             : vision::SceneSolid::Shape::Cylinder;
+  solid.pose = body.pose;
+  solid.size = body.size;
+  solid.colour = body.colour;
+  return solid;
 }
 
 vision::PinholeCamera rgbdCameraFor(const sim::SimConfig& sim) {

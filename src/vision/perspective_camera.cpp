@@ -18,7 +18,7 @@ namespace {
   throw std::invalid_argument(std::string(where) + ": " + what);
 }
 
-constexpr unsigned char kCloth = 1, kNoReturn = 2;
+constexpr unsigned char kBackground = 0, kCloth = 1, kNoReturn = 2, kMoving = 4;
 constexpr double kNear = 0.05;  ///< Triangles with a vertex nearer than this [m] (or behind) are not drawn.
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
@@ -96,7 +96,7 @@ PerspectiveRenderer::PerspectiveRenderer(const ClothRendererParameters& scene, c
   const int rows = camera_.height, columns = camera_.width;
   for (cv::Mat* m : {&background_bgr_, &bgr_}) m->create(rows, columns, CV_8UC3);
   for (cv::Mat* m : {&background_z_, &z_, &depth_}) m->create(rows, columns, CV_32FC1);
-  for (cv::Mat* m : {&background_flags_, &flags_, &mask_}) m->create(rows, columns, CV_8UC1);
+  for (cv::Mat* m : {&background_flags_, &flags_, &mask_, &moving_mask_}) m->create(rows, columns, CV_8UC1);
   // The background: nothing (no return) until the floor and the table box are drawn, once.
   bgr_.setTo(cv::Scalar::all(0));
   z_.setTo(cv::Scalar::all(std::numeric_limits<float>::infinity()));
@@ -109,8 +109,8 @@ PerspectiveRenderer::PerspectiveRenderer(const ClothRendererParameters& scene, c
       const Eigen::Vector3d a(table.centre.x() + 0.5 * i, table.centre.y() + 0.5 * j, floor);
       const Eigen::Vector3d b = a + Eigen::Vector3d(0.5, 0.0, 0.0), c = a + Eigen::Vector3d(0.5, 0.5, 0.0),
                             d = a + Eigen::Vector3d(0.0, 0.5, 0.0);
-      draw(a, b, c, scene_.floor_colour, false);
-      draw(a, c, d, scene_.floor_colour, false);
+      draw(a, b, c, scene_.floor_colour, kBackground);
+      draw(a, c, d, scene_.floor_colour, kBackground);
     }
   }
   // The table (when the scene has one): its top and four sides.
@@ -119,31 +119,47 @@ PerspectiveRenderer::PerspectiveRenderer(const ClothRendererParameters& scene, c
     const auto corner = [&](double sx, double sy, double z) {
       return Eigen::Vector3d(table.centre.x() + sx * hx, table.centre.y() + sy * hy, z);
     };
-    draw(corner(-1, -1, top), corner(1, -1, top), corner(1, 1, top), scene_.table_colour, false);
-    draw(corner(-1, -1, top), corner(1, 1, top), corner(-1, 1, top), scene_.table_colour, false);
+    draw(corner(-1, -1, top), corner(1, -1, top), corner(1, 1, top), scene_.table_colour, kBackground);
+    draw(corner(-1, -1, top), corner(1, 1, top), corner(-1, 1, top), scene_.table_colour, kBackground);
     const double sides[4][4] = {{-1, -1, 1, -1}, {1, -1, 1, 1}, {1, 1, -1, 1}, {-1, 1, -1, -1}};
     for (const auto& s : sides) {
       const Eigen::Vector3d a = corner(s[0], s[1], floor), b = corner(s[2], s[3], floor), c = corner(s[2], s[3], top),
                             d = corner(s[0], s[1], top);
-      draw(a, b, c, scene_.table_colour, false);
-      draw(a, c, d, scene_.table_colour, false);
+      draw(a, b, c, scene_.table_colour, kBackground);
+      draw(a, c, d, scene_.table_colour, kBackground);
     }
   }
   // The solids (a mannequin), static: part of the background too.
   for (const SceneSolid& solid : scene_.solids) {
-    for (const Eigen::Matrix3d& t : solidTriangles(solid)) draw(t.col(0), t.col(1), t.col(2), solid.colour, false);
+    for (const Eigen::Matrix3d& t : solidTriangles(solid))
+      draw(t.col(0), t.col(1), t.col(2), solid.colour, kBackground);
   }
   bgr_.copyTo(background_bgr_);
   z_.copyTo(background_z_);
   flags_.copyTo(background_flags_);
   depth_.setTo(cv::Scalar::all(kNaN));
   mask_.setTo(cv::Scalar::all(0));
+  moving_mask_.setTo(cv::Scalar::all(0));
+}
+
+int PerspectiveRenderer::addMovingSolid(const SceneSolid& solid) {
+  SceneSolid local = solid;
+  local.pose.setIdentity();
+  moving_.push_back(MovingSolid{solidTriangles(local), solid.colour, Eigen::Isometry3d::Identity(), false});
+  return static_cast<int>(moving_.size()) - 1;
+}
+
+void PerspectiveRenderer::setMovingPose(int index, const Eigen::Isometry3d& pose) noexcept {
+  if (index < 0 || index >= static_cast<int>(moving_.size())) return;
+  MovingSolid& solid = moving_[static_cast<std::size_t>(index)];
+  solid.visible = rigid(pose);
+  if (solid.visible) solid.pose = pose;
 }
 
 /// Draws a triangle into the z buffer: perspective-correct depth (1/z is affine in the image), flat Lambert shading,
 /// no return where the surface is seen at a grazing angle.
 void PerspectiveRenderer::draw(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-                               const Eigen::Vector3d& rgb, bool cloth) noexcept {
+                               const Eigen::Vector3d& rgb, unsigned char kind) noexcept {
   const Eigen::Vector3d pa = world_to_camera_ * a, pb = world_to_camera_ * b, pc = world_to_camera_ * c;
   if (pa.z() < kNear || pb.z() < kNear || pc.z() < kNear) return;
   const Eigen::Vector3d normal = (b - a).cross(c - a);
@@ -165,7 +181,7 @@ void PerspectiveRenderer::draw(const Eigen::Vector3d& a, const Eigen::Vector3d& 
   // The ray to the triangle's centroid against its normal: how obliquely the sensor sees it.
   const Eigen::Vector3d ray = (a + b + c) / 3.0 - camera_.pose.translation();
   const bool grazing = std::abs(normal.dot(ray)) < noise_.grazing * normal_norm * ray.norm();
-  const unsigned char flags = static_cast<unsigned char>((cloth ? kCloth : 0) | (grazing ? kNoReturn : 0));
+  const unsigned char flags = static_cast<unsigned char>(kind | (grazing ? kNoReturn : 0));
   const double ia = 1.0 / pa.z(), ib = 1.0 / pb.z(), ic = 1.0 / pc.z(), inv_area = 1.0 / area;
   for (int v = v0; v <= v1; ++v) {
     const double y = v;
@@ -192,6 +208,12 @@ VisionStatus PerspectiveRenderer::render(const Eigen::Ref<const Eigen::Matrix3Xd
   std::memcpy(bgr_.data, background_bgr_.data, bgr_.total() * bgr_.elemSize());
   std::memcpy(z_.data, background_z_.data, z_.total() * z_.elemSize());
   std::memcpy(flags_.data, background_flags_.data, flags_.total() * flags_.elemSize());
+  for (const MovingSolid& solid : moving_) {
+    if (!solid.visible) continue;
+    for (const Eigen::Matrix3d& t : solid.triangles) {
+      draw(solid.pose * t.col(0), solid.pose * t.col(1), solid.pose * t.col(2), solid.colour, kMoving);
+    }
+  }
   VisionStatus status = VisionStatus::Ok;
   if (vertices.cols() == 0 || triangles.cols() == 0) {
     status = VisionStatus::EmptyMesh;
@@ -207,7 +229,7 @@ VisionStatus PerspectiveRenderer::render(const Eigen::Ref<const Eigen::Matrix3Xd
   if (status == VisionStatus::Ok) {
     for (Eigen::Index t = 0; t < triangles.cols(); ++t) {
       draw(vertices.col(triangles(0, t)), vertices.col(triangles(1, t)), vertices.col(triangles(2, t)),
-           scene_.cloth_colour, true);
+           scene_.cloth_colour, kCloth);
     }
   }
   finish(nullptr);
@@ -248,11 +270,13 @@ void PerspectiveRenderer::finish(std::mt19937* rng) noexcept {
     const unsigned char* flag_row = flags_.ptr<unsigned char>(v);
     float* depth_row = depth_.ptr<float>(v);
     unsigned char* mask_row = mask_.ptr<unsigned char>(v);
+    unsigned char* moving_row = moving_mask_.ptr<unsigned char>(v);
     unsigned char* bgr_row = bgr_.ptr<unsigned char>(v);
     for (int u = 0; u < columns; ++u) {
       const float z = z_row[u];
       const bool cloth = (flag_row[u] & kCloth) != 0;
       mask_row[u] = cloth ? 255 : 0;
+      moving_row[u] = (flag_row[u] & kMoving) != 0 ? 255 : 0;
       cloth_pixels_ += cloth ? 1 : 0;
       bool lost = (flag_row[u] & kNoReturn) != 0 || !(z >= camera_.min_range && z <= camera_.max_range);
       float d = z;

@@ -114,14 +114,29 @@ class BimanualSimulation final : public RobotInterface {
   bool hasCloth() const noexcept;
   /// The cloth (mesh, status); only when hasCloth().
   const Cloth& cloth() const;
-  /// Grasps the cloth nodes within the configured radius of arm `arm`'s tool; `attached` gets how many.
-  SimStatus grasp(int arm, int* attached = nullptr) noexcept;
+  /// Closes arm `arm`'s gripper: it grasps the cloth nodes within the configured radius of its tool (`attached` gets
+  /// how many) and the moving object when its grasp point lies within the object's grasp radius (`object` says
+  /// whether it holds it). NoCloth when the scene has neither.
+  SimStatus grasp(int arm, int* attached = nullptr, bool* object = nullptr) noexcept;
+  /// Opens the gripper: the cloth nodes it held go, and the object it held rests where it is until reset().
   SimStatus release(int arm) noexcept;
   /// The cloth's wrench on the arm's tool currently applied [force; torque about the tool origin], world frame.
   const Vector6d& clothWrench(int arm) const noexcept;
 
+  // ---- The moving object (SimConfig::object) ----
+  bool hasObject() const noexcept;
+  /// Its pose in the world now: upright on its path, resting where it was let go, or in the gripper that holds it.
+  const Eigen::Isometry3d& objectPose() const noexcept;
+  /// Its velocity now [m/s].
+  const Eigen::Vector3d& objectVelocity() const noexcept;
+  /// The arm whose gripper holds it, −1 for none.
+  int objectHolder() const noexcept;
+  /// The path it follows while nobody holds it. \throws std::logic_error without an object.
+  const ObjectPath& objectPath() const;
+
   // ---- Reset and determinism ----
-  /// Sets every arm to the given state (within the joint limits), the cloth to its flat rest state, time to 0,
+  /// Sets every arm to the given state (within the joint limits), the cloth to its flat rest state, the object to
+  /// its path's start (held by nobody), time to 0,
   /// clears torque commands and external wrenches (payloads stay), and rebuilds the Bullet worlds so the future is
   /// exactly that of a new simulation in this state. Allowed after a divergence.
   /// InvalidArgument (nothing changed) for wrong sizes, non-finite values or positions outside the limits.

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "bimanual_skills/sim/cloth.hpp"
+#include "bimanual_skills/sim/object_path.hpp"
 #include "bimanual_skills/sim/obstacle.hpp"
 #include "bimanual_skills/sim/plant_model.hpp"
 #include "bimanual_skills/sim/table.hpp"
@@ -28,6 +29,20 @@ struct ArmConfig {
   Eigen::VectorXd ik_seed;
 };
 
+/// An object a person carries along a path for an arm to track and grasp (thesis Sec. 4.3.2). It stays upright; a
+/// gripper that closes with its tool near the grasp point holds it (it then moves with the tool), and one that opens
+/// leaves it resting where it is until the next reset. The arms collide with it when `body.collides`; the cloth does
+/// not.
+struct MovingObject {
+  Obstacle body;  ///< Name, shape, size, colour, friction, collides (its pose is the path's).
+  ObjectPathConfig path;
+  Eigen::Vector3d grasp_point = Eigen::Vector3d::Zero();  ///< Where a tool holds it, from its centre (world axes) [m].
+  double grasp_radius = 0.03;  ///< A closing gripper holds it when its tool is this near the grasp point [m].
+
+  /// \throws std::invalid_argument naming `where` and the entry out of range.
+  void validate(const std::string& where) const;
+};
+
 struct SimConfig {
   std::string urdf_path;  ///< Robot description (URDF file).
   std::vector<ArmConfig> arms;
@@ -37,6 +52,8 @@ struct SimConfig {
   Table table;
   /// Static shapes besides the table (a mannequin): `obstacles:` a list, or the name of a file that holds one.
   std::vector<Obstacle> obstacles;
+  bool has_object = false;
+  MovingObject object;  ///< `object:`, only when has_object.
   bool has_cloth = false;
   ClothParameters cloth;       ///< Its `step` must be a whole multiple of `step` (the cloth runs at its own rate).
   double grasp_radius = 0.04;  ///< Nodes within this distance of a tool are grasped [m].
@@ -56,6 +73,12 @@ struct SimConfig {
   /// arms:
   ///   - {name: left, base_link: left_wam_base, tip_link: left_wam_tool}
   /// table: {xyz: [0.55, 0, 0], rpy: [0, 0, 0], size: [0.7, 1.2, 0.3], friction: 0.5}   # optional
+  /// object:                                                                            # optional
+  ///   {name: target, shape: cylinder, size: [0.03, 0.12], colour: [0.9, 0.4, 0.1], friction: 0.8, collides: true,
+  ///    grasp_point: [0, 0, 0.06], grasp_radius: 0.03,
+  ///    path: {centre: [...], size: [...], max_speed: 0.2, max_acceleration: 0.5, min_speed_ratio: 0.3,
+  ///           pause_probability: 0.3, pause: [0.5, 2], away_probability: 0.1, away: [0, 0.9, 0], start_pause: 2,
+  ///           duration: 60, seed: 1}}
   /// cloth:                                                                             # optional
   ///   {xyz: [...], rpy: [...], size: [0.5, 0.6], nodes: [20, 24], mass: 0.22, stretch_stiffness: 0.9,
   ///    bending_stiffness: 0.05, damping: 0.01, friction: 0.5, thickness: 0.004, position_iterations: 4,

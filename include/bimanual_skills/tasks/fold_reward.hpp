@@ -47,6 +47,9 @@ FoldRewardConfig rewardSetting(FoldRewardConfig config, const std::string& name,
 /// 1.5 m above it centred on the cloth, covering 1 m of table across (3.125 mm pixels).
 vision::ClothRendererParameters rendererFor(const sim::SimConfig& sim);
 
+/// A simulated rigid body (an obstacle, the moving object) as the cameras draw it.
+vision::SceneSolid sceneSolid(const sim::Obstacle& body);
+
 /// The perspective RGB-D camera of the scene of `sim` (bullet_sim's rgbd/... by default): a Kinect (640 × 480,
 /// f = 525 px) 1.3 m above and 0.65 m beyond the table top's centre on its +x side, looking at that centre (27° off
 /// the vertical, 1.45 m away).

@@ -79,6 +79,13 @@ class PerspectiveRenderer {
   VisionStatus render(const Eigen::Ref<const Eigen::Matrix3Xd>& vertices,
                       const Eigen::Ref<const Eigen::Matrix3Xi>& triangles, std::mt19937& rng) noexcept;
 
+  /// A solid that moves (an object carried about the table, thesis Sec. 4.3.2), tessellated here once in its own
+  /// frame (`solid.pose` is ignored); setMovingPose() places it. Returns its index. Allocates: set-up only.
+  int addMovingSolid(const SceneSolid& solid);
+  /// Where moving solid `index` is for the next render()s (its centre; a non-finite pose hides it). Real-time safe;
+  /// an unknown index does nothing.
+  void setMovingPose(int index, const Eigen::Isometry3d& pose) noexcept;
+
   const PinholeCamera& camera() const noexcept { return camera_; }
   const ClothRendererParameters& scene() const noexcept { return scene_; }
   /// CV_8UC3, B, G, R ("bgr8"), registered to the depth image (one camera).
@@ -88,10 +95,18 @@ class PerspectiveRenderer {
   /// CV_8UC1, 255 where the visible surface is cloth (noise-free).
   const cv::Mat& clothMask() const noexcept { return mask_; }
   int clothPixelCount() const noexcept { return cloth_pixels_; }
+  /// CV_8UC1, 255 where the visible surface is a moving solid (noise-free).
+  const cv::Mat& movingMask() const noexcept { return moving_mask_; }
 
  private:
+  struct MovingSolid {
+    std::vector<Eigen::Matrix3d> triangles;  ///< In its own frame.
+    Eigen::Vector3d colour;
+    Eigen::Isometry3d pose;
+    bool visible = false;
+  };
   void draw(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, const Eigen::Vector3d& rgb,
-            bool cloth) noexcept;
+            unsigned char kind) noexcept;
   void finish(std::mt19937* rng) noexcept;
 
   ClothRendererParameters scene_;
@@ -101,7 +116,9 @@ class PerspectiveRenderer {
   Eigen::Vector3d light_;
   std::vector<float> normal_quantiles_;
   cv::Mat background_bgr_, background_z_, background_flags_;
-  cv::Mat bgr_, z_, flags_, depth_, mask_;  ///< z_: noise-free z buffer; flags_: bit 0 cloth, bit 1 no return.
+  std::vector<MovingSolid> moving_;
+  /// z_: noise-free z buffer; flags_: bit 0 cloth, bit 1 no return, bit 2 a moving solid.
+  cv::Mat bgr_, z_, flags_, depth_, mask_, moving_mask_;
   int cloth_pixels_ = 0;
 };
 
