@@ -52,10 +52,12 @@ ObjectPath::ObjectPath(const ObjectPathConfig& config) : config_(config) {
   const auto rest = [&](double length, bool away) {
     if (length > 0.0) add(here, length, away);
   };
+  // A move within the region at a speed of its own; a trip out of view and back at full speed (the person walks off).
   const auto move = [&](const Eigen::Vector3d& to, bool away) {
     const double distance = (to - here).norm();
     if (distance < 1e-9) return;
-    const double speed = config_.max_speed * (config_.min_speed_ratio + (1.0 - config_.min_speed_ratio) * unit(rng));
+    const double ratio = config_.min_speed_ratio + (1.0 - config_.min_speed_ratio) * unit(rng);
+    const double speed = config_.max_speed * (away ? 1.0 : ratio);
     add(to, moveTime(distance, speed, config_.max_acceleration), away);
   };
   const auto pauseLength = [&] { return config_.pause[0] + (config_.pause[1] - config_.pause[0]) * unit(rng); };
