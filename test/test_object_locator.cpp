@@ -146,6 +146,14 @@ TEST(ObjectLocator, SaysWhyAFrameGivesNoMeasurement) {
   camera.setMovingPose(index, at(scene.object.path.centre + scene.object.path.away));
   (void)camera.render(none, no_triangles);
   EXPECT_EQ(locator.locate(camera.bgr(), camera.depth(), camera.camera(), m), LocateStatus::NotSeen);
+  // Half out of view (cut by the image's left or right edge): not measured, its fit would be biased.
+  for (const double u : {0.0, 639.0}) {
+    const bs::vision::PinholeCamera& c = camera.camera();
+    const double depth = (scene.object.path.centre - c.pose.translation()).norm();
+    camera.setMovingPose(index, at(c.backProject(u, 240.0, depth)));
+    (void)camera.render(none, no_triangles);
+    EXPECT_EQ(locator.locate(camera.bgr(), camera.depth(), camera.camera(), m), LocateStatus::AtEdge) << "u " << u;
+  }
   camera.setMovingPose(index, at(scene.object.path.centre));
   (void)camera.render(none, no_triangles);
   ASSERT_EQ(locator.locate(camera.bgr(), camera.depth(), camera.camera(), m), LocateStatus::Ok);

@@ -8,6 +8,22 @@
 
 namespace bimanual_skills::ros_layer {
 
+namespace {
+
+/// What any camera's info must have: a frame, finite K and P.
+std::string framedAndFinite(const sensor_msgs::CameraInfo& info) {
+  if (info.header.frame_id.empty()) return "its camera_info names no frame (header.frame_id)";
+  for (double v : info.K) {
+    if (!std::isfinite(v)) return "its K is not finite";
+  }
+  for (double v : info.P) {
+    if (!std::isfinite(v)) return "its P is not finite";
+  }
+  return "";
+}
+
+}  // namespace
+
 CameraModel cameraModel(const std::string& name) {
   if (name == "orthographic") return CameraModel::Orthographic;
   if (name == "perspective") return CameraModel::Perspective;
@@ -17,15 +33,9 @@ CameraModel cameraModel(const std::string& name) {
 std::string cameraInfoProblem(const sensor_msgs::CameraInfo& info, CameraModel model,
                               const vision::TopDownCamera& map) {
   std::ostringstream why;
-  if (info.header.frame_id.empty()) return "its camera_info names no frame (header.frame_id)";
+  if (std::string problem = framedAndFinite(info); !problem.empty()) return problem;
   const auto& k = info.K;
   const auto& p = info.P;
-  for (double v : k) {
-    if (!std::isfinite(v)) return "its K is not finite";
-  }
-  for (double v : p) {
-    if (!std::isfinite(v)) return "its P is not finite";
-  }
   const bool affine = p[8] == 0.0 && p[9] == 0.0 && p[10] == 0.0 && p[11] == 1.0;
   if (model == CameraModel::Orthographic) {
     if (!affine) {
@@ -49,6 +59,17 @@ std::string cameraInfoProblem(const sensor_msgs::CameraInfo& info, CameraModel m
     return "";
   }
   if (affine) return "it is an orthographic camera (P's third row is [0 0 0 1]): set the camera model to orthographic";
+  return perspectiveInfoProblem(info);
+}
+
+std::string perspectiveInfoProblem(const sensor_msgs::CameraInfo& info) {
+  std::ostringstream why;
+  if (std::string problem = framedAndFinite(info); !problem.empty()) return problem;
+  const auto& k = info.K;
+  const auto& p = info.P;
+  if (p[8] == 0.0 && p[9] == 0.0 && p[10] == 0.0 && p[11] == 1.0) {
+    return "it is an orthographic camera (P's third row is [0 0 0 1]), not a perspective one";
+  }
   if (!(p[8] == 0.0 && p[9] == 0.0 && p[10] == 1.0 && p[11] == 0.0)) return "its P's third row is not [0 0 1 0]";
   if (p[3] != 0.0 || p[7] != 0.0) return "it is the second camera of a stereo pair (P has Tx, Ty): give the first's";
   if (info.width < 8 || info.height < 8 || info.width > 8192 || info.height > 8192) {

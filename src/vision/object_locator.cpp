@@ -33,6 +33,8 @@ const char* toString(LocateStatus status) noexcept {
       return "BadCamera";
     case LocateStatus::NotSeen:
       return "NotSeen";
+    case LocateStatus::AtEdge:
+      return "AtEdge";
     case LocateStatus::NoDepth:
       return "NoDepth";
     case LocateStatus::NoFit:
@@ -119,9 +121,10 @@ LocateStatus ObjectLocator::locate(const cv::Mat& bgr, const cv::Mat& depth, con
   cv::compare(labels_, cv::Scalar(best), component_, cv::CMP_EQ);
   measurement.image_centre = Eigen::Vector2d(centroids_.at<double>(best, 0), centroids_.at<double>(best, 1));
 
-  // Its depth pixels in the world, evenly subsampled to at most max_points.
   const int x0 = stats_.at<int>(best, cv::CC_STAT_LEFT), y0 = stats_.at<int>(best, cv::CC_STAT_TOP);
   const int x1 = x0 + stats_.at<int>(best, cv::CC_STAT_WIDTH), y1 = y0 + stats_.at<int>(best, cv::CC_STAT_HEIGHT);
+  if (x0 == 0 || y0 == 0 || x1 == bgr.cols || y1 == bgr.rows) return LocateStatus::AtEdge;
+  // Its depth pixels in the world, evenly subsampled to at most max_points.
   int with_depth = 0;
   for (int row = y0; row < y1; ++row) {
     for (int column = x0; column < x1; ++column) {

@@ -24,6 +24,10 @@ CameraModel cameraModel(const std::string& name);
 /// Why `info` cannot serve as a camera of `model` for a reward whose map is `map`; "" when it can.
 std::string cameraInfoProblem(const sensor_msgs::CameraInfo& info, CameraModel model, const vision::TopDownCamera& map);
 
+/// Why `info` is not a perspective RGB-D camera's that vision::PinholeCamera can model (rectified, pinhole, not the
+/// second of a stereo pair, 8-8192 pixels a side); "" when it is.
+std::string perspectiveInfoProblem(const sensor_msgs::CameraInfo& info);
+
 /// Why an orthographic camera whose optical frame lies at `pose` (in the reward's world frame) is not the reward's
 /// map camera (above its centre, looking down, within 1 mm and 1 mrad); "" when it is.
 std::string orthographicPoseProblem(const Eigen::Isometry3d& pose, const vision::TopDownCamera& map);

@@ -41,6 +41,7 @@ enum class LocateStatus {
   WrongImage,  ///< Not bgr8 and 32FC1 of the camera's size.
   BadCamera,   ///< Non-finite or non-rigid pose, bad intrinsics.
   NotSeen,     ///< Too few pixels of the object's colour.
+  AtEdge,      ///< Cut by the image's edge: part of it is out of view, and its fit would be biased.
   NoDepth,     ///< Seen, but too few of its pixels have a depth.
   NoFit,       ///< The shape fit did not converge to a finite centre.
 };

@@ -1,0 +1,342 @@
+// object_tracker: finds a known object in an RGB-D camera's frames and tracks it (thesis Sec. 4.3.2, Fig. 4.10):
+// tracking::ObjectTracker between the camera's topics and the tracked object's.
+#include "bimanual_skills/tracking/object_tracker.hpp"
+#include "bimanual_skills/TrackedObject.h"
+#include "bimanual_skills/ros_layer/camera_contract.hpp"
+#include "bimanual_skills/ros_layer/parameters.hpp"
+#include "node_cli.hpp"
+
+#include <cv_bridge/cv_bridge.h>
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <geometry_msgs/PoseWithCovarianceStamped.h>
+#include <message_filters/subscriber.h>
+#include <message_filters/time_synchronizer.h>
+#include <ros/ros.h>
+#include <sensor_msgs/CameraInfo.h>
+#include <sensor_msgs/Image.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_ros/transform_listener.h>
+#include <visualization_msgs/MarkerArray.h>
+
+#include <opencv2/imgproc.hpp>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace bs = bimanual_skills;
+
+namespace {
+
+const char* const kUsage =
+    "usage: rosrun bimanual_skills object_tracker [ROS remappings]\n\n"
+    "Finds a known object in an RGB-D camera's frames and tracks its centre in the world (thesis Sec. 4.3.2): its\n"
+    "colour picked out in HSV, its upright shape fitted to its depth pixels through the camera's intrinsics and its\n"
+    "pose on tf, a constant-velocity Kalman filter with a gate, and the reason whenever it is not tracked.\n\n"
+    "Parameters:\n"
+    "  ~camera              the camera's namespace (default rgbd): CAMERA/image_raw (bgr8), CAMERA/depth/image_raw\n"
+    "                       (32FC1 [m], registered to the colour image), CAMERA/camera_info (rectified pinhole)\n"
+    "  ~world_frame         the frame the object is tracked in (default world)\n"
+    "  ~shape, ~size        the object: cylinder [radius, length] (default [0.033, 0.12]), sphere [radius],\n"
+    "                       box [x, y, z] [m], upright\n"
+    "  ~colour              its colour, RGB in [0, 1] (default [0.95, 0.45, 0.08]): the hue looked for\n"
+    "  ~hue_tolerance       degrees (12); ~min_saturation (0.5), ~min_value (0.15) in [0, 1]\n"
+    "  ~min_pixels (30), ~min_points (20)  fewer pixels of its colour: not seen; fewer with a depth: not measured\n"
+    "  ~min_stddev          floor of the measurement's standard deviation [m] (0.002)\n"
+    "  ~acceleration_noise  the filter's q [m^2/s^3] (1); ~gate chi^2 (16.27); ~lost_after [s] (0.5);\n"
+    "  ~reject_limit        measurements in a row outside the gate that lose it (5)\n"
+    "  ~camera_timeout      [s] of the clock without a frame: the camera counts as stopped (0.5)\n"
+    "  ~tf_timeout          [s] to wait for the camera's pose at a frame's stamp (0.1)\n\n"
+    "Topics: subscribes to the camera's three; publishes ~object (bimanual_skills/TrackedObject: every frame, and\n"
+    "  at 20 Hz while frames stop), ~pose (geometry_msgs/PoseWithCovarianceStamped, while tracked), ~markers (the\n"
+    "  estimate, its 3-sigma ellipsoid and velocity; green tracked, red lost), ~debug_image (bgr8: the frame with\n"
+    "  the object outlined) and /diagnostics (1 Hz: state, frames, processing time).\n";
+
+/// Hue [degrees] of an RGB colour in [0, 1].
+double hueOf(const Eigen::Vector3d& rgb) {
+  const double high = rgb.maxCoeff(), low = rgb.minCoeff(), chroma = high - low;
+  if (chroma <= 0.0) return 0.0;
+  double h;
+  if (high == rgb[0]) {
+    h = std::fmod((rgb[1] - rgb[2]) / chroma, 6.0);
+  } else if (high == rgb[1]) {
+    h = (rgb[2] - rgb[0]) / chroma + 2.0;
+  } else {
+    h = (rgb[0] - rgb[1]) / chroma + 4.0;
+  }
+  h *= 60.0;
+  return h < 0.0 ? h + 360.0 : h;
+}
+
+class ObjectTrackerNode {
+ public:
+  ObjectTrackerNode(ros::NodeHandle& node, ros::NodeHandle& private_node) : tf_listener_(tf_buffer_) {
+    bs::ros_layer::ParameterReader p(private_node, "object_tracker");
+    const std::string camera = p.text("camera", "rgbd");
+    world_ = p.text("world_frame", "world");
+    bs::tracking::ObjectTrackerConfig config;
+    bs::vision::ObjectLocatorConfig& locator = config.locator;
+    const std::string shape = p.text("shape", "cylinder", {"cylinder", "sphere", "box"});
+    locator.shape.shape = shape == "box"      ? bs::vision::SceneSolid::Shape::Box
+                          : shape == "sphere" ? bs::vision::SceneSolid::Shape::Sphere
+                                              : bs::vision::SceneSolid::Shape::Cylinder;
+    const std::size_t dimensions = shape == "box" ? 3 : shape == "cylinder" ? 2 : 1;
+    const std::vector<double> fallback = shape == "box"        ? std::vector<double>{0.06, 0.06, 0.12}
+                                         : shape == "cylinder" ? std::vector<double>{0.033, 0.12}
+                                                               : std::vector<double>{0.04};
+    const std::vector<double> size = p.numbers("size", fallback, dimensions, 1e-3, 10.0);
+    for (std::size_t i = 0; i < dimensions; ++i) locator.shape.size[static_cast<Eigen::Index>(i)] = size[i];
+    const std::vector<double> colour = p.numbers("colour", {0.95, 0.45, 0.08}, 3, 0.0, 1.0);
+    locator.hue = hueOf(Eigen::Vector3d(colour[0], colour[1], colour[2]));
+    locator.hue_tolerance = p.number("hue_tolerance", locator.hue_tolerance, 0.1, 90.0);
+    locator.min_saturation = p.number("min_saturation", locator.min_saturation, 0.0, 1.0);
+    locator.min_value = p.number("min_value", locator.min_value, 0.0, 1.0);
+    locator.min_pixels = p.integer("min_pixels", locator.min_pixels, 1, 1000000);
+    locator.min_points = p.integer("min_points", locator.min_points, 4, locator.max_points);
+    locator.min_stddev = p.number("min_stddev", locator.min_stddev, 1e-5, 1.0);
+    config.filter.acceleration_noise = p.number("acceleration_noise", config.filter.acceleration_noise, 1e-6, 1e4);
+    config.filter.gate = p.number("gate", config.filter.gate, 0.1, 1e6);
+    config.filter.lost_after = p.number("lost_after", config.filter.lost_after, 0.01, 60.0);
+    config.filter.reject_limit = p.integer("reject_limit", config.filter.reject_limit, 1, 1000);
+    config.camera_timeout = p.number("camera_timeout", config.camera_timeout, 0.01, 60.0);
+    tf_timeout_ = p.number("tf_timeout", 0.1, 0.0, 10.0);
+    p.warnUnknown();
+    tracker_ = std::make_unique<bs::tracking::ObjectTracker>(config);
+
+    object_ = private_node.advertise<bimanual_skills::TrackedObject>("object", 10);
+    pose_ = private_node.advertise<geometry_msgs::PoseWithCovarianceStamped>("pose", 10);
+    markers_ = private_node.advertise<visualization_msgs::MarkerArray>("markers", 1);
+    debug_ = private_node.advertise<sensor_msgs::Image>("debug_image", 1);
+    diagnostics_ = node.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
+    info_ = node.subscribe(camera + "/camera_info", 1, &ObjectTrackerNode::onInfo, this);
+    image_.subscribe(node, camera + "/image_raw", 5);
+    depth_.subscribe(node, camera + "/depth/image_raw", 5);
+    sync_ =
+        std::make_unique<message_filters::TimeSynchronizer<sensor_msgs::Image, sensor_msgs::Image>>(image_, depth_, 10);
+    sync_->registerCallback(&ObjectTrackerNode::onFrame, this);
+    stop_timer_ = node.createTimer(ros::Duration(0.05), &ObjectTrackerNode::onTimer, this);
+    diagnostics_timer_ = node.createSteadyTimer(ros::WallDuration(1.0), &ObjectTrackerNode::onDiagnostics, this);
+    ROS_INFO("object_tracker: a %s of hue %.0f deg on %s/..., tracked in %s", shape.c_str(), locator.hue,
+             camera.c_str(), world_.c_str());
+  }
+
+ private:
+  void onInfo(const sensor_msgs::CameraInfo::ConstPtr& info) {
+    info_problem_ = bs::ros_layer::perspectiveInfoProblem(*info);
+    info_msg_ = info;
+  }
+
+  void onFrame(const sensor_msgs::Image::ConstPtr& image, const sensor_msgs::Image::ConstPtr& depth) {
+    const ros::WallTime started = ros::WallTime::now();
+    const double t = image->header.stamp.toSec();
+    problem_.clear();
+    bs::vision::PinholeCamera camera;
+    if (!info_msg_) {
+      problem_ = "no camera_info yet";
+    } else if (!info_problem_.empty()) {
+      problem_ = "the camera cannot be used: " + info_problem_;
+    } else if (info_msg_->width != image->width || info_msg_->height != image->height) {
+      problem_ = "the images are not the camera_info's size";
+    }
+    Eigen::Isometry3d pose;
+    pose.matrix().setConstant(std::nan(""));  // a frame without a pose is a frame the tracker cannot use
+    if (problem_.empty()) {
+      try {
+        pose = tf2::transformToEigen(tf_buffer_.lookupTransform(world_, image->header.frame_id, image->header.stamp,
+                                                                ros::Duration(tf_timeout_)));
+      } catch (const tf2::TransformException& e) {
+        problem_ = "no pose of the camera frame '" + image->header.frame_id + "' in '" + world_ + "': " + e.what();
+      }
+      camera = bs::ros_layer::pinholeCamera(*info_msg_, pose);
+    }
+    cv_bridge::CvImageConstPtr bgr, metres;
+    try {
+      bgr = cv_bridge::toCvShare(image);
+      metres = cv_bridge::toCvShare(depth);
+    } catch (const cv_bridge::Exception& e) {
+      problem_ = std::string("unreadable images: ") + e.what();
+    }
+    static const cv::Mat kNone;
+    const bs::tracking::TrackedState& state =
+        tracker_->frame(t, bgr && image->encoding == "bgr8" ? bgr->image : kNone,
+                        metres && depth->encoding == "32FC1" ? metres->image : kNone, camera);
+    if (problem_.empty() && image->encoding != "bgr8")
+      problem_ = "the colour image is " + image->encoding + ", not bgr8";
+    if (problem_.empty() && depth->encoding != "32FC1")
+      problem_ = "the depth image is " + depth->encoding + ", not 32FC1";
+    publish(state, image->header.stamp);
+    if (debug_.getNumSubscribers() > 0 && bgr && image->encoding == "bgr8") {
+      cv_bridge::CvImage out(image->header, "bgr8", bgr->image.clone());
+      std::vector<std::vector<cv::Point>> contours;
+      cv::findContours(tracker_->locator().objectMask().clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+      cv::drawContours(out.image, contours, -1, state.tracking ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), 2);
+      debug_.publish(out.toImageMsg());
+    }
+    processing_.push_back((ros::WallTime::now() - started).toSec());
+  }
+
+  /// Frames that stop: the estimate at the clock's time says so once camera_timeout has passed.
+  void onTimer(const ros::TimerEvent&) {
+    const bs::tracking::TrackedState& last = tracker_->last();
+    const double now = ros::Time::now().toSec();
+    if (last.frames == 0 || now - last.last_frame <= tracker_->config().camera_timeout) return;
+    publish(tracker_->at(now), ros::Time(now));
+  }
+
+  void publish(const bs::tracking::TrackedState& state, const ros::Time& stamp) {
+    bimanual_skills::TrackedObject out;
+    out.header.stamp = stamp;
+    out.header.frame_id = world_;
+    out.tracking = state.tracking;
+    out.state = bs::tracking::ObjectTracker::describe(state);
+    if (!state.tracking && !problem_.empty()) out.state += " (" + problem_ + ")";
+    out.pose.pose.position.x = state.position.x();
+    out.pose.pose.position.y = state.position.y();
+    out.pose.pose.position.z = state.position.z();
+    out.pose.pose.orientation.w = 1.0;
+    for (int i = 0; i < 3; ++i) {
+      for (int j = 0; j < 3; ++j) out.pose.covariance[static_cast<std::size_t>(6 * i + j)] = state.covariance(i, j);
+    }
+    for (int i = 3; i < 6; ++i) out.pose.covariance[static_cast<std::size_t>(7 * i)] = -1.0;  // orientation unknown
+    out.velocity.x = state.velocity.x();
+    out.velocity.y = state.velocity.y();
+    out.velocity.z = state.velocity.z();
+    out.last_accepted = ros::Time(std::max(0.0, state.last_accepted));
+    out.frames = static_cast<std::uint32_t>(state.frames);
+    out.measured = static_cast<std::uint32_t>(state.measured);
+    out.accepted = static_cast<std::uint32_t>(state.accepted);
+    out.rejected = static_cast<std::uint32_t>(state.rejected);
+    out.dropped = static_cast<std::uint32_t>(state.dropped);
+    object_.publish(out);
+    if (state.tracking) {
+      geometry_msgs::PoseWithCovarianceStamped pose;
+      pose.header = out.header;
+      pose.pose = out.pose;
+      pose_.publish(pose);
+    }
+    markers_.publish(markers(state, out.header));
+    last_message_ = out.state;
+    last_tracking_ = state.tracking;
+  }
+
+  visualization_msgs::MarkerArray markers(const bs::tracking::TrackedState& state,
+                                          const std_msgs::Header& header) const {
+    visualization_msgs::MarkerArray array;
+    visualization_msgs::Marker m;
+    m.header = header;
+    m.header.stamp = ros::Time();  // the latest transform: rviz keeps markers across a simulation's reset
+    m.ns = "tracked_object";
+    m.pose.orientation.w = 1.0;
+    m.color.a = 0.9f;
+    m.color.r = state.tracking ? 0.1f : 0.9f;
+    m.color.g = state.tracking ? 0.8f : 0.1f;
+    m.color.b = 0.1f;
+    // The estimate's 3-sigma ellipsoid (principal axes of its covariance).
+    m.id = 0;
+    m.type = visualization_msgs::Marker::SPHERE;
+    m.pose.position.x = state.position.x();
+    m.pose.position.y = state.position.y();
+    m.pose.position.z = state.position.z();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> axes(state.covariance);
+    Eigen::Matrix3d rotation = axes.eigenvectors();
+    if (rotation.determinant() < 0.0) rotation.col(2) *= -1.0;
+    const Eigen::Quaterniond q(rotation);
+    m.pose.orientation.w = q.w(), m.pose.orientation.x = q.x(), m.pose.orientation.y = q.y(),
+    m.pose.orientation.z = q.z();
+    const Eigen::Vector3d extent = 6.0 * axes.eigenvalues().cwiseMax(0.0).cwiseSqrt().cwiseMax(0.002);
+    m.scale.x = extent.x(), m.scale.y = extent.y(), m.scale.z = extent.z();
+    array.markers.push_back(m);
+    // The velocity, 1 s of it.
+    m.id = 1;
+    m.type = visualization_msgs::Marker::ARROW;
+    m.pose = geometry_msgs::Pose();
+    m.pose.orientation.w = 1.0;
+    m.scale.x = 0.01, m.scale.y = 0.02, m.scale.z = 0.0;
+    geometry_msgs::Point from, to;
+    from.x = state.position.x(), from.y = state.position.y(), from.z = state.position.z();
+    to.x = from.x + state.velocity.x(), to.y = from.y + state.velocity.y(), to.z = from.z + state.velocity.z();
+    m.points = {from, to};
+    m.action = state.tracking ? visualization_msgs::Marker::ADD : visualization_msgs::Marker::DELETE;
+    array.markers.push_back(m);
+    // What it says, above it.
+    m.id = 2;
+    m.type = visualization_msgs::Marker::TEXT_VIEW_FACING;
+    m.action = visualization_msgs::Marker::ADD;
+    m.points.clear();
+    m.pose.position = from;
+    m.pose.position.z += 0.12;
+    m.scale.z = 0.03;
+    m.text = state.tracking ? "tracking" : bs::tracking::toString(state.reason);
+    array.markers.push_back(m);
+    return array;
+  }
+
+  void onDiagnostics(const ros::SteadyTimerEvent&) {
+    diagnostic_msgs::DiagnosticStatus status;
+    status.name = ros::this_node::getName();
+    status.hardware_id = "object_tracker";
+    std::vector<double> times;
+    times.swap(processing_);
+    status.level = last_tracking_ ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::WARN;
+    status.message = last_message_.empty() ? "no camera frame yet" : last_message_;
+    const bs::tracking::TrackedState& s = tracker_->last();
+    const auto add = [&status](const std::string& key, const std::string& value) {
+      diagnostic_msgs::KeyValue kv;
+      kv.key = key;
+      kv.value = value;
+      status.values.push_back(kv);
+    };
+    std::sort(times.begin(), times.end());
+    std::ostringstream text;
+    text.precision(3);
+    text << std::fixed << times.size() << " frames; processing median "
+         << (times.empty() ? 0.0 : 1e3 * times[times.size() / 2]) << " ms, max "
+         << (times.empty() ? 0.0 : 1e3 * times.back()) << " ms";
+    add("last second", text.str());
+    add("frames, measured, accepted, rejected, dropped",
+        std::to_string(s.frames) + ", " + std::to_string(s.measured) + ", " + std::to_string(s.accepted) + ", " +
+            std::to_string(s.rejected) + ", " + std::to_string(s.dropped));
+    add("last frame", bs::vision::toString(s.located));
+    diagnostic_msgs::DiagnosticArray array;
+    array.header.stamp = ros::Time::now();
+    array.status.push_back(status);
+    diagnostics_.publish(array);
+  }
+
+  tf2_ros::Buffer tf_buffer_;
+  tf2_ros::TransformListener tf_listener_;
+  std::string world_, problem_, info_problem_ = "no camera_info yet";
+  double tf_timeout_ = 0.1;
+  std::unique_ptr<bs::tracking::ObjectTracker> tracker_;
+  sensor_msgs::CameraInfo::ConstPtr info_msg_;
+  ros::Publisher object_, pose_, markers_, debug_, diagnostics_;
+  ros::Subscriber info_;
+  message_filters::Subscriber<sensor_msgs::Image> image_, depth_;
+  std::unique_ptr<message_filters::TimeSynchronizer<sensor_msgs::Image, sensor_msgs::Image>> sync_;
+  ros::Timer stop_timer_;
+  ros::SteadyTimer diagnostics_timer_;
+  std::vector<double> processing_;  ///< Wall time of each frame since the last diagnostics [s].
+  std::string last_message_;
+  bool last_tracking_ = false;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bs::nodes::handleCommandLine(argc, argv, kUsage);
+  ros::init(argc, argv, "object_tracker");
+  ros::NodeHandle node, private_node("~");
+  try {
+    ObjectTrackerNode tracker(node, private_node);
+    ros::spin();
+  } catch (const std::exception& e) {
+    ROS_FATAL("object_tracker: %s", e.what());
+    return 1;
+  }
+  return 0;
+}
