@@ -73,6 +73,15 @@ RealtimeArmController::RealtimeArmController(const kinematics::ChainModel& model
       states_(ArmControllerState(model.nq())),
       tolerances_(TrajectoryTolerances::none(model.nq())) {}
 
+void RealtimeArmController::enableFollowing(const TargetFollowerConfig& config) {
+  follower_ = std::make_unique<TargetFollower>(controller_.model(), config);
+}
+
+void RealtimeArmController::setTarget(const FollowTarget& target) noexcept {
+  targets_.writeSlot() = target;
+  targets_.publish();
+}
+
 void RealtimeArmController::command(ControllerCommand command) {
   const std::lock_guard<std::mutex> lock(command_mutex_);
   command.sent = realtime::monotonicSeconds();
@@ -108,7 +117,17 @@ void RealtimeArmController::take(const ControllerCommand& command, double stamp)
   ++commands_taken_;
   command_taken_at_ = realtime::monotonicSeconds();
   command_latency_ = command_taken_at_ - command.sent;
-  if (goal_ == GoalState::Active && command.kind == ControllerCommand::Kind::Mode) goal_ = GoalState::Preempted;
+  if (goal_ == GoalState::Active && command.kind != ControllerCommand::Kind::Trajectory) goal_ = GoalState::Preempted;
+  // Following ends with any command; a Follow command (re)starts it from the controller's desired state.
+  following_ = command.kind == ControllerCommand::Kind::Follow && follower_ != nullptr;
+  if (follower_) follower_->stop();
+  if (following_) {
+    next_follow_ = -std::numeric_limits<double>::infinity();
+    follow_interrupted_ = false;
+    follow_stopped_ = ControllerStatus::Ok;
+    grasp_answer_.store(-1, std::memory_order_relaxed);
+  }
+  if (command.kind == ControllerCommand::Kind::Follow) return;
   if (command.kind == ControllerCommand::Kind::Mode) {
     controller_.setMode(command.mode);
     return;
@@ -165,6 +184,26 @@ void RealtimeArmController::monitorGoal(double stamp, ControllerStatus status) n
   if (joint >= 0) goal_error_ = goal_error_is_velocity_ ? velocity[joint] : s.position_error[joint];
 }
 
+void RealtimeArmController::follow(double stamp, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept {
+  if (const FollowTarget* newest = targets_.readNew()) target_ = *newest;
+  if (!controller_.started()) return;  // the first state starts the controller; the follower starts from it
+  if (follower_->phase() == FollowPhase::Idle) {
+    follower_->start(stamp, controller_.desiredPosition(), controller_.desiredVelocity());
+  }
+  const int answer = grasp_answer_.exchange(-1, std::memory_order_acq_rel);
+  if (answer >= 0) follower_->graspDone(answer == 1);
+  const double period = follower_->config().period;
+  if (stamp < next_follow_ - 1e-9 && stamp > next_follow_ - 2.0 * period) return;  // not due (a clock back: due)
+  next_follow_ = stamp + period;
+  if (!follower_->update(stamp, target_, q)) return;
+  (void)controller_.setTrajectory(follower_->waypoints());
+  const double used = follower_->targetStamp();
+  if (std::isfinite(used) && !(used == used_target_stamp_)) {
+    used_target_stamp_ = used;
+    follow_latency_ = stamp - used;  // this cycle's torque is the first computed from that estimate
+  }
+}
+
 void RealtimeArmController::publishState(double stamp, ControllerStatus status,
                                          const Eigen::Ref<const Eigen::VectorXd>& q,
                                          const Eigen::Ref<const Eigen::VectorXd>& qd,
@@ -200,6 +239,19 @@ void RealtimeArmController::publishState(double stamp, ControllerStatus status,
   s.observer_restarts = controller_.observer().restarts();
   s.commands_taken = commands_taken_;
   s.command_latency = command_latency_;
+  s.following = following_;
+  s.follow_interrupted = follow_interrupted_;
+  s.follow_stopped = follow_stopped_;
+  if (follower_) {
+    s.follow_phase = follower_->phase();
+    s.follow_reason = follower_->holdReason();
+    s.follow_goal = follower_->toolGoal();
+    s.follow_tool = follower_->toolPosition();
+    s.follow_error = follower_->toolError();
+    s.follow_target_stamp = used_target_stamp_;
+    s.follow_latency = follow_latency_;
+    s.grasp_requested = following_ && follower_->graspRequested();
+  }
   states_.publish();
 }
 
@@ -222,8 +274,16 @@ ControllerStatus RealtimeArmController::update(double now, double stamp, const E
     take(*pending_, stamp);
     pending_ = nullptr;
   }
+  if (following_) follow(stamp, q);
   const ControllerStatus status = controller_.update(now, stamp, q, qd, applied, torque);
   ++counts_[static_cast<int>(status)];
+  if (following_ && follower_->phase() != FollowPhase::Idle && controller_.mode() != ControllerMode::Track) {
+    // The controller left tracking on its own (velocity limit, stale or restarted states): following ends.
+    following_ = false;
+    follower_->stop();
+    follow_interrupted_ = true;
+    follow_stopped_ = status;
+  }
   if (status == ControllerStatus::InvalidState || status == ControllerStatus::StaleState) {
     if (goal_ == GoalState::Active && status == ControllerStatus::StaleState) {
       goal_ = GoalState::Aborted;

@@ -11,11 +11,13 @@
 #pragma once
 
 #include "bimanual_skills/control/arm_controller.hpp"
+#include "bimanual_skills/control/target_follower.hpp"
 #include "bimanual_skills/realtime/triple_buffer.hpp"
 
 #include <atomic>
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <mutex>
 
 namespace bimanual_skills::control {
@@ -45,7 +47,8 @@ const char* toString(GoalState state) noexcept;
 
 /// A command handed to the loop.
 struct ControllerCommand {
-  enum class Kind { Mode, Trajectory };
+  /// Follow: the tool follows the tracked target (RealtimeArmController::enableFollowing) until another command.
+  enum class Kind { Mode, Trajectory, Follow };
   Kind kind = Kind::Mode;
   ControllerMode mode = ControllerMode::Hold;  ///< Kind::Mode.
   Waypoints waypoints;                         ///< Kind::Trajectory: times relative to `start` (>= 0, increasing).
@@ -84,6 +87,21 @@ struct ArmControllerState {
   long observer_irregular_steps = 0, observer_restarts = 0;
   std::uint64_t commands_taken = 0;  ///< Commands the loop took so far.
   double command_latency = 0.0;      ///< Wall time [s] from the last command's hand-over to its first torque.
+  // Following a tracked target (ControllerCommand::Kind::Follow).
+  bool following = false;
+  FollowPhase follow_phase = FollowPhase::Idle;
+  HoldReason follow_reason = HoldReason::None;
+  Eigen::Vector3d follow_goal = Eigen::Vector3d::Zero();  ///< The tool's goal (world) [m].
+  Eigen::Vector3d follow_tool = Eigen::Vector3d::Zero();  ///< The measured tool (world) [m].
+  double follow_error = 0.0;                              ///< Their distance [m].
+  /// The stamp of the target's estimate in use, and its age at the first torque computed from it [s] (NaN: none).
+  double follow_target_stamp = std::numeric_limits<double>::quiet_NaN();
+  double follow_latency = std::numeric_limits<double>::quiet_NaN();
+  bool grasp_requested = false;  ///< The follower asks for the gripper to close (answer: graspDone()).
+  /// Following ended without a command: the controller left tracking on its own, with the status of that update
+  /// (VelocityLimit, StaleState; Ok or Saturated: it restarted, the clock went back).
+  bool follow_interrupted = false;
+  ControllerStatus follow_stopped = ControllerStatus::Ok;
 };
 
 /// One arm's controller between a real-time loop and the threads that command and watch it. Construction
@@ -114,6 +132,15 @@ class RealtimeArmController {
   /// The newest state if the loop produced one since the last call, else nullptr; valid until the next call.
   /// One reader thread.
   const ArmControllerState* latestState() noexcept { return states_.readNew(); }
+  /// Makes the arm able to follow a tracked target (ControllerCommand::Kind::Follow): a TargetFollower run in the
+  /// loop every config.period of the states' clock, its segments given to the controller in the same cycle. Call
+  /// before the loop runs (allocates). \throws std::invalid_argument for an invalid config.
+  void enableFollowing(const TargetFollowerConfig& config);
+  bool canFollow() const noexcept { return follower_ != nullptr; }
+  /// The newest estimate of the target (one writer thread).
+  void setTarget(const FollowTarget& target) noexcept;
+  /// The gripper's answer to ArmControllerState::grasp_requested (any thread).
+  void graspDone(bool held) noexcept { grasp_answer_.store(held ? 1 : 0, std::memory_order_release); }
 
   // ---- Real-time side ----
   /// One control step (ArmController::update with the robot's applied torque) after taking the newest command,
@@ -139,6 +166,8 @@ class RealtimeArmController {
   void receive() noexcept;
   void take(const ControllerCommand& command, double stamp) noexcept;
   void monitorGoal(double stamp, ControllerStatus status) noexcept;
+  /// Following: the follower's update when due, its segment to the controller.
+  void follow(double stamp, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept;
   void publishState(double stamp, ControllerStatus status, const Eigen::Ref<const Eigen::VectorXd>& q,
                     const Eigen::Ref<const Eigen::VectorXd>& qd,
                     const Eigen::Ref<const Eigen::VectorXd>& torque) noexcept;
@@ -167,6 +196,17 @@ class RealtimeArmController {
   double trajectory_start_ = std::numeric_limits<double>::quiet_NaN();
   std::atomic<std::uint64_t> received_goal_{0};
   std::atomic<double> last_cycle_{0.0};
+  // Following (loop side, but for the target's and the gripper's handoffs).
+  std::unique_ptr<TargetFollower> follower_;
+  realtime::TripleBuffer<FollowTarget> targets_{FollowTarget{}};
+  FollowTarget target_;
+  bool following_ = false;
+  double next_follow_ = -std::numeric_limits<double>::infinity();
+  double used_target_stamp_ = std::numeric_limits<double>::quiet_NaN();
+  double follow_latency_ = std::numeric_limits<double>::quiet_NaN();
+  bool follow_interrupted_ = false;
+  ControllerStatus follow_stopped_ = ControllerStatus::Ok;
+  std::atomic<int> grasp_answer_{-1};  ///< −1 none, 0 not held, 1 held.
 };
 
 }  // namespace bimanual_skills::control

@@ -146,4 +146,14 @@ Eigen::VectorXd randomWithinLimits(const ChainModel& model, std::mt19937& rng);
 /// The middle of each joint's range (0 for unlimited joints): a seed that favours no branch.
 Eigen::VectorXd middleOfLimits(const ChainModel& model);
 
+/// Where a link fixed to a URDF's root sits: its pose in the root link's frame, and the root's name.
+struct FixedLinkPose {
+  Eigen::Isometry3d pose;
+  std::string root;
+};
+
+/// The pose of `link` in the root frame of the robot description `urdf_xml` (an arm's base in the world).
+/// \throws std::invalid_argument for invalid URDF, an unknown link, or a moving joint between it and the root.
+FixedLinkPose fixedLinkPose(const std::string& urdf_xml, const std::string& link);
+
 }  // namespace bimanual_skills::kinematics
