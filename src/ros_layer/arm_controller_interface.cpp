@@ -1,8 +1,11 @@
 #include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
 
+#include "bimanual_skills/ClothGrasp.h"
+#include "bimanual_skills/FollowerState.h"
 #include "bimanual_skills/JointTrajectoryControllerState.h"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
+#include "bimanual_skills/ros_layer/bounded_call.hpp"
 #include "bimanual_skills/ros_layer/trajectory_messages.hpp"
 
 #include <diagnostic_msgs/DiagnosticArray.h>
@@ -10,11 +13,14 @@
 #include <sensor_msgs/JointState.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <iomanip>
 #include <limits>
 #include <sstream>
+#include <thread>
 
 namespace bimanual_skills::ros_layer {
 
@@ -41,7 +47,23 @@ const char* const kControllerParameterHelp =
     "  stopped_velocity_tolerance  default goal velocity tolerance [rad/s] (0.05)\n"
     "  goal_time_tolerance   default time after a trajectory's end to meet the goal tolerances [s] (1.0)\n"
     "  loop_timeout          an active goal is aborted when the loop has computed no torque for this long of the\n"
-    "                        robot's clock [s] (0.5; a paused simulation's clock stands still: no abort)\n";
+    "                        robot's clock [s] (0.5; a paused simulation's clock stands still: no abort)\n"
+    "  follow/target_topic   bimanual_skills/TrackedObject to follow on set_mode follow (default\n"
+    "                        /object_tracker/object; empty: no following), in the robot description's root frame\n"
+    "  follow/gripper_service  bimanual_skills/ClothGrasp that closes the gripper (default /bullet_sim/grasp)\n"
+    "  follow/pregrasp, follow/grasp_offset  grasp point -> where the tool follows, object centre -> grasp point,\n"
+    "                        world axes [m] ([0, 0, 0.1], [0, 0, 0])\n"
+    "  follow/tool_rpy       the tool's orientation while following, roll pitch yaw in the world [rad] ([pi, 0, 0]:\n"
+    "                        pointing down)\n"
+    "  follow/rate           follower updates per second of the robot's clock (125)\n"
+    "  follow/time_constant, follow/velocity_limit, follow/acceleration_limit  the reference's pull [s] (0.1) and\n"
+    "                        limits per joint [rad/s, rad/s^2] (half the URDF's velocity limits, 4)\n"
+    "  follow/max_age, follow/jump, follow/settle  hold on an estimate older than max_age [s] (0.25), or one jump\n"
+    "                        [m] (0.05) from where the last predicted it, for settle [s] (0.5)\n"
+    "  follow/track_time, follow/grasp_speed, follow/follow_tolerance  approach once followed this long [s] (2),\n"
+    "                        the object slower than grasp_speed [m/s] (0.03), the tool this near [m] (0.02)\n"
+    "  follow/approach_speed, follow/grasp_tolerance  [m/s] (0.05); close within this of the grasp point [m] (0.01)\n"
+    "  follow/clik_iterations  CLIK steps per update (3)\n";
 
 namespace {
 
@@ -130,6 +152,48 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
       Eigen::VectorXd::Constant(static_cast<Eigen::Index>(n), p.number("stopped_velocity_tolerance", 0.05, 0.0, 100.0));
   t.goal_time = p.number("goal_time_tolerance", 1.0, 0.0, 3600.0);
   s.loop_timeout = p.number("loop_timeout", 0.5, 1e-3, 3600.0);
+  s.target_topic = p.text("follow/target_topic", "/object_tracker/object");
+  s.gripper_service = p.text("follow/gripper_service", "/bullet_sim/grasp");
+  if (!s.target_topic.empty()) {
+    bc::TargetFollowerConfig& f = s.follow;
+    try {
+      const kinematics::FixedLinkPose base = kinematics::fixedLinkPose(robot_description, s.base_link);
+      f.base = base.pose;
+      s.world_frame = base.root;
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("following (parameter " + p.name("follow/target_topic") + "): " + e.what() +
+                                  "; set it empty to follow nothing");
+    }
+    const auto point = [&](const char* key, const Eigen::Vector3d& fallback) {
+      return Eigen::Vector3d(vector(p.numbers(key, stdVector(fallback), 3, -1.0, 1.0)));
+    };
+    f.pregrasp = point("follow/pregrasp", f.pregrasp);
+    f.grasp_offset = point("follow/grasp_offset", f.grasp_offset);
+    const std::vector<double> rpy = p.numbers("follow/tool_rpy", {M_PI, 0.0, 0.0}, 3, -10.0, 10.0);
+    f.tool_orientation =
+        (Eigen::AngleAxisd(rpy[2], Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(rpy[1], Eigen::Vector3d::UnitY()) *
+         Eigen::AngleAxisd(rpy[0], Eigen::Vector3d::UnitX()))
+            .toRotationMatrix();
+    f.period = 1.0 / p.number("follow/rate", 125.0, 1.0, 1000.0);
+    f.time_constant = p.number("follow/time_constant", f.time_constant, 1e-3, 10.0);
+    f.velocity_limit =
+        vector(p.numbers("follow/velocity_limit", stdVector(0.5 * model.velocityLimits()), n, 1e-3, 100.0));
+    f.acceleration_limit = vector(p.numbers("follow/acceleration_limit", std::vector<double>(n, 4.0), n, 1e-3, 1e4));
+    f.max_age = p.number("follow/max_age", f.max_age, 1e-3, 60.0);
+    f.jump = p.number("follow/jump", f.jump, 1e-3, 10.0);
+    f.settle = p.number("follow/settle", f.settle, 0.0, 60.0);
+    f.track_time = p.number("follow/track_time", f.track_time, 0.0, 3600.0);
+    f.grasp_speed = p.number("follow/grasp_speed", f.grasp_speed, 1e-4, 10.0);
+    f.follow_tolerance = p.number("follow/follow_tolerance", f.follow_tolerance, 1e-4, 1.0);
+    f.approach_speed = p.number("follow/approach_speed", f.approach_speed, 1e-4, 10.0);
+    f.grasp_tolerance = p.number("follow/grasp_tolerance", f.grasp_tolerance, 1e-4, 1.0);
+    f.clik_iterations = p.integer("follow/clik_iterations", f.clik_iterations, 1, 100);
+    try {
+      f.validate(model.nq());
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("parameters ") + p.name("follow/...") + ": " + e.what());
+    }
+  }
   return s;
 }
 
@@ -139,6 +203,7 @@ ArmControllerInterface::ArmControllerInterface(ros::NodeHandle node, ParameterRe
     : arm_(arm), owner_(owner), node_(node) {
   settings_ = readControllerSettings(parameters, arm, robot_description, defaults);
   controller_ = std::make_unique<bc::RealtimeArmController>(*settings_.model, settings_.friction, settings_.config);
+  if (!settings_.target_topic.empty()) controller_->enableFollowing(settings_.follow);
   joint_names_ = settings_.model->jointNames();
   kinematics_ = std::make_unique<kinematics::ChainData>(*settings_.model);
   sendMode(settings_.initial_mode);
@@ -151,6 +216,10 @@ ArmControllerInterface::ArmControllerInterface(ros::NodeHandle node, ParameterRe
   path_publisher_ = node_.advertise<visualization_msgs::MarkerArray>("tool_paths", 1);
   diagnostics_publisher_ = node_.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
   command_subscriber_ = node_.subscribe("command", 10, &ArmControllerInterface::onCommand, this);
+  if (!settings_.target_topic.empty()) {
+    target_subscriber_ = node_.subscribe(settings_.target_topic, 10, &ArmControllerInterface::onTarget, this);
+    follow_publisher_ = node_.advertise<bimanual_skills::FollowerState>("follow_state", 10);
+  }
   mode_service_ = node_.advertiseService("set_mode", &ArmControllerInterface::onSetMode, this);
   server_ = std::make_unique<Server>(
       node_, "follow_joint_trajectory", [this](GoalHandle goal) { onGoal(goal); },
@@ -165,6 +234,11 @@ ArmControllerInterface::ArmControllerInterface(ros::NodeHandle node, ParameterRe
 ArmControllerInterface::~ArmControllerInterface() {
   publish_timer_.stop();
   diagnostics_timer_.stop();
+  // A gripper call on its thread uses this object: wait for it (it is bounded).
+  const double until = realtime::monotonicSeconds() + 10.0;
+  while (grasp_in_flight_ && realtime::monotonicSeconds() < until) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
   const std::lock_guard<std::mutex> lock(mutex_);
   cancelActive("the controller shut down");
 }
@@ -316,9 +390,24 @@ void ArmControllerInterface::onCancel(GoalHandle goal) {
 
 bool ArmControllerInterface::onSetMode(bimanual_skills::SetControlMode::Request& request,
                                        bimanual_skills::SetControlMode::Response& response) {
+  if (request.mode == "follow") {
+    if (!controller_->canFollow()) {
+      response.message = "refused: following is off (parameter follow/target_topic is empty)";
+      return true;
+    }
+    const std::lock_guard<std::mutex> lock(mutex_);
+    cancelActive("preempted by set_mode follow");
+    bc::ControllerCommand command;
+    command.kind = bc::ControllerCommand::Kind::Follow;
+    controller_->command(std::move(command));
+    response.success = true;
+    response.message = "following " + settings_.target_topic + " from the next control step";
+    ROS_INFO("%s: %s", owner_.c_str(), response.message.c_str());
+    return true;
+  }
   bc::ControllerMode mode;
   if (!bc::modeFromString(request.mode.c_str(), mode)) {
-    response.message = "unknown mode '" + request.mode + "' (gravity_compensation, hold, track)";
+    response.message = "unknown mode '" + request.mode + "' (gravity_compensation, hold, track, follow)";
     return true;
   }
   const std::lock_guard<std::mutex> lock(mutex_);
@@ -328,6 +417,82 @@ bool ArmControllerInterface::onSetMode(bimanual_skills::SetControlMode::Request&
   response.message = "mode " + request.mode + " from the next control step";
   ROS_INFO("%s: %s", owner_.c_str(), response.message.c_str());
   return true;
+}
+
+void ArmControllerInterface::onTarget(const bimanual_skills::TrackedObject::ConstPtr& message) {
+  bc::FollowTarget target;
+  target.stamp = message->header.stamp.toSec();
+  target.tracking = message->tracking;
+  const auto& p = message->pose.pose.position;
+  target.position = Eigen::Vector3d(p.x, p.y, p.z);
+  target.velocity = Eigen::Vector3d(message->velocity.x, message->velocity.y, message->velocity.z);
+  std::string problem;
+  if (message->header.frame_id != settings_.world_frame) {
+    problem = "the target is in frame '" + message->header.frame_id + "', the robot's root is '" +
+              settings_.world_frame + "'";
+    target.tracking = false;  // not a place this arm can go to: it holds
+  } else if (message->tracking && !(target.position.allFinite() && target.velocity.allFinite())) {
+    problem = "the target's position or velocity is not finite";
+  } else if (!message->tracking) {
+    problem = "the tracker: " + message->state;
+  }
+  controller_->setTarget(target);
+  const std::lock_guard<std::mutex> lock(mutex_);
+  target_problem_ = problem;
+}
+
+void ArmControllerInterface::follow(const bc::ArmControllerState& s, const ros::Time& stamp, bool due) {
+  if (s.grasp_requested && !grasp_in_flight_.exchange(true)) {
+    // The follower asks for the gripper: a bounded call on a thread of its own, its answer to the loop.
+    std::thread([this, client = node_.serviceClient<bimanual_skills::ClothGrasp>(settings_.gripper_service)] {
+      bimanual_skills::ClothGrasp grasp;
+      grasp.request.arm = arm_;
+      grasp.request.grasp = true;
+      const CallOutcome outcome =
+          settings_.gripper_service.empty() ? CallOutcome::NoServer : callWithin(client, grasp, 5.0);
+      const bool held = outcome == CallOutcome::Answered && grasp.response.success;
+      controller_->graspDone(held);
+      const std::string said = outcome == CallOutcome::Answered ? grasp.response.message : describe(outcome);
+      ROS_INFO("%s: closing the gripper (%s): %s", owner_.c_str(), settings_.gripper_service.c_str(), said.c_str());
+      {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        grasp_message_ = said;
+      }
+      grasp_in_flight_ = false;
+    }).detach();
+  }
+  if (std::isfinite(s.follow_target_stamp) && s.follow_target_stamp != last_target_stamp_ &&
+      std::isfinite(s.follow_latency)) {
+    last_target_stamp_ = s.follow_target_stamp;
+    latencies_.push_back(s.follow_latency);
+  }
+  std::string reason;
+  if (!s.following && s.follow_interrupted) {
+    reason = std::string("the controller left tracking: ") +
+             (s.follow_stopped == bc::ControllerStatus::Ok || s.follow_stopped == bc::ControllerStatus::Saturated
+                  ? "it restarted (the robot's clock went back)"
+                  : bc::toString(s.follow_stopped));
+  } else if (s.following && s.follow_phase == bc::FollowPhase::Holding) {
+    reason = std::string(bc::toString(s.follow_reason)) + (target_problem_.empty() ? "" : " (" + target_problem_ + ")");
+  }
+  const std::string text =
+      std::string(s.following ? bc::toString(s.follow_phase) : "not following") + (reason.empty() ? "" : ": " + reason);
+  const bool changed = text.substr(0, text.find(" (")) != last_follow_text_.substr(0, last_follow_text_.find(" ("));
+  if (changed && (s.following || s.follow_interrupted)) ROS_INFO("%s: %s", owner_.c_str(), text.c_str());
+  last_follow_text_ = text;
+  if (!due && !changed) return;
+  bimanual_skills::FollowerState out;
+  out.header.stamp = stamp;
+  out.header.frame_id = settings_.world_frame;
+  out.following = s.following;
+  out.phase = s.following ? bc::toString(s.follow_phase) : "idle";
+  out.reason = reason;
+  out.goal.x = s.follow_goal.x(), out.goal.y = s.follow_goal.y(), out.goal.z = s.follow_goal.z();
+  out.tool.x = s.follow_tool.x(), out.tool.y = s.follow_tool.y(), out.tool.z = s.follow_tool.z();
+  out.error = s.follow_error;
+  out.target_stamp = ros::Time(std::isfinite(s.follow_target_stamp) ? std::max(0.0, s.follow_target_stamp) : 0.0);
+  out.latency = s.follow_latency;
+  follow_publisher_.publish(out);
 }
 
 void ArmControllerInterface::finishGoal(const bc::ArmControllerState& state) {
@@ -405,6 +570,7 @@ void ArmControllerInterface::onPublish(const ros::SteadyTimerEvent&) {
   clock_at_state_ = ros::Time::now().toSec();
   const bc::ArmControllerState& s = *last_;
   const bool due = s.stamp < last_published_ || s.stamp - last_published_ >= 1.0 / settings_.publish_rate - 1e-9;
+  if (controller_->canFollow()) follow(s, ros::Time(s.stamp), due);
   if (!due && !(active_ && s.goal_id == active_id_ && s.goal != bc::GoalState::Active)) return;
   last_published_ = s.stamp;
   const ros::Time stamp(s.stamp);
@@ -517,6 +683,17 @@ void ArmControllerInterface::onDiagnostics(const ros::SteadyTimerEvent&) {
     add("observer_irregular_steps", std::to_string(s.observer_irregular_steps));
     add("observer_restarts", std::to_string(s.observer_restarts));
     add("goal", bc::toString(s.goal));
+  }
+  if (controller_->canFollow()) {
+    add("following", last_follow_text_.empty() ? "not following" : last_follow_text_);
+    std::sort(latencies_.begin(), latencies_.end());
+    std::ostringstream latency;
+    latency << std::fixed << std::setprecision(1) << latencies_.size() << " estimates; median "
+            << (latencies_.empty() ? 0.0 : 1e3 * latencies_[latencies_.size() / 2]) << " ms, p99 "
+            << (latencies_.empty() ? 0.0 : 1e3 * latencies_[latencies_.size() * 99 / 100]) << " ms";
+    add("follow_latency_last_second", latency.str());
+    latencies_.clear();
+    if (!grasp_message_.empty()) add("gripper", grasp_message_);
   }
   add("trajectories", std::to_string(trajectories_));
   add("rejected_trajectories", std::to_string(rejected_));

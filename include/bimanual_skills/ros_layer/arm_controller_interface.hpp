@@ -2,12 +2,15 @@
 /// The ROS side of one arm's controller, whoever runs its real-time loop (a simulator's or a hardware driver's
 /// loop thread, or a node driven by joint-state messages): the `command` topic and the `follow_joint_trajectory`
 /// action (trajectory_msgs in, joint_trajectory_controller's semantics), the `set_mode` service, and the `state`,
-/// `estimated_wrench`, `estimated_external_torque`, `tool_paths` and /diagnostics outputs, all served from non-real-time threads and joined to
-/// the loop only through control::RealtimeArmController's lock-free handoffs.
+/// `estimated_wrench`, `estimated_external_torque`, `tool_paths` and /diagnostics outputs, and following a tracked
+/// object (set_mode follow: the tracker's estimates in, the gripper's service called when the follower asks,
+/// `follow_state` out), all served from non-real-time threads and joined to the loop only through
+/// control::RealtimeArmController's lock-free handoffs.
 #pragma once
 
 #include "bimanual_skills/FollowJointTrajectoryAction.h"
 #include "bimanual_skills/SetControlMode.h"
+#include "bimanual_skills/TrackedObject.h"
 #include "bimanual_skills/control/realtime_arm_controller.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
@@ -17,6 +20,7 @@
 #include <ros/ros.h>
 #include <trajectory_msgs/JointTrajectory.h>
 
+#include <atomic>
 #include <deque>
 #include <memory>
 #include <mutex>
@@ -36,6 +40,11 @@ struct ControllerSettings {
   double publish_rate = 100.0;                       ///< [Hz] of state, the estimates and action feedback.
   control::TrajectoryTolerances default_tolerances;  ///< When a goal does not set them.
   double loop_timeout = 0.5;  ///< [s of the robot's clock] without a control cycle: the active goal is aborted.
+  // Following a tracked object (set_mode follow), when target_topic is set.
+  std::string target_topic;     ///< bimanual_skills/TrackedObject in world_frame ("": following off).
+  std::string gripper_service;  ///< bimanual_skills/ClothGrasp closing the gripper ("": none, a grasp fails).
+  std::string world_frame;      ///< The robot description's root: the follower's world.
+  control::TargetFollowerConfig follow;
 };
 
 /// Defaults of a controller's parameters that come from the robot (its robot file, sim/robot_file.hpp): the chain,
@@ -90,6 +99,9 @@ class ArmControllerInterface {
   bool onSetMode(bimanual_skills::SetControlMode::Request& request,
                  bimanual_skills::SetControlMode::Response& response);
   void onPublish(const ros::SteadyTimerEvent&);
+  void onTarget(const bimanual_skills::TrackedObject::ConstPtr& message);
+  /// Following: the grasp the loop asks for (a bounded call on a thread of its own), the follower's state.
+  void follow(const control::ArmControllerState& state, const ros::Time& stamp, bool due);
   void onDiagnostics(const ros::SteadyTimerEvent&);
   /// Hands a trajectory (already converted) to the loop; `goal_id` 0 for a topic command.
   void sendTrajectory(control::Waypoints&& waypoints, const control::TrajectoryTolerances& tolerances,
@@ -123,8 +135,17 @@ class ArmControllerInterface {
   double clock_at_state_ = 0.0;     ///< This process's ROS time when the last state came [s].
   double last_published_ = -1e300;  ///< Stamp of the last state published [s].
 
-  ros::Publisher state_publisher_, wrench_publisher_, torque_publisher_, path_publisher_, diagnostics_publisher_;
-  ros::Subscriber command_subscriber_;
+  // Following.
+  std::string target_problem_;  ///< Why the last target message could not be used ("" when it could).
+  std::atomic<bool> grasp_in_flight_{false};
+  std::string last_follow_text_;   ///< Phase and reason last logged.
+  std::vector<double> latencies_;  ///< Of the estimates used since the last diagnostics [s].
+  double last_target_stamp_ = -1.0;
+  std::string grasp_message_;  ///< The gripper's last answer.
+
+  ros::Publisher state_publisher_, wrench_publisher_, torque_publisher_, path_publisher_, diagnostics_publisher_,
+      follow_publisher_;
+  ros::Subscriber command_subscriber_, target_subscriber_;
   ros::ServiceServer mode_service_;
   std::unique_ptr<Server> server_;
   ros::SteadyTimer publish_timer_, diagnostics_timer_;
