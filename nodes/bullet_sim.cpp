@@ -77,6 +77,7 @@ const std::string kUsage =
         "  ~grasp_at_reset       arms whose tools hold the cloth from each reset on (e.g. [left]: the scarf, held at\n"
         "                        its middle; default none). Refused at start when a tool holds no cloth node there\n"
         "  ~marker_rate          cloth marker and ~cloth rate [Hz of simulated time] (default 30)\n"
+        "  ~object_seed          the seed of the moving object's path (default -1: the simulation file's)\n"
         "  ~camera_rate          top-down camera images per simulated second, at most marker_rate (default 30; 0: no\n"
         "                        camera)\n"
         "  ~camera_depth_noise, ~camera_colour_noise  the camera's noise: depth [m], colour [levels] (0.001, 2)\n"
@@ -118,7 +119,13 @@ class BulletSimNode {
     bs::ros_layer::ParameterReader p(private_node, "bullet_sim");
     const std::string config_path = p.text("config", ros::package::getPath("bimanual_skills") + "/config/sim.yaml");
     const std::string robot_path = p.text("robot", "");
-    simulation_ = std::make_unique<sim::BimanualSimulation>(sim::SimConfig::fromYamlFile(config_path, robot_path));
+    sim::SimConfig config = sim::SimConfig::fromYamlFile(config_path, robot_path);
+    const int object_seed = p.integer("object_seed", -1, -1, std::numeric_limits<int>::max());
+    if (object_seed >= 0) {
+      if (!config.has_object) throw std::invalid_argument("~object_seed: the simulation file has no object");
+      config.object.path.seed = static_cast<std::uint32_t>(object_seed);
+    }
+    simulation_ = std::make_unique<sim::BimanualSimulation>(config);
     world_digest_ = sim::SimConfig::worldDigest(config_path, robot_path);
     if (!simulation_->config().robot_path.empty()) {
       robot_file_ = sim::RobotFile::fromYamlFile(simulation_->config().robot_path);

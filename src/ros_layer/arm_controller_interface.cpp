@@ -37,7 +37,7 @@ const char* const kControllerParameterHelp =
     "  observer/{rate,fir_taps,fir_cutoff}  its nominal rate [Hz] and velocity FIR (the robot's rate may differ:\n"
     "                        the observer integrates the measured dt; a mismatch is warned about)\n"
     "  state_timeout         joint states older than this [s] are stale: no torque, hold on recovery (0.05)\n"
-    "  initial_mode          gravity_compensation | hold (default hold)\n"
+    "  initial_mode          gravity_compensation | hold | follow (default hold)\n"
     "  publish_rate          state, estimated_wrench, estimated_external_torque and action feedback rate [Hz]\n"
     "                        (default 100)\n"
     "  trajectory_capacity   most points of one trajectory (default 2000)\n"
@@ -141,8 +141,9 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
   if (c.observer.fir_taps % 2 == 0) {
     throw std::invalid_argument("parameter " + p.name("observer/fir_taps") + " must be odd");
   }
-  const std::string mode = p.text("initial_mode", "hold", {"gravity_compensation", "hold"});
-  bc::modeFromString(mode.c_str(), s.initial_mode);
+  const std::string mode = p.text("initial_mode", "hold", {"gravity_compensation", "hold", "follow"});
+  s.start_following = mode == "follow";
+  if (!s.start_following) bc::modeFromString(mode.c_str(), s.initial_mode);
   s.publish_rate = p.number("publish_rate", 100.0, 0.1, 1000.0);
   bc::TrajectoryTolerances& t = s.default_tolerances;
   t = bc::TrajectoryTolerances::none(static_cast<int>(n));
@@ -152,18 +153,27 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
       Eigen::VectorXd::Constant(static_cast<Eigen::Index>(n), p.number("stopped_velocity_tolerance", 0.05, 0.0, 100.0));
   t.goal_time = p.number("goal_time_tolerance", 1.0, 0.0, 3600.0);
   s.loop_timeout = p.number("loop_timeout", 0.5, 1e-3, 3600.0);
+  const bool topic_given = p.has("follow/target_topic");
   s.target_topic = p.text("follow/target_topic", "/object_tracker/object");
   s.gripper_service = p.text("follow/gripper_service", "/bullet_sim/grasp");
   if (!s.target_topic.empty()) {
-    bc::TargetFollowerConfig& f = s.follow;
     try {
       const kinematics::FixedLinkPose base = kinematics::fixedLinkPose(robot_description, s.base_link);
-      f.base = base.pose;
+      s.follow.base = base.pose;
       s.world_frame = base.root;
     } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument("following (parameter " + p.name("follow/target_topic") + "): " + e.what() +
-                                  "; set it empty to follow nothing");
+      const std::string why = "following (parameter " + p.name("follow/target_topic") + "): " + e.what();
+      if (topic_given || s.start_following) throw std::invalid_argument(why + "; set it empty to follow nothing");
+      ROS_WARN("%s; this arm cannot follow a tracked object", why.c_str());
+      s.target_topic.clear();
     }
+  }
+  if (s.start_following && s.target_topic.empty()) {
+    throw std::invalid_argument("parameter " + p.name("initial_mode") + " is follow, and " +
+                                p.name("follow/target_topic") + " is empty: there is nothing to follow");
+  }
+  if (!s.target_topic.empty()) {
+    bc::TargetFollowerConfig& f = s.follow;
     const auto point = [&](const char* key, const Eigen::Vector3d& fallback) {
       return Eigen::Vector3d(vector(p.numbers(key, stdVector(fallback), 3, -1.0, 1.0)));
     };
@@ -206,7 +216,13 @@ ArmControllerInterface::ArmControllerInterface(ros::NodeHandle node, ParameterRe
   if (!settings_.target_topic.empty()) controller_->enableFollowing(settings_.follow);
   joint_names_ = settings_.model->jointNames();
   kinematics_ = std::make_unique<kinematics::ChainData>(*settings_.model);
-  sendMode(settings_.initial_mode);
+  if (settings_.start_following) {
+    bc::ControllerCommand follow;
+    follow.kind = bc::ControllerCommand::Kind::Follow;
+    controller_->command(std::move(follow));
+  } else {
+    sendMode(settings_.initial_mode);
+  }
 
   state_publisher_ = node_.advertise<bimanual_skills::JointTrajectoryControllerState>("state", 10);
   wrench_publisher_ = node_.advertise<geometry_msgs::WrenchStamped>("estimated_wrench", 10);
