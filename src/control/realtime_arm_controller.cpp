@@ -122,6 +122,7 @@ void RealtimeArmController::take(const ControllerCommand& command, double stamp)
   following_ = command.kind == ControllerCommand::Kind::Follow && follower_ != nullptr;
   if (follower_) follower_->stop();
   if (following_) {
+    follow_grasp_ = command.grasp;
     next_follow_ = -std::numeric_limits<double>::infinity();
     follow_interrupted_ = false;
     follow_stopped_ = ControllerStatus::Ok;
@@ -188,7 +189,7 @@ void RealtimeArmController::follow(double stamp, const Eigen::Ref<const Eigen::V
   if (const FollowTarget* newest = targets_.readNew()) target_ = *newest;
   if (!controller_.started()) return;  // the first state starts the controller; the follower starts from it
   if (follower_->phase() == FollowPhase::Idle) {
-    follower_->start(stamp, controller_.desiredPosition(), controller_.desiredVelocity());
+    follower_->start(stamp, controller_.desiredPosition(), controller_.desiredVelocity(), follow_grasp_);
   }
   const int answer = grasp_answer_.exchange(-1, std::memory_order_acq_rel);
   if (answer >= 0) follower_->graspDone(answer == 1);
@@ -248,6 +249,7 @@ void RealtimeArmController::publishState(double stamp, ControllerStatus status,
     s.follow_goal = follower_->toolGoal();
     s.follow_tool = follower_->toolPosition();
     s.follow_error = follower_->toolError();
+    s.follow_offset = follower_->offset();
     s.follow_target_stamp = used_target_stamp_;
     s.follow_latency = follow_latency_;
     s.grasp_requested = following_ && follower_->graspRequested();

@@ -103,9 +103,10 @@ TargetFollower::TargetFollower(const kinematics::ChainModel& model, const Target
 }
 
 void TargetFollower::start(double t, const Eigen::Ref<const Eigen::VectorXd>& q,
-                           const Eigen::Ref<const Eigen::VectorXd>& qd) noexcept {
+                           const Eigen::Ref<const Eigen::VectorXd>& qd, bool grasp) noexcept {
   if (q.size() != q_r_.size() || qd.size() != v_r_.size() || !q.allFinite() || !qd.allFinite()) return;
   t_ = t;
+  grasp_ = grasp;
   q_r_ = q.cwiseMax(lower_).cwiseMin(upper_);
   v_r_ = qd;
   q_goal_ = q_r_;
@@ -190,8 +191,8 @@ bool TargetFollower::update(double t, const FollowTarget& target,
     const double age = std::max(0.0, t - target.stamp);
     const Eigen::Vector3d grasp_point = target.position + target.velocity * age + config_.grasp_offset;
     const double speed = target.velocity.norm();
-    if (phase_ == FollowPhase::Following && t - followed_since_ >= config_.track_time && speed < config_.grasp_speed &&
-        offset_ >= 1.0 && tool_error_ < config_.follow_tolerance) {
+    if (grasp_ && phase_ == FollowPhase::Following && t - followed_since_ >= config_.track_time &&
+        speed < config_.grasp_speed && offset_ >= 1.0 && tool_error_ < config_.follow_tolerance) {
       phase_ = FollowPhase::Approaching;
     } else if (phase_ == FollowPhase::Approaching && speed > 2.0 * config_.grasp_speed) {
       phase_ = FollowPhase::Following;  // too fast again: back to the pre-grasp point

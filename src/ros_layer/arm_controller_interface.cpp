@@ -37,7 +37,7 @@ const char* const kControllerParameterHelp =
     "  observer/{rate,fir_taps,fir_cutoff}  its nominal rate [Hz] and velocity FIR (the robot's rate may differ:\n"
     "                        the observer integrates the measured dt; a mismatch is warned about)\n"
     "  state_timeout         joint states older than this [s] are stale: no torque, hold on recovery (0.05)\n"
-    "  initial_mode          gravity_compensation | hold | follow (default hold)\n"
+    "  initial_mode          gravity_compensation | hold | follow | grasp (default hold; follow, grasp: as set_mode)\n"
     "  publish_rate          state, estimated_wrench, estimated_external_torque and action feedback rate [Hz]\n"
     "                        (default 100)\n"
     "  trajectory_capacity   most points of one trajectory (default 2000)\n"
@@ -141,8 +141,9 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
   if (c.observer.fir_taps % 2 == 0) {
     throw std::invalid_argument("parameter " + p.name("observer/fir_taps") + " must be odd");
   }
-  const std::string mode = p.text("initial_mode", "hold", {"gravity_compensation", "hold", "follow"});
-  s.start_following = mode == "follow";
+  const std::string mode = p.text("initial_mode", "hold", {"gravity_compensation", "hold", "follow", "grasp"});
+  s.start_following = mode == "follow" || mode == "grasp";
+  s.start_grasping = mode == "grasp";
   if (!s.start_following) bc::modeFromString(mode.c_str(), s.initial_mode);
   s.publish_rate = p.number("publish_rate", 100.0, 0.1, 1000.0);
   bc::TrajectoryTolerances& t = s.default_tolerances;
@@ -169,7 +170,7 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
     }
   }
   if (s.start_following && s.target_topic.empty()) {
-    throw std::invalid_argument("parameter " + p.name("initial_mode") + " is follow, and " +
+    throw std::invalid_argument("parameter " + p.name("initial_mode") + " is " + mode + ", and " +
                                 p.name("follow/target_topic") + " is empty: there is nothing to follow");
   }
   if (!s.target_topic.empty()) {
@@ -219,6 +220,7 @@ ArmControllerInterface::ArmControllerInterface(ros::NodeHandle node, ParameterRe
   if (settings_.start_following) {
     bc::ControllerCommand follow;
     follow.kind = bc::ControllerCommand::Kind::Follow;
+    follow.grasp = settings_.start_grasping;
     controller_->command(std::move(follow));
   } else {
     sendMode(settings_.initial_mode);
@@ -406,24 +408,27 @@ void ArmControllerInterface::onCancel(GoalHandle goal) {
 
 bool ArmControllerInterface::onSetMode(bimanual_skills::SetControlMode::Request& request,
                                        bimanual_skills::SetControlMode::Response& response) {
-  if (request.mode == "follow") {
+  if (request.mode == "follow" || request.mode == "grasp") {
     if (!controller_->canFollow()) {
       response.message = "refused: following is off (parameter follow/target_topic is empty)";
       return true;
     }
     const std::lock_guard<std::mutex> lock(mutex_);
-    cancelActive("preempted by set_mode follow");
+    cancelActive("preempted by set_mode " + request.mode);
     bc::ControllerCommand command;
     command.kind = bc::ControllerCommand::Kind::Follow;
+    const bool grasp = request.mode == "grasp";
+    command.grasp = grasp;
     controller_->command(std::move(command));
     response.success = true;
-    response.message = "following " + settings_.target_topic + " from the next control step";
+    response.message = "following " + settings_.target_topic + (grasp ? " and grasping it when it can" : "") +
+                       " from the next control step";
     ROS_INFO("%s: %s", owner_.c_str(), response.message.c_str());
     return true;
   }
   bc::ControllerMode mode;
   if (!bc::modeFromString(request.mode.c_str(), mode)) {
-    response.message = "unknown mode '" + request.mode + "' (gravity_compensation, hold, track, follow)";
+    response.message = "unknown mode '" + request.mode + "' (gravity_compensation, hold, track, follow, grasp)";
     return true;
   }
   const std::lock_guard<std::mutex> lock(mutex_);

@@ -57,6 +57,7 @@ struct ControllerCommand {
   double start = std::numeric_limits<double>::quiet_NaN();
   TrajectoryTolerances tolerances;  ///< Kind::Trajectory.
   std::uint64_t goal_id = 0;        ///< Kind::Trajectory: reported back in ArmControllerState.
+  bool grasp = false;               ///< Kind::Follow: approach and grasp when the follower can (else follow only).
   double sent = 0.0;                ///< Monotonic wall clock [s] when it was handed over (set by command()).
 };
 
@@ -94,6 +95,7 @@ struct ArmControllerState {
   Eigen::Vector3d follow_goal = Eigen::Vector3d::Zero();  ///< The tool's goal (world) [m].
   Eigen::Vector3d follow_tool = Eigen::Vector3d::Zero();  ///< The measured tool (world) [m].
   double follow_error = 0.0;                              ///< Their distance [m].
+  double follow_offset = 1.0;  ///< The share of the pre-grasp offset in the goal (1 following, 0 at the grasp).
   /// The stamp of the target's estimate in use, and its age at the first torque computed from it [s] (NaN: none).
   double follow_target_stamp = std::numeric_limits<double>::quiet_NaN();
   double follow_latency = std::numeric_limits<double>::quiet_NaN();
@@ -202,6 +204,7 @@ class RealtimeArmController {
   FollowTarget target_;
   bool following_ = false;
   double next_follow_ = -std::numeric_limits<double>::infinity();
+  bool follow_grasp_ = false;
   double used_target_stamp_ = std::numeric_limits<double>::quiet_NaN();
   double follow_latency_ = std::numeric_limits<double>::quiet_NaN();
   bool follow_interrupted_ = false;

@@ -84,9 +84,10 @@ class TargetFollower {
   /// \throws std::invalid_argument for an invalid config or model.
   TargetFollower(const kinematics::ChainModel& model, const TargetFollowerConfig& config);
 
-  /// Starts from the controller's desired state (q, q̇) at t: Following (or holding until a target comes).
-  void start(double t, const Eigen::Ref<const Eigen::VectorXd>& q,
-             const Eigen::Ref<const Eigen::VectorXd>& qd) noexcept;
+  /// Starts from the controller's desired state (q, q̇) at t: Following (or holding until a target comes); with
+  /// `grasp` false it follows only, never approaching.
+  void start(double t, const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd,
+             bool grasp = true) noexcept;
   /// One update at time t with the latest estimate and the measured joint positions: moves the reference and
   /// writes waypoints() (a segment from the controller's desired state to the reference one period ahead). False
   /// (nothing written) when idle or for inputs of the wrong size.
@@ -107,6 +108,8 @@ class TargetFollower {
   const Eigen::Vector3d& toolPosition() const noexcept { return tool_; }
   /// The stamp of the estimate the last update used (NaN before any).
   double targetStamp() const noexcept { return used_stamp_; }
+  /// The share of the pre-grasp offset the goal has (1 following, 0 at the grasp point).
+  double offset() const noexcept { return offset_; }
   const Eigen::VectorXd& reference() const noexcept { return q_r_; }
   const Eigen::VectorXd& referenceVelocity() const noexcept { return v_r_; }
   const TargetFollowerConfig& config() const noexcept { return config_; }
@@ -130,7 +133,7 @@ class TargetFollower {
   double used_stamp_ = std::numeric_limits<double>::quiet_NaN();
   double offset_ = 1.0;  ///< Share of the pre-grasp offset applied (1 following, 0 at the grasp point).
   double tool_error_ = 0.0;
-  bool goal_valid_ = false, grasp_answered_ = false;
+  bool goal_valid_ = false, grasp_answered_ = false, grasp_ = true;
 };
 
 }  // namespace bimanual_skills::control

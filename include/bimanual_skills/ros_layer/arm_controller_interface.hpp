@@ -37,7 +37,8 @@ struct ControllerSettings {
   control::ArmControllerConfig config;
   dynamics::FrictionModel friction;
   control::ControllerMode initial_mode = control::ControllerMode::Hold;
-  bool start_following = false;  ///< initial_mode follow: follow the tracked object from the start.
+  bool start_following = false;  ///< initial_mode follow or grasp: follow the tracked object from the start...
+  bool start_grasping = false;   ///< ...and grasp it (grasp).
   double publish_rate = 100.0;                       ///< [Hz] of state, the estimates and action feedback.
   control::TrajectoryTolerances default_tolerances;  ///< When a goal does not set them.
   double loop_timeout = 0.5;  ///< [s of the robot's clock] without a control cycle: the active goal is aborted.
