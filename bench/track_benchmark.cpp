@@ -5,7 +5,8 @@
 // frame (the ROS path's is measured over ROS: docs/RESULTS.md), the follower in the 1 kHz control loop
 // (control::RealtimeArmController) and the computed-torque controller with its friction model on the Bullet arms.
 // Each path runs twice: following only (the tracking error against the object's pre-grasp point, by the object's
-// speed; what a lost and a reacquired target do), then with grasping (success and time).
+// speed; what a lost and a reacquired target do), then with grasping, the can carried for 30 s and then put down
+// (success within 60 s, and whether it came while the can was carried).
 //   track_benchmark --experiment tracking --seed S --out DIR [--runs PATHS] [--jobs N] [--quick]
 #include "bimanual_skills/control/realtime_arm_controller.hpp"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
@@ -43,7 +44,10 @@ const std::vector<double> kSpeedBins = {0.0, 0.05, 0.1, 0.15, 0.2, 1e9};
 struct Settings {
   double latency = 0.010;     ///< Frame stamp -> the estimate in the controller [s] (over ROS: see RESULTS).
   double follow_time = 40.0;  ///< Following-only run per path [s of simulation].
-  double grasp_time = 30.0;   ///< Longest grasping run per path [s].
+  /// The grasping run: the can is carried for `carried` seconds, then put down where its last move ended; the run
+  /// ends a second after a grasp, or at grasp_time.
+  double carried = 30.0;
+  double grasp_time = 60.0;
 };
 
 /// What one run of one path gave.
@@ -63,6 +67,7 @@ struct PathResult {
   // Grasping.
   bool grasped = false;
   double grasp_at = -1.0;
+  double put_down = 0.0;  ///< When the grasping run's path ends (the can put down) [s].
   int grasp_requests = 0;
 };
 
@@ -203,6 +208,8 @@ class Rig {
     result.rejected = static_cast<int>(last.rejected);
   }
 
+  double objectPathEnd() const { return simulation_.objectPath().end(); }
+
  private:
   bs::sim::SimConfig config_;
   Settings settings_;
@@ -260,6 +267,7 @@ int main(int argc, char** argv) {
   const int paths = options.runs > 0 ? options.runs : (options.quick ? 2 : 20);
   if (options.quick) {
     settings.follow_time = 10.0;
+    settings.carried = 8.0;
     settings.grasp_time = 12.0;
   }
   std::filesystem::create_directories(options.out);
@@ -281,12 +289,27 @@ int main(int argc, char** argv) {
       if (!f.empty()) done.insert(bs::io::parseInteger(f[0], paths_file));
     }
   }
+  // Samples of a path whose record was not written (a run killed between the two) go: the path runs again.
+  const std::string samples_file = options.out + "/samples.csv";
+  if (std::filesystem::exists(samples_file)) {
+    bs::io::dropPartialRecord(samples_file);
+    std::ifstream in(samples_file);
+    std::ofstream kept(samples_file + ".tmp");
+    std::string line;
+    if (std::getline(in, line)) kept << line << '\n';
+    while (std::getline(in, line)) {
+      const std::vector<std::string> f = bs::io::splitCsv(line);
+      if (!f.empty() && done.count(bs::io::parseInteger(f[0], samples_file))) kept << line << '\n';
+    }
+    kept.close();
+    std::filesystem::rename(samples_file + ".tmp", samples_file);
+  }
   const std::string header =
       "path,path_seed,frames,measured,rejected,reached_s,samples,error_mean_m,error_p95_m,error_max_m,lost,reacquired,"
       "reacquire_time_s,hold_speed_rad_s,latency_median_s,latency_p99_s,allocations,control_cycles,grasped,grasp_at_s,"
-      "grasp_requests,seed";
+      "grasp_requests,put_down_s,seed";
   bs::io::CsvAppender records(paths_file, header);
-  bs::io::CsvAppender samples(options.out + "/samples.csv", "path,error_m,speed_m_s");
+  bs::io::CsvAppender samples(samples_file, "path,error_m,speed_m_s");
   std::mutex write;
   const double start = bs::realtime::monotonicSeconds();
   bs::parallel::parallelFor(static_cast<std::size_t>(paths), options.jobs, [&](int, std::size_t i) {
@@ -295,7 +318,7 @@ int main(int argc, char** argv) {
     bs::sim::SimConfig config = base;
     const std::uint32_t path_seed = options.seed * 1000u + static_cast<std::uint32_t>(path);
     config.object.path.seed = path_seed;
-    config.object.path.duration = settings.follow_time + settings.grasp_time;
+    config.object.path.duration = settings.follow_time;
     PathResult r;
     r.path = path;
     r.seed = path_seed;
@@ -305,9 +328,13 @@ int main(int argc, char** argv) {
     }
     {
       PathResult g;
+      config.object.path.duration = settings.carried;
       Rig grasp(config, settings, true, path_seed + 7u);
       grasp.run(settings.grasp_time, g, true);
+      r.put_down = grasp.objectPathEnd();
       r.grasped = g.grasped;
+      r.allocations += g.allocations;
+      r.control_cycles += g.control_cycles;
       r.grasp_at = g.grasp_at;
       r.grasp_requests = g.grasp_requests;
     }
@@ -318,7 +345,8 @@ int main(int argc, char** argv) {
         << r.reacquired << ',' << number(r.reacquire_count ? r.reacquire_time / r.reacquire_count : std::nan("")) << ','
         << number(r.hold_speed) << ',' << number(percentile(r.latencies, 0.5)) << ','
         << number(percentile(r.latencies, 0.99)) << ',' << r.allocations << ',' << r.control_cycles << ','
-        << (r.grasped ? 1 : 0) << ',' << number(r.grasp_at) << ',' << r.grasp_requests << ',' << options.seed;
+        << (r.grasped ? 1 : 0) << ',' << number(r.grasp_at) << ',' << r.grasp_requests << ',' << number(r.put_down)
+        << ',' << options.seed;
     std::ostringstream sample_rows;
     for (std::size_t k = 0; k < r.errors.size(); ++k) {
       sample_rows << path << ',' << number(r.errors[k]) << ',' << number(r.speeds[k])
@@ -344,7 +372,7 @@ int main(int argc, char** argv) {
   }
   std::vector<double> errors, speeds;
   {
-    std::ifstream in(options.out + "/samples.csv");
+    std::ifstream in(samples_file);
     std::string line;
     std::getline(in, line);
     while (std::getline(in, line)) {

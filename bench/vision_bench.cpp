@@ -2,7 +2,8 @@
 // depth image at 320 × 240 and 640 × 480, without and with sensor noise; the noise of the same frame drawn with
 // std::normal_distribution on a std::mt19937 (the peer); and the reward's image terms (segmentation, minimum-area
 // rectangle, Sobel) on the rendered images; the perspective RGB-D camera (640 × 480, Kinect-like errors) and the
-// re-projection of its depth into the 320 × 240 map. Seed 7 for the noise.
+// re-projection of its depth into the 320 × 240 map; the tracking experiment's frame (the camera over a can) and
+// the can located in it, beside a naive centroid. Seed 7 for the noise.
 //
 //   vision_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
 //   vision_bench --figures      writes the flat and half-folded cloth's images as PNG into the current directory
@@ -10,6 +11,7 @@
 #include "benchmark_main.hpp"
 #include "bimanual_skills/vision/cloth_renderer.hpp"
 #include "bimanual_skills/vision/image_reward.hpp"
+#include "bimanual_skills/vision/object_locator.hpp"
 #include "bimanual_skills/vision/perspective_camera.hpp"
 #include "bimanual_skills/vision/synthetic_cloth.hpp"
 
@@ -17,6 +19,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <random>
 #include <string>
@@ -90,6 +94,64 @@ void BM_PerspectiveCamera(benchmark::State& state) {
       1);
   state.counters["cloth_pixels"] = renderer.clothPixelCount();
   if (project) state.counters["map_cells_seen"] = projector.coverage().observed + projector.coverage().filled;
+}
+
+/// The tracking experiment's frame (thesis Sec. 4.3.2): the perspective camera over the table and a can carried
+/// 0.23 m above it (a moving solid), no cloth; then the can found and measured in that frame (ObjectLocator: HSV
+/// segmentation, largest component, shape fit), against the naive baseline, the centroid of the colour mask's depth
+/// points (no fit: biased towards the camera by about 0.8 of the can's radius). args {stage: 0 render, 1 locate,
+/// 2 baseline}.
+void BM_TrackingFrame(benchmark::State& state) {
+  bv::ClothRendererParameters p = scene(320, 240);
+  const bv::PinholeCamera camera = bv::PinholeCamera::lookingAt(Eigen::Vector3d(1.15, 0.0, p.table.height + 1.3),
+                                                                Eigen::Vector3d(0.5, 0.0, p.table.height));
+  bv::PerspectiveRenderer renderer(p, camera);
+  bv::SceneSolid can;
+  can.shape = bv::SceneSolid::Shape::Cylinder;
+  can.size = Eigen::Vector3d(0.033, 0.12, 0.0);
+  can.colour = Eigen::Vector3d(0.95, 0.45, 0.08);
+  const int index = renderer.addMovingSolid(can);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(0.5, 0.1, p.table.height + 0.23);
+  renderer.setMovingPose(index, pose);
+  bv::ObjectLocatorConfig config;
+  config.shape = can;
+  bv::ObjectLocator locator(config);
+  const Eigen::Matrix3Xd none(3, 0);
+  const Eigen::Matrix3Xi no_triangles(3, 0);
+  std::mt19937 rng(kSeed);
+  (void)renderer.render(none, no_triangles, rng);
+  bv::ObjectMeasurement m;
+  (void)locator.locate(renderer.bgr(), renderer.depth(), camera, m);  // its buffers, once
+  const int stage = static_cast<int>(state.range(0));
+  double error = 0.0;
+  timeBatches(
+      state, 1,
+      [&](int) {
+        if (stage == 0) {
+          benchmark::DoNotOptimize(renderer.render(none, no_triangles, rng));
+        } else if (stage == 1) {
+          benchmark::DoNotOptimize(locator.locate(renderer.bgr(), renderer.depth(), camera, m));
+          error = (m.position - pose.translation()).norm();
+        } else {
+          // The baseline: every pixel of the can's colour (the locator's mask) with a depth, averaged in the world.
+          const cv::Mat& mask = locator.colourMask();
+          Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+          int n = 0;
+          for (int v = 0; v < mask.rows; ++v) {
+            for (int u = 0; u < mask.cols; ++u) {
+              const float z = renderer.depth().at<float>(v, u);
+              if (mask.at<unsigned char>(v, u) == 0 || !std::isfinite(z)) continue;
+              sum += camera.backProject(u, v, z);
+              ++n;
+            }
+          }
+          error = (sum / std::max(1, n) - pose.translation()).norm();
+          benchmark::DoNotOptimize(sum);
+        }
+      },
+      1);
+  if (stage > 0) state.counters["error_mm"] = 1e3 * error;
 }
 
 /// The peer of the noise: the same per-pixel draws (depth and three colour channels) from std::normal_distribution
@@ -210,6 +272,7 @@ BENCHMARK(BM_PerspectiveCamera)
     ->ArgsProduct({{0, 1}, {0, 1}})
     ->ArgNames({"folded", "reproject"})
     ->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_TrackingFrame)->DenseRange(0, 2)->ArgName("stage")->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_NoiseWithStdNormal)->Arg(320)->Arg(640)->ArgName("columns")->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_NoiseWithOpenCv)->Arg(320)->Arg(640)->ArgName("columns")->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ImageReward)

@@ -62,6 +62,7 @@ def main():
     grasped = [r["grasped"] == "1" for r in paths]
     ax.bar(index, p95, color=["tab:green" if g else "tab:orange" for g in grasped])
     ax.axhline(20.0, color="tab:red", linestyle="--")
+    ax.set_xticks(index)
     ax.set_xlabel("path (green: grasped, orange: not)")
     ax.set_ylabel("p95 tracking error [mm]")
     ax.set_title(f"Each path: p95 error while following; {sum(grasped)} of {len(paths)} grasped")
@@ -83,8 +84,11 @@ def main():
     hold = [number(r["hold_speed_rad_s"]) for r in paths if int(r["lost"]) > 0]
     latency = [number(r["latency_median_s"]) for r in paths]
     times = ", ".join("%.1f" % number(r["grasp_at_s"]) for r in paths if r["grasped"] == "1")
-    lines += ["", f"- paths {total['paths']}, grasped {total['grasped']} ({100 * total['grasp_success']:.0f} %); "
-              f"grasp times {times} s",
+    carried = sum(1 for r in paths if r["grasped"] == "1" and number(r["grasp_at_s"]) < number(r["put_down_s"]))
+    misses = sum(int(r["grasp_requests"]) - (r["grasped"] == "1") for r in paths)
+    lines += ["", f"- paths {total['paths']}, grasped {total['grasped']} ({100 * total['grasp_success']:.0f} %), "
+              f"{carried} of them while the can was carried (the rest after it was put down); grippers closed on "
+              f"nothing {misses} times; grasp times {times} s",
               f"- tracking error p95 at speeds <= 0.2 m/s: {1e3 * total['error_p95_up_to_0_2_m_s']:.1f} mm",
               f"- targets lost {lost} times (out of view), reacquired {reacquired}; back within 2 cm after "
               f"{np.mean(back) if back else math.nan:.2f} s on average; joint reference speed 0.5 s after a loss at "

@@ -1,5 +1,5 @@
 // Smoke test of the experiment programs (ik_benchmark, ps_benchmark, dr_benchmark, rollout_benchmark,
-// workspace_benchmark, fold_benchmark) in --quick
+// workspace_benchmark, fold_benchmark, track_benchmark) in --quick
 // mode: they run, write summary.json with every field, CSV, PNG and tables.md, reject bad arguments with exit code 2
 // (--help: usage, 0), dr_benchmark writes the same results with any number of jobs, and rollout_benchmark (its own
 // ROS master and rollout_worker processes) gets from the workers the results of the threads, bit for bit (else it
@@ -390,4 +390,42 @@ TEST(FoldBenchmarkSmoke, QuickRunWritesEveryOutputTheSameOnAnyNumberOfJobs) {
     EXPECT_EQ(csvNumber(row, "fold_r_fold"), csvNumber(row, "fold_mismatch"));  // the fold setting's weight is 1
   }
   EXPECT_NE(runQuietly(std::string(FOLD_BENCHMARK) + " --experiment folds --count 0 --out " + one.string()), 0);
+}
+
+TEST(TrackBenchmarkSmoke, QuickRunWritesEveryOutputTheSameOnAnyNumberOfJobsAndResumes) {
+  const fs::path one = fs::temp_directory_path() / "bimanual_skills_track_smoke_1";
+  const fs::path two = fs::temp_directory_path() / "bimanual_skills_track_smoke_2";
+  for (const fs::path& out : {one, two}) fs::remove_all(out);
+  ASSERT_EQ(runQuietly(std::string(TRACK_BENCHMARK) + " --experiment tracking --seed 2 --quick --jobs 1 --out " +
+                       one.string()),
+            0);
+  for (const char* file :
+       {"paths.csv", "samples.csv", "summary.json", "error_by_speed.png", "paths.png", "tables.md"}) {
+    EXPECT_TRUE(fs::exists(one / file) && fs::file_size(one / file) > 0) << file;
+  }
+  const std::string summary = readTextFile(one / "summary.json");
+  for (const char* field : {"\"error_by_speed\"", "\"grasp_success\"", "\"error_p95_up_to_0_2_m_s\"",
+                            "\"control_allocations\": 0", "\"seed\": 2"}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field;
+  }
+  // Two jobs: the same records (in the order the paths ended); a run stopped after its first path resumes there.
+  ASSERT_EQ(runQuietly(std::string(TRACK_BENCHMARK) + " --experiment tracking --seed 2 --quick --runs 1 --out " +
+                       two.string()),
+            0);
+  ASSERT_EQ(runQuietly(std::string(TRACK_BENCHMARK) + " --experiment tracking --seed 2 --quick --jobs 2 --out " +
+                       two.string()),
+            0);
+  const auto rows = [](const fs::path& file) {
+    std::vector<std::string> lines;
+    std::istringstream text(readTextFile(file));
+    for (std::string line; std::getline(text, line);) lines.push_back(line);
+    std::sort(lines.begin(), lines.end());
+    return lines;
+  };
+  EXPECT_EQ(rows(one / "paths.csv"), rows(two / "paths.csv"));
+  EXPECT_EQ(rows(one / "samples.csv"), rows(two / "samples.csv"));
+  EXPECT_EQ(
+      runQuietly(std::string(TRACK_BENCHMARK) + " --experiment tracking --seed 2 --latency -1 --out " + one.string()),
+      2);
+  for (const fs::path& out : {one, two}) fs::remove_all(out);
 }

@@ -5,12 +5,14 @@
 #include "bimanual_skills/sim/object_path.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
 #include "bimanual_skills/vision/perspective_camera.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
 #include <cmath>
 #include <cstdio>
+#include <random>
 #include <string>
 
 namespace bs = bimanual_skills;
@@ -270,4 +272,13 @@ TEST(SimulatedObject, TheCameraSeesItWhereTheSimulationPutIt) {
   }
   EXPECT_GT(seen, 60);
   EXPECT_GT(gone, 2) << "the path never took the object out of view";
+  // A frame with the object moved, its sensor errors drawn: no allocation.
+  std::mt19937 rng(3);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = config.object.path.centre;
+  {
+    bimanual_skills::testing::NoAllocGuard guard;
+    camera.setMovingPose(object, pose);
+    (void)camera.render(none, no_triangles, rng);
+  }
 }

@@ -265,7 +265,8 @@ TEST(TargetFollower, ApproachesAndGraspsTheCanOnceStillAndFollowedLongEnough) {
   std::printf("grasped at t = %.2f s after %d gripper call(s)\n", closed_at, rig.graspCalls());
   EXPECT_EQ(rig.simulation().objectHolder(), 0);
   // track_time of following, then the approach over the pre-grasp offset at approach_speed, at least.
-  EXPECT_GE(closed_at, 2.0 + 0.1 / 0.05 - 0.01);
+  const bs::control::TargetFollowerConfig defaults;
+  EXPECT_GE(closed_at, defaults.track_time + defaults.pregrasp.norm() / defaults.approach_speed - 0.01);
 }
 
 TEST(TargetFollower, KeepsItsReferenceInsideTheLimitsForATargetOutOfReach) {

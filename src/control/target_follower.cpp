@@ -192,11 +192,10 @@ bool TargetFollower::update(double t, const FollowTarget& target,
     const Eigen::Vector3d grasp_point = target.position + target.velocity * age + config_.grasp_offset;
     const double speed = target.velocity.norm();
     if (grasp_ && phase_ == FollowPhase::Following && t - followed_since_ >= config_.track_time &&
-        speed < config_.grasp_speed && offset_ >= 1.0 && tool_error_ < config_.follow_tolerance) {
-      phase_ = FollowPhase::Approaching;
+        speed < config_.grasp_speed && tool_error_ < config_.follow_tolerance) {
+      phase_ = FollowPhase::Approaching;  // from wherever the offset stands: slow spells add up
     } else if (phase_ == FollowPhase::Approaching && speed > 2.0 * config_.grasp_speed) {
-      phase_ = FollowPhase::Following;  // too fast again: back to the pre-grasp point
-      followed_since_ = t;
+      phase_ = FollowPhase::Following;  // too fast again: back towards the pre-grasp point, still tracked
     }
     const double length = config_.pregrasp.norm();
     const double share = length > 0.0 ? config_.approach_speed * dt / length : 1.0;

@@ -62,7 +62,7 @@ const char* const kControllerParameterHelp =
     "                        [m] (0.05) from where the last predicted it, for settle [s] (0.5)\n"
     "  follow/track_time, follow/grasp_speed, follow/follow_tolerance  approach once followed this long [s] (2),\n"
     "                        the object slower than grasp_speed [m/s] (0.03), the tool this near [m] (0.02)\n"
-    "  follow/approach_speed, follow/grasp_tolerance  [m/s] (0.05); close within this of the grasp point [m] (0.01)\n"
+    "  follow/approach_speed, follow/grasp_tolerance  [m/s] (0.1); close within this of the grasp point [m] (0.01)\n"
     "  follow/clik_iterations  CLIK steps per update (3)\n";
 
 namespace {

@@ -9,8 +9,9 @@
 /// (Waypoints). It holds, stopping at its acceleration limit, when the target is not tracked, when its estimate is
 /// older than max_age, or when it jumps (an estimate farther than `jump` from where the last one predicted it: it
 /// settles for `settle` before following again), and says why. Once it has followed without a hold for
-/// track_time, the target moves slower than grasp_speed and the tool is within follow_tolerance of the pre-grasp
-/// point, the offset shrinks at approach_speed to the grasp point; there, within grasp_tolerance, it asks for the
+/// track_time, the target moves slower than grasp_speed and the tool is within follow_tolerance of its goal, the
+/// offset shrinks at approach_speed towards the grasp point, and grows back while the target moves faster than twice
+/// grasp_speed (slow spells add up; the track goes on); at the grasp point, within grasp_tolerance, it asks for the
 /// gripper to close (graspRequested) and waits for the answer (graspDone): held, it stays there; refused, it backs
 /// off to the pre-grasp point and tries again. Construction allocates; everything else is real-time safe.
 #pragma once
