@@ -67,9 +67,18 @@ struct PathResult {
   // Grasping.
   bool grasped = false;
   double grasp_at = -1.0;
-  double put_down = 0.0;  ///< When the grasping run's path ends (the can put down) [s].
+  double put_down = 0.0;      ///< When the grasping run's path ends (the can put down) [s].
+  double interrupted = -1.0;  ///< When the controller left tracking on its own and following ended [s] (−1: never).
+  std::string interruption;   ///< Its status.
   int grasp_requests = 0;
 };
+
+std::string format(const Eigen::VectorXd& v) {
+  std::ostringstream out;
+  out.precision(3);
+  out << v.transpose();
+  return out.str();
+}
 
 class Rig {
  public:
@@ -162,6 +171,13 @@ class Rig {
       if (simulation_.step() == bs::sim::SimStatus::ArmDiverged) break;
       const bs::control::ArmControllerState* state = controllers_[0]->latestState();
       if (!state) continue;
+      if (state->follow_interrupted && result.interrupted < 0.0) {
+        result.interrupted = simulation_.time();
+        result.interruption = bs::control::toString(state->follow_stopped);
+        std::fprintf(stderr, "path %d (%s): following ended at t = %.3f s: %s; q %s, qd %s\n", result.path,
+                     grasp ? "grasping" : "following", result.interrupted, result.interruption.c_str(),
+                     format(state->position).c_str(), format(state->velocity).c_str());
+      }
       if (std::isfinite(state->follow_target_stamp) && state->follow_target_stamp != last_stamp &&
           std::isfinite(state->follow_latency)) {
         result.latencies.push_back(state->follow_latency);
@@ -255,7 +271,10 @@ int main(int argc, char** argv) {
   program.experiments = {"tracking"};
   program.with_runs = true;
   program.with_jobs = true;
-  program.extra = [&settings](bs::cli::CommandLine& line) {
+  std::string scene_option;
+  program.extra = [&settings, &scene_option](bs::cli::CommandLine& line) {
+    line.option("--scene", "FILE", "the simulation file with the object (default: the package's config/track_sim.yaml)",
+                &scene_option);
     line.option("--latency", "S", "frame stamp to the estimate in the controller [s] (default 0.010)",
                 &settings.latency);
   };
@@ -271,8 +290,15 @@ int main(int argc, char** argv) {
     settings.grasp_time = 12.0;
   }
   std::filesystem::create_directories(options.out);
-  const std::string scene = bs::cli::packageFile("config/track_sim.yaml");
-  const bs::sim::SimConfig base = bs::sim::SimConfig::fromYamlFile(scene);
+  const std::string scene = scene_option.empty() ? bs::cli::packageFile("config/track_sim.yaml") : scene_option;
+  bs::sim::SimConfig base;
+  try {
+    base = bs::sim::SimConfig::fromYamlFile(scene);
+    if (!base.has_object) throw std::invalid_argument(scene + ": the simulation file has no object");
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: %s\n", kProgram, e.what());
+    return 2;
+  }
   std::printf("%s: %d paths of the can (%s), seed %u, camera %.0f Hz, estimate latency %.0f ms, %d jobs\n", kProgram,
               paths, scene.c_str(), options.seed, kCameraRate, 1e3 * settings.latency, options.jobs);
 
@@ -307,7 +333,7 @@ int main(int argc, char** argv) {
   const std::string header =
       "path,path_seed,frames,measured,rejected,reached_s,samples,error_mean_m,error_p95_m,error_max_m,lost,reacquired,"
       "reacquire_time_s,hold_speed_rad_s,latency_median_s,latency_p99_s,allocations,control_cycles,grasped,grasp_at_s,"
-      "grasp_requests,put_down_s,seed";
+      "grasp_requests,put_down_s,ended_s,ended,seed";
   bs::io::CsvAppender records(paths_file, header);
   bs::io::CsvAppender samples(samples_file, "path,error_m,speed_m_s");
   std::mutex write;
@@ -328,12 +354,19 @@ int main(int argc, char** argv) {
     }
     {
       PathResult g;
+      g.path = path;
       config.object.path.duration = settings.carried;
       Rig grasp(config, settings, true, path_seed + 7u);
       grasp.run(settings.grasp_time, g, true);
       r.put_down = grasp.objectPathEnd();
       r.grasped = g.grasped;
       r.allocations += g.allocations;
+      if (r.interrupted < 0.0 && g.interrupted >= 0.0) {
+        r.interrupted = g.interrupted;
+        r.interruption = "grasping: " + g.interruption;
+      } else if (r.interrupted >= 0.0) {
+        r.interruption = "following: " + r.interruption;
+      }
       r.control_cycles += g.control_cycles;
       r.grasp_at = g.grasp_at;
       r.grasp_requests = g.grasp_requests;
@@ -346,7 +379,7 @@ int main(int argc, char** argv) {
         << number(r.hold_speed) << ',' << number(percentile(r.latencies, 0.5)) << ','
         << number(percentile(r.latencies, 0.99)) << ',' << r.allocations << ',' << r.control_cycles << ','
         << (r.grasped ? 1 : 0) << ',' << number(r.grasp_at) << ',' << r.grasp_requests << ',' << number(r.put_down)
-        << ',' << options.seed;
+        << ',' << number(r.interrupted) << ',' << bs::io::quotedField(r.interruption) << ',' << options.seed;
     std::ostringstream sample_rows;
     for (std::size_t k = 0; k < r.errors.size(); ++k) {
       sample_rows << path << ',' << number(r.errors[k]) << ',' << number(r.speeds[k])

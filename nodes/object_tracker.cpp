@@ -248,7 +248,10 @@ class ObjectTrackerNode {
     const Eigen::Quaterniond q(rotation);
     m.pose.orientation.w = q.w(), m.pose.orientation.x = q.x(), m.pose.orientation.y = q.y(),
     m.pose.orientation.z = q.z();
-    const Eigen::Vector3d extent = 6.0 * axes.eigenvalues().cwiseMax(0.0).cwiseSqrt().cwiseMax(0.002);
+    // Lost: a 5 cm ball where it was last (the covariance then says nothing useful).
+    const Eigen::Vector3d extent =
+        state.tracking ? Eigen::Vector3d(6.0 * axes.eigenvalues().cwiseMax(0.0).cwiseSqrt().cwiseMax(0.002))
+                       : Eigen::Vector3d::Constant(0.05);
     m.scale.x = extent.x(), m.scale.y = extent.y(), m.scale.z = extent.z();
     array.markers.push_back(m);
     // The velocity, 1 s of it.

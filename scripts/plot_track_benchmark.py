@@ -95,7 +95,10 @@ def main():
               f"most {max(hold) if hold else 0:.3g} rad/s",
               f"- latency (modelled {1e3 * total['latency_model_s']:.0f} ms + the follower's period): median "
               f"{1e3 * np.median(latency):.1f} ms",
-              f"- allocations in the control loop: {total['control_allocations']}"]
+              f"- allocations in the control loop: {total['control_allocations']}",
+              "- following ended on its own (the controller left tracking): "
+              + (", ".join(f"path {r['path']} at {number(r['ended_s']):.1f} s ({r['ended']})" for r in paths
+                           if number(r["ended_s"]) >= 0) or "never")]
     with open(os.path.join(directory, "tables.md"), "w", encoding="utf-8") as f:
         f.write("\n".join(lines) + "\n")
 

@@ -163,7 +163,21 @@ TEST(SimulatedObject, FollowsItsPathIsHeldByAClosingGripperNearItAndRestsWhereLe
   near.object.path.centre = tool - near.object.grasp_point + Eigen::Vector3d(0.0, 0.0, 0.01);
   near.object.path.size.setZero();
   near.object.path.away_probability = 0.0;
-  near.object.body.collides = false;  // the tool inside its top: no contact pushing the arm away
+  // Held, it moves with the tool (the first joint pushed round) and keeps its place in the gripper; it overlaps the
+  // hand and is part of it: the arm moves as it does with an object it does not feel, to the bit.
+  Eigen::VectorXd push = Eigen::VectorXd::Zero(simulation.jointCount(0));
+  push[0] = 30.0;
+  Eigen::VectorXd felt, unfelt;
+  for (const bool collides : {false, true}) {
+    bs::sim::SimConfig c = near;
+    c.object.body.collides = collides;
+    bs::sim::BimanualSimulation probe(c);
+    ASSERT_TRUE(probe.grasp(0, nullptr, &held) == bs::sim::SimStatus::Ok && held);
+    ASSERT_EQ(probe.writeJointTorques(0, push), bs::sim::RobotStatus::Ok);
+    for (int i = 0; i < 300; ++i) ASSERT_EQ(probe.step(), bs::sim::SimStatus::Ok);
+    (collides ? felt : unfelt) = probe.trueState(0).q;
+  }
+  EXPECT_LT((felt - unfelt).cwiseAbs().maxCoeff(), 1e-12) << "the held can pushed the hand";
   bs::sim::BimanualSimulation holding(near);
   ASSERT_TRUE(holding.grasp(1, nullptr, &held) == bs::sim::SimStatus::Ok);
   EXPECT_FALSE(held) << "the right tool is far";
@@ -171,9 +185,6 @@ TEST(SimulatedObject, FollowsItsPathIsHeldByAClosingGripperNearItAndRestsWhereLe
   EXPECT_TRUE(held);
   EXPECT_EQ(holding.objectHolder(), 0);
   const Eigen::Isometry3d in_tool = holding.toolPose(0).inverse() * holding.objectPose();
-  // Held, it moves with the tool (the first joint pushed round) and keeps its place in the gripper.
-  Eigen::VectorXd push = Eigen::VectorXd::Zero(holding.jointCount(0));
-  push[0] = 30.0;
   ASSERT_EQ(holding.writeJointTorques(0, push), bs::sim::RobotStatus::Ok);
   for (int i = 0; i < 500; ++i) ASSERT_EQ(holding.step(), bs::sim::SimStatus::Ok);
   EXPECT_GT((holding.toolPose(0).translation() - tool).norm(), 0.01) << "the arm did not move";

@@ -98,14 +98,14 @@ class Track : public ::testing::Test {
       latencies_.push_back(m->latency);  // an estimate used for the first time: its frame's age at its first torque
       last_target_ = m->target_stamp;
     }
-    // The tool against the object's true pre-grasp point (grasp point 6 cm above its centre, 10 cm above that),
-    // while following at the pre-grasp point (the goal 16 cm above the object's estimate).
+    // The tool against the object's true pre-grasp point (the grasp point 7 cm above its centre, 10 cm above that),
+    // while following at the pre-grasp point (the goal 17 cm above the object's estimate).
     const auto it = truth_.lower_bound(std::lround(m->header.stamp.toSec() * 1000.0) - 20);
     if (m->phase != "following" || it == truth_.end()) return;
     const std::vector<double>& o = it->second;
-    const double dz = m->goal.z - (o[2] + 0.16);
+    const double dz = m->goal.z - (o[2] + 0.17);
     const double e =
-        std::sqrt(std::pow(m->tool.x - o[0], 2) + std::pow(m->tool.y - o[1], 2) + std::pow(m->tool.z - o[2] - 0.16, 2));
+        std::sqrt(std::pow(m->tool.x - o[0], 2) + std::pow(m->tool.y - o[1], 2) + std::pow(m->tool.z - o[2] - 0.17, 2));
     if (std::abs(dz) < 0.01) samples_.push_back({m->header.stamp.toSec(), e, o[3]});
   }
   static void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {

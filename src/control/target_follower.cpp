@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -157,6 +158,7 @@ bool TargetFollower::update(double t, const FollowTarget& target,
     why = HoldReason::Invalid;
   } else if (!target.tracking) {
     why = HoldReason::NoTarget;
+    last_stamp_ = std::numeric_limits<double>::quiet_NaN();  // a target found again is not a jump from the lost one
   } else {
     if (target.stamp != last_stamp_) {
       if (std::isfinite(last_stamp_)) {

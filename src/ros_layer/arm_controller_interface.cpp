@@ -463,7 +463,8 @@ void ArmControllerInterface::onTarget(const bimanual_skills::TrackedObject::Cons
 }
 
 void ArmControllerInterface::follow(const bc::ArmControllerState& s, const ros::Time& stamp, bool due) {
-  if (s.grasp_requested && !grasp_in_flight_.exchange(true)) {
+  if (!s.grasp_requested) grasp_answered_ = false;  // the loop has the answer: a later request is a new one
+  if (s.grasp_requested && !grasp_answered_ && !grasp_in_flight_.exchange(true)) {
     // The follower asks for the gripper: a bounded call on a thread of its own, its answer to the loop.
     std::thread([this, client = node_.serviceClient<bimanual_skills::ClothGrasp>(settings_.gripper_service)] {
       bimanual_skills::ClothGrasp grasp;
@@ -478,6 +479,7 @@ void ArmControllerInterface::follow(const bc::ArmControllerState& s, const ros::
       {
         const std::lock_guard<std::mutex> lock(mutex_);
         grasp_message_ = said;
+        grasp_answered_ = true;
       }
       grasp_in_flight_ = false;
     }).detach();

@@ -87,6 +87,11 @@ struct ArmsWorld {
     if (!object) return;
     object_motion.setWorldTransform(toBulletTransform(pose));
   }
+  /// A held object is part of the hand (its shape overlaps the hand's): no contact response with the arms from its
+  /// grasp until the world is rebuilt (a reset), also once let go where it was (inside the open hand).
+  void holdObject() noexcept {
+    if (object) object->setCollisionFlags(object->getCollisionFlags() | btCollisionObject::CF_NO_CONTACT_RESPONSE);
+  }
   ArmsWorld(const ArmsWorld&) = delete;
   ArmsWorld& operator=(const ArmsWorld&) = delete;
 
@@ -491,6 +496,7 @@ SimStatus BimanualSimulation::grasp(int arm, int* attached, bool* object) noexce
       m.object_holder = arm;
       m.object_resting = false;
       m.object_in_tool = pose.inverse(Eigen::Isometry) * m.object_pose;
+      m.bullet->holdObject();
     }
   }
   if (object != nullptr) *object = m.object_holder == arm;

@@ -39,7 +39,7 @@ struct ControllerSettings {
   control::ControllerMode initial_mode = control::ControllerMode::Hold;
   bool start_following = false;  ///< initial_mode follow or grasp: follow the tracked object from the start...
   bool start_grasping = false;   ///< ...and grasp it (grasp).
-  double publish_rate = 100.0;                       ///< [Hz] of state, the estimates and action feedback.
+  double publish_rate = 100.0;   ///< [Hz] of state, the estimates and action feedback.
   control::TrajectoryTolerances default_tolerances;  ///< When a goal does not set them.
   double loop_timeout = 0.5;  ///< [s of the robot's clock] without a control cycle: the active goal is aborted.
   // Following a tracked object (set_mode follow), when target_topic is set.
@@ -140,6 +140,7 @@ class ArmControllerInterface {
   // Following.
   std::string target_problem_;  ///< Why the last target message could not be used ("" when it could).
   std::atomic<bool> grasp_in_flight_{false};
+  bool grasp_answered_ = false;    ///< The request in the loop's states was answered (until a state without one).
   std::string last_follow_text_;   ///< Phase and reason last logged.
   std::vector<double> latencies_;  ///< Of the estimates used since the last diagnostics [s].
   double last_target_stamp_ = -1.0;

@@ -31,8 +31,9 @@ struct ArmConfig {
 
 /// An object a person carries along a path for an arm to track and grasp (thesis Sec. 4.3.2). It stays upright; a
 /// gripper that closes with its tool near the grasp point holds it (it then moves with the tool), and one that opens
-/// leaves it resting where it is until the next reset. The arms collide with it when `body.collides`; the cloth does
-/// not.
+/// leaves it resting where it is until the next reset. The arms collide with it when `body.collides`, until a gripper
+/// takes it (then it is part of the hand, and let go it rests inside the open hand: no contact until the reset); the
+/// cloth does not.
 struct MovingObject {
   Obstacle body;  ///< Name, shape, size, colour, friction, collides (its pose is the path's).
   ObjectPathConfig path;
