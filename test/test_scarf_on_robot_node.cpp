@@ -145,7 +145,8 @@ TEST(ScarfOnRobot, ALearningWithAKilledSimulatorStopsWithTheReason) {
   ASSERT_GT(simulator, 0) << "no /bullet_sim node answers getPid";
   const bs::ros_layer::ScarfRobotInterfaces interfaces = robot();
   const bs::tasks::ScarfTaskConfig task = config.task;
-  int finished = 0, faults = 0;
+  int finished = 0, faults = 0, faults_after_kill = 0;
+  bool killed = false;
   br::DmpLearningObserver observer;
   observer.rollout = [&](const br::DmpRolloutRecord& record, br::RolloutTask*) {
     std::printf("  rollout %s %d: %s, cost %.3f\n", br::toString(record.kind), record.index,
@@ -153,11 +154,13 @@ TEST(ScarfOnRobot, ALearningWithAKilledSimulatorStopsWithTheReason) {
     if (++finished == 2) {
       std::printf("  bullet_sim killed (SIGKILL)\n");
       ::kill(simulator, SIGKILL);
+      killed = true;
     }
   };
   observer.robot_fault = [&](const br::DmpRolloutRecord&, int attempt, const std::string& reason, bool retry) {
     std::printf("  robot fault, attempt %d: %s%s\n", attempt, reason.c_str(), retry ? "; running it again" : "");
     ++faults;
+    faults_after_kill += killed ? 1 : 0;
   };
   const auto start = std::chrono::steady_clock::now();
   try {
@@ -175,7 +178,9 @@ TEST(ScarfOnRobot, ALearningWithAKilledSimulatorStopsWithTheReason) {
     EXPECT_NE(std::string(e.what()).find("within 10 s"), std::string::npos) << e.what();
   }
   EXPECT_EQ(finished, 2);
-  EXPECT_EQ(faults, 2);
+  // The dead simulator: robot_fault_limit faults in a row. (A loaded machine may give a live one a fault before the
+  // kill too: retried, and not learned from, as the file below shows.)
+  EXPECT_EQ(faults_after_kill, 2) << faults << " faults in all";
   int lines = -1;  // the header
   std::ifstream rollouts(dir + "/rollouts.csv");
   for (std::string line; std::getline(rollouts, line); ++lines) {

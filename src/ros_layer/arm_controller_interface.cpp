@@ -489,21 +489,32 @@ void ArmControllerInterface::follow(const bc::ArmControllerState& s, const ros::
     last_target_stamp_ = s.follow_target_stamp;
     latencies_.push_back(s.follow_latency);
   }
+  // Said when something changed, and at the publish rate while following; an arm that does not follow stays quiet.
+  const bool holding = s.following && s.follow_phase == bc::FollowPhase::Holding;
+  const bool changed = s.following != follow_said_.following || s.follow_phase != follow_said_.phase ||
+                       s.follow_reason != follow_said_.reason || s.follow_interrupted != follow_said_.interrupted ||
+                       (holding && target_problem_ != follow_said_.problem);
+  if (!changed && !(s.following && due)) return;
   std::string reason;
   if (!s.following && s.follow_interrupted) {
     reason = std::string("the controller left tracking: ") +
              (s.follow_stopped == bc::ControllerStatus::Ok || s.follow_stopped == bc::ControllerStatus::Saturated
                   ? "it restarted (the robot's clock went back)"
                   : bc::toString(s.follow_stopped));
-  } else if (s.following && s.follow_phase == bc::FollowPhase::Holding) {
+  } else if (holding) {
     reason = std::string(bc::toString(s.follow_reason)) + (target_problem_.empty() ? "" : " (" + target_problem_ + ")");
   }
-  const std::string text =
-      std::string(s.following ? bc::toString(s.follow_phase) : "not following") + (reason.empty() ? "" : ": " + reason);
-  const bool changed = text.substr(0, text.find(" (")) != last_follow_text_.substr(0, last_follow_text_.find(" ("));
-  if (changed && (s.following || s.follow_interrupted)) ROS_INFO("%s: %s", owner_.c_str(), text.c_str());
-  last_follow_text_ = text;
-  if (!due && !changed) return;
+  if (changed) {
+    const bool phase_changed = s.following != follow_said_.following || s.follow_phase != follow_said_.phase ||
+                               s.follow_reason != follow_said_.reason ||
+                               s.follow_interrupted != follow_said_.interrupted;
+    follow_said_ = {s.following, s.follow_interrupted, s.follow_phase, s.follow_reason, target_problem_};
+    last_follow_text_ = std::string(s.following ? bc::toString(s.follow_phase) : "not following") +
+                        (reason.empty() ? "" : ": " + reason);
+    if (phase_changed && (s.following || s.follow_interrupted)) {
+      ROS_INFO("%s: %s", owner_.c_str(), last_follow_text_.c_str());
+    }
+  }
   bimanual_skills::FollowerState out;
   out.header.stamp = stamp;
   out.header.frame_id = settings_.world_frame;

@@ -140,8 +140,14 @@ class ArmControllerInterface {
   // Following.
   std::string target_problem_;  ///< Why the last target message could not be used ("" when it could).
   std::atomic<bool> grasp_in_flight_{false};
-  bool grasp_answered_ = false;    ///< The request in the loop's states was answered (until a state without one).
-  std::string last_follow_text_;   ///< Phase and reason last logged.
+  bool grasp_answered_ = false;   ///< The request in the loop's states was answered (until a state without one).
+  std::string last_follow_text_;  ///< Phase and reason last said.
+  struct FollowSaid {
+    bool following = false, interrupted = false;
+    control::FollowPhase phase = control::FollowPhase::Idle;
+    control::HoldReason reason = control::HoldReason::None;
+    std::string problem;
+  } follow_said_;                  ///< What follow_state last said.
   std::vector<double> latencies_;  ///< Of the estimates used since the last diagnostics [s].
   double last_target_stamp_ = -1.0;
   std::string grasp_message_;  ///< The gripper's last answer.
