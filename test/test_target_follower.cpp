@@ -126,6 +126,15 @@ FollowTarget tracked(const bs::sim::ObjectPath& path, double t) {
   return target;
 }
 
+/// A target held at `position`, estimated kLatency ago.
+FollowTarget fixedAt(const Eigen::Vector3d& position, double t) {
+  FollowTarget target;
+  target.stamp = t - kLatency;
+  target.tracking = true;
+  target.position = position;
+  return target;
+}
+
 double percentile(std::vector<double> v, double p) {
   std::sort(v.begin(), v.end());
   return v.empty() ? 0.0 : v[static_cast<std::size_t>(p * static_cast<double>(v.size() - 1))];
@@ -225,14 +234,7 @@ TEST(TargetFollower, AJumpHoldsThenTheNewPlaceIsFollowed) {
   const Eigen::Vector3d first = config.object.path.centre, second = first + Eigen::Vector3d(0.0, -0.12, 0.0);
   HoldReason at_jump = HoldReason::None;
   rig.run(
-      8.0,
-      [&](double t) {
-        FollowTarget f;
-        f.stamp = t - kLatency;
-        f.tracking = true;
-        f.position = t < 4.0 ? first : second;
-        return f;
-      },
+      8.0, [&](double t) { return fixedAt(t < 4.0 ? first : second, t); },
       [&](double t) {
         if (std::abs(t - 4.2) < 5e-4) at_jump = rig.follower().holdReason();
       });
@@ -248,7 +250,6 @@ TEST(TargetFollower, ApproachesAndGraspsTheCanOnceStillAndFollowedLongEnough) {
   config.object.path.max_speed = 0.1;
   config.object.path.pause_probability = 1.0;
   config.object.path.pause = Eigen::Vector2d(6.0, 8.0);  // long pauses: time to approach
-  config.object.body.collides = false;  // the simulated hand has no fingers: the tool sits at the can's top
   Rig rig(config);
   const bs::sim::ObjectPath path(config.object.path);
   double closed_at = -1.0;
@@ -277,14 +278,7 @@ TEST(TargetFollower, KeepsItsReferenceInsideTheLimitsForATargetOutOfReach) {
   const bs::kinematics::ChainModel& model = rig.model();
   double worst_margin = 1.0, fastest = 0.0;
   rig.run(
-      6.0,
-      [&](double t) {
-        FollowTarget f;
-        f.stamp = t - kLatency;
-        f.tracking = true;
-        f.position = Eigen::Vector3d(0.3, 0.6, 2.2);  // 2 m above the table: out of reach
-        return f;
-      },
+      6.0, [&](double t) { return fixedAt(Eigen::Vector3d(0.3, 0.6, 2.2), t); },  // 2 m above the table: out of reach
       [&](double) {
         const Eigen::VectorXd& q = rig.follower().reference();
         worst_margin =

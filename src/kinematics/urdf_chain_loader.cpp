@@ -108,17 +108,8 @@ FixedLinkPose fixedLinkPose(const std::string& urdf_xml, const std::string& link
   if (!urdf) throw std::invalid_argument("the robot description is not valid URDF");
   urdf::LinkConstSharedPtr link = urdf->getLink(link_name);
   if (!link) throw std::invalid_argument("unknown link '" + link_name + "' in robot '" + urdf->getName() + "'");
-  FixedLinkPose out{Eigen::Isometry3d::Identity(), link_name};
-  while (link->parent_joint) {
-    const urdf::JointConstSharedPtr& joint = link->parent_joint;
-    if (joint->type != urdf::Joint::FIXED) {
-      throw std::invalid_argument("link '" + link_name + "' is not fixed to the root of robot '" + urdf->getName() +
-                                  "' (joint '" + joint->name + "' moves)");
-    }
-    out.pose = toIsometry(joint->parent_to_joint_origin_transform) * out.pose;
-    link = urdf->getLink(joint->parent_link_name);
-    out.root = link->name;
-  }
+  FixedLinkPose out;
+  out.pose = poseInRoot(*urdf, link_name, &out.root);
   return out;
 }
 

@@ -78,15 +78,11 @@ UrdfArm loadUrdfArm(const std::string& urdf_path, const ArmConfig& arm, const Ei
     if (!urdf->getLink(name)) throw std::invalid_argument(where + ": unknown link '" + name + "'");
   }
   // The base must hang from the root through fixed joints only.
-  Eigen::Isometry3d base_pose = Eigen::Isometry3d::Identity();
-  for (urdf::LinkConstSharedPtr link = urdf->getLink(arm.base_link); link->parent_joint;) {
-    const urdf::JointConstSharedPtr& joint = link->parent_joint;
-    if (joint->type != urdf::Joint::FIXED) {
-      throw std::invalid_argument(where + ": base link '" + arm.base_link + "' is not fixed to the world (joint '" +
-                                  joint->name + "' moves)");
-    }
-    base_pose = toIsometry(joint->parent_to_joint_origin_transform) * base_pose;
-    link = urdf->getLink(joint->parent_link_name);
+  Eigen::Isometry3d base_pose;
+  try {
+    base_pose = kinematics::poseInRoot(*urdf, arm.base_link, nullptr);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(where + ": base " + e.what());
   }
 
   kinematics::ChainModel chain = kinematics::ChainModel::fromUrdfFile(urdf_path, arm.base_link, arm.tip_link);

@@ -16,11 +16,6 @@ namespace {
   throw std::invalid_argument(std::string(where) + ": " + what);
 }
 
-bool rigid(const Eigen::Isometry3d& pose) {
-  return pose.matrix().allFinite() &&
-         (pose.linear().transpose() * pose.linear() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-6;
-}
-
 }  // namespace
 
 const char* toString(LocateStatus status) noexcept {
@@ -90,10 +85,7 @@ LocateStatus ObjectLocator::locate(const cv::Mat& bgr, const cv::Mat& depth, con
       depth.size() != bgr.size()) {
     return LocateStatus::WrongImage;
   }
-  if (!rigid(camera.pose) || !(camera.fx > 0.0) || !(camera.fy > 0.0) || !std::isfinite(camera.fx) ||
-      !std::isfinite(camera.fy) || !std::isfinite(camera.cx) || !std::isfinite(camera.cy)) {
-    return LocateStatus::BadCamera;
-  }
+  if (!camera.usable()) return LocateStatus::BadCamera;
   // The object's colour in HSV (OpenCV: H in [0, 180), S and V in [0, 255]); a hue range across 0 is two ranges.
   cv::cvtColor(bgr, hsv_, cv::COLOR_BGR2HSV);
   const double h = 0.5 * config_.hue, tolerance = 0.5 * config_.hue_tolerance;

@@ -57,6 +57,11 @@ bool PinholeCamera::project(const Eigen::Vector3d& world, Eigen::Vector3d& uvz) 
   return true;
 }
 
+bool PinholeCamera::usable() const noexcept {
+  return fx > 0.0 && fy > 0.0 && std::isfinite(fx) && std::isfinite(fy) && std::isfinite(cx) && std::isfinite(cy) &&
+         rigid(pose);
+}
+
 void PinholeCamera::validate(const char* where) const {
   if (width < 8 || height < 8 || width > 8192 || height > 8192) fail(where, "image size must be 8-8192 pixels");
   if (!(fx > 0.0) || !(fy > 0.0) || !std::isfinite(fx) || !std::isfinite(fy)) {
@@ -317,10 +322,7 @@ VisionStatus HeightMapProjector::project(const cv::Mat& bgr, const cv::Mat& dept
       depth.rows != camera.height || depth.cols != camera.width) {
     return VisionStatus::WrongImageSize;
   }
-  if (!rigid(camera.pose) || !(camera.fx > 0.0) || !(camera.fy > 0.0) || !std::isfinite(camera.cx) ||
-      !std::isfinite(camera.cy)) {
-    return VisionStatus::BadCameraPose;
-  }
+  if (!camera.usable()) return VisionStatus::BadCameraPose;
   const Eigen::Matrix3d r = camera.pose.linear();
   const Eigen::Vector3d t = camera.pose.translation();
   for (int v = 0; v < depth.rows; ++v) {

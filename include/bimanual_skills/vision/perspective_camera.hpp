@@ -46,6 +46,10 @@ struct PinholeCamera {
     return pose * Eigen::Vector3d((u - cx) / fx * z, (v - cy) / fy * z, z);
   }
 
+  /// Whether its intrinsics and pose can project: finite focal lengths > 0, a finite principal point, a finite rigid
+  /// pose (what a frame's users check in real time; validate() says which member is wrong).
+  bool usable() const noexcept;
+
   /// \throws std::invalid_argument naming `where` and the member that is out of range.
   void validate(const char* where) const;
 };
