@@ -292,9 +292,13 @@ class SimFixture : public ::testing::Test {
         std::vector<double> target = armPositions(arm);
         target[0] += 0.4;
         target[3] -= 0.3;
-        commands_[arm].publish(trajectory(arm, {target}, 1.0));
+        // Stamped to start at 0.05 s of simulated time: the start does not depend on the step at which a
+        // controller process, however loaded, took the message.
+        trajectory_msgs::JointTrajectory t = trajectory(arm, {target}, 1.0);
+        t.header.stamp = ros::Time(0.05);
+        commands_[arm].publish(t);
       }
-      waitWall([] { return false; }, 1.0);  // the controllers take the trajectories at the next step
+      waitWall([] { return false; }, 1.0);  // the controllers hold the trajectories until their start
       steps.request.steps = 799;
       EXPECT_TRUE(step_.call(steps) && steps.response.success) << steps.response.message;
       EXPECT_TRUE(waitWall([&] { return lastStamp() > 0.799 - 1e-9; }, 5.0));
