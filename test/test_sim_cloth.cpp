@@ -44,6 +44,17 @@ Eigen::Isometry3d at(const Eigen::Vector3d& position) {
   return pose;
 }
 
+/// A colliding obstacle (Obstacle::size's convention for `shape`) centred at `position`, upright.
+bs::sim::Obstacle obstacle(const std::string& name, bs::sim::Obstacle::Shape shape, const Eigen::Vector3d& size,
+                           const Eigen::Vector3d& position) {
+  bs::sim::Obstacle o;
+  o.name = name;
+  o.shape = shape;
+  o.size = size;
+  o.pose = at(position);
+  return o;
+}
+
 /// Moves gripper g along p(t) (velocity by differences) for `duration` seconds of cloth steps.
 template <typename Path>
 void follow(Cloth& cloth, const Path& path, double t0, double duration) {
@@ -456,17 +467,11 @@ TEST(ClothObstacles, CollidingShapesHoldTheClothUpExactlyAMarkDoesNot) {
   EXPECT_GT(inside, 0.0);
   // A thin vertical cylinder (a neck) with a box on it (a head's stand-in): the cloth drapes over both, no node
   // inside either.
-  bs::sim::Obstacle neck;
-  neck.name = "neck";
-  neck.shape = bs::sim::Obstacle::Shape::Cylinder;
-  neck.size = Eigen::Vector3d(0.045, 0.15, 0.0);
-  neck.pose.translation() = Eigen::Vector3d(0.5, 0.0, kTop + 0.075);
-  bs::sim::Obstacle block = neck;
-  block.name = "block";
-  block.shape = bs::sim::Obstacle::Shape::Box;
-  block.size = Eigen::Vector3d(0.06, 0.06, 0.02);
-  block.pose = Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ()) * Eigen::Translation3d(0.0, 0.0, 0.0);
-  block.pose.translation() = Eigen::Vector3d(0.5, 0.0, kTop + 0.16);
+  const bs::sim::Obstacle neck = obstacle("neck", bs::sim::Obstacle::Shape::Cylinder, Eigen::Vector3d(0.045, 0.15, 0.0),
+                                          Eigen::Vector3d(0.5, 0.0, kTop + 0.075));
+  bs::sim::Obstacle block = obstacle("block", bs::sim::Obstacle::Shape::Box, Eigen::Vector3d(0.06, 0.06, 0.02),
+                                     Eigen::Vector3d(0.5, 0.0, kTop + 0.16));
+  block.pose.linear() = Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   const Eigen::Matrix3Xd draped = settle({neck, block});
   for (Eigen::Index k = 0; k < draped.cols(); ++k) {
     const Eigen::Vector3d x = draped.col(k) - neck.pose.translation();
@@ -481,4 +486,27 @@ TEST(ClothObstacles, CollidingShapesHoldTheClothUpExactlyAMarkDoesNot) {
   bs::sim::Obstacle flat = ball;
   flat.size.setZero();
   EXPECT_THROW(Cloth(p, table(), 0, Eigen::Vector3d(0.0, 0.0, -9.81), {flat}), std::invalid_argument);
+}
+
+// A reset cloth falls on curved obstacles as a new one does, bit for bit, whatever it did before (its contact field
+// of the obstacles filled elsewhere, its self-contacts): the learners' rollouts may run on a reset simulation.
+TEST(ClothObstacles, AResetClothFallsAsANewOneDoes) {
+  const bs::sim::Obstacle neck = obstacle("neck", bs::sim::Obstacle::Shape::Cylinder, Eigen::Vector3d(0.045, 0.15, 0.0),
+                                          Eigen::Vector3d(0.5, 0.05, kTop + 0.075));
+  const bs::sim::Obstacle ball = obstacle("head", bs::sim::Obstacle::Shape::Sphere, Eigen::Vector3d(0.07, 0.0, 0.0),
+                                          Eigen::Vector3d(0.45, -0.05, kTop + 0.2));
+  ClothParameters p = patch();
+  p.pose.translation().z() = kTop + 0.35;
+  const auto fall = [](Cloth& cloth, int steps) {
+    for (int k = 0; k < steps; ++k) EXPECT_EQ(cloth.step(), SimStatus::Ok) << k;
+    return Eigen::Matrix3Xd(cloth.vertices());
+  };
+  Cloth fresh(p, table(), 0, Eigen::Vector3d(0.0, 0.0, -9.81), {neck, ball});
+  const Eigen::Matrix3Xd once = fall(fresh, 300);
+  Cloth reused(p, table(), 0, Eigen::Vector3d(0.0, 0.0, -9.81), {neck, ball});
+  fall(reused, 450);  // longer than the fall compared: onto the neck and the head
+  reused.reset();
+  EXPECT_EQ(fall(reused, 300), once);
+  reused.reset();
+  EXPECT_EQ(fall(reused, 300), once);
 }
