@@ -14,6 +14,7 @@
 #include "node_pid.hpp"
 
 #include <ros/ros.h>
+#include <std_srvs/SetBool.h>
 
 #include <gtest/gtest.h>
 
@@ -127,6 +128,23 @@ TEST(ScarfOnRobot, SettingsThatCannotWorkAreRefusedWithTheReason) {
     std::printf("refused: %s\n", e.what());
     EXPECT_NE(std::string(e.what()).find("from the task's camera"), std::string::npos) << e.what();
   }
+}
+
+// A learner stopped while the simulator stood still leaves it paused; a paused simulator's trajectory actions publish
+// no status (actionlib's status timer runs on its clock), so no new client could connect: the task resumes it first.
+TEST(ScarfOnRobot, ATaskBuiltWhileTheSimulatorIsPausedConnects) {
+  const br::ScarfLearningConfig config = shipped();
+  std_srvs::SetBool pause;
+  pause.request.data = true;
+  ASSERT_TRUE(ros::service::call("/bullet_sim/pause", pause) && pause.response.success) << pause.response.message;
+  const ros::Time paused_at = ros::Time::now();
+  ros::WallDuration(1.0).sleep();  // longer than the actions' status period: their last status is old
+  try {
+    bs::ros_layer::ScarfOnRobotTask task(config.task, robot());
+  } catch (const std::exception& e) {
+    ADD_FAILURE() << e.what();
+  }
+  EXPECT_GT(ros::Time::now(), paused_at) << "the simulator was not resumed";
 }
 
 // Last: it kills the simulator.

@@ -171,6 +171,9 @@ RobotConnection::RobotConnection(const RobotInterfaces& robot, std::vector<std::
     }
     checkWorld(what, sim_config, robot_file);
     try {
+      // A paused simulator publishes no camera images and its actions no status (their clock stands still): it goes
+      // on first (a learner stopped while it stood still leaves it paused).
+      if (!robot_.pause_service.empty()) pause(false);
       waitFor(
           [&] {
             const std::lock_guard<std::mutex> lock(mutex_);
@@ -234,6 +237,9 @@ bool RobotConnection::sceneCounts(double stamp) {
 }
 
 void RobotConnection::connectArms() {
+  // A paused simulator's trajectory actions publish no status (actionlib's status timer runs on the simulated clock),
+  // so no client could connect to them: it goes on first.
+  if (!robot_.pause_service.empty()) pause(false);
   // No callback of an old client may run while it goes, nor one of a new client before it is whole: the spinner
   // stands still meanwhile (stop() joins its threads; the messages wait in the queue).
   spinner_->stop();

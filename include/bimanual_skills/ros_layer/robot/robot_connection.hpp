@@ -101,9 +101,10 @@ class RobotConnection {
     std::vector<std::size_t> every(double rate) const;
   };
 
-  /// Subscribes, waits up to `robot.timeout` for the pause service (if one is named) and the camera's first
-  /// CameraInfo, and checks the simulator's world against `sim_config` on `robot_file`; the arms' actions come with
-  /// connectArms(). `joints[a]` are arm a's joint names. \throws std::runtime_error with the reason (after `what`).
+  /// Subscribes, waits up to `robot.timeout` for the pause service (if one is named: the simulator is resumed) and
+  /// the camera's first CameraInfo, and checks the simulator's world against `sim_config` on `robot_file`; the arms'
+  /// actions come with connectArms(). `joints[a]` are arm a's joint names. \throws std::runtime_error with the reason
+  /// (after `what`).
   RobotConnection(const RobotInterfaces& robot, std::vector<std::vector<std::string>> joints, const std::string& what,
                   const std::string& sim_config, const std::string& robot_file, FrameHandler on_frame,
                   ClothHandler on_cloth);
@@ -134,7 +135,8 @@ class RobotConnection {
     throw RobotFault{tasks::FoldOutcome::RobotFailed, message.str()};
   }
 
-  /// New action clients for the arms, and the wait for their servers.
+  /// New action clients for the arms, and the wait for their servers; a paused simulator is resumed first (its
+  /// actions publish no status while it stands still). \throws RobotFault with the reason.
   void connectArms();
   /// Resets the scene and waits for the arms' states of it; returns the robot's time of the reset scene's third
   /// state.
