@@ -77,6 +77,9 @@ const std::string kUsage =
         "  ~grasp_at_reset       arms whose tools hold the cloth from each reset on (e.g. [left]: the scarf, held at\n"
         "                        its middle; default none). Refused at start when a tool holds no cloth node there\n"
         "  ~marker_rate          cloth marker and ~cloth rate [Hz of simulated time] (default 30)\n"
+        "  ~max_scene_rate       markers, ~cloth and the cameras' images at most this often [Hz of wall time]\n"
+        "                        (default 60): faster than real time, images no one could take are not drawn. A\n"
+        "                        ~step's last moment and a reset are published at once\n"
         "  ~object_seed          the seed of the moving object's path (default -1: the simulation file's)\n"
         "  ~camera_rate          top-down camera images per simulated second, at most marker_rate (default 30; 0: no\n"
         "                        camera)\n"
@@ -152,6 +155,7 @@ class BulletSimNode {
     max_torque_ = p.number("max_torque", 50.0, 0.0, 1e9);
     bs::nodes::SimPublishing::Settings publishing;
     publishing.marker_rate = p.number("marker_rate", 30.0, 0.1, 1000.0);
+    publishing.max_scene_rate = p.number("max_scene_rate", publishing.max_scene_rate, 1.0, 1000.0);
     publishing.camera_rate = p.number("camera_rate", 30.0, 0.0, 1000.0);
     publishing.camera_noise.depth_stddev =
         p.number("camera_depth_noise", publishing.camera_noise.depth_stddev, 0.0, 1.0);

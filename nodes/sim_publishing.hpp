@@ -26,6 +26,7 @@
 #include <semaphore.h>
 
 #include <atomic>
+#include <chrono>
 #include <functional>
 #include <memory>
 #include <random>
@@ -41,6 +42,9 @@ class SimPublishing final : public hosting::StateSink {
  public:
   struct Settings {
     double marker_rate = 30.0;  ///< Cloth markers and ~cloth per simulated second.
+    /// Scenes (markers, ~cloth, the cameras' images) per wall second at most: a simulation 20 times faster than
+    /// real time would otherwise keep a core drawing 640 x 480 images (and starve the learner beside it).
+    double max_scene_rate = 60.0;
     double camera_rate = 30.0;  ///< Camera images per simulated second (0: no camera).
     vision::RenderNoise camera_noise;
     double rgbd_rate = 0.0;  ///< Perspective RGB-D images per simulated second (0: no such camera).
@@ -196,12 +200,23 @@ class SimPublishing final : public hosting::StateSink {
   void sceneLoop() {
     bool first = true;
     double next_image = 0.0, next_rgbd = 0.0, last_time = 0.0;
+    const auto interval = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(1.0 / settings_.max_scene_rate));
+    auto last_scene = std::chrono::steady_clock::now();
     while (running_ && ros::ok()) {
       waitForSignal(scene_signal_);
       const ClothFrame* frame = frames_->readNew();
       if (!frame && !first) continue;
       if (!frame) frame = &frames_->current();
+      // At most max_scene_rate scenes per wall second; the newest frame after the wait is the one published. The
+      // last moment of a ~step (forced) and a reset (time going back) go at once.
+      if (!first && !frame->image && frame->time >= last_time &&
+          std::chrono::steady_clock::now() < last_scene + interval) {
+        std::this_thread::sleep_until(last_scene + interval);
+        if (const ClothFrame* newer = frames_->readNew()) frame = newer;
+      }
       first = false;
+      last_scene = std::chrono::steady_clock::now();
       // The table each time too: the topic is latched, and a late subscriber gets only the last message. Stamped
       // 0 (the latest transform): rviz drops markers stamped before a reset's jump back in time.
       visualization_msgs::MarkerArray markers;

@@ -19,6 +19,7 @@
 #include <geometry_msgs/WrenchStamped.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
+#include <sensor_msgs/Image.h>
 #include <sensor_msgs/JointState.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
@@ -26,6 +27,7 @@
 
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -707,7 +709,23 @@ TEST_F(Pacing, ServicesAnswerWhileALongStepRuns) {
     EXPECT_TRUE(client.call(s));
     return s.response;
   });
+  // Meanwhile the camera (30 images per simulated second) sends at most ~max_scene_rate (60) per wall second, not
+  // one per 1/30 s of a clock many times faster than real time.
+  std::atomic<int> images{0};
+  const ros::Subscriber camera = node_.subscribe<sensor_msgs::Image>(
+      "/camera/image_raw", 100, [&images](const sensor_msgs::ImageConstPtr&) { ++images; });
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const int images_before = images;
+  const double simulated_before = lastStamp(), wall_before = bimanual_skills::realtime::monotonicSeconds();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1000));
+  const int sent = images - images_before;
+  const double simulated = lastStamp() - simulated_before,
+               wall = bimanual_skills::realtime::monotonicSeconds() - wall_before;
+  std::printf("during the step: %.2f simulated s in %.2f wall s, %d camera images (%.0f at 30 per simulated s)\n",
+              simulated, wall, sent, 30.0 * simulated);
+  EXPECT_GT(sent, 0);
+  EXPECT_LE(sent, 1.1 * 60.0 * wall + 2.0);
+  EXPECT_GT(simulated, 3.0 * wall) << "the step ran too slowly to tell";
   double start = bimanual_skills::realtime::monotonicSeconds();
   ASSERT_TRUE(pause_.call(pause) && pause.response.success);
   const double pause_answer = bimanual_skills::realtime::monotonicSeconds() - start;
