@@ -491,9 +491,9 @@ void ArmControllerInterface::follow(const bc::ArmControllerState& s, const ros::
   }
   // Said when something changed, and at the publish rate while following; an arm that does not follow stays quiet.
   const bool holding = s.following && s.follow_phase == bc::FollowPhase::Holding;
-  const bool changed = s.following != follow_said_.following || s.follow_phase != follow_said_.phase ||
-                       s.follow_reason != follow_said_.reason || s.follow_interrupted != follow_said_.interrupted ||
-                       (holding && target_problem_ != follow_said_.problem);
+  const bool phase_changed = s.following != follow_said_.following || s.follow_phase != follow_said_.phase ||
+                             s.follow_reason != follow_said_.reason || s.follow_interrupted != follow_said_.interrupted;
+  const bool changed = phase_changed || (holding && target_problem_ != follow_said_.problem);
   if (!changed && !(s.following && due)) return;
   std::string reason;
   if (!s.following && s.follow_interrupted) {
@@ -505,9 +505,6 @@ void ArmControllerInterface::follow(const bc::ArmControllerState& s, const ros::
     reason = std::string(bc::toString(s.follow_reason)) + (target_problem_.empty() ? "" : " (" + target_problem_ + ")");
   }
   if (changed) {
-    const bool phase_changed = s.following != follow_said_.following || s.follow_phase != follow_said_.phase ||
-                               s.follow_reason != follow_said_.reason ||
-                               s.follow_interrupted != follow_said_.interrupted;
     follow_said_ = {s.following, s.follow_interrupted, s.follow_phase, s.follow_reason, target_problem_};
     last_follow_text_ = std::string(s.following ? bc::toString(s.follow_phase) : "not following") +
                         (reason.empty() ? "" : ": " + reason);

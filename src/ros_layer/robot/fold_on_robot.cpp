@@ -398,13 +398,13 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     const tasks::FoldPlan plan = task_.plan(coordination, weights);
     acceleration_cost = plan.acceleration_cost;
     if (plan.outcome != tasks::FoldOutcome::Ok) throw RobotFault{plan.outcome, plan.reason};
+    // A simulator left paused (a learner stopped while it stood still) goes on first: paused, it publishes no
+    // states, its actions no status (a reconnect could not connect), and every rollout would fail.
+    if (!robot_.pause_service.empty()) connection_->pause(false);
     if (reconnect_) {
       connection_->connectArms();
       reconnect_ = false;
     }
-    // A simulator left paused (a learner stopped while it stood still) goes on first: paused, it publishes no
-    // states and every rollout would fail.
-    if (!robot_.pause_service.empty()) connection_->pause(false);
     observeFlat(connection_->reset());  // the flat cloth: images of the reset scene (this process's clock may lag)
     moved = true;
     moveToStart();

@@ -237,9 +237,6 @@ bool RobotConnection::sceneCounts(double stamp) {
 }
 
 void RobotConnection::connectArms() {
-  // A paused simulator's trajectory actions publish no status (actionlib's status timer runs on the simulated clock),
-  // so no client could connect to them: it goes on first.
-  if (!robot_.pause_service.empty()) pause(false);
   // No callback of an old client may run while it goes, nor one of a new client before it is whole: the spinner
   // stands still meanwhile (stop() joins its threads; the messages wait in the queue).
   spinner_->stop();

@@ -259,12 +259,13 @@ rollout::RolloutResult ScarfOnRobotTask::run(const Eigen::VectorXd& parameters, 
     const tasks::ScarfPlan plan = task_.plan(coordination, weights);
     last_.acceleration = plan.acceleration_cost;
     if (plan.outcome != tasks::FoldOutcome::Ok) throw RobotFault{plan.outcome, plan.reason};
+    // A simulator left paused (a learner stopped while it stood still) goes on first: paused, its actions publish no
+    // status and a reconnect could not connect.
+    if (!robot_.pause_service.empty()) connection_->pause(false);
     if (reconnect_) {
       connection_->connectArms();
       reconnect_ = false;
     }
-    // A simulator left paused (a learner stopped while it stood still) goes on first.
-    if (!robot_.pause_service.empty()) connection_->pause(false);
     (void)connection_->reset();
     moved = true;
     runPlan(plan);

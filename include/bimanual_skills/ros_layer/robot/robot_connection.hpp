@@ -135,8 +135,8 @@ class RobotConnection {
     throw RobotFault{tasks::FoldOutcome::RobotFailed, message.str()};
   }
 
-  /// New action clients for the arms, and the wait for their servers; a paused simulator is resumed first (its
-  /// actions publish no status while it stands still). \throws RobotFault with the reason.
+  /// New action clients for the arms, and the wait for their servers (a simulator must be running: paused, its
+  /// actions publish no status). \throws RobotFault with the reason.
   void connectArms();
   /// Resets the scene and waits for the arms' states of it; returns the robot's time of the reset scene's third
   /// state.
