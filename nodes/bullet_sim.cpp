@@ -16,6 +16,7 @@
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
+#include "io/whole_file.hpp"
 #include "node_cli.hpp"
 #include "sim_publishing.hpp"
 #include "testing/allocation_counter.hpp"
@@ -288,14 +289,9 @@ class BulletSimNode {
     }
     loop_->run([] { return ros::ok(); });
     publishing_.reset();
-    if (!statistics_file_.empty()) {  // whole or not at all: written aside, then renamed
-      const std::string part = statistics_file_ + ".part";
-      std::ofstream out(part);
-      loop_->writeStatistics(out);
-      out.close();
-      if (!out || std::rename(part.c_str(), statistics_file_.c_str()) != 0) {
-        ROS_ERROR("bullet_sim: cannot write %s", statistics_file_.c_str());
-      }
+    if (!statistics_file_.empty() &&
+        !bs::io::writeWhole(statistics_file_, [this](std::ostream& out) { loop_->writeStatistics(out); })) {
+      ROS_ERROR("bullet_sim: cannot write %s", statistics_file_.c_str());
     }
   }
 

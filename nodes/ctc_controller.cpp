@@ -11,6 +11,7 @@
 #include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
 #include "bimanual_skills/ros_layer/hosted_loop.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
+#include "io/whole_file.hpp"
 #include "node_cli.hpp"
 
 #include <ros/callback_queue.h>
@@ -19,7 +20,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <fstream>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -227,11 +227,12 @@ class CtcControllerNode {
   }
 
   void writeStatistics() const {
-    std::ofstream out(statistics_file_);
-    out << "series,value\n";
-    wall_periods_.writeCsv(out, "period");
-    command_times_.writeCsv(out, "command_taken");
-    if (!out) ROS_ERROR("ctc_controller: cannot write %s", statistics_file_.c_str());
+    const bool written = bs::io::writeWhole(statistics_file_, [this](std::ostream& out) {
+      out << "series,value\n";
+      wall_periods_.writeCsv(out, "period");
+      command_times_.writeCsv(out, "command_taken");
+    });
+    if (!written) ROS_ERROR("ctc_controller: cannot write %s", statistics_file_.c_str());
   }
 
   void onDiagnostics(const ros::SteadyTimerEvent&) {

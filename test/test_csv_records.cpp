@@ -1,6 +1,7 @@
 // io::CsvAppender and io::dropPartialRecord: whole records, a partial last line cut off on reopening; the fields of a
-// record: quoted text with commas and quotes, numbers read back bit for bit, bad numbers refused.
+// record: quoted text with commas and quotes, numbers read back bit for bit, bad numbers refused; io::writeWhole.
 #include "io/csv_records.hpp"
+#include "io/whole_file.hpp"
 #include "testing/program_output.hpp"
 
 #include <gtest/gtest.h>
@@ -57,4 +58,24 @@ TEST(CsvRecords, FieldsRoundTrip) {
   }
   EXPECT_THROW(io::parseInteger("1.5", "here"), std::invalid_argument);
   EXPECT_THROW(io::parseInteger("1e12", "here"), std::invalid_argument);
+}
+
+TEST(WholeFile, ReplacesTheFileOrLeavesTheOldOne) {
+  const std::string path = (fs::temp_directory_path() / "bimanual_skills_whole_file.csv").string();
+  fs::remove(path);
+  ASSERT_TRUE(bimanual_skills::io::writeWhole(path, [](std::ostream& out) { out << "a,b\n1,2\n"; }));
+  EXPECT_EQ(readTextFile(path), "a,b\n1,2\n");
+  EXPECT_FALSE(fs::exists(path + ".part"));
+  // A writer that fails half-way (here: the stream set bad after a partial record) leaves the old file whole.
+  EXPECT_FALSE(bimanual_skills::io::writeWhole(path, [](std::ostream& out) {
+    out << "a,b\n3,";
+    out.setstate(std::ios::badbit);
+  }));
+  EXPECT_EQ(readTextFile(path), "a,b\n1,2\n");
+  EXPECT_FALSE(fs::exists(path + ".part"));
+  // A directory that does not exist: refused, nothing written.
+  const std::string nowhere = (fs::temp_directory_path() / "bimanual_skills_no_such_dir" / "x.csv").string();
+  EXPECT_FALSE(bimanual_skills::io::writeWhole(nowhere, [](std::ostream& out) { out << "x\n"; }));
+  EXPECT_FALSE(fs::exists(nowhere));
+  fs::remove(path);
 }

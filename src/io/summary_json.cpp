@@ -1,7 +1,7 @@
 #include "io/summary_json.hpp"
 
-#include <cstdio>
-#include <fstream>
+#include "io/whole_file.hpp"
+
 #include <stdexcept>
 
 namespace bimanual_skills::io {
@@ -14,13 +14,9 @@ void writeSummaryJson(const std::string& path, const SummaryHeader& header, cons
   summary["quick"] = header.quick;
   summary["results"] = nlohmann::ordered_json::array();
   for (const JsonRow& row : rows) summary["results"].push_back(row.json());
-  const std::string temporary = path + ".part";
-  {
-    std::ofstream out(temporary);
-    out << summary.dump(2) << '\n';
-    if (!out) throw std::runtime_error("cannot write " + temporary);
+  if (!writeWhole(path, [&summary](std::ostream& out) { out << summary.dump(2) << '\n'; })) {
+    throw std::runtime_error("cannot write " + path);
   }
-  if (std::rename(temporary.c_str(), path.c_str()) != 0) throw std::runtime_error("cannot write " + path);
 }
 
 }  // namespace bimanual_skills::io

@@ -7,12 +7,11 @@
 #include "bimanual_skills/rollout/coordinated_parameters.hpp"
 #include "dmp_search.hpp"
 #include "io/csv_records.hpp"
+#include "io/whole_file.hpp"
 #include "run_directory.hpp"
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 #include <limits>
 #include <random>
 #include <regex>
@@ -206,13 +205,10 @@ struct DmpLearner::Impl {
             << (s.policy_success ? 1 : 0) << '\n';
       }
     }
-    // Whole or not at all: written beside, then renamed over the old one.
-    const std::string path = dir->path() + "/epochs.csv", temporary = path + ".tmp";
-    std::ofstream out(temporary);
-    out << csv.str();
-    if (!out.flush()) throw std::runtime_error("DMP learning: cannot write '" + temporary + "'");
-    out.close();
-    std::filesystem::rename(temporary, path);
+    const std::string path = dir->path() + "/epochs.csv";
+    if (!io::writeWhole(path, [&csv](std::ostream& out) { out << csv.str(); })) {
+      throw std::runtime_error("DMP learning: cannot write '" + path + "'");
+    }
   }
 
   DmpRunResult learnRun(const std::string& algorithm, int algorithm_index, int run,
