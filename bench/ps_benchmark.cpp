@@ -13,6 +13,7 @@
 #include "bimanual_skills/learning/dual_reps.hpp"
 #include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/learning/pi2.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
@@ -191,7 +192,7 @@ Curve learn(const Protocol& protocol, const Algorithm& algorithm, const Reward& 
     curve.rollout_reward.push_back(rewards.mean());
     curve.means.push_back(mean);
   }
-  curve.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  curve.seconds = bimanual_skills::realtime::secondsSince(start);
   return curve;
 }
 

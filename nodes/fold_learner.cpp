@@ -2,6 +2,7 @@
 // shell: it runs the library's learning, publishes each rollout (cloth, tool paths, camera images, robot), prints
 // the progress, and writes the results, the top-down images and a rosbag of the best rollout.
 #include "bimanual_skills/kinematics/chain_model.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/ros_layer/camera_messages.hpp"
@@ -325,7 +326,7 @@ class FoldLearnerNode {
   void onBatch(const br::DispatchStats& s) {
     workers_lost_ += s.lost.size();
     redispatched_ += s.redispatched;
-    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    const double elapsed = bs::realtime::secondsSince(start_);
     const int simulated = done_ - resumed_;
     const double eta = simulated > 0 ? elapsed / simulated * (total_ - done_) : 0.0;
     std::printf(
@@ -348,7 +349,7 @@ class FoldLearnerNode {
   void onRollout(const br::FoldRolloutRecord& record, const bt::FoldRollout& rollout, const bt::FoldReward& reward) {
     ++done_;
     if (record.resumed) ++resumed_;
-    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+    const double elapsed = bs::realtime::secondsSince(start_);
     const int simulated = done_ - resumed_;
     const double eta = simulated > 0 ? elapsed / simulated * (total_ - done_) : 0.0;
     std::printf(

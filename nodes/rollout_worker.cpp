@@ -1,6 +1,7 @@
 // rollout_worker: evaluates shares of rollout batches for a dispatching learner (rollout::Dispatcher through
 // ros_layer/workers/topic_workers.hpp), one rollout at a time, with one simulator, on a thread of its own beside the
 // spinner that takes shares and sends the heartbeat. A thin shell around the task registry.
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
@@ -217,7 +218,7 @@ class RolloutWorker {
         result.ok.push_back(r.ok);
         result.outcomes.push_back(r.outcome);
         result.reasons.push_back(r.reason);
-        result.wall_seconds.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - begin).count());
+        result.wall_seconds.push_back(bs::realtime::secondsSince(begin));
         result.trajectory_rows.push_back(static_cast<std::uint32_t>(r.trajectory.rows()));
         result.trajectory_cols.push_back(static_cast<std::uint32_t>(r.trajectory.cols()));
         result.trajectory.insert(result.trajectory.end(), r.trajectory.data(),
@@ -234,7 +235,7 @@ class RolloutWorker {
     }
     result.done = static_cast<std::uint32_t>(n);
     ROS_DEBUG("rollout_worker %s: %zu rollout(s) of %s in %.3f s", ros::this_node::getName().c_str(), n,
-              share.task.c_str(), std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+              share.task.c_str(), bs::realtime::secondsSince(start));
     return result;
   }
 

@@ -1,6 +1,7 @@
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
 
 #include "bimanual_skills/parallel/parallel_for.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -30,7 +31,7 @@ std::vector<RolloutResult> ParallelEvaluator::evaluate(const std::vector<Rollout
         RolloutTask& task = *tasks_[static_cast<std::size_t>(worker)];
         const auto start = std::chrono::steady_clock::now();
         RolloutResult result = task.run(batch[i].parameters, batch[i].seed);
-        result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        result.wall_seconds = realtime::secondsSince(start);
         const std::lock_guard<std::mutex> lock(mutex);
         results[i] = std::move(result);
         if (done) done(i, results[i], &task);

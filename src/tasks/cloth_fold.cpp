@@ -6,6 +6,7 @@
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/primitives/dmp_yaml.hpp"
 #include "bimanual_skills/primitives/dr_dmp.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/signal/acceleration_sign.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 
@@ -615,7 +616,7 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   const sim::ClothParameters& cloth = simulation.cloth().parameters();
   out.fold = foldQuality(out.cloth_vertices, out.cloth_rest_vertices, cloth.nodes_x, cloth.nodes_y, cloth.thickness);
   out.simulated_seconds = simulation.time();
-  out.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  out.wall_seconds = realtime::secondsSince(wall_start);
   return out;
 }
 

@@ -5,6 +5,7 @@
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/signal/acceleration_sign.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
@@ -526,7 +527,7 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
   }
   scoreScarfRollout(c, out);
   out.simulated_seconds = simulation.time();
-  out.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  out.wall_seconds = realtime::secondsSince(wall_start);
   return out;
 }
 

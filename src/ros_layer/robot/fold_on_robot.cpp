@@ -4,6 +4,7 @@
 #include "bimanual_skills/SimStep.h"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
 #include "bimanual_skills/ros_layer/camera_contract.hpp"
@@ -461,7 +462,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     if (recording_.cloth_vertices.cols() > 0) recording_.fold = task_.foldQualityOf(recording_.cloth_vertices);
   }
   rollout::RolloutResult result = rollout::FoldRolloutTask::resultOf(terms, reason, paths);
-  result.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  result.wall_seconds = realtime::secondsSince(wall_start);
   return result;
 }
 

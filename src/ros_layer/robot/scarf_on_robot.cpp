@@ -1,6 +1,7 @@
 #include "bimanual_skills/ros_layer/robot/scarf_on_robot.hpp"
 
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/coordinated_parameters.hpp"
 #include "bimanual_skills/rollout/scarf_learning.hpp"
 #include "bimanual_skills/ros_layer/camera_contract.hpp"
@@ -303,7 +304,7 @@ rollout::RolloutResult ScarfOnRobotTask::run(const Eigen::VectorXd& parameters, 
     last_.tool_path.col(i) = task_.basePose() * data.tipPose().translation();
   }
   tasks::scoreScarfRollout(c, last_);
-  last_.wall_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall_start).count();
+  last_.wall_seconds = realtime::secondsSince(wall_start);
   return rollout::ScarfRolloutTask::resultOf(last_);
 }
 
