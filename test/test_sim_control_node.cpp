@@ -261,6 +261,24 @@ class SimFixture : public ::testing::Test {
     return (estimate - kWeight) / kWeight;
   }
 
+  /// Pauses the simulation; `at`: the time it stopped at, from the answer (this node's clock may lag the
+  /// simulator's by more than 0.5 s of it at many times real time on a loaded machine).
+  bool pauseAt(double& at) {
+    std_srvs::SetBool pause;
+    pause.request.data = true;
+    if (!pause_.call(pause) || !pause.response.success) {
+      ADD_FAILURE() << "pause: " << pause.response.message;
+      return false;
+    }
+    const auto where = pause.response.message.find("at t = ");
+    if (where == std::string::npos) {
+      ADD_FAILURE() << "no time in the answer to ~pause: " << pause.response.message;
+      return false;
+    }
+    at = std::stod(pause.response.message.substr(where + 7));
+    return true;
+  }
+
   std::string diagnostic(const std::string& name, const std::string& key) {
     const std::lock_guard<std::mutex> lock(mutex_);
     const auto status = diagnostics_values_.find(name);
@@ -361,6 +379,23 @@ class SimFixture : public ::testing::Test {
 // ------------------------------------------------------------------------------------------- sim_control.test
 
 using HostedControl = SimFixture;
+
+/// Resumes the simulation when a test that paused it ends, however it ends (a failed assertion included): the next
+/// test of the same simulator expects it running.
+class Resume {
+ public:
+  explicit Resume(ros::ServiceClient& pause) : pause_(pause) {}
+  ~Resume() {
+    std_srvs::SetBool resume;
+    resume.request.data = false;
+    EXPECT_TRUE(pause_.call(resume) && resume.response.success) << resume.response.message;
+  }
+  Resume(const Resume&) = delete;
+  Resume& operator=(const Resume&) = delete;
+
+ private:
+  ros::ServiceClient& pause_;
+};
 
 TEST_F(HostedControl, TracksTrajectoriesOnBothArms) {
   std::map<std::string, std::vector<double>> goal;
@@ -482,15 +517,11 @@ TEST_F(HostedControl, TrajectoryActionAnswersWithControlMsgsCodes) {
 // sent while the simulation is paused, as the fold's are: the loop, standing still, has them and they are accepted;
 // a paused simulation holds a running goal, it does not abort it.
 TEST_F(HostedControl, ACommonFutureStartBeginsBothArmsInTheSameCycle) {
+  double paused_at = 0.0;
+  ASSERT_TRUE(pauseAt(paused_at));
   std_srvs::SetBool pause;
-  pause.request.data = true;
-  ASSERT_TRUE(pause_.call(pause) && pause.response.success) << pause.response.message;
-  // From the time the simulation stopped at (this node's clock may lag the simulator's by more than 0.5 s of it at
-  // many times real time on a loaded machine).
-  const auto at = pause.response.message.find("at t = ");
-  ASSERT_NE(at, std::string::npos) << pause.response.message;
   std::map<std::string, Goal> goals;
-  const ros::Time start(std::stod(pause.response.message.substr(at + 7)) + 0.5);
+  const ros::Time start(paused_at + 0.5);
   for (const std::string& arm : kArms) {
     std::vector<double> target = armPositions(arm);
     target[0] += arm == "left" ? 0.2 : -0.2;
@@ -533,6 +564,116 @@ TEST_F(HostedControl, ACommonFutureStartBeginsBothArmsInTheSameCycle) {
   ASSERT_TRUE(pause_.call(pause) && pause.response.success) << pause.response.message;
   ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(60.0)));
   EXPECT_EQ(clients_["left"]->getState(), State::SUCCEEDED) << clients_["left"]->getState().getText();
+}
+
+// The fold's release is a ClothGrasp with a stamp (control_msgs has no gripper action): the loop does it in the cycle
+// of its stamp however late the call came, and says when on /diagnostics (ARM_gripper_scheduled_done_at). Both arms'
+// releases are scheduled for one stamp while the simulation is paused, then it is stepped past it.
+TEST_F(HostedControl, AStampedReleaseIsDoneInTheCycleOfItsStamp) {
+  double paused_at = 0.0;
+  ASSERT_TRUE(pauseAt(paused_at));
+  const Resume resume(pause_);
+  const double due = paused_at + 0.2504;
+  ros::ServiceClient grasp = node_.serviceClient<bimanual_skills::ClothGrasp>("/bullet_sim/grasp");
+  for (const std::string& arm : kArms) {
+    bimanual_skills::ClothGrasp release;
+    release.request.arm = arm;
+    release.request.grasp = false;
+    release.request.stamp = ros::Time(due);
+    ASSERT_TRUE(grasp.call(release));
+    EXPECT_TRUE(release.response.success) << release.response.message;
+    EXPECT_NE(release.response.message.find("release scheduled at t = "), std::string::npos)
+        << release.response.message;
+  }
+  bimanual_skills::SimStep steps;
+  steps.request.steps = 500;
+  ASSERT_TRUE(step_.call(steps) && steps.response.success) << steps.response.message;
+  std::map<std::string, double> done;
+  for (const std::string& arm : kArms) {
+    const std::string key = arm + "_gripper_scheduled_done_at";
+    ASSERT_TRUE(waitWall(
+        [&] {
+          const std::string value = diagnostic("bullet_sim", key);
+          return !value.empty() && std::stod(value) > due - 0.01;
+        },
+        10.0))
+        << key << ": '" << diagnostic("bullet_sim", key) << "'";
+    const std::string value = diagnostic("bullet_sim", key);
+    EXPECT_EQ(value.find("failed"), std::string::npos) << value;
+    done[arm] = std::stod(value);
+  }
+  std::printf("releases stamped %.6f s done at %.6f s (left) and %.6f s (right)\n", due, done["left"], done["right"]);
+  EXPECT_EQ(done["left"], done["right"]);
+  EXPECT_GE(done["left"], due - 1e-6);  // written to the microsecond
+  EXPECT_LT(done["left"], due + 0.001 + 1e-6);
+}
+
+// A cancelled goal ends PREEMPTED and the arm stops from where its reference was, smoothly (a quintic to rest, no step
+// in the desired velocity), as joint_trajectory_controller's stop trajectory does. Stepped 10 ms at a time while
+// paused, so that every state of the controller at 100 Hz is seen.
+TEST_F(HostedControl, ACancelledGoalStopsTheArmSmoothly) {
+  std::mutex mutex;
+  std::vector<std::pair<double, double>> desired;  // (stamp [s], desired velocity of joint 1 [rad/s])
+  const ros::Subscriber state = node_.subscribe<bimanual_skills::JointTrajectoryControllerState>(
+      "/left/state", 1000, [&](const bimanual_skills::JointTrajectoryControllerState::ConstPtr& m) {
+        if (m->desired.velocities.empty()) return;
+        const std::lock_guard<std::mutex> lock(mutex);
+        desired.emplace_back(m->header.stamp.toSec(), m->desired.velocities[0]);
+      });
+  const auto newest = [&] {
+    const std::lock_guard<std::mutex> lock(mutex);
+    return desired.empty() ? -1.0 : desired.back().first;
+  };
+  ASSERT_TRUE(waitWall([&] { return newest() >= 0.0; }, 10.0)) << "no state of the left arm";
+  std_srvs::SetBool pause;
+  pause.request.data = true;
+  ASSERT_TRUE(pause_.call(pause) && pause.response.success) << pause.response.message;
+  const Resume resume(pause_);
+  std::vector<double> target = armPositions("left");
+  target[0] += 0.8;
+  Goal goal;
+  goal.trajectory = trajectory("left", {target}, 2.0);
+  clients_["left"]->sendGoal(goal);
+  ASSERT_TRUE(waitWall([&] { return clients_["left"]->getState() == State::ACTIVE; }, 10.0))
+      << clients_["left"]->getState().toString();
+  const auto stepTo = [&](int count) {  // `count` steps of 10 ms, each waited for on the state topic
+    for (int k = 0; k < count; ++k) {
+      bimanual_skills::SimStep steps;
+      steps.request.steps = 10;
+      if (!step_.call(steps) || !steps.response.success) {
+        ADD_FAILURE() << "step: " << steps.response.message;
+        return false;
+      }
+      // The controller's last state is of the last cycle, one step before the time the steps ended at.
+      if (!waitWall([&] { return newest() >= steps.response.time - 0.001 - 1e-6; }, 10.0)) {
+        ADD_FAILURE() << "no state stamped " << steps.response.time - 0.001 << " s; the newest " << newest() << " s";
+        return false;
+      }
+    }
+    return true;
+  };
+
+  ASSERT_TRUE(stepTo(100));  // 1 s: mid-motion
+  const std::size_t before = [&] {
+    const std::lock_guard<std::mutex> lock(mutex);
+    return desired.size();
+  }();
+  clients_["left"]->cancelGoal();
+  EXPECT_TRUE(waitWall([&] { return clients_["left"]->getState() == State::PREEMPTED; }, 10.0))
+      << clients_["left"]->getState().toString();
+  ASSERT_TRUE(stepTo(150));
+  const std::lock_guard<std::mutex> lock(mutex);
+  ASSERT_GT(before, 2u);
+  const double moving = desired[before - 1].second;
+  double largest_change = 0.0;
+  for (std::size_t k = before - 1; k + 1 < desired.size(); ++k) {
+    largest_change = std::max(largest_change, std::abs(desired[k + 1].second - desired[k].second));
+  }
+  std::printf("cancelled at %.3f rad/s: the desired velocity changed at most %.4f rad/s per 10 ms, %.2e at the end\n",
+              moving, largest_change, desired.back().second);
+  EXPECT_GT(std::abs(moving), 0.3) << "the arm was not moving when cancelled";
+  EXPECT_LT(largest_change, 0.1) << "a step in the reference (stop_deceleration 5 rad/s^2 allows ~0.05 per 10 ms)";
+  EXPECT_LT(std::abs(desired.back().second), 1e-6);
 }
 
 TEST_F(HostedControl, EstimatesAPayloadWhileMoving) {
