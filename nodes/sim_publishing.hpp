@@ -23,6 +23,7 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
 
+#include <pthread.h>
 #include <semaphore.h>
 
 #include <atomic>
@@ -103,6 +104,9 @@ class SimPublishing final : public hosting::StateSink {
     if (!frames.empty()) camera_frame_.sendTransform(frames);
     state_thread_ = std::thread([this] { stateLoop(); });
     scene_thread_ = std::thread([this] { sceneLoop(); });
+    // Named for top -H and scripts/thread_cpu.py (the loop runs on the process's main thread).
+    pthread_setname_np(state_thread_.native_handle(), "sim_states");
+    pthread_setname_np(scene_thread_.native_handle(), "sim_scene");
   }
 
   ~SimPublishing() override {
