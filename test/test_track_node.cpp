@@ -243,6 +243,8 @@ TEST_F(Track, HoldsWithTheReasonOnANaNEstimateAnUnknownFrameAndAStoppedCamera) {
   const auto follows = [] { return waitFor([] { return follow_.phase == "following"; }, 10.0); };
   corruption_ = Corruption::NaN;
   EXPECT_TRUE(holdsBecause("non-finite")) << follow_.phase << ": " << follow_.reason;
+  EXPECT_TRUE(waitFor([] { return diagnostic("following").find("non-finite") != std::string::npos; }, 5.0))
+      << diagnostic("following");
   corruption_ = Corruption::None;
   EXPECT_TRUE(follows()) << follow_.reason;
   corruption_ = Corruption::UnknownFrame;
