@@ -162,10 +162,12 @@ struct Cloth::Impl {
   ClothParameters parameters;
   std::optional<Table> table;
   std::vector<Obstacle> obstacles;
-  /// Per obstacle: the world-to-obstacle transform, and the sphere about its centre that contains it (a node farther
-  /// from it than the margin cannot touch it: projectOutOfObstacles skips it).
+  /// Per obstacle: the world-to-obstacle transform, and the sphere about its centre and the world-axis-aligned box
+  /// that contain it (a node farther from either than the margin cannot touch it: projectOutOfObstacles skips it;
+  /// the box is what skips a floor's or a torso's far nodes, the sphere a ball's).
   std::vector<Eigen::Isometry3d> obstacle_inverse;
   std::vector<double> obstacle_radius;
+  std::vector<Eigen::Vector3d> obstacle_half_extent;
   Eigen::Vector3d gravity;
   int gripper_count = 0;
 
@@ -312,6 +314,14 @@ void Cloth::Impl::limitStrain(double dt) noexcept {
 
 namespace {
 
+/// Half the extent of the world-axis-aligned box about `o`'s centre that contains it [m].
+Eigen::Vector3d boundingHalfExtent(const Obstacle& o) noexcept {
+  Eigen::Vector3d local = Eigen::Vector3d::Constant(o.size.x());  // sphere
+  if (o.shape == Obstacle::Shape::Cylinder) local = Eigen::Vector3d(o.size.x(), o.size.x(), 0.5 * o.size.y());
+  if (o.shape == Obstacle::Shape::Box) local = 0.5 * o.size;
+  return o.pose.linear().cwiseAbs() * local;
+}
+
 /// The radius of the smallest sphere about `o`'s centre that contains it [m].
 double boundingRadius(const Obstacle& o) noexcept {
   switch (o.shape) {
@@ -393,11 +403,14 @@ void Cloth::Impl::projectOutOfObstacles() noexcept {
     const double mu = parameters.friction * o.friction;
     const Eigen::Vector3d centre = o.pose.translation();
     const double reach = obstacle_radius[k] + margin;
+    // Beyond the box by the margin and a hair, a node is farther than the margin (the distance's rounding aside).
+    const Eigen::Vector3d box_reach = obstacle_half_extent[k].array() + (margin + 1e-9);
     for (int i = 0; i < n; ++i) {
       if (owner[static_cast<std::size_t>(i)] >= 0) continue;
       btSoftBody::Node& node = soft->m_nodes[i];
       const Eigen::Vector3d x = toEigen(node.m_x);
-      if ((x - centre).squaredNorm() >= reach * reach) continue;  // beyond the margin of its bounding sphere
+      if (((x - centre).cwiseAbs() - box_reach).maxCoeff() > 0.0) continue;  // beyond its bounding box's margin
+      if ((x - centre).squaredNorm() >= reach * reach) continue;             // beyond its bounding sphere's
       Eigen::Vector3d normal;
       const double d = signedDistance(o, obstacle_inverse[k], x, normal);
       if (!(d < margin)) continue;
@@ -598,6 +611,7 @@ Cloth::Cloth(const ClothParameters& parameters, const std::optional<Table>& tabl
   for (const Obstacle& obstacle : obstacles) {
     impl_->obstacle_inverse.push_back(obstacle.pose.inverse());
     impl_->obstacle_radius.push_back(boundingRadius(obstacle));
+    impl_->obstacle_half_extent.push_back(boundingHalfExtent(obstacle));
   }
   impl_->build();
 }
