@@ -200,6 +200,13 @@ TEST(SimBenchmarkSmoke, QuickScarfRolloutComparesItWithTheFold) {
   EXPECT_EQ(number(rows[1], "cloth_nodes"), 180.0);
   EXPECT_GT(number(rows[0], "us_per_simulated_s_per_node_median"), 0.0);
   EXPECT_GT(number(rows[1], "us_per_simulated_s_per_node_median"), 0.0);
+  for (const auto& row : rows) {  // the cloth's own steps: part of the rollout's time, not all of it
+    EXPECT_GT(number(row, "cloth_us_per_simulated_s_per_node_median"), 0.0) << row.at("task");
+    EXPECT_LT(number(row, "cloth_us_per_simulated_s_per_node_median"),
+              number(row, "us_per_simulated_s_per_node_median"))
+        << row.at("task");
+    EXPECT_GT(number(row, "rest_us_per_simulated_s"), 0.0) << row.at("task");
+  }
   EXPECT_EQ(number(rows[1], "control_allocations"), 0.0) << "the scarf's control part allocated";
   EXPECT_NE(readTextFile(out / "summary.json").find("\"experiment\": \"scarf_rollout\""), std::string::npos);
   fs::remove_all(out);

@@ -617,6 +617,7 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   out.fold = foldQuality(out.cloth_vertices, out.cloth_rest_vertices, cloth.nodes_x, cloth.nodes_y, cloth.thickness);
   out.simulated_seconds = simulation.time();
   out.wall_seconds = realtime::secondsSince(wall_start);
+  out.cloth_wall_seconds = simulation.timings().cloth.wall();
   return out;
 }
 

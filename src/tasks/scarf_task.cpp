@@ -528,6 +528,7 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
   scoreScarfRollout(c, out);
   out.simulated_seconds = simulation.time();
   out.wall_seconds = realtime::secondsSince(wall_start);
+  out.cloth_wall_seconds = simulation.timings().cloth.wall();
   return out;
 }
 

@@ -60,6 +60,7 @@ struct ClothTimings {
   double self_collision = 0.0;  ///< Self-collision detection (this module's, on Bullet's trees and solver).
   double bookkeeping = 0.0;     ///< Mesh copy, divergence check and gripper wrenches.
   long steps = 0;
+  double wall() const noexcept { return bullet + self_collision + bookkeeping; }  ///< All of the cloth's steps.
 };
 
 /// The cloth and its grippers. Construction and reset() allocate and may throw; every other call is non-throwing

@@ -98,6 +98,7 @@ struct FoldRollout {
   Eigen::VectorXd camera_times;
   FoldQuality fold;  ///< The final cloth's fold quality (ground truth, fold_quality.hpp).
   double simulated_seconds = 0.0, wall_seconds = 0.0;
+  double cloth_wall_seconds = 0.0;  ///< Of wall_seconds, inside the cloth's steps (sim::ClothTimings).
 };
 
 /// A rollout's joint references computed before it runs (ClothFoldTask::plan): what run() computes period by

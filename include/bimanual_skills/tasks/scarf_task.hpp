@@ -88,6 +88,7 @@ struct ScarfRollout {
   Eigen::Matrix3Xd cloth_vertices;  ///< The final scarf (world).
   cv::Mat bgr;                      ///< The camera's final colour image (what c_cam scored).
   double simulated_seconds = 0.0, wall_seconds = 0.0;
+  double cloth_wall_seconds = 0.0;  ///< Of wall_seconds, inside the scarf's steps (sim::ClothTimings).
 };
 
 /// A policy's joint references as a robot runs them (ScarfOnRobotTask), on the simulation's step dt from the
