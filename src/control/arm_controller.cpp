@@ -142,6 +142,18 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
     qd_d_.setZero();
     qdd_d_.setZero();
   }
+  // A stop or a new trajectory starts where the reference is at this stamp: the desired state of the last update is
+  // one period old, and starting from it would set the reference back by one period's motion. A stop samples the
+  // running trajectory; a new trajectory has already replaced its waypoints on loading, so the last desired state is
+  // carried over the period instead (to second order).
+  if (mode_ != ControllerMode::GravityCompensation && last_period_ > 0.0) {
+    if (trajectory_request_) {
+      q_d_ += last_period_ * qd_d_ + (0.5 * last_period_ * last_period_) * qdd_d_;
+      qd_d_ += last_period_ * qdd_d_;
+    } else if (mode_request_) {
+      trajectory_.sample(stamp, q_d_, qd_d_, qdd_d_);
+    }
+  }
   if (mode_request_) {
     mode_request_ = false;
     if (requested_mode_ == ControllerMode::Track && trajectory_request_) {
