@@ -81,6 +81,8 @@ const std::string kUsage =
         "  ~max_scene_rate       markers, ~cloth and the cameras' images at most this often [Hz of wall time]\n"
         "                        (default 60): faster than real time, images no one could take are not drawn. A\n"
         "                        ~step's last moment and a reset are published at once\n"
+        "  ~max_state_rate       joint_states and /clock at most this often [Hz of wall time] (default 2000; 0:\n"
+        "                        every state; always every state in lockstep with external controllers)\n"
         "  ~object_seed          the seed of the moving object's path (default -1: the simulation file's)\n"
         "  ~camera_rate          top-down camera images per simulated second, at most marker_rate (default 30; 0: no\n"
         "                        camera)\n"
@@ -157,6 +159,7 @@ class BulletSimNode {
     bs::nodes::SimPublishing::Settings publishing;
     publishing.marker_rate = p.number("marker_rate", 30.0, 0.1, 1000.0);
     publishing.max_scene_rate = p.number("max_scene_rate", publishing.max_scene_rate, 1.0, 1000.0);
+    publishing.max_state_rate = p.number("max_state_rate", publishing.max_state_rate, 0.0, 1e6);
     publishing.camera_rate = p.number("camera_rate", 30.0, 0.0, 1000.0);
     publishing.camera_noise.depth_stddev =
         p.number("camera_depth_noise", publishing.camera_noise.depth_stddev, 0.0, 1.0);
@@ -182,6 +185,7 @@ class BulletSimNode {
       if (std::find(external.begin(), external.end(), a) == external.end()) hosted_default.push_back(a);
     }
     const std::vector<std::string> hosted = p.texts("hosted_controllers", hosted_default);
+    if (loop.lockstep && !external.empty()) publishing.max_state_rate = 0.0;  // each state has its answer to wait for
     for (const std::vector<std::string>* list : {&external, &hosted}) {
       for (const std::string& name : *list) {
         if (simulation_->armIndex(name) < 0) {

@@ -29,6 +29,7 @@
 #include <atomic>
 #include <chrono>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <random>
 #include <string>
@@ -46,6 +47,10 @@ class SimPublishing final : public hosting::StateSink {
     /// Scenes (markers, ~cloth, the cameras' images) per wall second at most: a simulation 20 times faster than
     /// real time would otherwise keep a core drawing 640 x 480 images (and starve the learner beside it).
     double max_scene_rate = 60.0;
+    /// Joint states and /clock per wall second at most (0: every state the loop hands out, as lockstep with external
+    /// controllers needs). Many times faster than real time the loop hands out tens of thousands a second, which
+    /// every node on /clock and robot_state_publisher (a TF tree per joint state) would have to take.
+    double max_state_rate = 2000.0;
     double camera_rate = 30.0;  ///< Camera images per simulated second (0: no camera).
     vision::RenderNoise camera_noise;
     double rgbd_rate = 0.0;  ///< Perspective RGB-D images per simulated second (0: no such camera).
@@ -126,6 +131,7 @@ class SimPublishing final : public hosting::StateSink {
   void states(double t, const std::vector<sim::JointState>& states, bool forced) noexcept override {
     Snapshot& s = snapshots_->writeSlot();
     s.time = t;
+    s.forced = forced;
     Eigen::Index offset = 0;
     for (const sim::JointState& state : states) {
       const Eigen::Index n = state.position.size();
@@ -160,6 +166,7 @@ class SimPublishing final : public hosting::StateSink {
 
   struct Snapshot {
     double time = 0.0;
+    bool forced = false;  ///< A ~step's end or a reset's start: published at once, whatever the rate.
     Eigen::VectorXd position, velocity, effort;  ///< All arms, in joint-name order.
   };
   struct ClothFrame {
@@ -184,11 +191,24 @@ class SimPublishing final : public hosting::StateSink {
   void stateLoop() {
     sensor_msgs::JointState states;
     states.name = names_;
+    const bool capped = settings_.max_state_rate > 0.0;
+    const auto interval = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(capped ? 1.0 / settings_.max_state_rate : 0.0));
+    auto last_sent = std::chrono::steady_clock::now() - interval;
+    double last_time = -std::numeric_limits<double>::infinity();
     while (running_ && ros::ok()) {
       waitForSignal(state_signal_);
       log_grippers_();
       const Snapshot* s = snapshots_->readNew();
       if (!s) continue;
+      // At most max_state_rate per wall second, the newest after the wait (so the last state before the loop stops
+      // goes out too); a forced one and time going back (a reset) at once.
+      if (capped && !s->forced && s->time >= last_time && std::chrono::steady_clock::now() < last_sent + interval) {
+        std::this_thread::sleep_until(last_sent + interval);
+        if (const Snapshot* newer = snapshots_->readNew()) s = newer;
+      }
+      last_sent = std::chrono::steady_clock::now();
+      last_time = s->time;
       const ros::Time stamp(s->time);
       rosgraph_msgs::Clock clock;
       clock.clock = stamp;
