@@ -444,9 +444,9 @@ void foldRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows) 
 /// scarf_rollout: in one run, interleaved, the scarf task's demonstration (config/scarf_learning.yaml) and the fold's
 /// (config/fold_demo.yaml, the robot file's friction models as its learning has them), each on one core: wall time
 /// per simulated second and per cloth node, the median of the repetitions, and of it the time inside the cloth's own
-/// steps (sim::ClothTimings; the rest, two arms with their controllers and observers, does not grow with the cloth);
-/// and what the scarf's control part allocated (tasks::ScarfTask::run's probe, counting every allocation of the
-/// control part of every period).
+/// steps (sim::ClothTimings); the rest (building the simulation, two arms with their controllers and observers, the
+/// scoring) per simulated second; and what the scarf's control part allocated (tasks::ScarfTask::run's probe, counting
+/// every allocation of the control part of every period).
 void scarfRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows) {
   const bs::rollout::ScarfLearningConfig scarf_config =
       bs::rollout::ScarfLearningConfig::fromYamlFile(bs::cli::packageFile("config/scarf_learning.yaml"));
@@ -457,8 +457,9 @@ void scarfRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows)
   const int scarf_nodes = static_cast<int>(scarf.scarfTriangles().maxCoeff()) + 1;
   const int fold_nodes = fold.simConfig().cloth.nodes_x * fold.simConfig().cloth.nodes_y;
   const int repetitions = options.quick ? 1 : 5;
-  // Wall µs per simulated second and node: the whole rollout, and inside the cloth's steps.
-  std::vector<double> scarf_cost, fold_cost, scarf_cloth, fold_cloth;
+  // Wall µs per simulated second and node: the whole rollout, and inside the cloth's steps; and the rest of each
+  // rollout, µs per simulated second.
+  std::vector<double> scarf_cost, fold_cost, scarf_cloth, fold_cloth, scarf_rest, fold_rest;
   std::size_t allocations = 0;
   double scarf_simulated = 0.0, fold_simulated = 0.0;
   bs::realtime::ScopedCounterProbe<bs::testing::AllocationCounter> probe;
@@ -467,6 +468,7 @@ void scarfRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows)
     fold_simulated = f.simulated_seconds;
     fold_cost.push_back(1e6 * f.wall_seconds / f.simulated_seconds / fold_nodes);
     fold_cloth.push_back(1e6 * f.cloth_wall_seconds / f.simulated_seconds / fold_nodes);
+    fold_rest.push_back(1e6 * (f.wall_seconds - f.cloth_wall_seconds) / f.simulated_seconds);
     const int d = scarf.dofs();
     const bs::tasks::ScarfRollout r = scarf.run({Eigen::MatrixXd::Identity(d, d)}, scarf.demonstrationWeights(),
                                                 static_cast<std::uint32_t>(options.seed + k), &probe);
@@ -474,6 +476,7 @@ void scarfRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows)
     allocations += r.control_allocations;
     scarf_cost.push_back(1e6 * r.wall_seconds / r.simulated_seconds / scarf_nodes);
     scarf_cloth.push_back(1e6 * r.cloth_wall_seconds / r.simulated_seconds / scarf_nodes);
+    scarf_rest.push_back(1e6 * (r.wall_seconds - r.cloth_wall_seconds) / r.simulated_seconds);
   }
   const auto median = [](std::vector<double> v) {
     std::sort(v.begin(), v.end());
@@ -484,10 +487,10 @@ void scarfRollout(const Options& options, std::vector<bs::bench::JsonRow>& rows)
          "cloth_us_per_simulated_s_per_node_median,rest_us_per_simulated_s,control_allocations\n";
   std::printf("sim_benchmark: scarf_rollout: median of %d, interleaved; wall time per simulated second and node\n",
               repetitions);
-  for (const auto& [task, nodes, simulated, cost, cloth] :
-       {std::make_tuple("fold", fold_nodes, fold_simulated, median(fold_cost), median(fold_cloth)),
-        std::make_tuple("scarf", scarf_nodes, scarf_simulated, median(scarf_cost), median(scarf_cloth))}) {
-    const double rest = (cost - cloth) * nodes;  // µs per simulated second, whatever the cloth
+  for (const auto& [task, nodes, simulated, cost, cloth, rest] :
+       {std::make_tuple("fold", fold_nodes, fold_simulated, median(fold_cost), median(fold_cloth), median(fold_rest)),
+        std::make_tuple("scarf", scarf_nodes, scarf_simulated, median(scarf_cost), median(scarf_cloth),
+                        median(scarf_rest))}) {
     const bool is_scarf = std::string(task) == "scarf";
     csv << task << ',' << nodes << ',' << simulated << ',' << repetitions << ',' << cost << ',' << cloth << ',' << rest
         << ',' << (is_scarf ? std::to_string(allocations) : std::string()) << '\n';

@@ -77,5 +77,20 @@ TEST(WholeFile, ReplacesTheFileOrLeavesTheOldOne) {
   const std::string nowhere = (fs::temp_directory_path() / "bimanual_skills_no_such_dir" / "x.csv").string();
   EXPECT_FALSE(bimanual_skills::io::writeWhole(nowhere, [](std::ostream& out) { out << "x\n"; }));
   EXPECT_FALSE(fs::exists(nowhere));
+  // A writer that throws: passed on, the old file whole, nothing left beside it.
+  EXPECT_THROW(bimanual_skills::io::writeWhole(path,
+                                               [](std::ostream& out) {
+                                                 out << "a,b\n4,";
+                                                 throw std::runtime_error("no");
+                                               }),
+               std::runtime_error);
+  EXPECT_EQ(readTextFile(path), "a,b\n1,2\n");
+  EXPECT_FALSE(fs::exists(path + ".part"));
+  // A path that names a directory: the rename fails, nothing left beside it.
+  const fs::path directory = fs::temp_directory_path() / "bimanual_skills_whole_file_dir";
+  fs::create_directories(directory / "inside");
+  EXPECT_FALSE(bimanual_skills::io::writeWhole(directory.string(), [](std::ostream& out) { out << "x\n"; }));
+  EXPECT_FALSE(fs::exists(directory.string() + ".part"));
+  fs::remove_all(directory);
   fs::remove(path);
 }

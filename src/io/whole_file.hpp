@@ -10,7 +10,8 @@
 namespace bimanual_skills::io {
 
 /// Writes what `write` puts on the stream into `path`, whole or not at all. Returns false (and leaves `path` as it
-/// was) when the file cannot be written or renamed.
+/// was, no PATH.part behind) when the file cannot be written or renamed; an exception from `write` is passed on,
+/// likewise.
 bool writeWhole(const std::string& path, const std::function<void(std::ostream&)>& write);
 
 }  // namespace bimanual_skills::io
