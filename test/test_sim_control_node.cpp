@@ -321,7 +321,9 @@ class SimFixture : public ::testing::Test {
       waitWall([] { return false; }, 1.0);  // the controllers hold the trajectories until their start
       steps.request.steps = 799;
       EXPECT_TRUE(step_.call(steps) && steps.response.success) << steps.response.message;
-      EXPECT_TRUE(waitWall([&] { return lastStamp() > 0.799 - 1e-9; }, 5.0));
+      // The state where the steps ended (t = 0.8 s): the one before it may come first, and read then, a run would
+      // end a step short of the other.
+      EXPECT_TRUE(waitWall([&] { return lastStamp() > 0.8 - 1e-9; }, 5.0));
       std::vector<double> q = armPositions("left"), right = armPositions("right");
       q.insert(q.end(), right.begin(), right.end());
       return q;
