@@ -54,6 +54,13 @@ TEST(TeachDemonstration, APersonTeachesTheFold) {
   ros::NodeHandle node;
   ros::Publisher hands[2] = {node.advertise<geometry_msgs::PointStamped>("/left/hand_target", 10),
                              node.advertise<geometry_msgs::PointStamped>("/right/hand_target", 10)};
+  // Targets published before teach_demonstration is connected are lost (the arm would skip the arc), and before
+  // the first /clock the robot's time reads 0.
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(30.0);
+  while ((hands[0].getNumSubscribers() == 0 || hands[1].getNumSubscribers() == 0) && ros::WallTime::now() < deadline)
+    ros::WallDuration(0.01).sleep();
+  ASSERT_GT(hands[0].getNumSubscribers() * hands[1].getNumSubscribers(), 0U) << "teach_demonstration never subscribed";
+  ASSERT_TRUE(ros::Time::waitForValid(ros::WallDuration(30.0))) << "no /clock";
   std_srvs::SetBool grasp;
   grasp.request.data = true;
   ASSERT_TRUE(call("/teach_demonstration/grasp", grasp));
