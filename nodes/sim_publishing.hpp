@@ -38,6 +38,28 @@
 
 namespace bimanual_skills::nodes {
 
+/// At most `rate` passes per wall second (0: no bound), for a publisher thread that takes the newest of what a
+/// faster loop hands over: pass() waits out what is left of the interval since the last pass, so that the caller
+/// then takes what is newest after the wait.
+class WallRateCap {
+ public:
+  explicit WallRateCap(double rate)
+      : interval_(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+            std::chrono::duration<double>(rate > 0.0 ? 1.0 / rate : 0.0))),
+        last_(std::chrono::steady_clock::now() - interval_) {}
+  /// Returns true if it waited (something newer may have come meanwhile); `at_once`: no wait.
+  bool pass(bool at_once) {
+    const bool wait = !at_once && std::chrono::steady_clock::now() < last_ + interval_;
+    if (wait) std::this_thread::sleep_until(last_ + interval_);
+    last_ = std::chrono::steady_clock::now();
+    return wait;
+  }
+
+ private:
+  std::chrono::steady_clock::duration interval_;
+  std::chrono::steady_clock::time_point last_;
+};
+
 /// Publishes what the loop hands over. states() runs on the loop thread (real-time safe: copies into preallocated
 /// slots and posts a semaphore); everything else on its own threads.
 class SimPublishing final : public hosting::StateSink {
@@ -191,10 +213,7 @@ class SimPublishing final : public hosting::StateSink {
   void stateLoop() {
     sensor_msgs::JointState states;
     states.name = names_;
-    const bool capped = settings_.max_state_rate > 0.0;
-    const auto interval = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-        std::chrono::duration<double>(capped ? 1.0 / settings_.max_state_rate : 0.0));
-    auto last_sent = std::chrono::steady_clock::now() - interval;
+    WallRateCap cap(settings_.max_state_rate);
     double last_time = -std::numeric_limits<double>::infinity();
     while (running_ && ros::ok()) {
       waitForSignal(state_signal_);
@@ -203,11 +222,9 @@ class SimPublishing final : public hosting::StateSink {
       if (!s) continue;
       // At most max_state_rate per wall second, the newest after the wait (so the last state before the loop stops
       // goes out too); a forced one and time going back (a reset) at once.
-      if (capped && !s->forced && s->time >= last_time && std::chrono::steady_clock::now() < last_sent + interval) {
-        std::this_thread::sleep_until(last_sent + interval);
+      if (cap.pass(s->forced || s->time < last_time)) {
         if (const Snapshot* newer = snapshots_->readNew()) s = newer;
       }
-      last_sent = std::chrono::steady_clock::now();
       last_time = s->time;
       const ros::Time stamp(s->time);
       rosgraph_msgs::Clock clock;
@@ -224,9 +241,7 @@ class SimPublishing final : public hosting::StateSink {
   void sceneLoop() {
     bool first = true;
     double next_image = 0.0, next_rgbd = 0.0, last_time = 0.0;
-    const auto interval = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-        std::chrono::duration<double>(1.0 / settings_.max_scene_rate));
-    auto last_scene = std::chrono::steady_clock::now();
+    WallRateCap cap(settings_.max_scene_rate);
     while (running_ && ros::ok()) {
       waitForSignal(scene_signal_);
       const ClothFrame* frame = frames_->readNew();
@@ -234,13 +249,10 @@ class SimPublishing final : public hosting::StateSink {
       if (!frame) frame = &frames_->current();
       // At most max_scene_rate scenes per wall second; the newest frame after the wait is the one published. The
       // last moment of a ~step (forced) and a reset (time going back) go at once.
-      if (!first && !frame->image && frame->time >= last_time &&
-          std::chrono::steady_clock::now() < last_scene + interval) {
-        std::this_thread::sleep_until(last_scene + interval);
+      if (cap.pass(first || frame->image || frame->time < last_time)) {
         if (const ClothFrame* newer = frames_->readNew()) frame = newer;
       }
       first = false;
-      last_scene = std::chrono::steady_clock::now();
       // The table each time too: the topic is latched, and a late subscriber gets only the last message. Stamped
       // 0 (the latest transform): rviz drops markers stamped before a reset's jump back in time.
       visualization_msgs::MarkerArray markers;
