@@ -154,7 +154,8 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
     csv << ',' << s << "_reward," << s << "_r_acceleration," << s << "_r_color," << s << "_r_depth," << s << "_r_goal,"
         << s << "_goal_mismatch," << s << "_r_fold";
   }
-  csv << ",fold_mismatch,fold_edge,fold_single,fold_length,perspective_reward,perspective_r_fold,perspective_coverage,"
+  csv << ",fold_mismatch,fold_edge,fold_single,fold_length,fold_heap,perspective_reward,perspective_r_fold,perspective_"
+         "coverage,"
          "reason\n";
   std::vector<FoldResult> results(static_cast<std::size_t>(count));
   std::printf("fold_benchmark folds: %d scripted folds of seed %u on %d threads\n", count, options.seed, options.jobs);
@@ -215,8 +216,8 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
         }
         const bt::FoldRewardTerms& t = r.terms.front();
         csv << ',' << t.fold_mismatch << ',' << t.fold_edge << ',' << t.fold_single << ',' << t.fold_length << ','
-            << r.perspective.reward << ',' << r.perspective.r_fold << ',' << r.perspective_coverage << ",\"" << r.reason
-            << "\"\n"
+            << t.fold_heap << ',' << r.perspective.reward << ',' << r.perspective.r_fold << ','
+            << r.perspective_coverage << ",\"" << r.reason << "\"\n"
             << std::flush;
         rows.emplace_back()
             .add("experiment", "folds")

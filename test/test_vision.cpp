@@ -607,12 +607,16 @@ TEST(ImageReward, GoalTermCountsMissingPixelsAndHeightErrors) {
 // Against a flat cloth of 40 × 24 pixels one layer thick, drawn by hand: the flat cloth's edges, fold line, table
 // depth and thickness are found; the ideal fold (the near 20 columns, two layers) scores 0, the flat cloth 1, and a
 // fold dragged 3 pixels over its near edge or 4 away from it, one whose top layer stops 6 pixels short, and one
-// missing half its rows score their widths by the term's weights exactly.
+// missing half its rows score their widths by the term's weights exactly; cloth piled 8 layers high on the near
+// 4 columns is a heap of 4 pixels, the same at the crease (beyond κ of the staying half) none.
 TEST(ImageReward, FoldTermMeasuresTheFoldAgainstTheFlatCloth) {
   const bv::TopDownCamera camera = scene(64, 48).camera;
   const double s = camera.pixel_size;
   bv::ImageRewardParameters parameters;
   parameters.fold_weight = 2.0;
+  parameters.fold_heap_weight = 3.0;
+  parameters.heap_threshold = 3.0;
+  parameters.heap_reach = 0.5;
   parameters.fold_smoothing = 0.0;
   bv::ImageReward reward(camera, parameters);
   const float table = 1.35f, layer = 0.004f;
@@ -671,6 +675,13 @@ TEST(ImageReward, FoldTermMeasuresTheFoldAgainstTheFlatCloth) {
   EXPECT_NEAR(t.mismatch, parameters.fold_single_weight * 6 * s / flat_error, 1e-12);
   t = term(image(10, 30, 0, 12));  // half the rows bare: each counts twice the flat cloth's error
   EXPECT_NEAR(t.mismatch, 1.0, 1e-12);
+  for (const int heap_at : {10, 26}) {  // the far edge heaped on the near one; a high crease
+    auto [bgr, depth] = image(10, 30, 0);
+    depth(cv::Rect(heap_at, 10, 4, 24)).setTo(table - 8.0f * layer);
+    t = term({bgr, depth});
+    EXPECT_NEAR(t.heap, heap_at == 10 ? 4 * s : 0.0, 1e-12) << heap_at;
+    EXPECT_NEAR(t.error, parameters.fold_heap_weight * t.heap, 1e-12) << heap_at;
+  }
   // evaluate() weighs it by w_f; without cloth in view it is twice the flat cloth's, without a flat cloth unknown (1).
   const auto [ideal_bgr, ideal_depth] = image(10, 30, 0);
   EXPECT_NEAR(reward.evaluate(ideal_bgr, ideal_depth).r_fold, 0.0, 1e-12);
@@ -688,5 +699,14 @@ TEST(ImageReward, FoldTermMeasuresTheFoldAgainstTheFlatCloth) {
   EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
   bad = {};
   bad.fold_edge_weight = std::nan("");
+  EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
+  bad = {};
+  bad.heap_threshold = bad.layer_threshold;
+  EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
+  bad = {};
+  bad.heap_reach = 0.0;
+  EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
+  bad = {};
+  bad.fold_heap_weight = -1.0;
   EXPECT_THROW(bv::ImageReward(camera, bad), std::invalid_argument);
 }

@@ -95,13 +95,14 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     io::checkKeys(
         reward, at,
         {"setting", "acceleration_weight", "colour_weight", "depth_weight", "goal_weight", "goal_missing_height",
-         "goal_excess_height", "fold_weight", "failure_reward", "depth_noise", "colour_noise"});
+         "goal_excess_height", "fold_weight", "fold_heap_weight", "failure_reward", "depth_noise", "colour_noise"});
     if (reward["setting"]) c.reward = tasks::rewardSetting(c.reward, io::readString(reward, "setting", at), at);
     c.reward.acceleration_weight = io::readDouble(reward, "acceleration_weight", at, c.reward.acceleration_weight);
     c.reward.image.colour_weight = io::readDouble(reward, "colour_weight", at, c.reward.image.colour_weight);
     c.reward.image.depth_weight = io::readDouble(reward, "depth_weight", at, c.reward.image.depth_weight);
     c.reward.image.goal_weight = io::readDouble(reward, "goal_weight", at, c.reward.image.goal_weight);
     c.reward.image.fold_weight = io::readDouble(reward, "fold_weight", at, c.reward.image.fold_weight);
+    c.reward.image.fold_heap_weight = io::readDouble(reward, "fold_heap_weight", at, c.reward.image.fold_heap_weight);
     c.reward.image.goal_missing_height =
         io::readDouble(reward, "goal_missing_height", at, c.reward.image.goal_missing_height);
     c.reward.image.goal_excess_height =

@@ -17,9 +17,10 @@ std::vector<std::string> FoldRolloutTask::termNames() const {
 }
 
 std::vector<std::string> FoldRolloutTask::names() {
-  return {"r_acceleration", "r_color",      "r_depth",       "fill_ratio",        "mean_gradient", "area_ratio",
-          "aspect",         "fold_quality", "fold_distance", "fold_displacement", "r_goal",        "goal_iou",
-          "goal_mismatch",  "r_fold",       "fold_mismatch", "fold_edge",         "fold_single",   "fold_length"};
+  return {"r_acceleration", "r_color",     "r_depth",       "fill_ratio",    "mean_gradient",
+          "area_ratio",     "aspect",      "fold_quality",  "fold_distance", "fold_displacement",
+          "r_goal",         "goal_iou",    "goal_mismatch", "r_fold",        "fold_mismatch",
+          "fold_edge",      "fold_single", "fold_length",   "fold_heap"};
 }
 
 Eigen::VectorXd FoldRolloutTask::initialParameters() const {
@@ -53,6 +54,7 @@ tasks::FoldRewardTerms FoldRolloutTask::termsOf(const RolloutResult& result) {
   t.fold_edge = result.terms[15];
   t.fold_single = result.terms[16];
   t.fold_length = result.terms[17];
+  t.fold_heap = result.terms[18];
   return t;
 }
 
@@ -85,7 +87,7 @@ RolloutResult FoldRolloutTask::resultOf(const tasks::FoldRewardTerms& t, const s
   result.terms.resize(kTerms);
   result.terms << t.r_acceleration, t.r_color, t.r_depth, t.fill_ratio, t.mean_gradient, t.area_ratio, t.aspect,
       t.fold_quality, t.fold_distance, t.fold_displacement, t.r_goal, t.goal_iou, t.goal_mismatch, t.r_fold,
-      t.fold_mismatch, t.fold_edge, t.fold_single, t.fold_length;
+      t.fold_mismatch, t.fold_edge, t.fold_single, t.fold_length, t.fold_heap;
   result.ok = t.outcome == tasks::FoldOutcome::Ok;
   result.outcome = tasks::toString(t.outcome);
   result.reason = reason;

@@ -127,6 +127,7 @@ FoldRewardTerms FoldReward::evaluateImages(FoldOutcome outcome, double accelerat
   t.fold_edge = image.fold.edge;
   t.fold_single = image.fold.single;
   t.fold_length = image.fold.length;
+  t.fold_heap = image.fold.heap;
   t.fill_ratio = image.colour.fill_ratio;
   t.mean_gradient = image.depth.mean_gradient;
   t.area_ratio = facts.area_ratio;

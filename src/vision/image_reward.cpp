@@ -45,6 +45,12 @@ void ImageRewardParameters::validate(const char* where) const {
   }
   if (!(std::isfinite(layer_threshold) && layer_threshold > 1.0)) fail(where, "layer_threshold must be > 1");
   if (!nonNegative(fold_smoothing)) fail(where, "fold_smoothing must be finite and >= 0");
+  if (!nonNegative(fold_heap_weight)) fail(where, "fold_heap_weight must be finite and >= 0");
+  if (!(std::isfinite(heap_threshold) && heap_threshold > layer_threshold)) {
+    fail(where, "heap_threshold must be finite and > layer_threshold");
+  }
+  if (!(std::isfinite(heap_reach) && heap_reach > 0.0 && heap_reach <= 1.0))
+    fail(where, "heap_reach must be in (0, 1]");
 }
 
 ImageReward::ImageReward(const TopDownCamera& camera, const ImageRewardParameters& parameters)
@@ -312,17 +318,19 @@ FoldTerm ImageReward::foldTerm(const cv::Mat& depth, const cv::Mat& mask) {
     cv::GaussianBlur(height_, smoothed_height_, cv::Size(0, 0), sigma, sigma, cv::BORDER_REPLICATE);
     height = &smoothed_height_;
   }
-  const double layer = p.layer_threshold * flat_.thickness;
-  double edge = 0.0, single = 0.0, length = 0.0, empty = 0.0;
+  const double layer = p.layer_threshold * flat_.thickness, heap_height = p.heap_threshold * flat_.thickness;
+  const double heap_end = u0 + p.heap_reach * (uc - u0);
+  double edge = 0.0, single = 0.0, length = 0.0, heap = 0.0, empty = 0.0;
   for (int v = flat_.first_row; v <= flat_.last_row; ++v) {
     const unsigned char* m = mask.ptr<unsigned char>(v);
     const float* h = height->ptr<float>(v);
-    int a = -1, b = -1, thin = 0;
+    int a = -1, b = -1, thin = 0, heaped = 0;
     for (int u = 0; u < camera_.columns; ++u) {
       if (m[u] == 0) continue;
       if (a < 0) a = u;
       b = u + 1;
       if (u >= u0 && u < goal_end && h[u] < layer) ++thin;
+      if (u >= u0 && u < heap_end && h[u] > heap_height) ++heaped;
     }
     if (a < 0) {
       empty += 1.0;
@@ -331,13 +339,15 @@ FoldTerm ImageReward::foldTerm(const cv::Mat& depth, const cv::Mat& mask) {
     edge += std::abs(a - u0) * s;
     single += thin * s;
     length += std::abs((b - a) - (uc - u0)) * s;
+    heap += heaped * s;
   }
   const double rows = flat_.last_row - flat_.first_row + 1;
   term.edge = edge / rows;
   term.single = single / rows;
   term.length = length / rows;
+  term.heap = heap / rows;
   term.error = p.fold_edge_weight * term.edge + p.fold_single_weight * term.single +
-               p.fold_length_weight * term.length + 2.0 * flat_error * empty / rows;
+               p.fold_length_weight * term.length + p.fold_heap_weight * term.heap + 2.0 * flat_error * empty / rows;
   term.mismatch = term.error / flat_error;
   term.status = VisionStatus::Ok;
   return term;

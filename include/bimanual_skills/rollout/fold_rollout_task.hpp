@@ -30,10 +30,10 @@ class FoldRolloutTask : public RolloutTask {
 
   /// r_acceleration, r_color, r_depth, fill_ratio, mean_gradient, area_ratio, aspect, fold_quality, fold_distance,
   /// fold_displacement, r_goal, goal_iou, goal_mismatch, r_fold, fold_mismatch, fold_edge, fold_single,
-  /// fold_length (tasks::FoldRewardTerms).
+  /// fold_length, fold_heap (tasks::FoldRewardTerms).
   std::vector<std::string> termNames() const override;
   static std::vector<std::string> names();
-  static constexpr std::size_t kTerms = 18;
+  static constexpr std::size_t kTerms = 19;
   /// The demonstration: one coordination matrix Ω = I, the demonstration's weights.
   Eigen::VectorXd initialParameters() const override;
   /// The terms of a result of run() (e.g. one that ran on a rollout worker); the vision status is not part of it.

@@ -71,7 +71,7 @@ struct FoldRewardTerms {
   double goal_iou = 0.0;        ///< IoU of the seen cloth with the goal image's (vision::GoalTerm).
   double goal_mismatch = 1.0;   ///< The goal term's mismatch in [0, 1] (vision::GoalTerm).
   /// The fold term (vision::FoldTerm): E / E_flat (0 the ideal fold, 1 the flat cloth) and its widths [m].
-  double fold_mismatch = 1.0, fold_edge = 0.0, fold_single = 0.0, fold_length = 0.0;
+  double fold_mismatch = 1.0, fold_edge = 0.0, fold_single = 0.0, fold_length = 0.0, fold_heap = 0.0;
   double reward = 0.0;  ///< (7.52) with R_goal, or failure_reward.
   /// The fold's ground truth from the cloth mesh (not part of the reward; fold_quality.hpp): q, its distance and
   /// displacement terms [m].

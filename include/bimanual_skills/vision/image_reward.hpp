@@ -29,8 +29,10 @@
 ///   edge   = |a − u_0| s                               (the staying half dragged: its near edge moved)
 ///   single = s · #{u_0 ≤ u < u_c: cloth of height < θ h_0 above the table}    (one layer where two belong)
 ///   length = |(b − a) − (u_c − u_0)| s                  (the folded cloth longer or shorter than half the flat one)
-///   E      = mean over the rows of w_e edge + w_s single + w_l length      [m]   (a row without cloth: 2 E_flat)
-///   R_fold = w_f · E / E_flat,   E_flat = w_s (u_c − u_0) s + w_l (u_1 − u_c) s   (the flat cloth's E)
+///   heap   = s · #{u_0 ≤ u < u_0 + κ (u_c − u_0): cloth higher than θ_h h_0}   (cloth piled on the near part of the
+///            staying half, away from the crease's roll: the far edge heaped on the near one)
+///   E      = mean over the rows of w_e edge + w_s single + w_l length + w_h heap   [m]   (a row without cloth: 2
+///   E_flat) R_fold = w_f · E / E_flat,   E_flat = w_s (u_c − u_0) s + w_l (u_1 − u_c) s   (the flat cloth's E)
 /// so R_fold = 0 for the ideal fold and w_f for the cloth left flat. The weights are a linear model of 1 − q (the
 /// fold quality of tasks/fold_quality.hpp) fitted by non-negative least squares on scripted folds of many kinds;
 /// docs/RESULTS.md ("A camera reward that ranks folds") has the fit and the test on folds it was not fitted to.
@@ -93,6 +95,11 @@ struct ImageRewardParameters {
   double layer_threshold = 1.5;        ///< θ > 1: cloth thinner than θ h_0 above the table is one layer.
   /// σ [m of table] of the Gaussian smoothing of the height map against sensor noise before θ is applied; ≥ 0.
   double fold_smoothing = 0.003;
+  double fold_heap_weight = 0.0;  ///< w_h ≥ 0 (0: heap measured, not weighed).
+  /// θ_h > θ: cloth higher than θ_h h_0 above the table is heaped (two layers lie about 3 h_0 high: the upper one's
+  /// rendered thickness and the air between them).
+  double heap_threshold = 8.0;
+  double heap_reach = 0.1;  ///< κ in (0, 1]: the share of the staying half, from the near edge, searched.
 
   /// Throws std::invalid_argument naming `where` and the parameter that is out of range.
   void validate(const char* where) const;
@@ -136,6 +143,7 @@ struct FoldTerm {
   double edge = 0.0;                            ///< [m]
   double single = 0.0;                          ///< [m]
   double length = 0.0;                          ///< [m]
+  double heap = 0.0;                            ///< [m]
   double error = 0.0;                           ///< E [m]
   double mismatch = 1.0;                        ///< E / E_flat: 0 the ideal fold, 1 the flat cloth.
 };
