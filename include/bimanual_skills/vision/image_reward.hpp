@@ -31,8 +31,8 @@
 ///   length = |(b − a) − (u_c − u_0)| s                  (the folded cloth longer or shorter than half the flat one)
 ///   heap   = s · #{u_0 ≤ u < u_0 + κ (u_c − u_0): cloth higher than θ_h h_0}   (cloth piled on the near part of the
 ///            staying half, away from the crease's roll: the far edge heaped on the near one)
-///   E      = mean over the rows of w_e edge + w_s single + w_l length + w_h heap   [m]   (a row without cloth: 2
-///   E_flat) R_fold = w_f · E / E_flat,   E_flat = w_s (u_c − u_0) s + w_l (u_1 − u_c) s   (the flat cloth's E)
+///   E      = mean over the rows of w_e edge + w_s single + w_l length + w_h heap  [m]  (a row bare: 2 E_flat)
+///   R_fold = w_f · E / E_flat,   E_flat = w_s (u_c − u_0) s + w_l (u_1 − u_c) s   (the flat cloth's E)
 /// so R_fold = 0 for the ideal fold and w_f for the cloth left flat. The weights are a linear model of 1 − q (the
 /// fold quality of tasks/fold_quality.hpp) fitted by non-negative least squares on scripted folds of many kinds;
 /// docs/RESULTS.md ("A camera reward that ranks folds") has the fit and the test on folds it was not fitted to.
