@@ -26,6 +26,7 @@
 #include <pthread.h>
 #include <semaphore.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <functional>
@@ -45,7 +46,7 @@ class WallRateCap {
  public:
   explicit WallRateCap(double rate)
       : interval_(std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-            std::chrono::duration<double>(rate > 0.0 ? 1.0 / rate : 0.0))),
+            std::chrono::duration<double>(rate > 0.0 ? std::min(1.0 / rate, kLongest) : 0.0))),
         last_(std::chrono::steady_clock::now() - interval_) {}
   /// Returns true if it waited (something newer may have come meanwhile); `at_once`: no wait.
   bool pass(bool at_once) {
@@ -56,6 +57,7 @@ class WallRateCap {
   }
 
  private:
+  static constexpr double kLongest = 3600.0;  ///< [s]: a rate under one an hour waits an hour (no overflow).
   std::chrono::steady_clock::duration interval_;
   std::chrono::steady_clock::time_point last_;
 };

@@ -181,6 +181,11 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_DOUBLE_EQ(goal.reward.image.goal_weight, 1.0);
   EXPECT_DOUBLE_EQ(goal.reward.image.colour_weight, 0.0);
   EXPECT_DOUBLE_EQ(goal.reward.acceleration_weight, 0.003);
+  const br::FoldLearningConfig heap = br::FoldLearningConfig::fromYamlFile(
+      write("sim: " + kSource + "/config/sim.yaml\nreward: {setting: fold, fold_heap_weight: 2.5}\n"));
+  EXPECT_DOUBLE_EQ(heap.reward.image.fold_heap_weight, 2.5);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nreward: {fold_heap_weight: -1}\n").find("fold_heap_weight"),
+            std::string::npos);
 }
 
 TEST(FoldLearning, CoordinatedPolicyDrivesTheSameMotion) {

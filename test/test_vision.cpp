@@ -608,7 +608,7 @@ TEST(ImageReward, GoalTermCountsMissingPixelsAndHeightErrors) {
 // depth and thickness are found; the ideal fold (the near 20 columns, two layers) scores 0, the flat cloth 1, and a
 // fold dragged 3 pixels over its near edge or 4 away from it, one whose top layer stops 6 pixels short, and one
 // missing half its rows score their widths by the term's weights exactly; cloth piled 8 layers high on the near
-// 4 columns is a heap of 4 pixels, the same at the crease (beyond κ of the staying half) none.
+// 4 columns is a heap of 4 pixels, across κ's end 2, at the crease (beyond κ of the staying half) none.
 TEST(ImageReward, FoldTermMeasuresTheFoldAgainstTheFlatCloth) {
   const bv::TopDownCamera camera = scene(64, 48).camera;
   const double s = camera.pixel_size;
@@ -675,11 +675,12 @@ TEST(ImageReward, FoldTermMeasuresTheFoldAgainstTheFlatCloth) {
   EXPECT_NEAR(t.mismatch, parameters.fold_single_weight * 6 * s / flat_error, 1e-12);
   t = term(image(10, 30, 0, 12));  // half the rows bare: each counts twice the flat cloth's error
   EXPECT_NEAR(t.mismatch, 1.0, 1e-12);
-  for (const int heap_at : {10, 26}) {  // the far edge heaped on the near one; a high crease
+  // The far edge heaped on the near one; a pile across κ's end (u_0 + κ (u_c − u_0) = 20); a high crease.
+  for (const auto& [heap_at, heaped] : {std::pair{10, 4}, std::pair{18, 2}, std::pair{26, 0}}) {
     auto [bgr, depth] = image(10, 30, 0);
     depth(cv::Rect(heap_at, 10, 4, 24)).setTo(table - 8.0f * layer);
     t = term({bgr, depth});
-    EXPECT_NEAR(t.heap, heap_at == 10 ? 4 * s : 0.0, 1e-12) << heap_at;
+    EXPECT_NEAR(t.heap, heaped * s, 1e-12) << heap_at;
     EXPECT_NEAR(t.error, parameters.fold_heap_weight * t.heap, 1e-12) << heap_at;
   }
   // evaluate() weighs it by w_f; without cloth in view it is twice the flat cloth's, without a flat cloth unknown (1).

@@ -166,9 +166,9 @@ struct FoldLearner::Impl {
          << io::exactNumber(r.image.depth_weight) << "\ngoal_weight " << io::exactNumber(r.image.goal_weight)
          << "\ngoal_missing_height " << io::exactNumber(r.image.goal_missing_height) << "\ngoal_excess_height "
          << io::exactNumber(r.image.goal_excess_height) << "\nfold_weight " << io::exactNumber(r.image.fold_weight)
-         << "\nfailure_reward " << io::exactNumber(r.failure_reward) << "\ndepth_noise "
-         << io::exactNumber(r.renderer.noise.depth_stddev) << "\ncolour_noise "
-         << io::exactNumber(r.renderer.noise.colour_stddev) << '\n';
+         << "\nfold_heap_weight " << io::exactNumber(r.image.fold_heap_weight) << "\nfailure_reward "
+         << io::exactNumber(r.failure_reward) << "\ndepth_noise " << io::exactNumber(r.renderer.noise.depth_stddev)
+         << "\ncolour_noise " << io::exactNumber(r.renderer.noise.colour_stddev) << '\n';
     directory->lock("reward.txt", text.str(), "scored with another reward");
     // The world the rollouts ran in: the simulation file with its URDF and plant (on a robot through ROS the
     // simulator's is checked against it, FoldOnRobotTask).
