@@ -185,6 +185,13 @@ class BulletSimNode {
       if (std::find(external.begin(), external.end(), a) == external.end()) hosted_default.push_back(a);
     }
     const std::vector<std::string> hosted = p.texts("hosted_controllers", hosted_default);
+    if (!external.empty() && loop.realtime_factor == 0.0 && !loop.lockstep) {
+      throw std::invalid_argument(
+          "~external_controllers with ~realtime_factor 0 (as fast as possible) and no ~lockstep: controllers in other "
+          "processes would get states faster than they answer them and fall behind by whole steps (their velocity "
+          "limits and stale-state checks then stop every goal); set ~lockstep true, or a ~realtime_factor > 0 they "
+          "can follow");
+    }
     if (loop.lockstep && !external.empty()) publishing.max_state_rate = 0.0;  // each state has its answer to wait for
     for (const std::vector<std::string>* list : {&external, &hosted}) {
       for (const std::string& name : *list) {

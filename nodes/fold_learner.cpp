@@ -129,7 +129,8 @@ const char* const kUsage =
     "final_runs/ALGORITHM_run_K.png and _depth.png (every run's final policy; not with _backend:=ros), and\n"
     "best_rollout.bag (replay: roslaunch bimanual_skills fold.launch replay:=DIR/best_rollout.bag).\n"
     "\n"
-    "Topics: /joint_states (sensor_msgs/JointState: the last rollout's final pose, or the replay), ~cloth\n"
+    "Topics: /joint_states (sensor_msgs/JointState: the last rollout's final pose, or the replay; ~joint_states with\n"
+    "~backend ros, where /joint_states are the robot's), ~cloth\n"
     "  (visualization_msgs/Marker TRIANGLE_LIST: the last rollout's cloth), ~scene (the table), ~tool_paths\n"
     "  (visualization_msgs/MarkerArray: the tool paths of the last rollouts, also of those run on workers, red =\n"
     "  worst to green = best reward),\n"
@@ -178,7 +179,8 @@ class FoldLearnerNode {
           "~reward, ~policy, ~covariance_memory and ~robot are not for rollout workers: they read the learning "
           "file, set them there");
     }
-    if (parameters_.text("backend", "sim", {"sim", "ros"}) == "ros") {
+    const bool on_robot = parameters_.text("backend", "sim", {"sim", "ros"}) == "ros";
+    if (on_robot) {
       if (evaluator) throw std::invalid_argument("~backend ros runs the rollouts on the robot, not on workers");
       evaluator = makeRobotBackend();
     }
@@ -188,7 +190,9 @@ class FoldLearnerNode {
     scene_publisher_ = private_node_.advertise<visualization_msgs::Marker>("scene", 1, true);
     path_publisher_ = private_node_.advertise<visualization_msgs::MarkerArray>("tool_paths", 1, true);
     camera_ = bs::ros_layer::RgbdPublisher(private_node_, true);
-    joint_publisher_ = node_.advertise<sensor_msgs::JointState>("joint_states", 10, true);
+    // On a robot /joint_states are the robot's own (its controllers follow them): the rollouts' arms go to
+    // ~joint_states instead.
+    joint_publisher_ = (on_robot ? private_node_ : node_).advertise<sensor_msgs::JointState>("joint_states", 10, true);
 
     br::FoldLearningObserver observer;
     observer.rollout = [this](const br::FoldRolloutRecord& record, const bt::FoldRollout& rollout,

@@ -212,6 +212,27 @@ TEST(ControlLoop, APausedLoopReceivesGoalsAndStepsExactlyWithoutRepeatingAStamp)
   EXPECT_NEAR(sink.stamps_[100].first, 0.1, 1e-12);
 }
 
+TEST(ControlLoop, AStepIsPacedWhenAnArmIsCommandedFromOutsideWithoutLockstep) {
+  // A controller in another process follows the states at the pace it was given: a step that ran as fast as it goes
+  // would leave it whole steps behind. The wall time of a paced step is at least its simulated time (a lower bound
+  // the pacer guarantees, not a speed measurement).
+  FakeRobot robot;
+  RecordingSink sink;
+  bh::LoopSettings settings;
+  settings.period = kDt;
+  settings.realtime_factor = 1.0;
+  settings.paused = true;
+  bh::ControlLoop loop(robot, sink, settings);
+  loop.commandFromOutside(1, 0.05, Eigen::VectorXd::Constant(7, 1.0), false);
+  Running running(loop);
+  const auto start = std::chrono::steady_clock::now();
+  const bh::LoopOutcome stepped = loop.step(200);
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_TRUE(stepped.success) << stepped.message;
+  EXPECT_NEAR(stepped.time, 0.2, 1e-12);
+  EXPECT_GE(wall, 0.19) << "the step ran ahead of the real-time factor";
+}
+
 TEST(ControlLoop, ARobotThatStopsAbortsTheHostedGoalsOnceAndARestartClearsIt) {
   FakeRobot robot(0.05);
   RecordingSink sink;

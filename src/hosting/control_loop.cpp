@@ -116,6 +116,7 @@ void ControlLoop::commandFromOutside(int arm, double timeout, const Eigen::Vecto
   initial.torque = Eigen::VectorXd::Zero(a.joints);
   a.commands = std::make_unique<realtime::TripleBuffer<TorqueCommand>>(initial);
   a.lockstep_waits = lockstep_waits;
+  outside_unlocked_ = outside_unlocked_ || !settings_.lockstep || !lockstep_waits;
 }
 
 void ControlLoop::torqueCommand(int arm, double answers, const double* torque, std::size_t size) {
@@ -175,7 +176,9 @@ void ControlLoop::run(const std::function<bool()>& keep_running) {
       consecutive = false;
       continue;
     }
-    const bool paced = !stepping && settings_.realtime_factor > 0.0 && !settings_.lockstep;
+    // A step runs as fast as it goes, unless controllers outside follow the states without lockstep: they keep
+    // up only at the pace they were given.
+    const bool paced = (!stepping || outside_unlocked_) && settings_.realtime_factor > 0.0 && !settings_.lockstep;
     if (paced && !pacer_.waitUntilDue(0.005)) continue;  // short slices: requests are served meanwhile
     const double start = realtime::monotonicSeconds();
     if (paced && consecutive) periods_.record(start - last_start);

@@ -268,7 +268,24 @@ void ArmControllerInterface::setDriverDiagnostics(std::vector<std::pair<std::str
 
 void ArmControllerInterface::loopStopped(const std::string& why) {
   const std::lock_guard<std::mutex> lock(mutex_);
-  abortActive("the control loop stopped: " + why);
+  loop_stopped_ = "the control loop stopped: " + why;
+  abortActive(loop_stopped_);
+}
+
+std::string ArmControllerInterface::loopProblem() const {
+  if (!loop_stopped_.empty()) return loop_stopped_;
+  const double idle = loopIdle();
+  if (idle <= settings_.loop_timeout) return "";
+  std::ostringstream why;
+  why << "the control loop stopped: no control cycle for " << idle << " s of the robot's clock (loop_timeout "
+      << settings_.loop_timeout << " s)";
+  return why.str();
+}
+
+double ArmControllerInterface::loopIdle() const {
+  // Both times from this process's clock: it may lag the loop's stamps, and a reset takes it back. A paused
+  // simulation's clock stands still: its loop is never idle.
+  return last_ ? ros::Time::now().toSec() - clock_at_state_ : 0.0;
 }
 
 void ArmControllerInterface::abortActive(const std::string& why) {
@@ -276,11 +293,7 @@ void ArmControllerInterface::abortActive(const std::string& why) {
   Result result;
   result.error_code = Result::PATH_TOLERANCE_VIOLATED;
   result.error_string = why;
-  if (accepted_) {
-    active_->setAborted(result, why);
-  } else {
-    active_->setRejected(result, why);
-  }
+  active_->setAborted(result, why);
   ROS_WARN("%s: goal aborted: %s", owner_.c_str(), why.c_str());
   active_.reset();
   active_id_ = 0;
@@ -373,6 +386,11 @@ void ArmControllerInterface::onGoal(GoalHandle goal) {
     }
   }
   const std::lock_guard<std::mutex> lock(mutex_);
+  if (!error) {
+    // joint_trajectory_controller rejects a goal while it is not running: a loop that stopped would never end it.
+    const std::string problem = loopProblem();
+    if (!problem.empty()) error = {Result::INVALID_GOAL, problem};
+  }
   if (error) {
     ++rejected_;
     last_rejection_ = error.message;
@@ -391,9 +409,10 @@ void ArmControllerInterface::onGoal(GoalHandle goal) {
     goal.setSucceeded(result, result.error_string);
     return;
   }
-  // Accepted once the loop has it (onPublish), as joint_trajectory_controller accepts a goal its loop will run.
+  // Accepted at once, as joint_trajectory_controller accepts a goal it has handed to its loop: a loop that stands
+  // still on purpose (a paused simulator, a controller waiting for its next state) answers its client all the same.
+  goal.setAccepted("the control loop has the trajectory in its mailbox");
   active_ = goal;
-  accepted_ = false;
   active_id_ = ++next_goal_id_;
   sendTrajectory(std::move(waypoints), tolerances, active_id_, start);
 }
@@ -580,19 +599,11 @@ void ArmControllerInterface::finishGoal(const bc::ArmControllerState& state) {
 void ArmControllerInterface::onPublish(const ros::SteadyTimerEvent&) {
   const bc::ArmControllerState* fresh = controller_->latestState();
   const std::lock_guard<std::mutex> lock(mutex_);
-  if (active_ && !accepted_ && controller_->receivedGoal() == active_id_) {
-    active_->setAccepted("the control loop has the trajectory");
-    accepted_ = true;
-  }
   if (!fresh) {
-    // A loop that computes no torque while the robot's clock goes on has stopped (a paused simulation's clock stands
-    // still). Both times from this process's clock: it may lag the loop's stamps, and a reset takes it back.
-    const double idle = last_ ? ros::Time::now().toSec() - clock_at_state_ : 0.0;
-    if (active_ && idle > settings_.loop_timeout) {
-      std::ostringstream why;
-      why << "the control loop stopped: no control cycle for " << idle << " s of the robot's clock (loop_timeout "
-          << settings_.loop_timeout << " s)";
-      abortActive(why.str());
+    // A loop that computes no torque while the robot's clock goes on has stopped.
+    if (active_) {
+      const std::string problem = loopProblem();
+      if (!problem.empty()) abortActive(problem);
     }
     return;
   }

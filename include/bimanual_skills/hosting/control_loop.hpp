@@ -135,8 +135,9 @@ class ControlLoop {
   /// Pauses (true) or resumes the loop; the message gives the robot time of the last states handed out ("paused at
   /// t = 1.234000 s"). A paused loop lets the hosted controllers receive their commands (RealtimeArmController::idle).
   LoopOutcome pause(bool paused, double wait = 5.0);
-  /// A paused loop runs `cycles` cycles (as fast as it goes, serving requests in between), hands out the last states
-  /// as forced and answers; fails at once when running, stopped, or another step() runs.
+  /// A paused loop runs `cycles` cycles (as fast as it goes, serving requests in between; at the real-time factor
+  /// when an arm is commanded from outside without lockstep, so that its controller keeps up), hands out the last
+  /// states as forced and answers; fails at once when running, stopped, or another step() runs.
   LoopOutcome step(std::uint32_t cycles, double wait = 5.0);
   /// An outside command for arm `arm` (one writer thread per arm): `answers` is the stamp of the state it answers
   /// (NaN: unstamped). Sizes and values are checked by the loop (rejected_commands).
@@ -179,6 +180,7 @@ class ControlLoop {
   std::deque<std::shared_ptr<Request>> requests_;
   std::shared_ptr<Request> stepping_;  ///< Loop thread only.
   std::uint32_t stepped_ = 0;
+  bool outside_unlocked_ = false;  ///< An arm is commanded from outside and no lockstep cycle waits for it.
   std::atomic<bool> paused_{false}, stopped_{false};
   bool stop_told_ = false;  ///< The hosted controllers were told of the stop.
   std::atomic<double> time_{0.0}, stop_time_{0.0};

@@ -108,7 +108,12 @@ class ArmControllerInterface {
   /// Hands a trajectory (already converted) to the loop; `goal_id` 0 for a topic command.
   void sendTrajectory(control::Waypoints&& waypoints, const control::TrajectoryTolerances& tolerances,
                       std::uint64_t goal_id, const ros::Time& start);
-  /// Ends the active goal (if any) as aborted (rejected before it was accepted), with `why`. Caller holds mutex_.
+  /// Why the loop cannot run a goal now ("" when it can): it stopped for good, or computed no torque for loop_timeout
+  /// of the robot's clock. Caller holds mutex_.
+  std::string loopProblem() const;
+  /// [s of this process's clock] since the loop's last state (0 before any). Caller holds mutex_.
+  double loopIdle() const;
+  /// Ends the active goal (if any) as aborted, with `why`. Caller holds mutex_.
   void abortActive(const std::string& why);
   void sendMode(control::ControllerMode mode);
   /// Ends the active goal (if any) as canceled, with `why`. Caller holds mutex_.
@@ -124,8 +129,8 @@ class ArmControllerInterface {
 
   std::mutex mutex_;  ///< The non-real-time state below (callbacks may run on several threads).
   std::optional<control::ArmControllerState> last_;
-  std::optional<GoalHandle> active_;
-  bool accepted_ = false;  ///< Whether active_ was accepted (the loop had its trajectory).
+  std::optional<GoalHandle> active_;  ///< The accepted goal whose trajectory the loop runs or will take.
+  std::string loop_stopped_;          ///< Why the host's loop stopped for good (loopStopped); "" while it runs.
   std::uint64_t active_id_ = 0, next_goal_id_ = 0;
   long trajectories_ = 0, rejected_ = 0;
   std::string last_rejection_;
