@@ -35,6 +35,8 @@ constexpr double kPathRate = 50.0;
 /// Longest wait for each step of the recovery after a failed rollout [s of wall time, beyond the motion's own
 /// duration]: it is done on a robot that may be down.
 constexpr double kRecoveryTimeout = 3.0;
+/// Share of the settling time after the release in which a fold's goal must meet its goal tolerances.
+constexpr double kGoalTimeShare = 0.5;
 
 }  // namespace
 
@@ -213,7 +215,8 @@ void FoldOnRobotTask::moveToStart() {
     goal.trajectory.points.push_back(trajectoryPoint(q, zero, zero, up + down));
     arm.client->sendGoal(goal);
   }
-  for (std::size_t a = 0; a < 2; ++a) connection_->waitForGoal(a, "move to the start");
+  const ros::Time ends_by = ros::Time::now() + ros::Duration(up + down);
+  for (std::size_t a = 0; a < 2; ++a) connection_->waitForGoal(a, "move to the start", ends_by);
 }
 
 std::string FoldOnRobotTask::recover() noexcept {
@@ -244,6 +247,10 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
           trajectoryPoint(plan.position[a].col(k), plan.velocity[a].col(k), plan.acceleration[a].col(k), k * plan.dt));
     }
     goal.path_tolerance = pathTolerances(arm.joints, task_.config().max_tracking_error);
+    // The end as the path: a goal that ends far off is the policy's (GOAL_TOLERANCE_VIOLATED), decided within half
+    // the settling time, before the images are taken (a simulator stepped to them stands still there).
+    goal.goal_tolerance = goal.path_tolerance;
+    goal.goal_time_tolerance = ros::Duration(kGoalTimeShare * task_.config().settle);
     arm.client->sendGoal(goal);
   }
   if (connection_->paused()) {
@@ -251,7 +258,7 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
     connection_->waitFor([&] { return connection_->goalAnswered(0) && connection_->goalAnswered(1); },
                          "the arms' controllers (the fold's goals)");
     for (std::size_t a = 0; a < 2; ++a) {
-      if (connection_->goalFailed(a)) connection_->waitForGoal(a, "fold trajectory");
+      if (connection_->goalFailed(a)) connection_->waitForGoal(a, "fold trajectory", ros::Time());
     }
   }
   // The grippers open at the planned release, on the robot's clock: the gripper's loop does it at its time, however
@@ -265,10 +272,11 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
     connection_->pause(false);
   }
   // Until the release, unless an arm's goal fails first (waitForGoal then reports why).
-  connection_->waitFor(
+  connection_->waitWhileMoving(
       [&] { return connection_->goalFailed(0) || connection_->goalFailed(1) || ros::Time::now() >= release; },
-      "the robot's clock (the fold's release)", true);
-  for (std::size_t a = 0; a < 2; ++a) connection_->waitForGoal(a, "fold trajectory");
+      "the robot's clock (the fold's release)", release);
+  const ros::Time ends_by = release + ros::Duration(kGoalTimeShare * task_.config().settle);
+  for (std::size_t a = 0; a < 2; ++a) connection_->waitForGoal(a, "fold trajectory", ends_by);
   connection_->record(false);
   return release;
 }

@@ -70,6 +70,7 @@ void RobotInterfaces::validate(const std::string& what) const {
 struct RobotConnection::ArmState {
   Eigen::VectorXd actual;  ///< The last measured positions (empty before a state came).
   double stamp = -std::numeric_limits<double>::infinity();  ///< Of the last state [s].
+  long fresh = 0;  ///< States received with a stamp other than the one before: the robot's progress.
   /// Around a reset: the last stamp before it and when it answered, and the states since that are the reset
   /// scene's (a clock gone back, or on past the answer), with the last one's stamp.
   double before_reset = -std::numeric_limits<double>::infinity();
@@ -142,6 +143,7 @@ RobotConnection::RobotConnection(const RobotInterfaces& robot, std::vector<std::
         [this, raw, dofs](const bimanual_skills::JointTrajectoryControllerState::ConstPtr& s) {
           const std::lock_guard<std::mutex> lock(mutex_);
           const double t = s->header.stamp.toSec();
+          if (t != raw->stamp) ++raw->fresh;
           raw->stamp = t;
           if (t < raw->before_reset - 1e-9 || t > raw->reset_answered) {
             ++raw->after_reset;
@@ -193,19 +195,60 @@ RobotConnection::~RobotConnection() {
   spinner_->stop();
 }
 
-void RobotConnection::waitFor(const std::function<bool()>& done, const std::string& what, bool while_clock_runs) {
-  const auto limit = std::chrono::duration<double>(robot_.timeout);
-  auto deadline = std::chrono::steady_clock::now() + limit;
-  ros::Time clock = ros::Time::now();
+void RobotConnection::waitFor(const std::function<bool()>& done, const std::string& what) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(robot_.timeout);
   while (!done()) {
     if (!ros::ok()) throw RobotFault{tasks::FoldOutcome::RobotFailed, "shut down while waiting for " + what};
-    if (while_clock_runs && ros::Time::now() != clock) {  // the robot is moving on, at whatever rate
-      clock = ros::Time::now();
-      deadline = std::chrono::steady_clock::now() + limit;
-    }
     if (std::chrono::steady_clock::now() > deadline) {
       std::ostringstream message;
       message << "no answer from " << what << " within " << robot_.timeout << " s";
+      throw RobotFault{tasks::FoldOutcome::RobotFailed, message.str()};
+    }
+    std::this_thread::sleep_for(std::chrono::duration<double>(kPoll));
+  }
+}
+
+RobotConnection::Progress RobotConnection::progress() {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  Progress p;
+  for (const auto& arm : states_) {
+    p.states += arm->fresh;
+    p.stamp = std::max(p.stamp, arm->stamp);
+    p.slowest = std::min(p.slowest, arm->fresh);
+  }
+  return p;
+}
+
+void RobotConnection::waitWhileMoving(const std::function<bool()>& done, const std::string& what,
+                                      const ros::Time& ends_by) {
+  const auto limit = std::chrono::duration<double>(robot_.timeout);
+  const Progress start = progress();
+  auto deadline = std::chrono::steady_clock::now() + limit;
+  Progress last = start;
+  while (!done()) {
+    if (!ros::ok()) throw RobotFault{tasks::FoldOutcome::RobotFailed, "shut down while waiting for " + what};
+    const Progress now = progress();
+    // Every arm's controller has sent a state of a new stamp: the robot moves on, at whatever rate (a wall clock's
+    // robot, a simulator slower or faster than real time). A clock that moves on alone says nothing of the robot.
+    if (now.slowest > last.slowest) {
+      last = now;
+      deadline = std::chrono::steady_clock::now() + limit;
+    }
+    std::ostringstream message;
+    if (std::chrono::steady_clock::now() > deadline) {
+      message << "no answer from " << what << ": ";
+      if (now.slowest == start.slowest) {
+        message << "a controller sent no state for " << robot_.timeout << " s (the robot's loop or its controller "
+                << "stopped)";
+      } else {
+        message << "the controllers' states stopped for " << robot_.timeout << " s at t = " << std::fixed << now.stamp
+                << " s (the robot's loop or a controller stopped)";
+      }
+      throw RobotFault{tasks::FoldOutcome::RobotFailed, message.str()};
+    }
+    if (!ends_by.isZero() && now.stamp > ends_by.toSec() + robot_.timeout) {
+      message << "no answer from " << what << ": the robot's states are at t = " << std::fixed << now.stamp << " s, "
+              << robot_.timeout << " s after it should have ended (t = " << ends_by.toSec() << " s)";
       throw RobotFault{tasks::FoldOutcome::RobotFailed, message.str()};
     }
     std::this_thread::sleep_for(std::chrono::duration<double>(kPoll));
@@ -269,10 +312,10 @@ void RobotConnection::cancelGoals() {
   }
 }
 
-void RobotConnection::waitForGoal(std::size_t a, const std::string& what) {
+void RobotConnection::waitForGoal(std::size_t a, const std::string& what, const ros::Time& ends_by) {
   Arm& arm = *arms_[a];
   Client& client = *arm.client;
-  waitFor(
+  waitWhileMoving(
       [&] {
         if (!client.isServerConnected()) {
           throw RobotFault{tasks::FoldOutcome::RobotFailed, arm.name + "'s follow_joint_trajectory action server " +
@@ -281,7 +324,7 @@ void RobotConnection::waitForGoal(std::size_t a, const std::string& what) {
         }
         return client.getState().isDone();
       },
-      arm.name + "'s " + what, true);
+      arm.name + "'s " + what, ends_by);
   const auto result = client.getResult();
   if (client.getState() != actionlib::SimpleClientGoalState::SUCCEEDED || !result) {
     throw RobotFault{
@@ -343,7 +386,7 @@ void RobotConnection::stepUntil(double until, double dt, const std::string& what
 }
 
 void RobotConnection::waitUntil(const ros::Time& time, const std::string& what) {
-  waitFor([&] { return ros::Time::now() >= time; }, "the robot's clock (" + what + ")", true);
+  waitWhileMoving([&] { return ros::Time::now() >= time; }, "the robot's clock (" + what + ")", time);
 }
 
 ros::Time RobotConnection::reset() {

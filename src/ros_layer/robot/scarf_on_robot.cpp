@@ -138,10 +138,10 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
     bimanual_skills::FollowJointTrajectoryGoal goal;
     goal.trajectory.joint_names = arm.joints;
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(start.size());
-    goal.trajectory.points.push_back(
-        trajectoryPoint(start, zero, zero, RobotConnection::moveTime({at}, {start}, limits, robot_.move_time)));
+    const double move = RobotConnection::moveTime({at}, {start}, limits, robot_.move_time);
+    goal.trajectory.points.push_back(trajectoryPoint(start, zero, zero, move));
     arm.client->sendGoal(goal);
-    connection_->waitForGoal(0, "move to the start");
+    connection_->waitForGoal(0, "move to the start", ros::Time::now() + ros::Duration(move));
   }
   // A simulator stands still until the controller has the goal: the scarf hangs for hold_before exactly.
   if (!robot_.pause_service.empty()) connection_->pause(true);
@@ -174,10 +174,15 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   }
   goal.trajectory.points.push_back(trajectoryPoint(plan.position.col(last), zero, zero, plan.move_end * plan.dt));
   goal.path_tolerance = pathTolerances(arm.joints, c.max_tracking_error);
+  // The end as the path, decided within half the time to the images (a simulator stepped to them stands still
+  // there): a goal that ends far off is the policy's.
+  goal.goal_tolerance = goal.path_tolerance;
+  const double after_motion = (plan.end - plan.move_end) * plan.dt;
+  goal.goal_time_tolerance = ros::Duration(0.5 * after_motion);
   arm.client->sendGoal(goal);
   if (connection_->paused()) {
     connection_->waitFor([&] { return connection_->goalAnswered(0); }, "the arm's controller (the motion's goal)");
-    if (connection_->goalFailed(0)) connection_->waitForGoal(0, "motion");
+    if (connection_->goalFailed(0)) connection_->waitForGoal(0, "motion", ros::Time());
   }
   if (c.release) connection_->scheduleRelease(0, origin + ros::Duration(plan.release * plan.dt));
   const ros::Time end = origin + ros::Duration(plan.end * plan.dt);
@@ -186,9 +191,9 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   } else if (connection_->paused()) {
     connection_->pause(false);
   }
-  connection_->waitFor([&] { return connection_->goalFailed(0) || ros::Time::now() >= end; },
-                       "the robot's clock (the scarf settling)", true);
-  connection_->waitForGoal(0, "motion");
+  connection_->waitWhileMoving([&] { return connection_->goalFailed(0) || ros::Time::now() >= end; },
+                               "the robot's clock (the scarf settling)", end);
+  connection_->waitForGoal(0, "motion", origin + ros::Duration(plan.move_end * plan.dt + 0.5 * after_motion));
   connection_->record(false);
 
   // The cost's terms (the plan's accelerations are in already): the controller's observer, the camera's colour image.

@@ -119,9 +119,14 @@ class RobotConnection {
   /// The camera's first CameraInfo (from the constructor).
   const sensor_msgs::CameraInfo& firstCameraInfo() const { return *first_info_; }
 
-  /// Polls `done` for at most the timeout of wall time; with `while_clock_runs` (a wait for the robot's motion) the
-  /// limit counts from the robot clock's last step instead. Throws RobotFault (RobotFailed) naming `what`.
-  void waitFor(const std::function<bool()>& done, const std::string& what, bool while_clock_runs = false);
+  /// Polls `done` for at most the timeout of wall time. Throws RobotFault (RobotFailed) naming `what`.
+  void waitFor(const std::function<bool()>& done, const std::string& what);
+  /// A wait for the robot's motion: polls `done` while every arm's controller keeps sending states of new stamps,
+  /// at most the timeout of wall time after the last such state of the slowest arm (a robot on the wall clock
+  /// whose controller stalls is found as one on a simulator's clock that stops), and, unless `ends_by` is zero,
+  /// until the states' stamps pass `ends_by` + timeout (a goal that should have ended). Throws RobotFault
+  /// (RobotFailed) naming `what` and which bound ran out.
+  void waitWhileMoving(const std::function<bool()>& done, const std::string& what, const ros::Time& ends_by);
   /// Calls `service` (a service's name) within `timeout`; throws RobotFault (RobotFailed) naming `what` when there
   /// is no server, the call fails or no answer comes in time. The response's own success is the caller's to check.
   template <typename Service>
@@ -155,8 +160,9 @@ class RobotConnection {
   /// Steps a paused simulator to `until` [s of its clock] at `dt` per step; throws with the reason.
   void stepUntil(double until, double dt, const std::string& what);
   void waitUntil(const ros::Time& time, const std::string& what);
-  /// Waits for arm a's goal to end: RobotFailed when its server goes, ControllerFailed when it does not succeed.
-  void waitForGoal(std::size_t a, const std::string& what);
+  /// Waits for arm a's goal to end (waitWhileMoving, its motion due to end by `ends_by` of the robot's clock; zero:
+  /// unbounded by the stamps): RobotFailed when its server goes, ControllerFailed when it does not succeed.
+  void waitForGoal(std::size_t a, const std::string& what, const ros::Time& ends_by);
   /// Whether arm a's server went or its goal ended other than SUCCEEDED; whether its controller answered the goal.
   bool goalFailed(std::size_t a) const;
   bool goalAnswered(std::size_t a) const;
@@ -196,6 +202,13 @@ class RobotConnection {
   /// Moves the arms to `targets` in `time` [s] and waits at most `time + timeout` of wall time (the recovery after
   /// a failure, on a robot that may be down): whether every arm got there. Throws when an arm is gone.
   bool moveWithin(const std::vector<Eigen::VectorXd>& targets, double time, double timeout);
+  /// The arms' controller states so far: how many of new stamps (in all, and of the arm with the fewest), and the
+  /// newest stamp.
+  struct Progress {
+    long states = 0, slowest = std::numeric_limits<long>::max();
+    double stamp = -std::numeric_limits<double>::infinity();
+  };
+  Progress progress();
   /// Opens every gripper within `timeout` each; says how it went ("left's gripper opened, ...").
   std::string openGrippers(double timeout) noexcept;
   void checkWorld(const std::string& what, const std::string& sim_config, const std::string& robot_file) const;
