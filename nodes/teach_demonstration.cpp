@@ -83,7 +83,7 @@ struct Arm {
   bool has_grip = false;
   ros::Subscriber target;
   ros::Publisher command;
-  ros::ServiceClient mode;
+  std::string mode;  ///< Its controller's set_mode service.
 };
 
 class TeachNode {
@@ -112,7 +112,7 @@ class TeachNode {
       ik.timeout = 0.05;
       arm->ik = std::make_unique<bk::GlobalIkSolver>(*arm->model, ik);
       arm->q = Eigen::VectorXd::Zero(arm->model->nq());
-      arm->mode = node_.serviceClient<bimanual_skills::SetControlMode>(a.name + "/set_mode");
+      arm->mode = a.name + "/set_mode";
       arm->command = node_.advertise<trajectory_msgs::JointTrajectory>(a.name + "/command", 1);
       Arm* raw = arm.get();
       arm->target = node_.subscribe<geometry_msgs::PointStamped>(
@@ -121,7 +121,8 @@ class TeachNode {
       arms_.push_back(std::move(arm));
     }
     recorder_ = std::make_unique<bs::primitives::DemonstrationRecorder>(static_cast<int>(arms_.size()));
-    grasp_ = node_.serviceClient<bimanual_skills::ClothGrasp>(grasp);
+    grasp_ = grasp;
+    caller_ = std::make_unique<bs::ros_layer::ServiceCaller>(node_);
     states_ = node_.subscribe("joint_states", 10, &TeachNode::onStates, this);
     services_.push_back(private_node_.advertiseService("start", &TeachNode::onStart, this));
     services_.push_back(private_node_.advertiseService("save", &TeachNode::onSave, this));
@@ -138,7 +139,7 @@ class TeachNode {
     for (const auto& arm : arms_) {
       bimanual_skills::SetControlMode mode;
       mode.request.mode = "gravity_compensation";
-      const auto outcome = bs::ros_layer::callWithin(arm->mode, mode, timeout_);
+      const auto outcome = caller_->call(arm->mode, mode, timeout_);
       if (outcome != bs::ros_layer::CallOutcome::Answered || !mode.response.success) {
         ROS_ERROR("teach_demonstration: %s/set_mode gravity_compensation failed: %s", arm->name.c_str(),
                   outcome == bs::ros_layer::CallOutcome::Answered ? mode.response.message.c_str()
@@ -316,16 +317,12 @@ class TeachNode {
   }
 
   bool onGrasp(std_srvs::SetBool::Request& request, std_srvs::SetBool::Response& response) {
-    if (!grasp_.waitForExistence(ros::Duration(timeout_))) {
-      response.message = "no gripper service " + grasp_.getService();
-      return true;
-    }
     response.success = true;
     for (const auto& arm : arms_) {
       bimanual_skills::ClothGrasp grasp;
       grasp.request.arm = arm->name;
       grasp.request.grasp = request.data;
-      const auto outcome = bs::ros_layer::callWithin(grasp_, grasp, timeout_);
+      const auto outcome = caller_->call(grasp_, grasp, timeout_);
       const bool ok = outcome == bs::ros_layer::CallOutcome::Answered && grasp.response.success;
       response.success = response.success && ok;
       const std::string why = outcome != bs::ros_layer::CallOutcome::Answered ? bs::ros_layer::describe(outcome)
@@ -342,7 +339,8 @@ class TeachNode {
   std::unique_ptr<bs::primitives::DemonstrationRecorder> recorder_;
   std::unique_ptr<interactive_markers::InteractiveMarkerServer> markers_;
   ros::Subscriber states_;
-  ros::ServiceClient grasp_;
+  std::string grasp_;  ///< The gripper's service.
+  std::unique_ptr<bs::ros_layer::ServiceCaller> caller_;
   std::vector<ros::ServiceServer> services_;
   std::mutex mutex_;
   std::string out_, world_;

@@ -5,9 +5,9 @@
 // 2. bullet_sim stopped with SIGSTOP, before a rollout (its first service call hangs) and in the middle of the fold
 //    (its actions and clock stand still): each rollout fails in time, and after SIGCONT the next one succeeds;
 // 3. a camera that stops in the middle of a rollout fails it (no images in time), the next one succeeds;
-// 4. a fault storm in a learning: a gripper that drops every third closing call is retried (never learned from, logged
-// to
-//    robot_faults.csv), and a gripper that is down stops the learning after robot_fault_limit faults with the reason.
+// 4. a fault storm in a learning: a gripper that drops every fourth closing call and its retry fails those rollouts,
+//    which are run again (never learned from, logged to robot_faults.csv), and a gripper that is down stops the
+//    learning after robot_fault_limit faults with the reason.
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/FollowJointTrajectoryActionGoal.h"
 #include "bimanual_skills/rollout/fold_learning.hpp"
@@ -54,7 +54,9 @@ std::string configPath() {
 /// does not hold the camera.
 class FaultInjector {
  public:
-  enum class Gripper { Pass, Hang, DropEveryThirdGrasp, Down };
+  /// DropEveryFourthGraspTwice: every fourth call that closes a gripper fails, and so does the caller's retry of it
+  /// at once on a new connection (a single dropped call is retried there and never reaches the learner).
+  enum class Gripper { Pass, Hang, DropEveryFourthGraspTwice, Down };
 
   FaultInjector() {
     node_.setCallbackQueue(&queue_);
@@ -78,6 +80,7 @@ class FaultInjector {
       const std::lock_guard<std::mutex> lock(mutex_);
       gripper_ = mode;
       grasps_ = 0;
+      dropped_ = false;
     }
     changed_.notify_all();
   }
@@ -91,13 +94,16 @@ class FaultInjector {
       changed_.wait_for(lock, std::chrono::seconds(60), [this] { return gripper_ != Gripper::Hang; });
       return false;
     }
-    if (gripper_ == Gripper::Down || (gripper_ == Gripper::DropEveryThirdGrasp && request.grasp && grasps_ % 3 == 0))
-      return false;
+    if (gripper_ == Gripper::DropEveryFourthGraspTwice && request.grasp) {
+      const bool drop = grasps_ % 4 == 0 || dropped_;
+      dropped_ = drop && !dropped_;
+      if (drop) return false;
+    }
+    if (gripper_ == Gripper::Down) return false;
     lock.unlock();
     bs::ClothGrasp forwarded;
     forwarded.request = request;
-    if (bs::ros_layer::callWithin(node_.serviceClient<bs::ClothGrasp>("/bullet_sim/grasp"), forwarded, 10.0) !=
-        bs::ros_layer::CallOutcome::Answered) {
+    if (caller_.call("/bullet_sim/grasp", forwarded, 10.0) != bs::ros_layer::CallOutcome::Answered) {
       return false;
     }
     response = forwarded.response;
@@ -120,6 +126,7 @@ class FaultInjector {
 
   ros::CallbackQueue queue_;
   ros::NodeHandle node_;
+  bs::ros_layer::ServiceCaller caller_{ros::NodeHandle()};
   ros::AsyncSpinner spinner_{4, &queue_};
   ros::ServiceServer grasp_;
   ros::Subscriber image_sub_, depth_sub_, info_sub_, depth_info_sub_;
@@ -127,7 +134,8 @@ class FaultInjector {
   std::mutex mutex_;
   std::condition_variable changed_;
   Gripper gripper_ = Gripper::Pass;
-  int grasps_ = 0;  ///< Calls that close a gripper since the mode was set.
+  int grasps_ = 0;        ///< Calls that close a gripper since the mode was set.
+  bool dropped_ = false;  ///< The last call that closes a gripper was dropped (its retry is dropped too).
   std::atomic<bool> camera_on_{true};
 };
 
@@ -276,8 +284,8 @@ TEST(FoldRobotFaults, AFaultStormIsRetriedAndADownRobotStopsTheLearning) {
     ++printed;
   };
 
-  std::printf("a gripper that drops every third call that closes it (k = 3, m = 4):\n");
-  injector.setGripper(FaultInjector::Gripper::DropEveryThirdGrasp);
+  std::printf("a gripper that drops every fourth call that closes it, and its retry (k = 3, m = 4):\n");
+  injector.setGripper(FaultInjector::Gripper::DropEveryFourthGraspTwice);
   const bs::rollout::FoldLearningResult storm = bs::rollout::FoldLearner(config, dir, observer, robot()).learn();
   std::printf("  %d rollouts, %d robot faults, each run again\n", storm.simulated, storm.robot_faults);
   EXPECT_GT(storm.robot_faults, 0);

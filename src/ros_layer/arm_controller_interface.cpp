@@ -211,7 +211,7 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
 ArmControllerInterface::ArmControllerInterface(ros::NodeHandle node, ParameterReader& parameters,
                                                const std::string& arm, const std::string& robot_description,
                                                const std::string& owner, const ControllerDefaults& defaults)
-    : arm_(arm), owner_(owner), node_(node) {
+    : arm_(arm), owner_(owner), node_(node), gripper_(node) {
   settings_ = readControllerSettings(parameters, arm, robot_description, defaults);
   controller_ = std::make_unique<bc::RealtimeArmController>(*settings_.model, settings_.friction, settings_.config);
   if (!settings_.target_topic.empty()) controller_->enableFollowing(settings_.follow);
@@ -485,12 +485,13 @@ void ArmControllerInterface::follow(const bc::ArmControllerState& s, const ros::
   if (!s.grasp_requested) grasp_answered_ = false;  // the loop has the answer: a later request is a new one
   if (s.grasp_requested && !grasp_answered_ && !grasp_in_flight_.exchange(true)) {
     // The follower asks for the gripper: a bounded call on a thread of its own, its answer to the loop.
-    std::thread([this, client = node_.serviceClient<bimanual_skills::ClothGrasp>(settings_.gripper_service)] {
+    std::thread([this] {
       bimanual_skills::ClothGrasp grasp;
       grasp.request.arm = arm_;
       grasp.request.grasp = true;
-      const CallOutcome outcome =
-          settings_.gripper_service.empty() ? CallOutcome::NoServer : callWithin(client, grasp, 5.0);
+      const CallOutcome outcome = settings_.gripper_service.empty()
+                                      ? CallOutcome::NoServer
+                                      : gripper_.call(settings_.gripper_service, grasp, 5.0);
       const bool held = outcome == CallOutcome::Answered && grasp.response.success;
       controller_->graspDone(held);
       const std::string said = outcome == CallOutcome::Answered ? grasp.response.message : describe(outcome);

@@ -13,6 +13,7 @@
 #include "bimanual_skills/TrackedObject.h"
 #include "bimanual_skills/control/realtime_arm_controller.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/ros_layer/bounded_call.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 
 #include <actionlib/server/action_server.h>
@@ -144,6 +145,7 @@ class ArmControllerInterface {
 
   // Following.
   std::string target_problem_;  ///< Why the last target message could not be used ("" when it could).
+  ServiceCaller gripper_;       ///< The gripper's service (follow/gripper_service).
   std::atomic<bool> grasp_in_flight_{false};
   bool grasp_answered_ = false;   ///< The request in the loop's states was answered (until a state without one).
   std::string last_follow_text_;  ///< Phase and reason last said.

@@ -213,7 +213,7 @@ void FoldOnRobotTask::moveToStart() {
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(q.size());
     goal.trajectory.points.push_back(trajectoryPoint(above_start_[a], zero, zero, up));
     goal.trajectory.points.push_back(trajectoryPoint(q, zero, zero, up + down));
-    arm.client->sendGoal(goal);
+    connection_->sendGoal(a, goal);
   }
   const ros::Time ends_by = ros::Time::now() + ros::Duration(up + down);
   for (std::size_t a = 0; a < 2; ++a) connection_->waitForGoal(a, "move to the start", ends_by);
@@ -251,7 +251,7 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
     // the settling time, before the images are taken (a simulator stepped to them stands still there).
     goal.goal_tolerance = goal.path_tolerance;
     goal.goal_time_tolerance = ros::Duration(kGoalTimeShare * task_.config().settle);
-    arm.client->sendGoal(goal);
+    connection_->sendGoal(a, goal);
   }
   if (connection_->paused()) {
     // Both controllers have the goals (or one refused it) before the clock goes on.
@@ -409,6 +409,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     if (plan.outcome != tasks::FoldOutcome::Ok) throw RobotFault{plan.outcome, plan.reason};
     // A simulator left paused (a learner stopped while it stood still) goes on first: paused, it publishes no
     // states, its actions no status (a reconnect could not connect), and every rollout would fail.
+    connection_->settle();  // nothing of the last rollout still under way
     if (!robot_.pause_service.empty()) connection_->pause(false);
     if (reconnect_) {
       connection_->connectArms();

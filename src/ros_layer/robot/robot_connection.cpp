@@ -94,6 +94,7 @@ RobotConnection::RobotConnection(const RobotInterfaces& robot, std::vector<std::
   tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_);
   node_ = std::make_unique<ros::NodeHandle>();
   node_->setCallbackQueue(&queue_);
+  caller_ = std::make_unique<ServiceCaller>(*node_);
   const std::string camera = robot_.camera + "/";
   image_sub_ =
       node_->subscribe<sensor_msgs::Image>(camera + "image_raw", 2, [this](const sensor_msgs::ImageConstPtr& m) {
@@ -286,6 +287,7 @@ void RobotConnection::connectArms() {
   for (const auto& arm : arms_) {
     arm->client.reset();
     arm->client = std::make_unique<Client>(*node_, arm->name + "/follow_joint_trajectory", false);
+    arm->goal_sent = false;
   }
   spinner_->start();
   waitFor(
@@ -306,9 +308,26 @@ bool RobotConnection::goalAnswered(std::size_t a) const {
   return goalFailed(a) || arms_[a]->client->getState() != actionlib::SimpleClientGoalState::PENDING;
 }
 
+void RobotConnection::sendGoal(std::size_t a, const bimanual_skills::FollowJointTrajectoryGoal& goal) {
+  Arm& arm = *arms_[a];
+  arm.client->sendGoal(goal);
+  arm.goal_sent = true;
+}
+
 void RobotConnection::cancelGoals() {
   for (const auto& arm : arms_) {
-    if (arm->client) arm->client->cancelGoal();
+    if (arm->client && arm->goal_sent && !arm->client->getState().isDone()) arm->client->cancelGoal();
+  }
+}
+
+void RobotConnection::settle() {
+  cancelGoals();
+  std::string busy;
+  if (!caller_->drain(robot_.timeout, &busy)) {
+    std::ostringstream message;
+    message << "the robot has not answered the last rollout's calls to " << busy << " within " << robot_.timeout
+            << " s more (a stuck server would run them late, into this rollout)";
+    throw RobotFault{tasks::FoldOutcome::RobotFailed, message.str()};
   }
 }
 
@@ -372,8 +391,7 @@ void RobotConnection::resumeAfterFailure() noexcept {
     // A simulator that is gone or stopped is waited for briefly only (the rollout has failed already).
     std_srvs::SetBool request;
     request.request.data = false;
-    (void)callWithin(node_->serviceClient<std_srvs::SetBool>(robot_.pause_service), request,
-                     std::min(robot_.timeout, kResumeTimeout));
+    (void)caller_->call(robot_.pause_service, request, std::min(robot_.timeout, kResumeTimeout));
   } catch (const std::exception&) {  // best effort: the next rollout resumes it first anyway
   }
 }
@@ -381,7 +399,15 @@ void RobotConnection::resumeAfterFailure() noexcept {
 void RobotConnection::stepUntil(double until, double dt, const std::string& what) {
   bimanual_skills::SimStep step;
   step.request.steps = static_cast<std::uint32_t>(std::max(0L, std::lround((until - paused_at_) / dt)));
-  call(robot_.step_service, step, robot_.timeout + (until - paused_at_), what);
+  // As long as the controllers' states go on: a simulator paces a step for controllers outside it at its
+  // real-time factor, whatever that is.
+  long seen = progress().slowest;
+  call(robot_.step_service, step, robot_.timeout, what, Retry::Never, [&] {
+    const long now = progress().slowest;
+    const bool moved = now > seen;
+    seen = now;
+    return moved;
+  });
   if (!step.response.success) throw RobotFault{tasks::FoldOutcome::RobotFailed, what + ": " + step.response.message};
 }
 
@@ -513,7 +539,7 @@ bool RobotConnection::moveWithin(const std::vector<Eigen::VectorXd>& targets, do
     goal.trajectory.joint_names = arm.joints;
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(targets[a].size());
     goal.trajectory.points.push_back(trajectoryPoint(targets[a], zero, zero, time));
-    arm.client->sendGoal(goal);
+    sendGoal(a, goal);
   }
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(time + timeout);
   bool there = true;
@@ -523,6 +549,7 @@ bool RobotConnection::moveWithin(const std::vector<Eigen::VectorXd>& targets, do
     }
     there = there && arm->client->getState() == actionlib::SimpleClientGoalState::SUCCEEDED;
   }
+  if (!there) cancelGoals();  // a robot that wakes up must not run the recovery into the next rollout
   return there;
 }
 
@@ -533,8 +560,7 @@ std::string RobotConnection::openGrippers(double timeout) noexcept {
       bimanual_skills::ClothGrasp request;
       request.request.arm = arm->name;
       request.request.grasp = false;
-      const CallOutcome outcome = callWithin(node_->serviceClient<bimanual_skills::ClothGrasp>(robot_.grasp_service),
-                                             request, std::min(robot_.timeout, timeout));
+      const CallOutcome outcome = caller_->call(robot_.grasp_service, request, std::min(robot_.timeout, timeout));
       done +=
           (done.empty() ? "" : ", ") + arm->name +
           (outcome == CallOutcome::Answered && request.response.success

@@ -140,7 +140,7 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
     const Eigen::VectorXd zero = Eigen::VectorXd::Zero(start.size());
     const double move = RobotConnection::moveTime({at}, {start}, limits, robot_.move_time);
     goal.trajectory.points.push_back(trajectoryPoint(start, zero, zero, move));
-    arm.client->sendGoal(goal);
+    connection_->sendGoal(0, goal);
     connection_->waitForGoal(0, "move to the start", ros::Time::now() + ros::Duration(move));
   }
   // A simulator stands still until the controller has the goal: the scarf hangs for hold_before exactly.
@@ -179,7 +179,7 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   goal.goal_tolerance = goal.path_tolerance;
   const double after_motion = (plan.end - plan.move_end) * plan.dt;
   goal.goal_time_tolerance = ros::Duration(0.5 * after_motion);
-  arm.client->sendGoal(goal);
+  connection_->sendGoal(0, goal);
   if (connection_->paused()) {
     connection_->waitFor([&] { return connection_->goalAnswered(0); }, "the arm's controller (the motion's goal)");
     if (connection_->goalFailed(0)) connection_->waitForGoal(0, "motion", ros::Time());
@@ -267,6 +267,7 @@ rollout::RolloutResult ScarfOnRobotTask::run(const Eigen::VectorXd& parameters, 
     if (plan.outcome != tasks::FoldOutcome::Ok) throw RobotFault{plan.outcome, plan.reason};
     // A simulator left paused (a learner stopped while it stood still) goes on first: paused, its actions publish no
     // status and a reconnect could not connect.
+    connection_->settle();  // nothing of the last rollout still under way
     if (!robot_.pause_service.empty()) connection_->pause(false);
     if (reconnect_) {
       connection_->connectArms();

@@ -3,11 +3,11 @@
 /// and controller state, the scene's reset (a std_srvs/Trigger), the grippers (bimanual_skills/ClothGrasp, stamped
 /// commands kept by the gripper's loop), a simulator's pause and step, the camera's colour, depth and CameraInfo, and
 /// optionally the cloth's ground truth (sensor_msgs/PointCloud2). Every wait has a wall-clock limit, service calls
-/// included (callWithin); a wait for the robot's motion counts it from the robot clock's last step. A step that fails
-/// throws RobotFault with its outcome and the reason. Messages across a reset count as the reset scene's only once
-/// they are of it (a simulator's clock goes back, a robot's goes on), however late this process reads them.
-/// Used by FoldOnRobotTask and ScarfOnRobotTask. Target bimanual_skills_ros_robot. Offline: allocates; one object per
-/// thread of rollouts.
+/// included (ServiceCaller); a wait for the robot's motion counts it from the controllers' last state. A step that
+/// fails throws RobotFault with its outcome and the reason. Messages across a reset count as the reset scene's only
+/// once they are of it (a simulator's clock goes back, a robot's goes on), however late this process reads them. Used
+/// by FoldOnRobotTask and ScarfOnRobotTask. Target bimanual_skills_ros_robot. Offline: allocates; one object per thread
+/// of rollouts.
 #pragma once
 
 #include "bimanual_skills/FollowJointTrajectoryAction.h"
@@ -84,6 +84,7 @@ class RobotConnection {
     std::string name;
     std::vector<std::string> joints;
     std::unique_ptr<Client> client;
+    bool goal_sent = false;  ///< Whether `client` has sent a goal (one it may have to cancel).
   };
   /// The latest camera messages (and the cloth's cloud) of one moment.
   struct Frame {
@@ -127,18 +128,23 @@ class RobotConnection {
   /// until the states' stamps pass `ends_by` + timeout (a goal that should have ended). Throws RobotFault
   /// (RobotFailed) naming `what` and which bound ran out.
   void waitWhileMoving(const std::function<bool()>& done, const std::string& what, const ros::Time& ends_by);
-  /// Calls `service` (a service's name) within `timeout`; throws RobotFault (RobotFailed) naming `what` when there
-  /// is no server, the call fails or no answer comes in time. The response's own success is the caller's to check.
+  /// Calls `service` (a service's name) within `timeout` (ServiceCaller::call); throws RobotFault (RobotFailed)
+  /// naming `what` when there is no server, the call fails, its last call is unanswered or no answer comes in time.
+  /// The response's own success is the caller's to check.
   template <typename Service>
-  void call(const std::string& service, Service& request, double timeout, const std::string& what) {
-    ros::ServiceClient client = node_->serviceClient<Service>(service);
-    const CallOutcome outcome = callWithin(client, request, timeout);
+  void call(const std::string& service, Service& request, double timeout, const std::string& what,
+            Retry retry = Retry::IfDropped, const std::function<bool()>& progressed = {}) {
+    const CallOutcome outcome = caller_->call(service, request, timeout, retry, progressed);
     if (outcome == CallOutcome::Answered) return;
     std::ostringstream message;
-    message << what << " (" << client.getService() << "): " << describe(outcome);
-    if (outcome != CallOutcome::Failed) message << " within " << timeout << " s";
+    message << what << " (" << caller_->resolve(service) << "): " << describe(outcome);
+    if (outcome != CallOutcome::Failed && outcome != CallOutcome::Busy) message << " within " << timeout << " s";
     throw RobotFault{tasks::FoldOutcome::RobotFailed, message.str()};
   }
+  /// Before a rollout: waits up to the timeout for the calls of the last one still unanswered and cancels its
+  /// goals, so that nothing the robot runs late reaches into this rollout; throws RobotFault (RobotFailed) when a
+  /// call is still unanswered.
+  void settle();
 
   /// New action clients for the arms, and the wait for their servers (a simulator must be running: paused, its
   /// actions publish no status). \throws RobotFault with the reason.
@@ -166,7 +172,9 @@ class RobotConnection {
   /// Whether arm a's server went or its goal ended other than SUCCEEDED; whether its controller answered the goal.
   bool goalFailed(std::size_t a) const;
   bool goalAnswered(std::size_t a) const;
-  /// Cancels every arm's goal.
+  /// Sends `goal` to arm a's controller.
+  void sendGoal(std::size_t a, const bimanual_skills::FollowJointTrajectoryGoal& goal);
+  /// Cancels every arm's goal that has not ended.
   void cancelGoals();
   /// Every arm's last measured positions; throws before any state came.
   std::vector<Eigen::VectorXd> measuredPositions();
@@ -220,6 +228,7 @@ class RobotConnection {
   ClothHandler on_cloth_;
   ros::CallbackQueue queue_;
   std::unique_ptr<ros::NodeHandle> node_;
+  std::unique_ptr<ServiceCaller> caller_;
   std::unique_ptr<ros::AsyncSpinner> spinner_;
   std::vector<std::unique_ptr<Arm>> arms_;
   std::vector<std::unique_ptr<ArmState>> states_;
