@@ -6,6 +6,7 @@
 //   sim_external.test  (ctc_controller processes, real time)     ExternalControllers.*
 //   sim_500hz.test     (hosted, a 2 ms step, lockstep)           Rate500.*
 //   sim_external_lockstep.test (ctc_controller processes, lockstep) ExternalLockstep.*
+//   jtc_scenarios.test (ctc_controller processes, real time)     JtcScenarios.*
 #include "bimanual_skills/ApplyWrench.h"
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/FollowJointTrajectoryAction.h"
@@ -1002,6 +1003,324 @@ TEST_F(ExternalControllers, EstimatesAPayloadWithStatesLost) {
   EXPECT_GT(diagnosticCount("ctc_controller left", "observer_irregular_steps"), irregular_before + 100)
       << "the relay lost no states";
   dropFraction(0.0);
+}
+
+// ------------------------------------------------------------------------------------------ jtc_scenarios.test
+
+/// The scenarios of ros_controllers' joint_trajectory_controller test suite (and a few it leaves out) against the
+/// left arm's ctc_controller process, each printed as "scenario: ...: ours ..." for docs/NODES.md's table. The left
+/// controller reads the relay, which the test can stop (the robot's loop stops while its clock goes on).
+class JtcScenarios : public ExternalControllers {
+ protected:
+  void SetUp() override {
+    ExternalControllers::SetUp();
+    other_ = std::make_unique<Client>(node_, "/left/follow_joint_trajectory", false);
+    ASSERT_TRUE(waitWall([&] { return other_->isServerConnected(); }, 30.0));
+    start_ = armPositions("left");
+    target_ = start_;
+    target_[0] += 0.25;
+    target_[3] -= 0.2;
+  }
+  void TearDown() override {
+    clients_["left"]->cancelAllGoals();
+    ExternalControllers::TearDown();
+  }
+
+  /// A goal of the left arm through `points` at `period` from a start stamped `stamp` (0: now).
+  Goal goalThrough(const std::vector<std::vector<double>>& points, double period, ros::Time stamp = ros::Time()) {
+    Goal goal;
+    goal.trajectory = trajectory("left", points, period);
+    goal.trajectory.header.stamp = stamp;
+    return goal;
+  }
+  /// A goal's end as "STATE code 'message'", for the printed table.
+  static std::string said(const State& state, const Result& result) {
+    return state.toString() + " " + std::to_string(result.error_code) + " '" + result.error_string + "'";
+  }
+  void scenario(const std::string& name, const std::string& ours) {
+    std::printf("scenario: %s: %s\n", name.c_str(), ours.c_str());
+    RecordProperty(name, ours);
+  }
+  /// Whether the left arm's joint 1 stands still (moves less than 2 mrad over 0.3 s of simulated time).
+  bool standsStill() {
+    const double before = armPositions("left")[0];
+    waitSim(0.3);
+    return std::abs(armPositions("left")[0] - before) < 2e-3;
+  }
+
+  std::unique_ptr<Client> other_;
+  std::vector<double> start_, target_;
+};
+
+TEST_F(JtcScenarios, StampsOldAndPartlyOldTrajectories) {
+  waitSim(2.0);  // a clock with a past to stamp in (the reset set it back to 0)
+  // Every point in the past: rejected (JTC: REJECTED INVALID_GOAL "Dropping all N trajectory point(s)").
+  auto [state, result] = follow("left", goalThrough({target_}, 1.0, ros::Time::now() - ros::Duration(2.5)));
+  EXPECT_EQ(state, State::REJECTED);
+  EXPECT_EQ(result.error_code, Result::OLD_HEADER_TIMESTAMP) << result.error_string;
+  scenario("whole trajectory in the past", said(state, result));
+  // A single point at time_from_start 0, stamp 0: it is now, i.e. past (JTC: rejected, "Dropping all 1").
+  Goal now = goalThrough({target_}, 1.0);
+  now.trajectory.points[0].time_from_start = ros::Duration(0.0);
+  std::tie(state, result) = follow("left", now);
+  EXPECT_EQ(state, State::REJECTED);
+  scenario("single point at t = 0, stamp 0", said(state, result));
+  // Stamp 0, first point at -0.1 s (JTC's ignorePartiallyOldActionTraj): that point is dropped, the rest runs.
+  Goal partly = goalThrough({start_, target_}, 1.0);
+  partly.trajectory.points[0].time_from_start = ros::Duration(-0.1);
+  std::tie(state, result) = follow("left", partly);
+  EXPECT_EQ(state, State::SUCCEEDED) << result.error_string;
+  EXPECT_NEAR(armPositions("left")[0], target_[0], 0.05);
+  scenario("first point at t = -0.1 s, stamp 0", said(state, result));
+  // Stamped 1.5 s ago with points at 1, 2, 3 s: the first is dropped, the others keep their times.
+  const ros::Time earlier = ros::Time::now() - ros::Duration(1.5);
+  std::tie(state, result) = follow("left", goalThrough({target_, start_, target_}, 1.0, earlier));
+  EXPECT_EQ(state, State::SUCCEEDED) << result.error_string;
+  const double ended = ros::Time::now().toSec() - earlier.toSec();
+  EXPECT_GT(ended, 2.9) << "the points did not keep their times";
+  EXPECT_LT(ended, 4.5);
+  scenario("partly old (stamp 1.5 s ago, points at 1, 2, 3 s)", said(state, result));
+  // Stamp 0, first point at t = 0 with others after it: the t = 0 point is now, dropped (as JTC).
+  Goal zero = goalThrough({target_, start_}, 1.0);
+  zero.trajectory.points[0].time_from_start = ros::Duration(0.0);
+  std::tie(state, result) = follow("left", zero);
+  EXPECT_EQ(state, State::SUCCEEDED) << result.error_string;
+  scenario("first point at t = 0, stamp 0, more after", said(state, result));
+}
+
+TEST_F(JtcScenarios, FutureStampsPreemptAtOnceAndStartOnTime) {
+  // A goal running, then one stamped 1 s ahead: the first is preempted when the second is accepted; the arm goes on
+  // with the first motion until the stamp (JTC keeps the old trajectory until the stamp too).
+  clients_["left"]->sendGoal(goalThrough({target_}, 4.0));
+  waitSim(0.5);
+  const ros::Time stamp = ros::Time::now() + ros::Duration(1.0);
+  other_->sendGoal(goalThrough({start_}, 1.0, stamp));
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(10.0)));
+  EXPECT_EQ(clients_["left"]->getState(), State::PREEMPTED);
+  EXPECT_LT(ros::Time::now().toSec(), stamp.toSec()) << "the old goal was preempted late";
+  const double before = armPositions("left")[0];
+  waitSim(0.4);
+  EXPECT_GT(armPositions("left")[0], before + 1e-3) << "the old motion stopped before the new one's stamp";
+  ASSERT_TRUE(other_->waitForResult(ros::Duration(20.0)));
+  EXPECT_EQ(other_->getState(), State::SUCCEEDED) << other_->getState().getText();
+  scenario("future stamp preempts the running goal", "old " + clients_["left"]->getState().toString() +
+                                                         " at acceptance, old motion on until the stamp, new " +
+                                                         other_->getState().toString());
+  // A future stamp with the first point at t <= 0: ours refuses (the reference would have to step); JTC rejects
+  // t < 0 (its bridge cannot be built) and steps to a point at t = 0.
+  Goal step = goalThrough({target_, start_}, 1.0, ros::Time::now() + ros::Duration(1.0));
+  step.trajectory.points[0].time_from_start = ros::Duration(0.0);
+  auto [state, result] = follow("left", step);
+  EXPECT_EQ(state, State::REJECTED);
+  EXPECT_EQ(result.error_code, Result::INVALID_GOAL) << result.error_string;
+  scenario("future stamp, first point at t = 0", said(state, result));
+  step.trajectory.points[0].time_from_start = ros::Duration(-0.5);
+  std::tie(state, result) = follow("left", step);
+  EXPECT_EQ(state, State::REJECTED);
+  scenario("future stamp, first point at t = -0.5 s (stamp + t ahead)", said(state, result));
+}
+
+TEST_F(JtcScenarios, JointNamesOrderAndPointSizes) {
+  // Reordered joints are mapped by name (JTC's jointReordering).
+  Goal reordered = goalThrough({target_}, 1.0);
+  std::reverse(reordered.trajectory.joint_names.begin(), reordered.trajectory.joint_names.end());
+  std::reverse(reordered.trajectory.points[0].positions.begin(), reordered.trajectory.points[0].positions.end());
+  auto [state, result] = follow("left", reordered);
+  EXPECT_EQ(state, State::SUCCEEDED) << result.error_string;
+  const std::vector<double> q = armPositions("left");
+  for (int j = 0; j < 7; ++j) EXPECT_NEAR(q[j], target_[j], 0.05) << "joint " << j + 1;
+  scenario("joints in another order", said(state, result));
+  const auto refused = [&](const std::string& name, Goal goal, int code) {
+    const auto [s, r] = follow("left", goal);
+    EXPECT_EQ(s, State::REJECTED) << name;
+    EXPECT_EQ(r.error_code, code) << name << ": " << r.error_string;
+    scenario(name, said(s, r));
+  };
+  Goal unknown = goalThrough({target_}, 1.0);
+  unknown.trajectory.joint_names[2] = "left_wam_joint9";
+  refused("an unknown joint", unknown, Result::INVALID_JOINTS);
+  Goal partial = goalThrough({target_}, 1.0);
+  partial.trajectory.joint_names.pop_back();
+  partial.trajectory.points[0].positions.pop_back();
+  refused("6 of the 7 joints (no partial goals)", partial, Result::INVALID_JOINTS);
+  Goal twice = goalThrough({target_}, 1.0);
+  twice.trajectory.joint_names[1] = twice.trajectory.joint_names[0];
+  refused("a joint named twice", twice, Result::INVALID_JOINTS);
+  Goal nameless;
+  refused("empty goal without joint names", nameless, Result::INVALID_JOINTS);
+  Goal sizes = goalThrough({target_}, 1.0);
+  sizes.trajectory.points[0].velocities.assign(3, 0.0);
+  refused("velocities of another size than positions", sizes, Result::INVALID_GOAL);
+  Goal short_point = goalThrough({target_}, 1.0);
+  short_point.trajectory.points[0].positions.resize(5);
+  refused("a point shorter than joint_names", short_point, Result::INVALID_GOAL);
+  Goal no_positions = goalThrough({target_}, 1.0);
+  no_positions.trajectory.points[0].positions.clear();
+  refused("a point without positions", no_positions, Result::INVALID_GOAL);
+  Goal equal = goalThrough({target_, start_}, 1.0);
+  equal.trajectory.points[1].time_from_start = equal.trajectory.points[0].time_from_start;
+  refused("times not strictly increasing", equal, Result::INVALID_GOAL);
+}
+
+TEST_F(JtcScenarios, PreemptionCancelAndEmptyTrajectories) {
+  // A new goal preempts the running one (JTC's actionReplacesActionTraj).
+  clients_["left"]->sendGoal(goalThrough({target_}, 3.0));
+  waitSim(0.5);
+  other_->sendGoal(goalThrough({start_}, 1.5));
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(10.0)));
+  EXPECT_EQ(clients_["left"]->getState(), State::PREEMPTED);
+  ASSERT_TRUE(other_->waitForResult(ros::Duration(20.0)));
+  EXPECT_EQ(other_->getState(), State::SUCCEEDED);
+  scenario("a goal preempts the running goal",
+           "old " + clients_["left"]->getState().toString() + ", new " + other_->getState().toString());
+  // A topic command preempts a goal (topicReplacesActionTraj).
+  clients_["left"]->sendGoal(goalThrough({target_}, 3.0));
+  waitSim(0.5);
+  commands_["left"].publish(trajectory("left", {start_}, 1.5));
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(10.0)));
+  EXPECT_EQ(clients_["left"]->getState(), State::PREEMPTED);
+  waitSim(2.0);
+  EXPECT_NEAR(armPositions("left")[0], start_[0], 0.05) << "the topic's trajectory did not run";
+  scenario("a topic trajectory preempts a goal", "goal " + clients_["left"]->getState().toString());
+  // An empty trajectory on the topic, without joint names (JTC's "stop here"): the goal ends and the arm stops.
+  clients_["left"]->sendGoal(goalThrough({target_}, 3.0));
+  waitSim(0.8);
+  trajectory_msgs::JointTrajectory empty;
+  commands_["left"].publish(empty);
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(10.0)));
+  EXPECT_EQ(clients_["left"]->getState(), State::PREEMPTED);
+  waitSim(0.3);
+  EXPECT_TRUE(standsStill()) << "the arm did not stop on an empty trajectory";
+  EXPECT_GT(std::abs(armPositions("left")[0] - start_[0]), 0.02) << "the arm went back instead of stopping";
+  scenario("empty trajectory on the topic while a goal runs",
+           "goal " + clients_["left"]->getState().toString() + ", the arm stops smoothly and holds");
+  // The same while a topic trajectory runs (emptyTopicCancelsTopicTraj).
+  commands_["left"].publish(trajectory("left", {start_}, 3.0));
+  waitSim(0.8);
+  commands_["left"].publish(empty);
+  waitSim(0.3);
+  EXPECT_TRUE(standsStill()) << "the arm did not stop on an empty trajectory";
+  scenario("empty trajectory on the topic while a topic trajectory runs", "the arm stops smoothly and holds");
+  // An empty goal with the joint names: accepted, the arm holds, SUCCEEDED; the running goal PREEMPTED.
+  clients_["left"]->sendGoal(goalThrough({target_}, 3.0));
+  waitSim(0.5);
+  Goal hold;
+  hold.trajectory.joint_names = jointNames("left");
+  const auto [state, result] = follow("left", hold);
+  EXPECT_EQ(state, State::SUCCEEDED) << result.error_string;
+  EXPECT_TRUE(standsStill());
+  scenario("empty goal with the joint names", said(state, result));
+  // Cancel: PREEMPTED, the arm ramps down and holds (JTC with stop_trajectory_duration > 0).
+  clients_["left"]->sendGoal(goalThrough({target_}, 3.0));
+  waitSim(0.8);
+  clients_["left"]->cancelGoal();
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(10.0)));
+  EXPECT_EQ(clients_["left"]->getState(), State::PREEMPTED);
+  waitSim(0.3);
+  EXPECT_TRUE(standsStill()) << "the arm did not stop on a cancel";
+  scenario("cancel", "goal " + clients_["left"]->getState().toString() + ", the arm stops smoothly and holds");
+  // A topic command that is refused leaves the running goal alone.
+  clients_["left"]->sendGoal(goalThrough({target_}, 2.0));
+  waitSim(0.3);
+  trajectory_msgs::JointTrajectory bad = trajectory("left", {start_}, 1.0);
+  bad.joint_names[0] = "nobody";
+  commands_["left"].publish(bad);
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(20.0)));
+  EXPECT_EQ(clients_["left"]->getState(), State::SUCCEEDED);
+  scenario("a refused topic command while a goal runs", "goal " + clients_["left"]->getState().toString());
+}
+
+TEST_F(JtcScenarios, TolerancesAndResultCodes) {
+  bimanual_skills::JointTolerance tight;
+  tight.name = "left_wam_joint1";
+  tight.position = 1e-4;
+  // A path tolerance no arm keeps: ABORTED, PATH_TOLERANCE_VIOLATED.
+  Goal path = goalThrough({target_}, 1.0);
+  path.path_tolerance.push_back(tight);
+  auto [state, result] = follow("left", path);
+  EXPECT_EQ(state, State::ABORTED);
+  EXPECT_EQ(result.error_code, Result::PATH_TOLERANCE_VIOLATED) << result.error_string;
+  scenario("path tolerance violated", said(state, result));
+  // The same with -1: unchecked.
+  Goal unchecked = goalThrough({start_}, 1.0);
+  bimanual_skills::JointTolerance off = tight;
+  off.position = -1.0;
+  unchecked.path_tolerance.push_back(off);
+  std::tie(state, result) = follow("left", unchecked);
+  EXPECT_EQ(state, State::SUCCEEDED) << result.error_string;
+  scenario("path tolerance -1 (unchecked)", said(state, result));
+  // A tolerance of 0 keeps the default (path 0: unchecked): succeeds.
+  Goal defaults = goalThrough({target_}, 1.0);
+  bimanual_skills::JointTolerance zero = tight;
+  zero.position = 0.0;
+  defaults.path_tolerance.push_back(zero);
+  std::tie(state, result) = follow("left", defaults);
+  EXPECT_EQ(state, State::SUCCEEDED) << result.error_string;
+  scenario("path tolerance 0 (the default)", said(state, result));
+  // A tolerance naming a joint of another controller: ignored (a goal for a whole group).
+  Goal group = goalThrough({start_}, 1.0);
+  bimanual_skills::JointTolerance theirs = tight;
+  theirs.name = "right_wam_joint1";
+  group.path_tolerance.push_back(theirs);
+  std::tie(state, result) = follow("left", group);
+  EXPECT_EQ(state, State::SUCCEEDED) << result.error_string;
+  scenario("tolerance naming another controller's joint", said(state, result));
+  // A goal tolerance not met within goal_time_tolerance: ABORTED, GOAL_TOLERANCE_VIOLATED.
+  Goal goal = goalThrough({target_}, 1.0);
+  bimanual_skills::JointTolerance precise = tight;
+  precise.position = 1e-7;
+  goal.goal_tolerance.push_back(precise);
+  goal.goal_time_tolerance = ros::Duration(0.2);
+  std::tie(state, result) = follow("left", goal);
+  EXPECT_EQ(state, State::ABORTED);
+  EXPECT_EQ(result.error_code, Result::GOAL_TOLERANCE_VIOLATED) << result.error_string;
+  scenario("goal tolerance violated", said(state, result));
+  // goal_time_tolerance -1: no time after the end (JTC's 0), so the same goal aborts at its end.
+  goal.trajectory = goalThrough({start_}, 1.0).trajectory;
+  goal.goal_time_tolerance = ros::Duration(-1.0);
+  const ros::Time sent = ros::Time::now();
+  std::tie(state, result) = follow("left", goal);
+  EXPECT_EQ(state, State::ABORTED);
+  EXPECT_EQ(result.error_code, Result::GOAL_TOLERANCE_VIOLATED) << result.error_string;
+  EXPECT_LT(ros::Time::now().toSec() - sent.toSec(), 1.5) << "a goal_time_tolerance of -1 waited after the end";
+  scenario("goal_time_tolerance -1", said(state, result));
+  // NaN in a tolerance: refused (JTC keeps the default).
+  Goal nan = goalThrough({start_}, 1.0);
+  bimanual_skills::JointTolerance bad = tight;
+  bad.position = std::nan("");
+  nan.path_tolerance.push_back(bad);
+  std::tie(state, result) = follow("left", nan);
+  EXPECT_EQ(state, State::REJECTED);
+  EXPECT_EQ(result.error_code, Result::INVALID_GOAL) << result.error_string;
+  scenario("NaN tolerance", said(state, result));
+}
+
+TEST_F(JtcScenarios, GoalsWhenTheLoopStops) {
+  // The left controller's states stop (the relay), the robot's clock goes on: the running goal is aborted within
+  // loop_timeout, and a goal sent meanwhile is rejected at once (JTC: a controller not running rejects goals).
+  clients_["left"]->sendGoal(goalThrough({target_}, 3.0));
+  waitSim(0.5);
+  dropFraction(1.0);
+  ASSERT_TRUE(clients_["left"]->waitForResult(ros::Duration(10.0)));
+  EXPECT_EQ(clients_["left"]->getState(), State::ABORTED);
+  const Result aborted = *clients_["left"]->getResult();
+  EXPECT_NE(aborted.error_string.find("the control loop stopped"), std::string::npos) << aborted.error_string;
+  scenario("the loop stops during a goal", said(clients_["left"]->getState(), aborted));
+  const auto [state, result] = follow("left", goalThrough({start_}, 1.0), 5.0);
+  EXPECT_EQ(state, State::REJECTED);
+  EXPECT_EQ(result.error_code, Result::INVALID_GOAL) << result.error_string;
+  scenario("a goal after the loop stopped", said(state, result));
+  // The states come again: once the controller has sent its own, it takes goals again.
+  const auto states = [this] {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    return controller_state_count_["left"];
+  };
+  const long before = states();
+  dropFraction(0.0);
+  ASSERT_TRUE(waitWall([&] { return states() > before + 5; }, 10.0)) << "the controller did not come back";
+  const auto [again, answer] = follow("left", goalThrough({start_}, 1.0));
+  EXPECT_EQ(again, State::SUCCEEDED) << answer.error_string;
+  scenario("a goal after the loop came back", said(again, answer));
 }
 
 // -------------------------------------------------------------------------------------------- sim_500hz.test

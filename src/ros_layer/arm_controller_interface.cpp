@@ -330,9 +330,25 @@ void ArmControllerInterface::cancelActive(const std::string& why) {
   active_id_ = 0;
 }
 
+ros::Time ArmControllerInterface::loopNow() {
+  // The loop's own clock, read from its last state: this process's clock lags a simulator's many times faster
+  // than real time (a trajectory past for the loop would look ahead here).
+  const std::lock_guard<std::mutex> lock(mutex_);
+  const double now = ros::Time::now().toSec();
+  return ros::Time(last_ && last_->stamp > now ? last_->stamp : now);
+}
+
 void ArmControllerInterface::onCommand(const trajectory_msgs::JointTrajectory::ConstPtr& message) {
+  if (message->points.empty()) {
+    // joint_trajectory_controller's "stop here", whatever joints it names: the arm stops and holds, a goal ends.
+    const std::lock_guard<std::mutex> lock(mutex_);
+    cancelActive("preempted by an empty trajectory on the command topic");
+    sendMode(bc::ControllerMode::Hold);
+    ROS_INFO("%s: empty trajectory: holding", owner_.c_str());
+    return;
+  }
   bc::Waypoints waypoints;
-  const ros::Time now = ros::Time::now();
+  const ros::Time now = loopNow();
   ros::Time start;
   const TrajectoryError error =
       toWaypoints(*message, joint_names_, now, controller_->trajectoryCapacity(), waypoints, start);
@@ -352,11 +368,6 @@ void ArmControllerInterface::onCommand(const trajectory_msgs::JointTrajectory::C
     return;
   }
   cancelActive("preempted by a trajectory on the command topic");
-  if (waypoints.times.size() == 0) {
-    sendMode(bc::ControllerMode::Hold);
-    ROS_INFO("%s: empty trajectory: holding", owner_.c_str());
-    return;
-  }
   const double duration = waypoints.times[waypoints.times.size() - 1];
   const auto points = waypoints.times.size();
   sendTrajectory(std::move(waypoints), settings_.default_tolerances, 0, start);
@@ -369,7 +380,7 @@ void ArmControllerInterface::onGoal(GoalHandle goal) {
   Result result;
   bc::Waypoints waypoints;
   bc::TrajectoryTolerances tolerances;
-  const ros::Time now = ros::Time::now();
+  const ros::Time now = loopNow();
   ros::Time start;
   TrajectoryError error =
       toWaypoints(request->trajectory, joint_names_, now, controller_->trajectoryCapacity(), waypoints, start);
@@ -413,6 +424,7 @@ void ArmControllerInterface::onGoal(GoalHandle goal) {
   // still on purpose (a paused simulator, a controller waiting for its next state) answers its client all the same.
   goal.setAccepted("the control loop has the trajectory in its mailbox");
   active_ = goal;
+  active_goal_time_ = tolerances.goal_time;
   active_id_ = ++next_goal_id_;
   sendTrajectory(std::move(waypoints), tolerances, active_id_, start);
 }
@@ -566,9 +578,9 @@ void ArmControllerInterface::finishGoal(const bc::ArmControllerState& state) {
       break;
     case bc::GoalState::GoalToleranceViolated:
       result.error_code = Result::GOAL_TOLERANCE_VIOLATED;
-      why << "joint " << joint << " not within its goal tolerance " << state.period
-          << " s after the end: " << (state.goal_error_is_velocity ? "velocity " : "error ") << state.goal_error
-          << (state.goal_error_is_velocity ? " rad/s" : " rad");
+      why << "joint " << joint << " not within its goal tolerance " << active_goal_time_
+          << " s after the end (goal_time_tolerance): " << (state.goal_error_is_velocity ? "velocity " : "error ")
+          << state.goal_error << (state.goal_error_is_velocity ? " rad/s" : " rad");
       break;
     case bc::GoalState::Rejected:
       result.error_code = Result::INVALID_GOAL;

@@ -56,17 +56,26 @@ TrajectoryError toWaypoints(const trajectory_msgs::JointTrajectory& message, con
       return {Result::INVALID_GOAL, "point " + std::to_string(p) + " contains NaN or Inf"};
     }
     const double t = point.time_from_start.toSec();
-    if (!(t > previous) || t < 0.0) {
-      return {Result::INVALID_GOAL, "time_from_start must be >= 0 and increase (point " + std::to_string(p) + ")"};
+    if (p > 0 && !(t > previous)) {
+      return {Result::INVALID_GOAL, "time_from_start must increase strictly (point " + std::to_string(p) + ")"};
     }
     previous = t;
-    if (first == points && (start + point.time_from_start) > now) first = p;
+    if (first == points && start.toSec() + t > now.toSec()) first = p;
   }
   if (first == points) {
     std::ostringstream s;
-    s << "every point lies in the past: the last at " << (start + message.points.back().time_from_start).toSec()
+    s << "every point lies in the past: the last at " << start.toSec() + message.points.back().time_from_start.toSec()
       << " s, now " << now.toSec() << " s";
     return {Result::OLD_HEADER_TIMESTAMP, s.str()};
+  }
+  // Past points (a negative time_from_start among them) are dropped; a point still ahead at or before the start (a
+  // start stamped in the future) could only be reached by a step of the reference.
+  if (message.points[first].time_from_start.toSec() <= 0.0) {
+    std::ostringstream s;
+    s << "point " << first << " lies ahead at time_from_start " << message.points[first].time_from_start.toSec()
+      << " s <= 0 from a start stamped " << start.toSec() - now.toSec()
+      << " s from now: the arm would have to step to it (give it a time after the start)";
+    return {Result::INVALID_GOAL, s.str()};
   }
   const int k = static_cast<int>(points - first);
   out.times.resize(k);
@@ -95,16 +104,15 @@ TrajectoryError resolveTolerances(const std::vector<bimanual_skills::JointTolera
   const auto apply = [&joints](const std::vector<bimanual_skills::JointTolerance>& list, Eigen::VectorXd& position,
                                Eigen::VectorXd& velocity, const char* which) -> TrajectoryError {
     for (const auto& t : list) {
+      // A joint of another controller (a goal for a whole group): ignored, as joint_trajectory_controller does.
       const auto it = std::find(joints.begin(), joints.end(), t.name);
-      if (it == joints.end()) {
-        return {Result::INVALID_GOAL, std::string(which) + " tolerance for '" + t.name + "', not a joint of the arm"};
-      }
+      if (it == joints.end()) continue;
       const auto i = static_cast<Eigen::Index>(it - joints.begin());
       for (const auto& [value, target] : {std::pair<double, Eigen::VectorXd*>{t.position, &position},
                                           std::pair<double, Eigen::VectorXd*>{t.velocity, &velocity}}) {
-        if (!std::isfinite(value) || (value < 0.0 && value != -1.0)) {
-          return {Result::INVALID_GOAL,
-                  std::string(which) + " tolerance of '" + t.name + "' must be > 0, 0 (default) or -1 (unchecked)"};
+        if (std::isnan(value)) {
+          return {Result::INVALID_GOAL, std::string(which) + " tolerance of '" + t.name +
+                                            "' is NaN (> 0: the tolerance, 0: the default, < 0: unchecked)"};
         }
         if (value != 0.0) (*target)[i] = value > 0.0 ? value : 0.0;
       }
@@ -114,8 +122,7 @@ TrajectoryError resolveTolerances(const std::vector<bimanual_skills::JointTolera
   if (TrajectoryError e = apply(path, out.path_position, out.path_velocity, "path")) return e;
   if (TrajectoryError e = apply(goal, out.goal_position, out.goal_velocity, "goal")) return e;
   const double g = goal_time.toSec();
-  if (g < 0.0) return {Result::INVALID_GOAL, "goal_time_tolerance must be >= 0"};
-  if (g > 0.0) out.goal_time = g;
+  if (g != 0.0) out.goal_time = std::max(0.0, g);  // < 0: no time after the end (joint_trajectory_controller's 0)
   return {};
 }
 

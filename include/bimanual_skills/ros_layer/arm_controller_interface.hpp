@@ -96,6 +96,8 @@ class ArmControllerInterface {
   using Server = actionlib::ActionServer<bimanual_skills::FollowJointTrajectoryAction>;
   using GoalHandle = Server::GoalHandle;
 
+  /// Now, as the loop counts it: the later of this process's clock and the loop's last state's stamp.
+  ros::Time loopNow();
   void onCommand(const trajectory_msgs::JointTrajectory::ConstPtr& message);
   void onGoal(GoalHandle goal);
   void onCancel(GoalHandle goal);
@@ -132,6 +134,7 @@ class ArmControllerInterface {
   std::optional<control::ArmControllerState> last_;
   std::optional<GoalHandle> active_;  ///< The accepted goal whose trajectory the loop runs or will take.
   std::string loop_stopped_;          ///< Why the host's loop stopped for good (loopStopped); "" while it runs.
+  double active_goal_time_ = 0.0;     ///< The active goal's goal_time_tolerance [s].
   std::uint64_t active_id_ = 0, next_goal_id_ = 0;
   long trajectories_ = 0, rejected_ = 0;
   std::string last_rejection_;

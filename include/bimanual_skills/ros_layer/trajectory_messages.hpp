@@ -32,16 +32,18 @@ std::vector<bimanual_skills::JointTolerance> pathTolerances(const std::vector<st
 
 /// Converts `message` for an arm whose joints are `joints` into waypoints with times relative to `start`, the
 /// trajectory's own start: header.stamp, or `now` (the clock of the controller's stamps) when that is zero. The
-/// points at or before `now` are dropped. Refuses (before allocating for the points) a trajectory of more than
-/// `capacity` points; names that are not exactly the arm's joints (INVALID_JOINTS); points of the wrong size, NaN/Inf
-/// values, times that do not increase (INVALID_GOAL); a trajectory whose points all lie at or before `now`
-/// (OLD_HEADER_TIMESTAMP). An empty trajectory is not an error: `out` gets no waypoints (the caller holds).
+/// points at or before `now` are dropped (a negative time_from_start is such a point). Refuses (before allocating
+/// for the points) a trajectory of more than `capacity` points; names that are not exactly the arm's joints
+/// (INVALID_JOINTS); points of the wrong size, NaN/Inf values, times that do not increase strictly, a point ahead
+/// at a time_from_start <= 0 (a future start: a step; INVALID_GOAL); a trajectory whose points all lie at or
+/// before `now` (OLD_HEADER_TIMESTAMP). An empty trajectory is not an error: `out` gets no waypoints (the caller
+/// holds).
 TrajectoryError toWaypoints(const trajectory_msgs::JointTrajectory& message, const std::vector<std::string>& joints,
                             const ros::Time& now, int capacity, control::Waypoints& out, ros::Time& start);
 
-/// The tolerances of a goal: `defaults` for every joint, replaced where `path` or `goal` name a joint with a
-/// non-zero value (-1: unchecked), and the goal time tolerance (0: the default's). INVALID_GOAL for an unknown
-/// joint, NaN/Inf or a negative value other than -1.
+/// The tolerances of a goal as control_msgs and joint_trajectory_controller read them: `defaults` for every joint,
+/// replaced where `path` or `goal` name one of `joints` with a value > 0, unchecked where it is < 0 (-1), kept at
+/// 0; entries for other joints ignored; the goal time tolerance (0: the default's, < 0: none). INVALID_GOAL for NaN.
 TrajectoryError resolveTolerances(const std::vector<bimanual_skills::JointTolerance>& path,
                                   const std::vector<bimanual_skills::JointTolerance>& goal,
                                   const ros::Duration& goal_time, const std::vector<std::string>& joints,
