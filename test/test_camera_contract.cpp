@@ -51,8 +51,11 @@ TEST(CameraContract, EachCameraFitsItsOwnModelOnly) {
 
 TEST(CameraContract, WhatTheRewardCannotUseIsRefusedWithTheReason) {
   sensor_msgs::CameraInfo info = br::cameraInfo(kinect(), header("rgbd_camera_optical_frame"));
-  info.D[0] = 0.08;  // a raw, distorted image
-  EXPECT_TRUE(refusedFor(br::cameraInfoProblem(info, br::CameraModel::Perspective, map()), "rectified"));
+  info.D[0] = 0.08;  // a raw, distorted image: read and rectified
+  EXPECT_EQ(br::cameraInfoProblem(info, br::CameraModel::Perspective, map()), "");
+  info.distortion_model = "fov";  // a model nothing here undistorts
+  EXPECT_TRUE(refusedFor(br::cameraInfoProblem(info, br::CameraModel::Perspective, map()), "image_rect"));
+  info = br::cameraInfo(kinect(), header("rgbd_camera_optical_frame"));
   info = br::cameraInfo(kinect(), header(""));
   EXPECT_TRUE(refusedFor(br::cameraInfoProblem(info, br::CameraModel::Perspective, map()), "names no frame"));
   info = br::cameraInfo(kinect(), header("right_optical"));

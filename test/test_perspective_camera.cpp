@@ -5,6 +5,7 @@
 #include "bimanual_skills/vision/perspective_camera.hpp"
 #include "bimanual_skills/vision/synthetic_cloth.hpp"
 #include "testing/no_alloc_guard.hpp"
+#include "vision_test_scene.hpp"
 
 #include <gtest/gtest.h>
 
@@ -19,28 +20,14 @@ using bimanual_skills::testing::NoAllocGuard;
 
 namespace {
 
-/// The fold's scene (table top at 0.15 m, centred at x = 0.55) with the top-down map of the reward.
 bv::ClothRendererParameters scene() {
-  bv::ClothRendererParameters p;
-  p.table.height = 0.15;
-  p.table.centre = Eigen::Vector2d(0.55, 0.0);
-  p.table.size = Eigen::Vector2d(0.7, 1.2);
-  p.floor_height = -0.15;
-  p.camera = bv::TopDownCamera::covering(320, 240, 1.0, Eigen::Vector2d(0.55, 0.0), 1.65);
-  p.noise.depth_stddev = 0.0;
-  p.noise.colour_stddev = 0.0;
-  return p;
+  return bimanual_skills::test_support::foldScene();
 }
-
-/// A Kinect over the table's far side, looking at the cloth 27° off the vertical.
 bv::PinholeCamera kinect() {
-  return bv::PinholeCamera::lookingAt(Eigen::Vector3d(1.2, 0.0, 1.45), Eigen::Vector3d(0.55, 0.0, 0.15));
+  return bimanual_skills::test_support::kinectOverTable();
 }
-
 bv::DepthSensorNoise perfect() {
-  bv::DepthSensorNoise n;
-  n.axial = n.dropout = n.edge_dropout = n.grazing = n.colour_stddev = 0.0;
-  return n;
+  return bimanual_skills::test_support::perfectSensor();
 }
 
 }  // namespace

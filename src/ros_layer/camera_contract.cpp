@@ -1,6 +1,7 @@
 #include "bimanual_skills/ros_layer/camera_contract.hpp"
 
 #include "bimanual_skills/ros_layer/camera_messages.hpp"
+#include "bimanual_skills/ros_layer/rgbd_reader.hpp"
 
 #include <cmath>
 #include <sstream>
@@ -63,34 +64,10 @@ std::string cameraInfoProblem(const sensor_msgs::CameraInfo& info, CameraModel m
 }
 
 std::string perspectiveInfoProblem(const sensor_msgs::CameraInfo& info) {
-  std::ostringstream why;
   if (std::string problem = framedAndFinite(info); !problem.empty()) return problem;
-  const auto& k = info.K;
-  const auto& p = info.P;
-  if (p[8] == 0.0 && p[9] == 0.0 && p[10] == 0.0 && p[11] == 1.0) {
-    return "it is an orthographic camera (P's third row is [0 0 0 1]), not a perspective one";
-  }
-  if (!(p[8] == 0.0 && p[9] == 0.0 && p[10] == 1.0 && p[11] == 0.0)) return "its P's third row is not [0 0 1 0]";
-  if (p[3] != 0.0 || p[7] != 0.0) return "it is the second camera of a stereo pair (P has Tx, Ty): give the first's";
-  if (info.width < 8 || info.height < 8 || info.width > 8192 || info.height > 8192) {
-    why << "its images are " << info.width << " x " << info.height << " (8 to 8192 pixels a side are used)";
-    return why.str();
-  }
-  if (!(k[0] > 0.0) || !(k[4] > 0.0) || k[1] != 0.0 || k[3] != 0.0 || k[6] != 0.0 || k[7] != 0.0 || k[8] != 1.0) {
-    return "its K is not a pinhole's [fx 0 cx; 0 fy cy; 0 0 1] with fx, fy > 0";
-  }
-  for (double d : info.D) {
-    if (d != 0.0) {
-      return "its images are distorted (" + info.distortion_model +
-             " with non-zero D): give rectified images (image_proc's image_rect and their camera_info)";
-    }
-  }
-  for (int i = 0; i < 9; ++i) {
-    if (std::abs(info.R[i] - (i % 4 == 0 ? 1.0 : 0.0)) > 1e-9) {
-      return "its R is not the identity (a stereo-rectified camera): give the images of the unrotated camera";
-    }
-  }
-  return "";
+  if (affine(info)) return "it is an orthographic camera (P's third row is [0 0 0 1]), not a perspective one";
+  // Raw images with their distortion are rectified by RgbdReader into P's pinhole.
+  return calibrationOf(info).problem();
 }
 
 std::string orthographicPoseProblem(const Eigen::Isometry3d& pose, const vision::TopDownCamera& map) {
@@ -109,15 +86,7 @@ std::string orthographicPoseProblem(const Eigen::Isometry3d& pose, const vision:
 }
 
 vision::PinholeCamera pinholeCamera(const sensor_msgs::CameraInfo& info, const Eigen::Isometry3d& pose) {
-  vision::PinholeCamera camera;
-  camera.width = static_cast<int>(info.width);
-  camera.height = static_cast<int>(info.height);
-  camera.fx = info.K[0];
-  camera.fy = info.K[4];
-  camera.cx = info.K[2];
-  camera.cy = info.K[5];
-  camera.pose = pose;
-  return camera;
+  return calibrationOf(info).rectifiedCamera(pose);
 }
 
 }  // namespace bimanual_skills::ros_layer
