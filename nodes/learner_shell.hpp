@@ -31,13 +31,16 @@ inline std::string fileName(std::string text) {
 /// rollouts run on threads here). `where` is told where the workers are; `batch` hears each batch's statistics.
 /// \throws std::invalid_argument for bad parameters.
 /// The robot's interfaces a learner's ROS backend reads (~reset_service, ~grasp_service, ~pause_service,
-/// ~step_service, ~camera, ~cloth_topic, ~world_digest_param, ~robot_timeout, ~reset_timeout), its defaults kept.
+/// ~step_service, ~camera, ~camera_depth, ~register_depth, ~cloth_topic, ~world_digest_param, ~robot_timeout,
+/// ~reset_timeout), its defaults kept.
 inline void readRobotInterfaces(ros_layer::ParameterReader& parameters, ros_layer::RobotInterfaces& robot) {
   robot.reset_service = parameters.text("reset_service", robot.reset_service);
   robot.grasp_service = parameters.text("grasp_service", robot.grasp_service);
   robot.pause_service = parameters.text("pause_service", robot.pause_service);
   robot.step_service = parameters.text("step_service", robot.step_service);
   robot.camera = parameters.text("camera", robot.camera);
+  robot.depth = parameters.text("camera_depth", robot.depth, {"depth", "depth_registered"});
+  robot.register_depth = parameters.boolean("register_depth", robot.register_depth);
   robot.cloth = parameters.text("cloth_topic", robot.cloth);
   robot.world_digest = parameters.text("world_digest_param", robot.world_digest);
   robot.timeout = parameters.number("robot_timeout", robot.timeout, 0.1, 3600.0);

@@ -68,13 +68,14 @@ TrajectoryError toWaypoints(const trajectory_msgs::JointTrajectory& message, con
       << " s, now " << now.toSec() << " s";
     return {Result::OLD_HEADER_TIMESTAMP, s.str()};
   }
-  // Past points (a negative time_from_start among them) are dropped; a point still ahead at or before the start (a
-  // start stamped in the future) could only be reached by a step of the reference.
-  if (message.points[first].time_from_start.toSec() <= 0.0) {
+  // Past points (a negative time_from_start among them) are dropped. A point still ahead before its start (a start
+  // stamped in the future) cannot be reached from where the arm will be then (joint_trajectory_controller refuses
+  // it too); one at the start is the start's own, dropped by the loop when it begins (the arm goes on from its
+  // desired state there).
+  if (message.points[first].time_from_start.toSec() < 0.0) {
     std::ostringstream s;
     s << "point " << first << " lies ahead at time_from_start " << message.points[first].time_from_start.toSec()
-      << " s <= 0 from a start stamped " << start.toSec() - now.toSec()
-      << " s from now: the arm would have to step to it (give it a time after the start)";
+      << " s, before its start stamped " << start.toSec() - now.toSec() << " s from now (give it a time >= 0)";
     return {Result::INVALID_GOAL, s.str()};
   }
   const int k = static_cast<int>(points - first);

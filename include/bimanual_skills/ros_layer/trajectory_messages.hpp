@@ -35,8 +35,9 @@ std::vector<bimanual_skills::JointTolerance> pathTolerances(const std::vector<st
 /// points at or before `now` are dropped (a negative time_from_start is such a point). Refuses (before allocating
 /// for the points) a trajectory of more than `capacity` points; names that are not exactly the arm's joints
 /// (INVALID_JOINTS); points of the wrong size, NaN/Inf values, times that do not increase strictly, a point ahead
-/// at a time_from_start <= 0 (a future start: a step; INVALID_GOAL); a trajectory whose points all lie at or
-/// before `now` (OLD_HEADER_TIMESTAMP). An empty trajectory is not an error: `out` gets no waypoints (the caller
+/// at a negative time_from_start (before a future start; INVALID_GOAL); a trajectory whose points all lie at or
+/// before `now` (OLD_HEADER_TIMESTAMP). A point at time_from_start 0 of a future start is kept (the loop drops it
+/// when it begins). An empty trajectory is not an error: `out` gets no waypoints (the caller
 /// holds).
 TrajectoryError toWaypoints(const trajectory_msgs::JointTrajectory& message, const std::vector<std::string>& joints,
                             const ros::Time& now, int capacity, control::Waypoints& out, ros::Time& start);

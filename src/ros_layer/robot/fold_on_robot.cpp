@@ -11,7 +11,6 @@
 #include "bimanual_skills/ros_layer/trajectory_messages.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 
-#include <cv_bridge/cv_bridge.h>
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
 
@@ -120,6 +119,16 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
     throw std::runtime_error("fold on the robot: the camera " + connection_->node().resolveName(robot_.camera) + " (" +
                              robot_.camera_model + ") cannot be used: " + problem);
   }
+  try {
+    const sensor_msgs::CameraInfo depth_info = connection_->firstDepthInfo();
+    reader_ = std::make_unique<RgbdReader>(connection_->reader(connection_->firstCameraInfo(), &depth_info));
+  } catch (const RobotFault& f) {
+    throw std::runtime_error("fold on the robot: " + f.reason);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(std::string("fold on the robot: ") + e.what());
+  }
+  ROS_INFO("fold on the robot: the camera %s: %s", connection_->node().resolveName(robot_.camera).c_str(),
+           reader_->description().c_str());
   // The arms last: a camera or world the learning cannot use is a setting to change, said before any wait for the
   // robot's actions.
   try {
@@ -133,28 +142,35 @@ FoldOnRobotTask::~FoldOnRobotTask() {
   connection_.reset();
 }
 
-void FoldOnRobotTask::onFrame(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::ImageConstPtr& depth) {
-  // While a rollout records: a colour and depth pair of one stamp every kImagePeriod.
-  double t = 0.0;
-  {
-    const std::lock_guard<std::mutex> lock(mutex_);
-    t = (depth->header.stamp - record_start_).toSec();
-    if (!recording_frames_ || t < next_image_) return;
-    next_image_ = t + kImagePeriod;
-  }
-  try {
-    cv::Mat bgr = cv_bridge::toCvCopy(image, "bgr8")->image, metres = cv_bridge::toCvCopy(depth, "32FC1")->image;
-    const std::lock_guard<std::mutex> lock(mutex_);
-    if (!recording_frames_) return;  // no longer this rollout's
-    if (recording_projector_) {      // a perspective camera's frames as the reward's map shows them
-      if (recording_projector_->project(bgr, metres, camera_) != vision::VisionStatus::Ok) return;
-      bgr = recording_projector_->bgr().clone();
-      metres = recording_projector_->depth().clone();
+std::string FoldOnRobotTask::read(const sensor_msgs::Image& image, const sensor_msgs::Image& depth,
+                                  const sensor_msgs::CameraInfo& info, const sensor_msgs::CameraInfo& depth_info,
+                                  cv::Mat& bgr, cv::Mat& metres) {
+  if (!reader_->madeFor(info, &depth_info)) {
+    try {  // a driver that changed its calibration or resolution
+      reader_ = std::make_unique<RgbdReader>(connection_->reader(info, &depth_info));
+    } catch (const std::runtime_error& e) {
+      return e.what();
     }
-    addFrame(recording_, t, bgr, metres);
-  } catch (const cv_bridge::Exception&) {
-    // An image of another encoding: observe() fails the rollout with the reason.
   }
+  return reader_->read(image, depth, bgr, metres);
+}
+
+void FoldOnRobotTask::onFrame(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::ImageConstPtr& depth) {
+  // While a rollout records: a colour and depth pair of one moment every kImagePeriod, read as the scored images.
+  const std::lock_guard<std::mutex> lock(mutex_);
+  const double t = (depth->header.stamp - record_start_).toSec();
+  if (!recording_frames_ || t < next_image_) return;
+  next_image_ = t + kImagePeriod;
+  cv::Mat bgr, metres;
+  // The reader made for the rollout's camera_info (a new one comes with the scored images; a frame it cannot read
+  // is left out of the recording, the scored images fail the rollout with the reason).
+  if (!reader_->read(*image, *depth, bgr, metres).empty()) return;
+  if (recording_projector_) {  // a perspective camera's frames as the reward's map shows them
+    if (recording_projector_->project(bgr, metres, camera_) != vision::VisionStatus::Ok) return;
+    bgr = recording_projector_->bgr().clone();
+    metres = recording_projector_->depth().clone();
+  }
+  addFrame(recording_, t, bgr, metres);
 }
 
 void FoldOnRobotTask::onCloth(const sensor_msgs::PointCloud2ConstPtr& cloud) {
@@ -297,27 +313,21 @@ FoldOnRobotTask::Camera FoldOnRobotTask::cameraImages(const ros::Time& after, bo
   if (!problem.empty()) {
     throw RobotFault{tasks::FoldOutcome::RobotFailed, "the camera " + robot_.camera + " cannot be used: " + problem};
   }
-  if (image->width != info->width || image->height != info->height || depth->width != info->width ||
-      depth->height != info->height) {
-    throw RobotFault{tasks::FoldOutcome::RobotFailed,
-                     "the camera's images are " + std::to_string(image->width) + " x " + std::to_string(image->height) +
-                         " and " + std::to_string(depth->width) + " x " + std::to_string(depth->height) +
-                         ", its camera_info " + std::to_string(info->width) + " x " + std::to_string(info->height)};
-  }
-  cv_bridge::CvImageConstPtr bgr, metres;
-  try {
-    bgr = cv_bridge::toCvShare(image, "bgr8");
-    metres = cv_bridge::toCvShare(depth, "32FC1");
-  } catch (const cv_bridge::Exception& e) {
-    throw RobotFault{tasks::FoldOutcome::RobotFailed, std::string("unreadable camera image: ") + e.what()};
+  cv::Mat bgr, metres;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    const std::string unread = read(*image, *depth, *info, *frame.depth_info, bgr, metres);
+    if (!unread.empty()) {
+      throw RobotFault{tasks::FoldOutcome::RobotFailed, "the camera " + robot_.camera + " cannot be read: " + unread};
+    }
   }
   out.stamp = image->header.stamp;
   if (cameraModel(robot_.camera_model) == CameraModel::Orthographic) {
-    out.bgr = bgr->image;
-    out.metres = metres->image;
+    out.bgr = bgr;
+    out.metres = metres;
     return out;
   }
-  const vision::VisionStatus status = projector_.project(bgr->image, metres->image, camera_);
+  const vision::VisionStatus status = projector_.project(bgr, metres, camera_);
   const vision::HeightMapCoverage& c = projector_.coverage();
   const vision::TopDownCamera& map = projector_.map();
   const double seen = static_cast<double>(c.observed + c.filled) / (map.rows * map.columns);

@@ -23,6 +23,8 @@ namespace {
 
 /// Wall-clock pause between polls of a wait [s]: short against a rollout, long against the spinner's work.
 constexpr double kPoll = 0.002;
+/// Colour and depth images stamped this far apart are of one moment [s] (a Kinect's two cameras run apart).
+constexpr double kFrameSpread = 0.02;
 /// Controller states of each arm to wait for after a reset before commanding the arms.
 constexpr int kStatesAfterReset = 3;
 /// Longest wait for resuming a simulator after a failed rollout [s]: the next rollout resumes it anyway.
@@ -61,6 +63,7 @@ void RobotInterfaces::validate(const std::string& what) const {
     if (arm.empty()) fail("an arm's namespace is empty");
   }
   if (camera.empty()) fail("the camera needs a namespace");
+  if (depth.empty()) fail("the depth camera needs a namespace (depth or depth_registered)");
   if (!(timeout > 0.0) || !std::isfinite(timeout)) fail("timeout must be finite and > 0");
   if (!(reset_timeout > 0.0) || !std::isfinite(reset_timeout)) fail("reset_timeout must be finite and > 0");
 }
@@ -107,20 +110,28 @@ RobotConnection::RobotConnection(const RobotInterfaces& robot, std::vector<std::
                                                           if (!first_info_) first_info_ = m;
                                                           if (sceneCounts(m->header.stamp.toSec())) info_ = m;
                                                         });
-  // The depth image comes second: a colour and depth pair of one stamp goes to the frame handler.
-  depth_sub_ = node_->subscribe<sensor_msgs::Image>(camera + "depth/image_raw", 2,
-                                                    [this](const sensor_msgs::ImageConstPtr& depth) {
-                                                      sensor_msgs::ImageConstPtr image;
-                                                      {
-                                                        const std::lock_guard<std::mutex> lock(mutex_);
-                                                        if (!sceneCounts(depth->header.stamp.toSec())) return;
-                                                        depth_ = depth;
-                                                        if (!image_ || image_->header.stamp != depth->header.stamp)
-                                                          return;
-                                                        image = image_;
-                                                      }
-                                                      if (on_frame_) on_frame_(image, depth);
-                                                    });
+  const std::string depth_ns = camera + robot_.depth + "/";
+  depth_info_sub_ = node_->subscribe<sensor_msgs::CameraInfo>(depth_ns + "camera_info", 2,
+                                                              [this](const sensor_msgs::CameraInfoConstPtr& m) {
+                                                                const std::lock_guard<std::mutex> lock(mutex_);
+                                                                if (!first_depth_info_) first_depth_info_ = m;
+                                                                if (sceneCounts(m->header.stamp.toSec())) {
+                                                                  depth_info_ = m;
+                                                                }
+                                                              });
+  // The depth image comes second: a colour and depth pair of one moment goes to the frame handler.
+  depth_sub_ =
+      node_->subscribe<sensor_msgs::Image>(depth_ns + "image_raw", 2, [this](const sensor_msgs::ImageConstPtr& depth) {
+        sensor_msgs::ImageConstPtr image;
+        {
+          const std::lock_guard<std::mutex> lock(mutex_);
+          if (!sceneCounts(depth->header.stamp.toSec())) return;
+          depth_ = depth;
+          if (!image_ || std::abs((image_->header.stamp - depth->header.stamp).toSec()) > kFrameSpread) return;
+          image = image_;
+        }
+        if (on_frame_) on_frame_(image, depth);
+      });
   if (!robot_.cloth.empty()) {
     cloth_sub_ = node_->subscribe<sensor_msgs::PointCloud2>(robot_.cloth, 2,
                                                             [this](const sensor_msgs::PointCloud2ConstPtr& cloud) {
@@ -428,7 +439,7 @@ ros::Time RobotConnection::reset() {
     scene_before_reset_ = -std::numeric_limits<double>::infinity();
     scene_reset_answered_ = std::numeric_limits<double>::infinity();
     image_ = depth_ = nullptr;
-    info_ = nullptr;
+    info_ = depth_info_ = nullptr;
     cloth_ = nullptr;
     for (std::size_t a = 0; a < states_.size(); ++a) {
       ArmState& arm = *states_[a];
@@ -612,6 +623,36 @@ RobotConnection::Recorded RobotConnection::recorded() {
   return out;
 }
 
+sensor_msgs::CameraInfo RobotConnection::firstDepthInfo() {
+  waitFor(
+      [&] {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        return first_depth_info_ != nullptr;
+      },
+      "the depth camera_info of " + node_->resolveName(robot_.camera + "/" + robot_.depth));
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return *first_depth_info_;
+}
+
+RgbdReader RobotConnection::reader(const sensor_msgs::CameraInfo& info, const sensor_msgs::CameraInfo* depth_info) {
+  try {
+    if (!depth_info) return RgbdReader(info);
+    std::optional<Eigen::Isometry3d> colour_from_depth;
+    if (depth_info->header.frame_id != info.header.frame_id && robot_.register_depth) {
+      try {
+        colour_from_depth = tf2::transformToEigen(tf_.lookupTransform(info.header.frame_id, depth_info->header.frame_id,
+                                                                      ros::Time(0), ros::Duration(robot_.timeout)));
+      } catch (const tf2::TransformException& e) {
+        throw std::invalid_argument("no transform from the depth camera's frame " + depth_info->header.frame_id +
+                                    " to the colour camera's " + info.header.frame_id + " on tf (" + e.what() + ")");
+      }
+    }
+    return RgbdReader(info, *depth_info, colour_from_depth, robot_.register_depth);
+  } catch (const std::invalid_argument& e) {
+    throw std::runtime_error("the camera " + node_->resolveName(robot_.camera) + " cannot be read: " + e.what());
+  }
+}
+
 std::string RobotConnection::cameraPose(const sensor_msgs::CameraInfo& info, const std::string& world_frame,
                                         Eigen::Isometry3d& pose) {
   try {
@@ -655,14 +696,16 @@ RobotConnection::Frame RobotConnection::frame(const ros::Time& after, bool with_
         out.image = image_;
         out.depth = depth_;
         out.info = info_;
+        out.depth_info = depth_info_;
         out.cloth = cloth_;
         // Stamped after `after` and not ahead of this clock: an image of the last rollout's end, rendered late and
         // stamped later than the reset scene on a simulator whose clock went back, is not of this scene.
         const ros::Time latest = ros::Time::now() + ros::Duration(kAheadOfClock);
         const auto fresh = [&](const auto& m) { return m && m->header.stamp >= after && m->header.stamp <= latest; };
         // One frame: colour and depth taken together (a camera that stamps them apart, within 20 ms).
-        return fresh(out.image) && fresh(out.depth) && fresh(out.info) && (!with_cloth || fresh(out.cloth)) &&
-               std::abs((out.image->header.stamp - out.depth->header.stamp).toSec()) <= 0.02;
+        return fresh(out.image) && fresh(out.depth) && fresh(out.info) && fresh(out.depth_info) &&
+               (!with_cloth || fresh(out.cloth)) &&
+               std::abs((out.image->header.stamp - out.depth->header.stamp).toSec()) <= kFrameSpread;
       },
       "the camera " + robot_.camera + (with_cloth ? " and the cloth " + robot_.cloth : ""));
   if (!with_cloth) out.cloth = nullptr;

@@ -7,8 +7,6 @@
 #include "bimanual_skills/ros_layer/camera_contract.hpp"
 #include "bimanual_skills/ros_layer/trajectory_messages.hpp"
 
-#include <cv_bridge/cv_bridge.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -215,16 +213,17 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   if (!problem.empty()) {
     throw RobotFault{tasks::FoldOutcome::RobotFailed, "the camera " + robot_.camera + " cannot be used: " + problem};
   }
-  try {
-    last_.bgr = cv_bridge::toCvCopy(frame.image, "bgr8")->image;
-  } catch (const cv_bridge::Exception& e) {
-    throw RobotFault{tasks::FoldOutcome::RobotFailed, std::string("unreadable camera image: ") + e.what()};
+  std::string unread;
+  try {  // the colour camera as its camera_info says now (raw images rectified into P)
+    if (!reader_ || !reader_->madeFor(*frame.info)) {
+      reader_ = std::make_unique<RgbdReader>(connection_->reader(*frame.info, nullptr));
+    }
+    unread = reader_->readColour(*frame.image, last_.bgr);
+  } catch (const std::runtime_error& e) {
+    unread = e.what();
   }
-  if (last_.bgr.cols != task_.camera().width || last_.bgr.rows != task_.camera().height) {
-    throw RobotFault{tasks::FoldOutcome::RobotFailed, "the camera's image is " + std::to_string(last_.bgr.cols) +
-                                                          " x " + std::to_string(last_.bgr.rows) +
-                                                          ", its camera_info " + std::to_string(frame.info->width) +
-                                                          " x " + std::to_string(frame.info->height)};
+  if (!unread.empty()) {
+    throw RobotFault{tasks::FoldOutcome::RobotFailed, "the camera " + robot_.camera + " cannot be read: " + unread};
   }
   last_.camera = tasks::scarfCameraTerms(last_.bgr, c.camera);
   if (frame.cloth) {

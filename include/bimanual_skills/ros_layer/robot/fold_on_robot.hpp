@@ -111,6 +111,11 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   /// Why the camera whose camera_info is `info` cannot be used (its model, size, distortion, frame on tf); "" when
   /// it can. For a perspective camera, sets camera_ (intrinsics and pose).
   std::string cameraProblem(const sensor_msgs::CameraInfo& info);
+  /// Reads a colour and depth pair with the reader made for `info` and `depth_info` (made anew when they changed);
+  /// "" or why not. Caller holds mutex_.
+  std::string read(const sensor_msgs::Image& image, const sensor_msgs::Image& depth,
+                   const sensor_msgs::CameraInfo& info, const sensor_msgs::CameraInfo& depth_info, cv::Mat& bgr,
+                   cv::Mat& metres);
   /// On the spinner: a camera frame or the cloth's cloud while a rollout records.
   void onFrame(const sensor_msgs::ImageConstPtr& image, const sensor_msgs::ImageConstPtr& depth);
   void onCloth(const sensor_msgs::PointCloud2ConstPtr& cloud);
@@ -122,6 +127,7 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   std::vector<Eigen::VectorXd> above_start_;  ///< Each arm's start configuration with the tool approach_height higher.
   std::mutex mutex_;              ///< Guards the camera model and the recording (written by the connection's spinner).
   vision::PinholeCamera camera_;  ///< The perspective camera as last checked (under mutex_).
+  std::unique_ptr<RgbdReader> reader_;    ///< Its images as the vision module takes them (under mutex_).
   vision::HeightMapProjector projector_;  ///< Its images into the reward's map.
   /// The same for the frames recorded during a rollout (spinner thread, under mutex_); null for an orthographic one.
   std::unique_ptr<vision::HeightMapProjector> recording_projector_;

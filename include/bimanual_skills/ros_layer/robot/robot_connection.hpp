@@ -13,6 +13,7 @@
 #include "bimanual_skills/FollowJointTrajectoryAction.h"
 #include "bimanual_skills/JointTrajectoryControllerState.h"
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
+#include "bimanual_skills/ros_layer/rgbd_reader.hpp"
 #include "bimanual_skills/tasks/cloth_fold.hpp"
 
 #include <actionlib/client/simple_action_client.h>
@@ -54,7 +55,12 @@ struct RobotInterfaces {
   /// reads them; "" on a robot (or to let the simulator run free).
   std::string step_service = "bullet_sim/step";
   std::vector<std::string> arms = {"left", "right"};  ///< Namespaces of the arms' actions and states, left first.
-  std::string camera = "camera";           ///< CAMERA/image_raw, CAMERA/camera_info, CAMERA/depth/image_raw, ...
+  std::string camera = "camera";  ///< CAMERA/image_raw and CAMERA/camera_info: the colour camera (raw or rectified).
+  /// CAMERA/DEPTH/image_raw and CAMERA/DEPTH/camera_info: "depth" (the depth camera's own frame, or a simulator's
+  /// one camera) or "depth_registered" (registered to the colour camera by the driver).
+  std::string depth = "depth";
+  /// Depth on a frame other than the colour camera's is registered here from tf (RgbdReader); false: refused.
+  bool register_depth = false;
   std::string cloth = "bullet_sim/cloth";  ///< Ground truth of the cloth; "" when the robot has none.
   /// Parameter where a simulator gives the digest of its world (sim::SimConfig::worldDigest): the task refuses to
   /// start when it differs from the learning's simulation file. Absent (a real robot) or "": not checked.
@@ -89,7 +95,7 @@ class RobotConnection {
   /// The latest camera messages (and the cloth's cloud) of one moment.
   struct Frame {
     sensor_msgs::ImageConstPtr image, depth;
-    sensor_msgs::CameraInfoConstPtr info;
+    sensor_msgs::CameraInfoConstPtr info, depth_info;
     sensor_msgs::PointCloud2ConstPtr cloth;
   };
   /// The states recorded since record(true): per arm their stamps, positions, and the largest tracking error.
@@ -119,6 +125,11 @@ class RobotConnection {
   Arm& arm(std::size_t a) { return *arms_[a]; }
   /// The camera's first CameraInfo (from the constructor).
   const sensor_msgs::CameraInfo& firstCameraInfo() const { return *first_info_; }
+  /// A reader of the camera for `info` (colour only) or for `info` and `depth_info`, the transform between their
+  /// frames from tf when they differ; 	hrows std::runtime_error with the reason it cannot read them.
+  RgbdReader reader(const sensor_msgs::CameraInfo& info, const sensor_msgs::CameraInfo* depth_info);
+  /// The depth camera's first CameraInfo, waiting up to the timeout for it; throws RobotFault when none comes.
+  sensor_msgs::CameraInfo firstDepthInfo();
 
   /// Polls `done` for at most the timeout of wall time. Throws RobotFault (RobotFailed) naming `what`.
   void waitFor(const std::function<bool()>& done, const std::string& what);
@@ -232,11 +243,11 @@ class RobotConnection {
   std::unique_ptr<ros::AsyncSpinner> spinner_;
   std::vector<std::unique_ptr<Arm>> arms_;
   std::vector<std::unique_ptr<ArmState>> states_;
-  ros::Subscriber image_sub_, depth_sub_, info_sub_, cloth_sub_;
+  ros::Subscriber image_sub_, depth_sub_, info_sub_, depth_info_sub_, cloth_sub_;
   std::vector<ros::Subscriber> state_subs_;
   std::mutex mutex_;  ///< Guards the latest messages and the arms' states (written by the spinner's threads).
   sensor_msgs::ImageConstPtr image_, depth_;
-  sensor_msgs::CameraInfoConstPtr info_, first_info_;
+  sensor_msgs::CameraInfoConstPtr info_, first_info_, depth_info_, first_depth_info_;
   sensor_msgs::PointCloud2ConstPtr cloth_;
   /// The camera's and the cloth's messages across a reset (under mutex_), as the arms' states: the latest stamp seen,
   /// and the window that does not count while a reset runs (see reset()); outside a reset everything counts.

@@ -82,6 +82,7 @@ class ScarfOnRobotTask : public rollout::RolloutTask, public rollout::RecordedSc
   double torque_sum_ = 0.0, torque_peak_ = 0.0;
   long torque_samples_ = 0;
   /// Goes second to last, its spinner with it, before anything its handlers write into.
+  std::unique_ptr<RgbdReader> reader_;  ///< The colour camera as its camera_info last said (rollout thread).
   std::unique_ptr<RobotConnection> connection_;
   /// On the connection's node and queue: goes first (a throwing constructor too), before them.
   ros::Subscriber torque_sub_;
