@@ -90,7 +90,9 @@ class Rig {
         rng_(seed) {
     object_ = camera_.addMovingSolid(bs::tasks::sceneSolid(config_.object.body));
     bs::tracking::ObjectTrackerConfig tracker;
+    // The object as the scene has it: its shape, size and colour (nothing assumed of a can).
     tracker.locator.shape = bs::tasks::sceneSolid(config_.object.body);
+    tracker.locator.hue = bs::vision::hueOf(tracker.locator.shape.colour);
     tracker_ = std::make_unique<bs::tracking::ObjectTracker>(tracker);
     for (int a = 0; a < 2; ++a) {
       models_.push_back(std::make_unique<bs::kinematics::ChainModel>(simulation_.armModel(a)));
@@ -264,9 +266,9 @@ int main(int argc, char** argv) {
   bs::bench::ExperimentProgram program;
   program.name = kProgram;
   program.description =
-      "Compliant object tracking (thesis Sec. 4.3.2): the left WAM follows a can carried along seeded paths, seen by "
-      "a\n"
-      "Kinect-like RGB-D camera and tracked, and grasps it; tracking error by object speed, lost and reacquired\n"
+      "Compliant object tracking (thesis Sec. 4.3.2): the left WAM follows the scene's object (a can by default)\n"
+      "carried along seeded paths, seen by a Kinect-like RGB-D camera and tracked by its colour, shape and size as\n"
+      "the scene gives them, and grasps it; tracking error by object speed, lost and reacquired\n"
       "targets, grasp success. Writes paths.csv (a record per path, resumable), samples.csv, summary.json, PNGs.";
   program.experiments = {"tracking"};
   program.with_runs = true;
@@ -299,8 +301,16 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "%s: %s\n", kProgram, e.what());
     return 2;
   }
-  std::printf("%s: %d paths of the can (%s), seed %u, camera %.0f Hz, estimate latency %.0f ms, %d jobs\n", kProgram,
-              paths, scene.c_str(), options.seed, kCameraRate, 1e3 * settings.latency, options.jobs);
+  const bs::vision::SceneSolid object = bs::tasks::sceneSolid(base.object.body);
+  const std::string object_name = base.object.body.name.empty() ? "object" : base.object.body.name;
+  std::printf(
+      "%s: %d paths of the %s (%s, hue %.0f deg; %s), seed %u, camera %.0f Hz, estimate latency %.0f ms, %d "
+      "jobs\n",
+      kProgram, paths, object_name.c_str(),
+      object.shape == bs::vision::SceneSolid::Shape::Cylinder ? "a cylinder"
+      : object.shape == bs::vision::SceneSolid::Shape::Sphere ? "a sphere"
+                                                              : "a box",
+      bs::vision::hueOf(object.colour), scene.c_str(), options.seed, kCameraRate, 1e3 * settings.latency, options.jobs);
 
   // Resume: the paths already in paths.csv are not run again.
   const std::string paths_file = options.out + "/paths.csv";
@@ -388,10 +398,17 @@ int main(int argc, char** argv) {
     const std::lock_guard<std::mutex> lock(write);
     if (!r.errors.empty()) samples.append(sample_rows.str());
     records.append(row.str());
-    std::printf("%s: path %d (seed %u): error p95 %.1f mm over %zu samples, lost %d, reacquired %d, %s%s\n", kProgram,
-                path, path_seed, 1e3 * percentile(r.errors, 0.95), r.errors.size(), r.lost, r.reacquired,
-                r.grasped ? "grasped at t = " : "not grasped",
-                r.grasped ? (std::to_string(r.grasp_at) + " s").c_str() : "");
+    if (r.measured == 0) {
+      std::printf(
+          "%s: path %d (seed %u): the %s was never seen in %d frames (its colour, shape and size as the scene "
+          "gives them were not found), so nothing was tracked; %s\n",
+          kProgram, path, path_seed, object_name.c_str(), r.frames, r.grasped ? "grasped" : "not grasped");
+    } else {
+      std::printf("%s: path %d (seed %u): error p95 %.1f mm over %zu samples, lost %d, reacquired %d, %s%s\n", kProgram,
+                  path, path_seed, 1e3 * percentile(r.errors, 0.95), r.errors.size(), r.lost, r.reacquired,
+                  r.grasped ? "grasped at t = " : "not grasped",
+                  r.grasped ? (std::to_string(r.grasp_at) + " s").c_str() : "");
+    }
     std::fflush(stdout);
   });
 
@@ -416,11 +433,12 @@ int main(int argc, char** argv) {
     }
   }
   std::vector<bs::io::JsonRow> summary;
-  int grasped = 0;
+  int grasped = 0, never_seen = 0;
   long allocations = 0;
   for (const auto& f : rows) {
     grasped += f[18] == "1";
     allocations += bs::io::parseInteger(f[16], paths_file);
+    never_seen += bs::io::parseInteger(f[3], paths_file) == 0;  // measured
   }
   for (std::size_t b = 0; b + 1 < kSpeedBins.size(); ++b) {
     std::vector<double> in_bin;
@@ -444,6 +462,8 @@ int main(int argc, char** argv) {
   bs::io::JsonRow total;
   total.add("table", "paths")
       .add("paths", static_cast<long>(rows.size()))
+      .add("object", object_name)
+      .add("paths_object_never_seen", never_seen)
       .add("grasped", grasped)
       .add("grasp_success", rows.empty() ? 0.0 : static_cast<double>(grasped) / static_cast<double>(rows.size()))
       .add("error_p95_up_to_0_2_m_s", percentile(upto, 0.95))
@@ -452,6 +472,10 @@ int main(int argc, char** argv) {
       .add("wall_s", bs::realtime::monotonicSeconds() - start);
   summary.push_back(total);
   bs::bench::writeSummaryJson(options, kProgram, summary);
+  if (never_seen > 0) {
+    std::printf("%s: the %s was never seen on %d of %zu paths (its colour, shape and size as the scene gives them)\n",
+                kProgram, object_name.c_str(), never_seen, rows.size());
+  }
   std::printf(
       "%s: %zu paths, grasped %d; tracking error p95 %.1f mm at object speeds <= 0.2 m/s over %zu samples; "
       "%ld allocations in the control loop\n",

@@ -2,15 +2,18 @@
 // tracking::ObjectTracker between the camera's topics and the tracked object's.
 #include "bimanual_skills/tracking/object_tracker.hpp"
 #include "bimanual_skills/TrackedObject.h"
-#include "bimanual_skills/ros_layer/camera_contract.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/ros_layer/rgbd_reader.hpp"
+#include "bimanual_skills/sim/sim_config.hpp"
+#include "bimanual_skills/tasks/fold_reward.hpp"
 #include "node_cli.hpp"
 
 #include <cv_bridge/cv_bridge.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <message_filters/subscriber.h>
-#include <message_filters/time_synchronizer.h>
+#include <message_filters/sync_policies/approximate_time.h>
+#include <message_filters/synchronizer.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
 #include <sensor_msgs/Image.h>
@@ -38,13 +41,18 @@ const char* const kUsage =
     "Finds a known object in an RGB-D camera's frames and tracks its centre in the world (thesis Sec. 4.3.2): its\n"
     "colour picked out in HSV, its upright shape fitted to its depth pixels through the camera's intrinsics and its\n"
     "pose on tf, a constant-velocity Kalman filter with a gate, and the reason whenever it is not tracked.\n\n"
-    "Parameters:\n"
-    "  ~camera              the camera's namespace (default rgbd): CAMERA/image_raw (bgr8), CAMERA/depth/image_raw\n"
-    "                       (32FC1 [m], registered to the colour image), CAMERA/camera_info (rectified pinhole)\n"
+    "Parameters (the object is required, nothing is assumed of it: ~object_from, or ~shape, ~size and ~colour):\n"
+    "  ~object_from         a simulation file (config/track_sim.yaml) whose object's shape, size and colour are\n"
+    "                       looked for\n"
+    "  ~shape, ~size        the object: cylinder [radius, length], sphere [radius] or box [x, y, z] [m], upright\n"
+    "  ~colour              its colour, RGB in [0, 1]: the hue looked for\n"
+    "  ~camera              the camera's namespace (default rgbd): CAMERA/image_raw in any colour encoding (raw\n"
+    "                       images rectified with CAMERA/camera_info's D, R and P)\n"
+    "  ~camera_depth        depth (default: CAMERA/depth/image_raw and camera_info) or depth_registered; 32FC1\n"
+    "                       metres or 16UC1 millimetres\n"
+    "  ~register_depth      depth on a frame of its own is registered into the colour camera from tf (default false:\n"
+    "                       refused, with where to get registered depth)\n"
     "  ~world_frame         the frame the object is tracked in (default world)\n"
-    "  ~shape, ~size        the object: cylinder [radius, length] (default [0.033, 0.12]), sphere [radius],\n"
-    "                       box [x, y, z] [m], upright\n"
-    "  ~colour              its colour, RGB in [0, 1] (default [0.95, 0.45, 0.08]): the hue looked for\n"
     "  ~hue_tolerance       degrees (12); ~min_saturation (0.5), ~min_value (0.15) in [0, 1]\n"
     "  ~min_pixels (30), ~min_points (20)  fewer pixels of its colour: not seen; fewer with a depth: not measured\n"
     "  ~min_stddev          floor of the measurement's standard deviation [m] (0.002)\n"
@@ -52,47 +60,55 @@ const char* const kUsage =
     "  ~reject_limit        measurements in a row outside the gate that lose it (5)\n"
     "  ~camera_timeout      [s] of the clock without a frame: the camera counts as stopped (0.5)\n"
     "  ~tf_timeout          [s] to wait for the camera's pose at a frame's stamp (0.1)\n\n"
-    "Topics: subscribes to the camera's three; publishes ~object (bimanual_skills/TrackedObject: every frame, and\n"
+    "Topics: subscribes to the camera's four (colour and depth paired within 20 ms); publishes ~object "
+    "(bimanual_skills/TrackedObject: every frame, and\n"
     "  at 20 Hz while frames stop), ~pose (geometry_msgs/PoseWithCovarianceStamped, while tracked), ~markers (the\n"
     "  estimate, its 3-sigma ellipsoid and velocity; green tracked, red lost), ~debug_image (bgr8: the frame with\n"
     "  the object outlined) and /diagnostics (1 Hz: state, frames, processing time).\n";
-
-/// Hue [degrees] of an RGB colour in [0, 1].
-double hueOf(const Eigen::Vector3d& rgb) {
-  const double high = rgb.maxCoeff(), low = rgb.minCoeff(), chroma = high - low;
-  if (chroma <= 0.0) return 0.0;
-  double h;
-  if (high == rgb[0]) {
-    h = std::fmod((rgb[1] - rgb[2]) / chroma, 6.0);
-  } else if (high == rgb[1]) {
-    h = (rgb[2] - rgb[0]) / chroma + 2.0;
-  } else {
-    h = (rgb[0] - rgb[1]) / chroma + 4.0;
-  }
-  h *= 60.0;
-  return h < 0.0 ? h + 360.0 : h;
-}
 
 class ObjectTrackerNode {
  public:
   ObjectTrackerNode(ros::NodeHandle& node, ros::NodeHandle& private_node) : tf_listener_(tf_buffer_) {
     bs::ros_layer::ParameterReader p(private_node, "object_tracker");
     const std::string camera = p.text("camera", "rgbd");
+    const std::string depth = p.text("camera_depth", "depth", {"depth", "depth_registered"});
+    register_depth_ = p.boolean("register_depth", false);
     world_ = p.text("world_frame", "world");
     bs::tracking::ObjectTrackerConfig config;
     bs::vision::ObjectLocatorConfig& locator = config.locator;
-    const std::string shape = p.text("shape", "cylinder", {"cylinder", "sphere", "box"});
-    locator.shape.shape = shape == "box"      ? bs::vision::SceneSolid::Shape::Box
-                          : shape == "sphere" ? bs::vision::SceneSolid::Shape::Sphere
-                                              : bs::vision::SceneSolid::Shape::Cylinder;
-    const std::size_t dimensions = shape == "box" ? 3 : shape == "cylinder" ? 2 : 1;
-    const std::vector<double> fallback = shape == "box"        ? std::vector<double>{0.06, 0.06, 0.12}
-                                         : shape == "cylinder" ? std::vector<double>{0.033, 0.12}
-                                                               : std::vector<double>{0.04};
-    const std::vector<double> size = p.numbers("size", fallback, dimensions, 1e-3, 10.0);
-    for (std::size_t i = 0; i < dimensions; ++i) locator.shape.size[static_cast<Eigen::Index>(i)] = size[i];
-    const std::vector<double> colour = p.numbers("colour", {0.95, 0.45, 0.08}, 3, 0.0, 1.0);
-    locator.hue = hueOf(Eigen::Vector3d(colour[0], colour[1], colour[2]));
+    const std::string object_from = p.text("object_from", "");
+    if (!object_from.empty()) {
+      // The object a simulation file carries about: what the simulator draws is what is looked for.
+      for (const char* key : {"shape", "size", "colour"}) {
+        if (p.has(key))
+          throw std::invalid_argument("give " + p.name("object_from") + " or " + p.name(key) + ", not both");
+      }
+      const bs::sim::SimConfig scene = bs::sim::SimConfig::fromYamlFile(object_from);
+      if (!scene.has_object) throw std::invalid_argument(p.name("object_from") + ": " + object_from + " has no object");
+      locator.shape = bs::tasks::sceneSolid(scene.object.body);
+      shape_ = locator.shape.shape == bs::vision::SceneSolid::Shape::Box      ? "box"
+               : locator.shape.shape == bs::vision::SceneSolid::Shape::Sphere ? "sphere"
+                                                                              : "cylinder";
+      locator.hue = bs::vision::hueOf(locator.shape.colour);
+    } else {
+      for (const char* key : {"shape", "size", "colour"}) {
+        if (!p.has(key)) {
+          throw std::invalid_argument("parameter " + p.name(key) +
+                                      " is not set: give the tracked object's shape (cylinder, sphere or box), size "
+                                      "[m] and colour (RGB in [0, 1]), or a simulation file with the object (" +
+                                      p.name("object_from") + ")");
+        }
+      }
+      shape_ = p.text("shape", "", {"cylinder", "sphere", "box"});
+      locator.shape.shape = shape_ == "box"      ? bs::vision::SceneSolid::Shape::Box
+                            : shape_ == "sphere" ? bs::vision::SceneSolid::Shape::Sphere
+                                                 : bs::vision::SceneSolid::Shape::Cylinder;
+      const std::size_t dimensions = shape_ == "box" ? 3 : shape_ == "cylinder" ? 2 : 1;
+      const std::vector<double> size = p.numbers("size", {}, dimensions, 1e-3, 10.0);
+      for (std::size_t i = 0; i < dimensions; ++i) locator.shape.size[static_cast<Eigen::Index>(i)] = size[i];
+      const std::vector<double> colour = p.numbers("colour", {}, 3, 0.0, 1.0);
+      locator.hue = bs::vision::hueOf(Eigen::Vector3d(colour[0], colour[1], colour[2]));
+    }
     locator.hue_tolerance = p.number("hue_tolerance", locator.hue_tolerance, 0.1, 90.0);
     locator.min_saturation = p.number("min_saturation", locator.min_saturation, 0.0, 1.0);
     locator.min_value = p.number("min_value", locator.min_value, 0.0, 1.0);
@@ -114,21 +130,42 @@ class ObjectTrackerNode {
     debug_ = private_node.advertise<sensor_msgs::Image>("debug_image", 1);
     diagnostics_ = node.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     info_ = node.subscribe(camera + "/camera_info", 1, &ObjectTrackerNode::onInfo, this);
+    depth_info_ = node.subscribe(camera + "/" + depth + "/camera_info", 1, &ObjectTrackerNode::onDepthInfo, this);
     image_.subscribe(node, camera + "/image_raw", 5);
-    depth_.subscribe(node, camera + "/depth/image_raw", 5);
-    sync_ =
-        std::make_unique<message_filters::TimeSynchronizer<sensor_msgs::Image, sensor_msgs::Image>>(image_, depth_, 10);
+    depth_.subscribe(node, camera + "/" + depth + "/image_raw", 5);
+    // Colour and depth of one moment: the same stamp (one camera), or within 20 ms (a Kinect's two).
+    sync_ = std::make_unique<Sync>(Policy(10), image_, depth_);
+    sync_->setMaxIntervalDuration(ros::Duration(0.02));
     sync_->registerCallback(&ObjectTrackerNode::onFrame, this);
     stop_timer_ = node.createTimer(ros::Duration(0.05), &ObjectTrackerNode::onTimer, this);
     diagnostics_timer_ = node.createSteadyTimer(ros::WallDuration(1.0), &ObjectTrackerNode::onDiagnostics, this);
-    ROS_INFO("object_tracker: a %s of hue %.0f deg on %s/..., tracked in %s", shape.c_str(), locator.hue,
+    hue_ = locator.hue;
+    ROS_INFO("object_tracker: a %s of hue %.0f deg on %s/..., tracked in %s", shape_.c_str(), locator.hue,
              camera.c_str(), world_.c_str());
   }
 
  private:
-  void onInfo(const sensor_msgs::CameraInfo::ConstPtr& info) {
-    info_problem_ = bs::ros_layer::perspectiveInfoProblem(*info);
-    info_msg_ = info;
+  void onInfo(const sensor_msgs::CameraInfo::ConstPtr& info) { info_msg_ = info; }
+  void onDepthInfo(const sensor_msgs::CameraInfo::ConstPtr& info) { depth_info_msg_ = info; }
+
+  /// The reader for the camera_infos now (made anew when they change); "" or why there is none.
+  std::string reader() {
+    if (!info_msg_ || !depth_info_msg_) return info_msg_ ? "no depth camera_info yet" : "no camera_info yet";
+    if (reader_ && reader_->madeFor(*info_msg_, depth_info_msg_.get())) return "";
+    reader_.reset();
+    try {
+      std::optional<Eigen::Isometry3d> colour_from_depth;
+      if (register_depth_ && depth_info_msg_->header.frame_id != info_msg_->header.frame_id) {
+        colour_from_depth = tf2::transformToEigen(tf_buffer_.lookupTransform(
+            info_msg_->header.frame_id, depth_info_msg_->header.frame_id, ros::Time(0), ros::Duration(tf_timeout_)));
+      }
+      reader_ =
+          std::make_unique<bs::ros_layer::RgbdReader>(*info_msg_, *depth_info_msg_, colour_from_depth, register_depth_);
+      ROS_INFO("object_tracker: the camera: %s", reader_->description().c_str());
+      return "";
+    } catch (const std::exception& e) {
+      return std::string("the camera cannot be read: ") + e.what();
+    }
   }
 
   void onFrame(const sensor_msgs::Image::ConstPtr& image, const sensor_msgs::Image::ConstPtr& depth) {
@@ -136,13 +173,7 @@ class ObjectTrackerNode {
     const double t = image->header.stamp.toSec();
     problem_.clear();
     bs::vision::PinholeCamera camera;
-    if (!info_msg_) {
-      problem_ = "no camera_info yet";
-    } else if (!info_problem_.empty()) {
-      problem_ = "the camera cannot be used: " + info_problem_;
-    } else if (info_msg_->width != image->width || info_msg_->height != image->height) {
-      problem_ = "the images are not the camera_info's size";
-    }
+    problem_ = reader();
     Eigen::Isometry3d pose;
     pose.matrix().setConstant(std::nan(""));  // a frame without a pose is a frame the tracker cannot use
     if (problem_.empty()) {
@@ -152,26 +183,14 @@ class ObjectTrackerNode {
       } catch (const tf2::TransformException& e) {
         problem_ = "no pose of the camera frame '" + image->header.frame_id + "' in '" + world_ + "': " + e.what();
       }
-      camera = bs::ros_layer::pinholeCamera(*info_msg_, pose);
+      camera = reader_->camera(pose);
     }
-    cv_bridge::CvImageConstPtr bgr, metres;
-    try {
-      bgr = cv_bridge::toCvShare(image);
-      metres = cv_bridge::toCvShare(depth);
-    } catch (const cv_bridge::Exception& e) {
-      problem_ = std::string("unreadable images: ") + e.what();
-    }
-    static const cv::Mat kNone;
-    const bs::tracking::TrackedState& state =
-        tracker_->frame(t, bgr && image->encoding == "bgr8" ? bgr->image : kNone,
-                        metres && depth->encoding == "32FC1" ? metres->image : kNone, camera);
-    if (problem_.empty() && image->encoding != "bgr8")
-      problem_ = "the colour image is " + image->encoding + ", not bgr8";
-    if (problem_.empty() && depth->encoding != "32FC1")
-      problem_ = "the depth image is " + depth->encoding + ", not 32FC1";
+    cv::Mat bgr, metres;
+    if (problem_.empty()) problem_ = reader_->read(*image, *depth, bgr, metres);
+    const bs::tracking::TrackedState& state = tracker_->frame(t, bgr, metres, camera);
     publish(state, image->header.stamp);
-    if (debug_.getNumSubscribers() > 0 && bgr && image->encoding == "bgr8") {
-      cv_bridge::CvImage out(image->header, "bgr8", bgr->image.clone());
+    if (debug_.getNumSubscribers() > 0 && !bgr.empty()) {
+      cv_bridge::CvImage out(image->header, "bgr8", bgr.clone());
       std::vector<std::vector<cv::Point>> contours;
       cv::findContours(tracker_->locator().objectMask().clone(), contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
       cv::drawContours(out.image, contours, -1, state.tracking ? cv::Scalar(0, 255, 0) : cv::Scalar(0, 0, 255), 2);
@@ -288,6 +307,13 @@ class ObjectTrackerNode {
     status.level = last_tracking_ ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::WARN;
     status.message = last_message_.empty() ? "no camera frame yet" : last_message_;
     const bs::tracking::TrackedState& s = tracker_->last();
+    if (s.frames > 0 && s.measured == 0) {
+      // Frames came and the object was never found in one: most likely not the object the parameters describe.
+      std::ostringstream never;
+      never << "the object (a " << shape_ << " of hue " << std::lround(hue_) << " deg) has never been seen in "
+            << s.frames << " frames: check ~shape, ~size and ~colour against it";
+      status.message = never.str();
+    }
     const auto add = [&status](const std::string& key, const std::string& value) {
       diagnostic_msgs::KeyValue kv;
       kv.key = key;
@@ -313,14 +339,18 @@ class ObjectTrackerNode {
 
   tf2_ros::Buffer tf_buffer_;
   tf2_ros::TransformListener tf_listener_;
-  std::string world_, problem_, info_problem_ = "no camera_info yet";
-  double tf_timeout_ = 0.1;
+  using Policy = message_filters::sync_policies::ApproximateTime<sensor_msgs::Image, sensor_msgs::Image>;
+  using Sync = message_filters::Synchronizer<Policy>;
+  std::string world_, problem_, shape_;
+  double tf_timeout_ = 0.1, hue_ = 0.0;
+  bool register_depth_ = false;
   std::unique_ptr<bs::tracking::ObjectTracker> tracker_;
-  sensor_msgs::CameraInfo::ConstPtr info_msg_;
+  sensor_msgs::CameraInfo::ConstPtr info_msg_, depth_info_msg_;
+  std::unique_ptr<bs::ros_layer::RgbdReader> reader_;
   ros::Publisher object_, pose_, markers_, debug_, diagnostics_;
-  ros::Subscriber info_;
+  ros::Subscriber info_, depth_info_;
   message_filters::Subscriber<sensor_msgs::Image> image_, depth_;
-  std::unique_ptr<message_filters::TimeSynchronizer<sensor_msgs::Image, sensor_msgs::Image>> sync_;
+  std::unique_ptr<Sync> sync_;
   ros::Timer stop_timer_;
   ros::SteadyTimer diagnostics_timer_;
   std::vector<double> processing_;  ///< Wall time of each frame since the last diagnostics [s].

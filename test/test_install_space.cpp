@@ -50,6 +50,27 @@ TEST(InstallSpace, NoInstalledProgramNamesTheSourceTree) {
   EXPECT_GT(programs, 10);
 }
 
+TEST(InstallSpace, EveryPlotScriptAProgramRunsIsInstalled) {
+  // The scripts the experiment programs name (runPlotScript(..., "plot_*.py")) in their sources.
+  int named = 0;
+  for (const char* folder : {"bench", "nodes", "src/tools"}) {
+    for (const auto& entry : fs::directory_iterator(fs::path(BIMANUAL_SKILLS_SOURCE_DIR) / folder)) {
+      const std::string text = readTextFile(entry.path().string());
+      for (std::size_t at = text.find("\"plot_"); at != std::string::npos; at = text.find("\"plot_", at + 1)) {
+        const std::size_t end = text.find(".py\"", at);
+        if (end == std::string::npos) continue;
+        const std::string script = text.substr(at + 1, end + 3 - at - 1);
+        if (script.find_first_of(" \n") != std::string::npos) continue;
+        ++named;
+        EXPECT_TRUE(
+            fs::exists(fs::path(BIMANUAL_SKILLS_INSTALL_PREFIX) / "share" / "bimanual_skills" / "scripts" / script))
+            << entry.path().filename().string() << " runs " << script << ", which is not installed";
+      }
+    }
+  }
+  EXPECT_GT(named, 8);
+}
+
 TEST(InstallSpace, AnExperimentProgramAndANodeRunFromACopy) {
   const fs::path copy = copyOfInstallSpace();
   const fs::path out = fs::temp_directory_path() / ("bimanual_skills_install_out " + std::to_string(::getpid()));

@@ -45,10 +45,12 @@ class Track : public ::testing::Test {
     image_out_ = n.advertise<sensor_msgs::Image>("/relay/rgbd/image_raw", 5);
     depth_out_ = n.advertise<sensor_msgs::Image>("/relay/rgbd/depth/image_raw", 5);
     info_out_ = n.advertise<sensor_msgs::CameraInfo>("/relay/rgbd/camera_info", 5);
+    depth_info_out_ = n.advertise<sensor_msgs::CameraInfo>("/relay/rgbd/depth/camera_info", 5);
     target_out_ = n.advertise<bimanual_skills::TrackedObject>("/test/target", 10);
     subscribers_.push_back(n.subscribe("/rgbd/image_raw", 5, &Track::onImage));
     subscribers_.push_back(n.subscribe("/rgbd/depth/image_raw", 5, &Track::onDepth));
     subscribers_.push_back(n.subscribe("/rgbd/camera_info", 5, &Track::onInfo));
+    subscribers_.push_back(n.subscribe("/rgbd/depth/camera_info", 5, &Track::onDepthInfo));
     subscribers_.push_back(n.subscribe("/object_tracker/object", 10, &Track::onTracked));
     subscribers_.push_back(n.subscribe("/bullet_sim/object_truth", 50, &Track::onTruth));
     subscribers_.push_back(n.subscribe("/left/follow_state", 50, &Track::onFollow));
@@ -72,6 +74,9 @@ class Track : public ::testing::Test {
   }
   static void onInfo(const sensor_msgs::CameraInfo::ConstPtr& m) {
     if (camera_on_) info_out_.publish(m);
+  }
+  static void onDepthInfo(const sensor_msgs::CameraInfo::ConstPtr& m) {
+    if (camera_on_) depth_info_out_.publish(m);
   }
   static void onTracked(const bimanual_skills::TrackedObject::ConstPtr& message) {
     bimanual_skills::TrackedObject out = *message;
@@ -142,7 +147,7 @@ class Track : public ::testing::Test {
   static ros::NodeHandle* node_;
   static ros::AsyncSpinner* spinner_;
   static std::vector<ros::Subscriber> subscribers_;
-  static ros::Publisher image_out_, depth_out_, info_out_, target_out_;
+  static ros::Publisher image_out_, depth_out_, info_out_, depth_info_out_, target_out_;
   static std::atomic<bool> camera_on_;
   static std::atomic<Corruption> corruption_;
   static std::mutex mutex_;
@@ -160,7 +165,7 @@ class Track : public ::testing::Test {
 ros::NodeHandle* Track::node_ = nullptr;
 ros::AsyncSpinner* Track::spinner_ = nullptr;
 std::vector<ros::Subscriber> Track::subscribers_;
-ros::Publisher Track::image_out_, Track::depth_out_, Track::info_out_, Track::target_out_;
+ros::Publisher Track::image_out_, Track::depth_out_, Track::info_out_, Track::depth_info_out_, Track::target_out_;
 std::atomic<bool> Track::camera_on_{true};
 std::atomic<Corruption> Track::corruption_{Corruption::None};
 std::mutex Track::mutex_;

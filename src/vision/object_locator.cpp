@@ -10,6 +10,21 @@
 
 namespace bimanual_skills::vision {
 
+double hueOf(const Eigen::Vector3d& rgb) noexcept {
+  const double high = rgb.maxCoeff(), low = rgb.minCoeff(), chroma = high - low;
+  if (!(chroma > 0.0)) return 0.0;
+  double h;
+  if (high == rgb[0]) {
+    h = std::fmod((rgb[1] - rgb[2]) / chroma, 6.0);
+  } else if (high == rgb[1]) {
+    h = (rgb[2] - rgb[0]) / chroma + 2.0;
+  } else {
+    h = (rgb[0] - rgb[1]) / chroma + 4.0;
+  }
+  h *= 60.0;
+  return h < 0.0 ? h + 360.0 : h;
+}
+
 namespace {
 
 [[noreturn]] void fail(const char* where, const std::string& what) {

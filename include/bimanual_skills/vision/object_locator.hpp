@@ -35,6 +35,9 @@ struct ObjectLocatorConfig {
   void validate(const char* where) const;
 };
 
+/// The hue [degrees, 0-360) of an RGB colour (components in [0, 1]), as OpenCV's HSV measures it (0 for a grey).
+double hueOf(const Eigen::Vector3d& rgb) noexcept;
+
 /// What a frame gave.
 enum class LocateStatus {
   Ok,
