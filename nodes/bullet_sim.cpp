@@ -92,6 +92,15 @@ const std::string kUsage =
         "                        (default 1.3 m above and 0.65 m beyond the table's centre, looking at it);\n"
         "                        ~rgbd_depth_noise k of sigma_z = k z^2 [1/m] (1.425e-3), ~rgbd_dropout (0.002)\n"
         "  ~paused               start paused (default false)\n"
+        "  ~hardware             stand in for hardware (default false): the wall clock (no /clock; a reset does not\n"
+        "                        take the clock back), no ~pause or ~step, real time only, the RGB-D camera as a\n"
+        "                        Kinect's driver sends it (rgbd/image_raw raw with its plumb_bob distortion in\n"
+        "                        rgbd/camera_info; rgbd/depth/image_raw 16UC1 millimetres on "
+        "rgbd_depth_optical_frame,\n"
+        "                        2.5 cm aside, with rgbd/depth/camera_info) with the arms in view, every state and\n"
+        "                        image delivered ~latency late (0.003 s) give or take ~latency_jitter (0.001 s), and\n"
+        "                        ~reset what a person does: the scene laid anew, the grippers opened, the arms left\n"
+        "                        where they are\n"
         "  ~statistics_file      at exit, write the loop's periods and the times its controllers took commands "
         "(CSV)\n\n"
         "Hosted controller parameters (ARM/ctc_controller/...):\n") +
@@ -175,6 +184,21 @@ class BulletSimNode {
     publishing.rgbd_noise.axial = p.number("rgbd_depth_noise", publishing.rgbd_noise.axial, 0.0, 1.0);
     publishing.rgbd_noise.dropout = p.number("rgbd_dropout", publishing.rgbd_noise.dropout, 0.0, 1.0);
     loop.paused = p.boolean("paused", false);
+    hardware_ = p.boolean("hardware", false);
+    if (hardware_) {
+      // Standing in for hardware: what a real robot does not offer is refused by name.
+      if (loop.lockstep)
+        throw std::invalid_argument("~hardware: a robot does not wait for its controllers (~lockstep)");
+      if (loop.realtime_factor != 1.0) {
+        throw std::invalid_argument("~hardware: a robot runs at real time (~realtime_factor 1)");
+      }
+      if (loop.paused) throw std::invalid_argument("~hardware: a robot cannot start paused (~paused)");
+      publishing.publish_clock = false;
+      publishing.raw_rgbd = true;
+      publishing.arms_in_view = true;
+      publishing.latency = p.number("latency", 0.003, 0.0, 0.5);
+      publishing.latency_jitter = p.number("latency_jitter", 0.001, 0.0, publishing.latency);
+    }
     statistics_file_ = p.text("statistics_file", "");
     const double command_timeout = p.number("command_timeout", 0.05, 1e-4, 10.0);
     std::vector<std::string> all_arms, names;
@@ -232,6 +256,10 @@ class BulletSimNode {
       grasp_at_reset_.push_back(static_cast<int>(found - all_arms.begin()));
     }
     p.warnUnknown();
+    if (hardware_) {
+      robot_->setClockOffset(ros::WallTime::now().toSec());
+      robot_->followWallClock(true);
+    }
     resetSimulation();
     gripper_logged_.assign(all_arms.size(), 0);
     publishing_ = std::make_unique<bs::nodes::SimPublishing>(node, private_node, *simulation_, names, publishing,
@@ -264,8 +292,10 @@ class BulletSimNode {
     ros::NodeHandle services(private_node);
     services.setCallbackQueue(&service_queue_);
     services_.push_back(services.advertiseService("reset", &BulletSimNode::onReset, this));
-    services_.push_back(services.advertiseService("pause", &BulletSimNode::onPause, this));
-    services_.push_back(services.advertiseService("step", &BulletSimNode::onStep, this));
+    if (!hardware_) {  // a robot's clock cannot be held or stepped
+      services_.push_back(services.advertiseService("pause", &BulletSimNode::onPause, this));
+      services_.push_back(services.advertiseService("step", &BulletSimNode::onStep, this));
+    }
     services_.push_back(services.advertiseService("set_payload", &BulletSimNode::onSetPayload, this));
     services_.push_back(services.advertiseService("apply_wrench", &BulletSimNode::onApplyWrench, this));
     services_.push_back(services.advertiseService("grasp", &BulletSimNode::onGrasp, this));
@@ -276,8 +306,10 @@ class BulletSimNode {
     }
     ROS_INFO("bullet_sim: %zu arms, step %.4f s, cloth %s, %s%s; hosted controllers:%s; external:%s", all_arms.size(),
              simulation_->stepSize(), simulation_->hasCloth() ? "on" : "off",
-             loop.lockstep ? "lockstep" : "free-running", loop.paused ? ", paused" : "",
-             hosted_list.empty() ? " none" : hosted_list.c_str(),
+             hardware_       ? "as hardware (wall clock, no ~pause or ~step, a Kinect's images with the arms in view)"
+             : loop.lockstep ? "lockstep"
+                             : "free-running",
+             loop.paused ? ", paused" : "", hosted_list.empty() ? " none" : hosted_list.c_str(),
              external_list.empty() ? " none" : external_list.c_str());
   }
 
@@ -309,8 +341,21 @@ class BulletSimNode {
  private:
   void resetSimulation() {
     std::vector<sim::ArmState> state;
-    for (const Eigen::VectorXd& q : initial_) state.push_back({q, Eigen::VectorXd::Zero(q.size())});
+    for (std::size_t a = 0; a < initial_.size(); ++a) {
+      // Standing in for hardware a reset is what a person does: the scene laid anew, the grippers opened, the arms
+      // left where and as they are (a robot's arms do not jump).
+      if (hardware_ && started_) {
+        state.push_back(simulation_->trueState(static_cast<int>(a)));
+      } else {
+        state.push_back({initial_[a], Eigen::VectorXd::Zero(initial_[a].size())});
+      }
+    }
+    started_ = true;
+    // Standing in for hardware the robot's clock is the wall's (SimulatedRobot::followWallClock), and a reset does
+    // not take it back.
+    const double clock = hardware_ ? robot_->time() + simulation_->stepSize() : 0.0;
     const sim::SimStatus status = simulation_->reset(state);
+    robot_->setClockOffset(clock);
     simulation_->setRandomGenerator(std::mt19937(simulation_->config().seed));
     if (status != sim::SimStatus::Ok) {
       throw std::invalid_argument(std::string("initial positions rejected: ") + sim::toString(status));
@@ -357,7 +402,10 @@ class BulletSimNode {
     const auto r = loop_->call([this] {
       resetSimulation();
       loop_->restart("~reset");
-      return bs::hosting::LoopOutcome{true, "reset to the initial positions at t = 0 (sensor noise reseeded)", 0.0};
+      std::ostringstream said;
+      said << std::fixed << std::setprecision(6) << "reset to the initial positions at t = " << robot_->time()
+           << " s (sensor noise reseeded)";
+      return bs::hosting::LoopOutcome{true, said.str(), robot_->time()};
     });
     response.success = r.success;
     response.message = r.message;
@@ -423,7 +471,7 @@ class BulletSimNode {
       return bs::hosting::LoopOutcome{ok,
                                       ok ? "payload of " + std::to_string(payload.mass) + " kg on " + arm
                                          : "rejected: " + std::string(sim::toString(status)),
-                                      simulation_->time()};
+                                      robot_->time()};
     });
     response.success = r.success;
     response.message = r.message;
@@ -456,8 +504,7 @@ class BulletSimNode {
       const sim::SimStatus status = simulation_->setExternalWrench(link, force, torque, point);
       const bool ok = status == sim::SimStatus::Ok;
       return bs::hosting::LoopOutcome{
-          ok, ok ? "wrench applied on " + name : "rejected: " + std::string(sim::toString(status)),
-          simulation_->time()};
+          ok, ok ? "wrench applied on " + name : "rejected: " + std::string(sim::toString(status)), robot_->time()};
     });
     response.success = r.success;
     response.message = r.message;
@@ -482,7 +529,7 @@ class BulletSimNode {
     const auto r = loop_->call([this, a, grasp, arm, at, &attached, &object] {
       std::ostringstream message;
       message << std::fixed << std::setprecision(6);
-      if (at > simulation_->time()) {  // ahead: the loop does it at its time (SimulatedRobot::due)
+      if (at > robot_->time()) {  // ahead: the loop does it at its time (SimulatedRobot::due)
         robot_->schedule(a, at, grasp);
         message << arm << (grasp ? " grasp" : " release") << " scheduled at t = " << at << " s";
         return bs::hosting::LoopOutcome{true, message.str(), at};
@@ -490,7 +537,7 @@ class BulletSimNode {
       robot_->schedule(a, SimulatedRobot::kNever, grasp);  // done now: one scheduled before is replaced
       const bool held = simulation_->hasObject() && simulation_->objectHolder() == a;
       const sim::SimStatus status = grasp ? simulation_->grasp(a, &attached, &object) : simulation_->release(a);
-      const double t = simulation_->time();
+      const double t = robot_->time();
       if (status != sim::SimStatus::Ok)
         return bs::hosting::LoopOutcome{false, "failed: " + std::string(sim::toString(status)), t};
       const sim::SimConfig& config = simulation_->config();
@@ -541,6 +588,8 @@ class BulletSimNode {
 
   std::unique_ptr<sim::BimanualSimulation> simulation_;
   std::unique_ptr<SimulatedRobot> robot_;
+  bool hardware_ = false;                     ///< Standing in for hardware (~hardware).
+  bool started_ = false;                      ///< The first reset (to the initial positions) was done.
   std::optional<sim::RobotFile> robot_file_;  ///< The robot the simulation runs (none when its file names the arms).
   bs::realtime::ScopedCounterProbe<bs::testing::AllocationCounter> probe_;  ///< The loop's allocations per cycle.
   std::vector<Eigen::VectorXd> initial_;

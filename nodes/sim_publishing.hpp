@@ -7,11 +7,14 @@
 #pragma once
 
 #include "bimanual_skills/hosting/control_loop.hpp"
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/realtime/triple_buffer.hpp"
 #include "bimanual_skills/ros_layer/camera_messages.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
 #include "bimanual_skills/vision/cloth_renderer.hpp"
+#include "bimanual_skills/vision/raw_rgbd_sensor.hpp"
 #include "scene_markers.hpp"
 
 #include <nav_msgs/Odometry.h>
@@ -29,6 +32,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <deque>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -80,6 +84,15 @@ class SimPublishing final : public hosting::StateSink {
     double rgbd_rate = 0.0;  ///< Perspective RGB-D images per simulated second (0: no such camera).
     vision::PinholeCamera rgbd;
     vision::DepthSensorNoise rgbd_noise;
+    /// Standing in for hardware: no /clock (the robot's clock is the wall's)...
+    bool publish_clock = true;
+    /// ...the RGB-D camera as a Kinect's driver sends it (vision::RawRgbdSensor: raw distorted colour with its
+    /// plumb_bob camera_info, 16UC1 millimetre depth on rgbd_depth_optical_frame with its own camera_info)...
+    bool raw_rgbd = false;
+    /// ...the arms drawn in the RGB-D camera (their links as cylinders and spheres)...
+    bool arms_in_view = false;
+    /// ...and the states and images delivered this late [s of wall time], give or take a uniform jitter.
+    double latency = 0.0, latency_jitter = 0.0;
   };
   /// Logs, on the publisher thread, the scheduled gripper commands done since the last call.
   using GripperLog = std::function<void()>;
@@ -105,14 +118,24 @@ class SimPublishing final : public hosting::StateSink {
         camera_rng_.seed(simulation.config().seed);
       }
     }
-    // The perspective camera sees the scene with or without a cloth (a mannequin, an object to track).
+    // The perspective camera sees the scene with or without a cloth (a mannequin, an object to track); standing in
+    // for hardware, as a Kinect's driver sends it, with the arms in view.
     if (settings_.rgbd_rate > 0.0) {
-      rgbd_ = std::make_unique<vision::PerspectiveRenderer>(tasks::rendererFor(simulation.config()), settings_.rgbd,
-                                                            settings_.rgbd_noise);
+      if (settings_.raw_rgbd) {
+        vision::RawRgbdSensorConfig sensor;
+        sensor.colour = settings_.rgbd;
+        sensor.noise = settings_.rgbd_noise;
+        raw_rgbd_ = std::make_unique<vision::RawRgbdSensor>(tasks::rendererFor(simulation.config()), sensor);
+      } else {
+        rgbd_ = std::make_unique<vision::PerspectiveRenderer>(tasks::rendererFor(simulation.config()), settings_.rgbd,
+                                                              settings_.rgbd_noise);
+      }
       rgbd_rng_.seed(simulation.config().seed + 1u);
-      if (simulation.hasObject()) rgbd_->addMovingSolid(tasks::sceneSolid(simulation.config().object.body));
+      if (simulation.hasObject()) addMovingSolid(tasks::sceneSolid(simulation.config().object.body));
+      if (settings_.arms_in_view) addArms();
     }
     frame.object = simulation.hasObject() ? simulation.objectPose() : Eigen::Isometry3d::Identity();
+    frame.joints = initial.position;
     frames_ = std::make_unique<realtime::TripleBuffer<ClothFrame>>(frame);
     sem_init(&state_signal_, 0, 0);
     sem_init(&scene_signal_, 0, 0);
@@ -129,6 +152,16 @@ class SimPublishing final : public hosting::StateSink {
     if (rgbd_) {
       rgbd_camera_ = ros_layer::RgbdPublisher(node, false, "rgbd");
       frames.push_back(ros_layer::cameraTransform(rgbd_->camera(), "world", kRgbdFrame, ros::Time(0)));
+    }
+    if (raw_rgbd_) {
+      raw_colour_ = node.advertise<sensor_msgs::Image>("rgbd/image_raw", 1);
+      raw_colour_info_ = node.advertise<sensor_msgs::CameraInfo>("rgbd/camera_info", 1);
+      raw_depth_ = node.advertise<sensor_msgs::Image>("rgbd/depth/image_raw", 1);
+      raw_depth_info_ = node.advertise<sensor_msgs::CameraInfo>("rgbd/depth/camera_info", 1);
+      frames.push_back(ros_layer::cameraTransform(settings_.rgbd, "world", kRgbdFrame, ros::Time(0)));
+      vision::PinholeCamera depth = settings_.rgbd;
+      depth.pose = raw_rgbd_->depthPose();
+      frames.push_back(ros_layer::cameraTransform(depth, "world", kRgbdDepthFrame, ros::Time(0)));
     }
     if (!frames.empty()) camera_frame_.sendTransform(frames);
     state_thread_ = std::thread([this] { stateLoop(); });
@@ -166,10 +199,11 @@ class SimPublishing final : public hosting::StateSink {
     }
     snapshots_->publish();
     sem_post(&state_signal_);
-    if ((simulation_.hasCloth() || rgbd_ || simulation_.hasObject()) &&
+    if ((simulation_.hasCloth() || rgbd_ || raw_rgbd_ || simulation_.hasObject()) &&
         (forced || t >= next_marker_ || t < last_marker_)) {
       ClothFrame& frame = frames_->writeSlot();
       frame.time = t;
+      frame.joints = s.position;
       if (simulation_.hasCloth()) frame.vertices = simulation_.cloth().vertices();
       if (simulation_.hasObject()) {
         frame.object = simulation_.objectPose();
@@ -187,6 +221,8 @@ class SimPublishing final : public hosting::StateSink {
  private:
   static constexpr const char* kCameraFrame = "top_down_camera";
   static constexpr const char* kRgbdFrame = "rgbd_camera_optical_frame";
+  static constexpr const char* kRgbdDepthFrame = "rgbd_depth_optical_frame";
+  static constexpr double kArmRadius = 0.045;  ///< Of the arms' links as the camera sees them [m].
 
   struct Snapshot {
     double time = 0.0;
@@ -198,17 +234,77 @@ class SimPublishing final : public hosting::StateSink {
     Eigen::Matrix3Xd vertices;
     bool image = false;  ///< The camera's images of this frame too, whatever the camera's rate.
     Eigen::Isometry3d object = Eigen::Isometry3d::Identity();  ///< The moving object, when the scene has one.
+    Eigen::VectorXd joints;                                    ///< Every arm's joint positions, in joint-name order.
     Eigen::Vector3d object_velocity = Eigen::Vector3d::Zero();
     int object_holder = -1;
   };
 
-  /// Waits for the loop's signal, at most 0.1 s (so that a stopping node is seen).
-  static void waitForSignal(sem_t& signal) {
+  /// Waits for the loop's signal, at most `seconds` (< 1; so that a stopping node is seen).
+  static void waitForSignal(sem_t& signal, double seconds = 0.1) {
     timespec deadline{};
     clock_gettime(CLOCK_REALTIME, &deadline);
-    deadline.tv_nsec += 100000000;
+    deadline.tv_nsec += static_cast<long>(seconds * 1e9);
     if (deadline.tv_nsec >= 1000000000) deadline.tv_nsec -= 1000000000, ++deadline.tv_sec;
     sem_timedwait(&signal, &deadline);
+  }
+
+  /// A moving solid in the RGB-D camera, whichever it is.
+  int addMovingSolid(const vision::SceneSolid& solid) {
+    return raw_rgbd_ ? raw_rgbd_->addMovingSolid(solid) : rgbd_->addMovingSolid(solid);
+  }
+  void setMovingPose(int index, const Eigen::Isometry3d& pose) {
+    if (raw_rgbd_) raw_rgbd_->setMovingPose(index, pose);
+    if (rgbd_) rgbd_->setMovingPose(index, pose);
+  }
+
+  /// The arms' links as the camera sees them: a cylinder between consecutive joint frames (where they are apart) and
+  /// a sphere at each, grey, posed from the joint positions of each frame (their lengths are the chain's).
+  void addArms() {
+    vision::SceneSolid sphere;
+    sphere.shape = vision::SceneSolid::Shape::Sphere;
+    sphere.size = Eigen::Vector3d(kArmRadius, 0.0, 0.0);
+    sphere.colour = Eigen::Vector3d(0.35, 0.35, 0.38);
+    Eigen::Index offset = 0;
+    for (int a = 0; a < simulation_.armCount(); ++a) {
+      ArmView arm;
+      arm.model = std::make_unique<kinematics::ChainModel>(simulation_.armModel(a));
+      arm.data = std::make_unique<kinematics::ChainData>(*arm.model);
+      arm.base = simulation_.basePose(a);
+      arm.offset = offset;
+      offset += arm.model->nq();
+      (void)kinematics::forwardKinematics(*arm.model, *arm.data, Eigen::VectorXd::Zero(arm.model->nq()));
+      const std::vector<Eigen::Isometry3d>& frames = arm.data->frame_poses;
+      for (std::size_t f = 0; f < frames.size(); ++f) {
+        arm.spheres.push_back({static_cast<int>(f), addMovingSolid(sphere)});
+        if (f + 1 == frames.size()) break;
+        const double length = (frames[f + 1].translation() - frames[f].translation()).norm();
+        if (length < 0.02) continue;
+        vision::SceneSolid link = sphere;
+        link.shape = vision::SceneSolid::Shape::Cylinder;
+        link.size = Eigen::Vector3d(kArmRadius, length, 0.0);
+        arm.links.push_back({static_cast<int>(f), addMovingSolid(link)});
+      }
+      arms_.push_back(std::move(arm));
+    }
+  }
+  /// The arms' solids where the joints `q` (all arms, joint-name order) put them.
+  void poseArms(const Eigen::VectorXd& q) {
+    for (ArmView& arm : arms_) {
+      if (kinematics::forwardKinematics(*arm.model, *arm.data, q.segment(arm.offset, arm.model->nq())) !=
+          kinematics::KinematicsStatus::Success)
+        continue;
+      const std::vector<Eigen::Isometry3d>& frames = arm.data->frame_poses;
+      for (const auto& [f, solid] : arm.spheres) {
+        setMovingPose(solid, Eigen::Isometry3d(Eigen::Translation3d(arm.base * frames[f].translation())));
+      }
+      for (const auto& [f, solid] : arm.links) {
+        const Eigen::Vector3d from = arm.base * frames[f].translation(), to = arm.base * frames[f + 1].translation();
+        Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+        pose.translation() = 0.5 * (from + to);
+        pose.linear() = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), to - from).toRotationMatrix();
+        setMovingPose(solid, pose);
+      }
+    }
   }
 
   /// /clock first, so that the controllers' clocks move before the states arrive.
@@ -218,7 +314,8 @@ class SimPublishing final : public hosting::StateSink {
     WallRateCap cap(settings_.max_state_rate);
     double last_time = -std::numeric_limits<double>::infinity();
     while (running_ && ros::ok()) {
-      waitForSignal(state_signal_);
+      waitForSignal(state_signal_, late_.empty() ? 0.1 : 0.0005);
+      drainLate();
       log_grippers_();
       const Snapshot* s = snapshots_->readNew();
       if (!s) continue;
@@ -229,14 +326,36 @@ class SimPublishing final : public hosting::StateSink {
       }
       last_time = s->time;
       const ros::Time stamp(s->time);
-      rosgraph_msgs::Clock clock;
-      clock.clock = stamp;
-      clock_.publish(clock);
+      if (settings_.publish_clock) {
+        rosgraph_msgs::Clock clock;
+        clock.clock = stamp;
+        clock_.publish(clock);
+      }
       states.header.stamp = stamp;
       states.position.assign(s->position.data(), s->position.data() + s->position.size());
       states.velocity.assign(s->velocity.data(), s->velocity.data() + s->velocity.size());
       states.effort.assign(s->effort.data(), s->effort.data() + s->effort.size());
-      joint_states_.publish(states);
+      if (settings_.latency <= 0.0) {
+        joint_states_.publish(states);
+        continue;
+      }
+      // Delivered late, in order: each state waits its transport latency in a line that the next wake-ups drain.
+      const double due =
+          std::max(late_.empty() ? 0.0 : late_.back().first, realtime::monotonicSeconds() + delay(state_jitter_));
+      late_.emplace_back(due, states);
+      drainLate();
+    }
+  }
+
+  /// The transport latency of one message [s], its jitter drawn from `rng` (each thread its own).
+  double delay(std::mt19937& rng) const {
+    return settings_.latency + settings_.latency_jitter * (2.0 * std::uniform_real_distribution<double>()(rng) - 1.0);
+  }
+  /// Publishes the late states that are due; waits (at most 1 ms) for the next one when nothing else comes.
+  void drainLate() {
+    while (!late_.empty() && late_.front().first <= realtime::monotonicSeconds()) {
+      joint_states_.publish(late_.front().second);
+      late_.pop_front();
     }
   }
 
@@ -271,8 +390,9 @@ class SimPublishing final : public hosting::StateSink {
         object.ns = "object";
         markers.markers.push_back(object);
         object_.publish(objectTruth(*frame));
-        if (rgbd_) rgbd_->setMovingPose(0, frame->object);
+        if (rgbd_ || raw_rgbd_) setMovingPose(0, frame->object);
       }
+      if (!arms_.empty()) poseArms(frame->joints);
       markers_.publish(markers);
       if (simulation_.hasCloth()) cloth_.publish(clothCloud(frame->vertices, ros::Time(frame->time)));
       // An image every 1/camera_rate simulated seconds, and at once after a reset (time going back).
@@ -299,8 +419,30 @@ class SimPublishing final : public hosting::StateSink {
         }
         next_rgbd = frame->time + 1.0 / settings_.rgbd_rate;
       }
+      if (raw_rgbd_ && (frame->image || frame->time >= next_rgbd - 1e-9 || frame->time < last_time)) {
+        const vision::VisionStatus status = raw_rgbd_->render(frame->vertices, triangles_, rgbd_rng_);
+        if (status == vision::VisionStatus::Ok ||
+            (status == vision::VisionStatus::EmptyMesh && !simulation_.hasCloth())) {
+          publishRaw(ros::Time(frame->time));
+        }
+        next_rgbd = frame->time + 1.0 / settings_.rgbd_rate;
+      }
       last_time = frame->time;
     }
+  }
+
+  /// The raw RGB-D sensor's images as its driver sends them: colour and depth of one moment, each on its camera's
+  /// frame with its camera_info, after the transport latency.
+  void publishRaw(const ros::Time& stamp) {
+    if (settings_.latency > 0.0) std::this_thread::sleep_for(std::chrono::duration<double>(delay(image_jitter_)));
+    std_msgs::Header colour, depth;
+    colour.stamp = depth.stamp = stamp;
+    colour.frame_id = kRgbdFrame;
+    depth.frame_id = kRgbdDepthFrame;
+    raw_colour_.publish(cv_bridge::CvImage(colour, "bgr8", raw_rgbd_->rawBgr()).toImageMsg());
+    raw_colour_info_.publish(ros_layer::cameraInfo(raw_rgbd_->colourCalibration(), colour));
+    raw_depth_.publish(cv_bridge::CvImage(depth, "16UC1", raw_rgbd_->depthMillimetres()).toImageMsg());
+    raw_depth_info_.publish(ros_layer::cameraInfo(raw_rgbd_->depthCalibration(), depth));
   }
 
   /// The object's true pose and velocity (world frame; child frame: its name).
@@ -348,7 +490,20 @@ class SimPublishing final : public hosting::StateSink {
   std::unique_ptr<vision::ClothRenderer> renderer_;  ///< The top-down camera (scene thread); null without one.
   std::mt19937 camera_rng_;
   std::unique_ptr<vision::PerspectiveRenderer> rgbd_;  ///< The perspective RGB-D camera (scene thread); null without.
+  std::unique_ptr<vision::RawRgbdSensor> raw_rgbd_;    ///< Or the same as hardware sends it (scene thread).
   std::mt19937 rgbd_rng_;
+  /// An arm as the camera sees it (scene thread): its chain, and the solids of its frames and links.
+  struct ArmView {
+    std::unique_ptr<kinematics::ChainModel> model;
+    std::unique_ptr<kinematics::ChainData> data;
+    Eigen::Isometry3d base = Eigen::Isometry3d::Identity();
+    Eigen::Index offset = 0;                          ///< Of its joints among all arms'.
+    std::vector<std::pair<int, int>> spheres, links;  ///< (frame, solid): at a frame, from it to the next.
+  };
+  std::vector<ArmView> arms_;
+  std::deque<std::pair<double, sensor_msgs::JointState>> late_;  ///< States in transport (state thread).
+  std::mt19937 state_jitter_{7}, image_jitter_{8};  ///< The transport's jitter (state thread, scene thread).
+  ros::Publisher raw_colour_, raw_colour_info_, raw_depth_, raw_depth_info_;
   tf2_ros::StaticTransformBroadcaster camera_frame_;
   ros::Publisher joint_states_, clock_, markers_, cloth_, object_;
   ros_layer::RgbdPublisher camera_, rgbd_camera_;

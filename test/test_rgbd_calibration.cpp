@@ -1,10 +1,11 @@
 // A real RGB-D camera's images back to what the library models, against ground truth rendered by the perspective
 // renderer: distorted raw images (plumb_bob, equidistant) rectified back to the pinhole image, depth of a camera
 // 2.5 cm beside the colour camera registered into it (and into a colour camera of twice its resolution), millimetre
-// depth to metres, and calibrations that cannot serve refused with the reason.
+// depth to metres, calibrations that cannot serve refused with the reason, and the simulated raw sensor read back.
 #include "bimanual_skills/vision/camera_calibration.hpp"
 #include "bimanual_skills/vision/depth_registration.hpp"
 #include "bimanual_skills/vision/perspective_camera.hpp"
+#include "bimanual_skills/vision/raw_rgbd_sensor.hpp"
 #include "bimanual_skills/vision/synthetic_cloth.hpp"
 #include "vision_test_scene.hpp"
 
@@ -229,4 +230,40 @@ TEST(DepthEncodings, MillimetresAndMetresWithZeroAsNoReturn) {
   EXPECT_TRUE(std::isnan(out.at<float>(0, 2)));
   EXPECT_FALSE(bv::depthToMetres(mm, false, out)) << "16UC1 read as metres";
   EXPECT_FALSE(bv::depthToMetres(m, true, out)) << "32FC1 read as millimetres";
+}
+
+TEST(RawRgbdSensor, ItsImagesReadBackAsThePinholeCamerasWithItsOwnCalibrations) {
+  // What a driver of the simulated Kinect sends, read as RgbdReader reads it (rectified with the colour camera's
+  // calibration, millimetres to metres, registered from the depth camera's frame), against the pinhole camera's
+  // own noise-free images.
+  const bv::PinholeCamera colour = colourCamera();
+  bv::RawRgbdSensorConfig config;
+  config.colour = colour;
+  config.noise = perfect();
+  bv::RawRgbdSensor sensor(scene(), config);
+  const bv::ClothMesh cloth =
+      bv::foldCloth(bv::flatCloth(0.5, 0.6, 20, 24, Eigen::Vector3d(0.55, 0.0, 0.154)), 0.6, 0.01);
+  std::mt19937 rng(3);
+  ASSERT_EQ(sensor.render(cloth.vertices, cloth.triangles, rng), bv::VisionStatus::Ok);
+  EXPECT_EQ(sensor.depthMillimetres().type(), CV_16UC1);
+  EXPECT_EQ(sensor.colourCalibration().problem(), "");
+  EXPECT_FALSE(sensor.colourCalibration().rectified()) << "a raw colour image without distortion";
+  EXPECT_TRUE(sensor.depthCalibration().rectified());
+  const bv::PerspectiveRenderer truth = rendered(colour);
+  cv::Mat bgr, metres, registered;
+  ASSERT_TRUE(bv::Rectifier(sensor.colourCalibration()).rectifyColour(sensor.rawBgr(), bgr));
+  ASSERT_TRUE(bv::depthToMetres(sensor.depthMillimetres(), true, metres));
+  const bv::PinholeCamera depth = sensor.depthCalibration().rectifiedCamera();
+  ASSERT_TRUE(bv::DepthRegistration(depth, colour, config.colour_from_depth).registerDepth(metres, registered));
+  const Agreement error = agreement(registered, truth.depth(), 20);
+  std::printf("raw sensor read back: depth |error| median %.5f m, p95 %.5f m over %d pixels\n", error.median, error.p95,
+              error.pixels);
+  EXPECT_LT(error.median, 2e-3);
+  EXPECT_LT(error.p95, 0.02);
+  cv::Mat difference;
+  cv::absdiff(bgr, truth.bgr(), difference);
+  EXPECT_LT(cv::mean(difference(cv::Rect(40, 40, colour.width - 80, colour.height - 80)))[0], 4.0);
+  bv::RawRgbdSensorConfig bad = config;
+  bad.distortion.pop_back();
+  EXPECT_THROW(bv::RawRgbdSensor(scene(), bad), std::invalid_argument);
 }

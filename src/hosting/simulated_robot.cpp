@@ -1,5 +1,8 @@
 #include "bimanual_skills/hosting/simulated_robot.hpp"
 
+#include <algorithm>
+#include <chrono>
+
 namespace bimanual_skills::hosting {
 
 SimulatedRobot::SimulatedRobot(sim::BimanualSimulation& simulation)
@@ -7,6 +10,10 @@ SimulatedRobot::SimulatedRobot(sim::BimanualSimulation& simulation)
 
 bool SimulatedRobot::advance() noexcept {
   const sim::SimStatus status = simulation_.step();
+  if (wall_clock_) {
+    const double wall = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+    offset_ = std::max(offset_, wall - simulation_.time());
+  }
   cloth_diverged_ = status == sim::SimStatus::ClothDiverged;
   if (cloth_diverged_) cloth_divergence_.store(static_cast<int>(simulation_.cloth().divergence()));
   return status != sim::SimStatus::ArmDiverged;

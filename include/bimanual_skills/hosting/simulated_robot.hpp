@@ -33,7 +33,15 @@ class SimulatedRobot final : public LoopRobot {
   sim::RobotStatus writeJointTorques(int arm, const Eigen::Ref<const Eigen::VectorXd>& torque) noexcept override {
     return simulation_.writeJointTorques(arm, torque);
   }
-  double time() const noexcept override { return simulation_.time(); }
+  /// The robot's clock: the simulation's time plus the clock offset (0 unless setClockOffset()).
+  double time() const noexcept override { return offset_ + simulation_.time(); }
+  /// Loop thread (a request, or before the loop runs): the robot's clock is `offset` + the simulation's time (the
+  /// robot's time before a reset, for a clock that never goes back).
+  void setClockOffset(double offset) noexcept { offset_ = offset; }
+  /// Before the loop runs: with `on`, the robot's clock is the wall's (the system clock, as a robot's driver stamps
+  /// its samples): after each step it catches up with the wall clock when it fell behind (a stalled loop), and it
+  /// never goes back.
+  void followWallClock(bool on) noexcept { wall_clock_ = on; }
   bool advance() noexcept override;
   const char* stopReason() const noexcept override {
     return "the simulation diverged (a state became non-finite or faster than 100 rad/s); call ~reset";
@@ -64,6 +72,8 @@ class SimulatedRobot final : public LoopRobot {
   std::vector<Gripper> grippers_;
   std::atomic<bool> cloth_diverged_{false};
   std::atomic<int> cloth_divergence_{0};
+  double offset_ = 0.0;
+  bool wall_clock_ = false;
 };
 
 }  // namespace bimanual_skills::hosting

@@ -7,6 +7,7 @@
 /// x_c = world x, y_c = world −y, z_c = world −z (looking down).
 #pragma once
 
+#include "bimanual_skills/vision/camera_calibration.hpp"
 #include "bimanual_skills/vision/perspective_camera.hpp"
 #include "bimanual_skills/vision/top_down_camera.hpp"
 
@@ -62,6 +63,24 @@ inline sensor_msgs::CameraInfo cameraInfo(const vision::PinholeCamera& camera, c
   info.K = {camera.fx, 0.0, camera.cx, 0.0, camera.fy, camera.cy, 0.0, 0.0, 1.0};
   info.R = {1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0};
   info.P = {camera.fx, 0.0, camera.cx, 0.0, 0.0, camera.fy, camera.cy, 0.0, 0.0, 0.0, 1.0, 0.0};
+  return info;
+}
+
+/// A calibrated camera's sensor_msgs/CameraInfo (its K, D, R and P as they are).
+inline sensor_msgs::CameraInfo cameraInfo(const vision::CameraCalibration& c, const std_msgs::Header& header) {
+  sensor_msgs::CameraInfo info;
+  info.header = header;
+  info.width = static_cast<std::uint32_t>(c.width);
+  info.height = static_cast<std::uint32_t>(c.height);
+  info.distortion_model = c.distortion_model;
+  info.D = c.D.empty() ? std::vector<double>(5, 0.0) : c.D;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) {
+      info.K[static_cast<std::size_t>(3 * i + j)] = c.K(i, j);
+      info.R[static_cast<std::size_t>(3 * i + j)] = c.R(i, j);
+    }
+    for (int j = 0; j < 4; ++j) info.P[static_cast<std::size_t>(4 * i + j)] = c.P(i, j);
+  }
   return info;
 }
 
