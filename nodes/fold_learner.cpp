@@ -110,6 +110,8 @@ const char* const kUsage =
     "                included (default 30); ~reset_timeout [s] for the reset service, the one longer wait: on\n"
     "                hardware a person lays the cloth flat (default 660, beyond operator_prompt's 600)\n"
     "  ~start_delay  [s] of the robot's clock from sending the fold's goals to their start (default 0.5)\n"
+    "  ~clear_view   a camera that sees the arms: before the reset and before the scored images they go to their\n"
+    "                rest posture (the robot file's start), out of its view (default false)\n"
     "  ~pause_service  std_srvs/SetBool holding a simulator's clock while the fold's goals travel (default\n"
     "                bullet_sim/pause; \"\" on a robot)\n"
     "  ~step_service   bimanual_skills/SimStep: with a pause service, the simulator steps from the grasp to the\n"
@@ -324,6 +326,7 @@ class FoldLearnerNode {
     robot.approach_height = parameters_.number("approach_height", robot.approach_height, 0.0, 0.5);
     robot.trajectory_rate = parameters_.number("trajectory_rate", robot.trajectory_rate, 1.0, 1000.0);
     robot.start_delay = parameters_.number("start_delay", robot.start_delay, 0.0, 10.0);
+    robot.clear_view = parameters_.boolean("clear_view", robot.clear_view);
     robot.validate();
     robot_backend_ = true;
     const br::FoldLearningConfig config = config_;

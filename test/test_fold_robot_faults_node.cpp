@@ -32,10 +32,12 @@
 #include <filesystem>
 #include <fstream>
 #include <future>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
+#include <vector>
 
 namespace bs = bimanual_skills;
 
@@ -58,7 +60,8 @@ class FaultInjector {
   /// at once on a new connection (a single dropped call is retried there and never reaches the learner).
   enum class Gripper { Pass, Hang, DropEveryFourthGraspTwice, Down };
 
-  FaultInjector() {
+  /// Relays the camera under `source` (bullet_sim's top-down camera, or its RGB-D camera) to /faulty/camera.
+  explicit FaultInjector(const std::string& source = "/camera") : source_(source) {
     node_.setCallbackQueue(&queue_);
     grasp_ = node_.advertiseService<bs::ClothGrasp::Request, bs::ClothGrasp::Response>(
         "/faulty/grasp", [this](bs::ClothGrasp::Request& request, bs::ClothGrasp::Response& response) {
@@ -112,18 +115,20 @@ class FaultInjector {
 
   void relay(const std::string& topic, ros::Subscriber& sub, ros::Publisher& pub) {
     pub = node_.advertise<sensor_msgs::Image>("/faulty/camera/" + topic, 2);
-    sub = node_.subscribe<sensor_msgs::Image>("/camera/" + topic, 2, [this, &pub](const sensor_msgs::ImageConstPtr& m) {
-      if (camera_on_) pub.publish(m);
-    });
+    sub = node_.subscribe<sensor_msgs::Image>(source_ + "/" + topic, 2,
+                                              [this, &pub](const sensor_msgs::ImageConstPtr& m) {
+                                                if (camera_on_) pub.publish(m);
+                                              });
   }
   void relayInfo(const std::string& topic, ros::Subscriber& sub, ros::Publisher& pub) {
     pub = node_.advertise<sensor_msgs::CameraInfo>("/faulty/camera/" + topic, 2);
-    sub = node_.subscribe<sensor_msgs::CameraInfo>("/camera/" + topic, 2,
+    sub = node_.subscribe<sensor_msgs::CameraInfo>(source_ + "/" + topic, 2,
                                                    [this, &pub](const sensor_msgs::CameraInfoConstPtr& m) {
                                                      if (camera_on_) pub.publish(m);
                                                    });
   }
 
+  std::string source_;
   ros::CallbackQueue queue_;
   ros::NodeHandle node_;
   bs::ros_layer::ServiceCaller caller_{ros::NodeHandle()};
@@ -335,6 +340,137 @@ TEST(FoldRobotSlowClock, WaitsForTheRobotsMotionScaleWithItsClock) {
   bs::ros_layer::FoldOnRobotTask broken(config.task, config.reward, robot);
   const Timed missing = runWithin(broken, 2, 120.0);
   expectRobotFailed(missing, "no server within 1.5 s", 60.0);
+}
+
+// fold_hardware.test: sim.launch hardware:=true (the wall clock, each arm's controller in a process of its own that
+// roslaunch restarts, no pause or step, a Kinect's raw images with the arms in view, a few ms of transport). One
+// learning (1 update x 4 rollouts) through the camera's relay, with three faults on the way, each when a fold's goals
+// go out: the left controller stopped (SIGSTOP) for 30 s while the robot's clock runs on, the camera stopped for 25 s,
+// the left controller killed (roslaunch starts it again). Each fault fails its rollout within the task's timeout as
+// the robot's, the rollout runs again, nothing of it is learned, and the learning ends with all its rollouts.
+namespace {
+
+/// Calls the k-th hook when the k-th fold goal (many points) of the left arm is on its way, on a thread of its own.
+class OnFoldGoals {
+ public:
+  explicit OnFoldGoals(std::map<int, std::function<void()>> hooks) : hooks_(std::move(hooks)) {
+    sub_ = node_.subscribe<bs::FollowJointTrajectoryActionGoal>(
+        "/left/follow_joint_trajectory/goal", 10, [this](const bs::FollowJointTrajectoryActionGoalConstPtr& m) {
+          if (m->goal.trajectory.points.size() <= 10) return;
+          const int k = ++goals_;
+          const auto hook = hooks_.find(k);
+          if (hook != hooks_.end()) threads_.emplace_back(hook->second);
+        });
+    spinner_.start();
+  }
+  ~OnFoldGoals() {
+    spinner_.stop();
+    for (std::thread& t : threads_) t.join();
+  }
+  int goals() const { return goals_; }
+
+ private:
+  ros::NodeHandle node_;
+  std::map<int, std::function<void()>> hooks_;
+  std::atomic<int> goals_{0};
+  std::vector<std::thread> threads_;
+  ros::Subscriber sub_;
+  ros::AsyncSpinner spinner_{1};
+};
+
+}  // namespace
+
+TEST(FoldHardware, ControllersThatStallOrDieAndACameraThatStopsAreTheRobotsFaultsNeverLearned) {
+  FaultInjector injector("/rgbd");
+  bs::rollout::FoldLearningConfig config = bs::rollout::FoldLearningConfig::fromYamlFile(configPath());
+  config.robot_retries = 8;
+  config.robot_fault_limit = 10;
+  bs::ros_layer::FoldRobotInterfaces robot;
+  robot.pause_service = robot.step_service = "";  // a robot's clock is the wall's
+  robot.camera = "/faulty/camera";
+  robot.camera_model = "perspective";
+  robot.register_depth = true;
+  robot.clear_view = true;  // the camera sees the arms
+  robot.timeout = 8.0;
+  robot.reset_timeout = 30.0;
+  const std::string dir = ::testing::TempDir() + "/fold_hardware";
+  std::filesystem::remove_all(dir);
+  std::mutex mutex;
+  std::vector<std::pair<double, std::string>> faults;  // when (s since the learning's start), why
+  const auto start = Clock::now();
+  const auto since = [&start] { return std::chrono::duration<double>(Clock::now() - start).count(); };
+  std::map<std::string, double> injected;  // what, when
+  bs::rollout::FoldLearningObserver observer;
+  observer.robot_fault = [&](const bs::rollout::FoldRolloutRecord& r, int attempt, const std::string& reason,
+                             bool retry) {
+    std::printf("  %.1f s: robot fault, %s %d attempt %d: %s%s\n", since(), bs::rollout::toString(r.kind), r.index,
+                attempt, reason.c_str(), retry ? "; running it again" : "");
+    const std::lock_guard<std::mutex> lock(mutex);
+    faults.emplace_back(since(), reason);
+  };
+  observer.rollout = [&](const bs::rollout::FoldRolloutRecord& r, const bs::tasks::FoldRollout&,
+                         const bs::tasks::FoldReward&) {
+    std::printf("  %.1f s: %s %d: %s, q %.3f\n", since(), bs::rollout::toString(r.kind), r.index,
+                bs::tasks::toString(r.terms.outcome), r.terms.fold_quality);
+  };
+  const auto mark = [&](const std::string& what) {
+    const std::lock_guard<std::mutex> lock(mutex);
+    injected[what] = since();
+    std::printf("  %.1f s: %s\n", since(), what.c_str());
+  };
+  bs::rollout::FoldLearningResult result;
+  {
+    OnFoldGoals hooks({{2,
+                        [&] {
+                          const pid_t left = static_cast<pid_t>(bs::test::nodePid("/left/ctc_controller"));
+                          ASSERT_GT(left, 0);
+                          mark("left controller stopped (SIGSTOP) for 30 s");
+                          ::kill(left, SIGSTOP);
+                          std::this_thread::sleep_for(std::chrono::seconds(30));
+                          ::kill(left, SIGCONT);
+                          mark("left controller continued (SIGCONT)");
+                        }},
+                       {5,
+                        [&] {
+                          mark("camera stopped for 25 s");
+                          injector.setCamera(false);
+                          std::this_thread::sleep_for(std::chrono::seconds(25));
+                          injector.setCamera(true);
+                          mark("camera back");
+                        }},
+                       {8, [&] {
+                          mark("left controller killed (roslaunch starts it again)");
+                          EXPECT_EQ(std::system("rosnode kill /left/ctc_controller > /dev/null 2>&1"), 0);
+                        }}});
+    const auto robotBackend = [&] {
+      return std::make_unique<bs::rollout::ParallelEvaluator>(
+          [config, robot] {
+            return std::make_unique<bs::ros_layer::FoldOnRobotTask>(config.task, config.reward, robot);
+          },
+          1);
+    };
+    result = bs::rollout::FoldLearner(config, dir, observer, robotBackend()).learn();
+  }
+  std::printf("%d rollouts, %d robot faults, in %.1f s\n", result.simulated, result.robot_faults, since());
+  EXPECT_EQ(result.simulated, (config.updates + 1) * (config.rollouts + 1)) << "the learning did not end whole";
+  EXPECT_EQ(injected.size(), 5u) << "not every fault was injected (fewer fold goals?)";
+  // Each fault failed its rollout within the timeout (and the move's length) of its injection, as the robot's.
+  for (const auto& [what, when] : injected) {
+    if (what.find("continued") != std::string::npos || what.find("back") != std::string::npos) continue;
+    const auto first = std::find_if(faults.begin(), faults.end(), [&](const auto& f) { return f.first >= when; });
+    ASSERT_NE(first, faults.end()) << what << ": no robot fault after it";
+    std::printf("%s: the rollout failed %.1f s later: %s\n", what.c_str(), first->first - when, first->second.c_str());
+    // The timeout (a stalled controller's silence, a camera's), the start's delay and the recovery's bounded steps
+    // (the grippers, the move: 3 s each at most).
+    EXPECT_LT(first->first - when, robot.timeout + 10.0) << what;
+  }
+  // Nothing of a failed rollout was learned: every recorded rollout ran as the policy asked.
+  std::ifstream rollouts(dir + "/rollouts.csv");
+  int lines = -1;
+  for (std::string line; std::getline(rollouts, line); ++lines) {
+    EXPECT_EQ(line.find("RobotFailed"), std::string::npos) << "a robot's fault was learned from: " << line;
+  }
+  EXPECT_EQ(lines, result.simulated);
 }
 
 int main(int argc, char** argv) {

@@ -274,6 +274,8 @@ void ArmControllerInterface::loopStopped(const std::string& why) {
 
 std::string ArmControllerInterface::loopProblem() const {
   if (!loop_stopped_.empty()) return loop_stopped_;
+  // A controller without a state yet (a process just started) would drop a goal when its first state starts it.
+  if (!last_ && controller_->lastCycle() == 0.0) return "the control loop has not run yet (no joint state)";
   const double idle = loopIdle();
   if (idle <= settings_.loop_timeout) return "";
   std::ostringstream why;
@@ -588,8 +590,12 @@ void ArmControllerInterface::finishGoal(const bc::ArmControllerState& state) {
       break;
     case bc::GoalState::Aborted:
       result.error_code = Result::PATH_TOLERANCE_VIOLATED;
-      why << "the controller stopped tracking: " << bc::toString(state.abort_reason)
-          << " (velocity limit, stale or restarted joint states); holding";
+      if (state.abort_reason == bc::ControllerStatus::Ok || state.abort_reason == bc::ControllerStatus::Saturated) {
+        why << "the controller restarted (its joint states started anew: a reset or a new robot clock); holding";
+      } else {
+        why << "the controller stopped tracking: " << bc::toString(state.abort_reason)
+            << " (velocity limit, stale or restarted joint states); holding";
+      }
       break;
     default:
       result.error_code = Result::SUCCESSFUL;

@@ -105,6 +105,15 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
                                   " m above it");
     }
     above_start_.push_back(above_start);
+    if (robot_.clear_view) {
+      const Eigen::VectorXd& rest = task_.simConfig().arms[static_cast<std::size_t>(a)].start;
+      if (rest.size() != start.size()) {
+        throw std::invalid_argument(
+            "fold on the robot: clear_view needs the arms' rest posture (the robot file's "
+            "start); the simulation file names the arms without one");
+      }
+      rest_.push_back(rest);
+    }
   }
   connection_ = std::make_unique<RobotConnection>(
       robot_, std::vector<std::vector<std::string>>{task_.armModel(0).jointNames(), task_.armModel(1).jointNames()},
@@ -213,6 +222,20 @@ std::vector<Eigen::VectorXd> FoldOnRobotTask::velocityLimits() const {
   return {task_.armModel(0).velocityLimits(), task_.armModel(1).velocityLimits()};
 }
 
+void FoldOnRobotTask::moveClear(const std::string& what) {
+  const std::vector<Eigen::VectorXd> now = connection_->measuredPositions();
+  const double time = RobotConnection::moveTime(now, rest_, velocityLimits(), robot_.move_time);
+  for (std::size_t a = 0; a < 2; ++a) {
+    bimanual_skills::FollowJointTrajectoryGoal goal;
+    goal.trajectory.joint_names = connection_->arm(a).joints;
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(rest_[a].size());
+    goal.trajectory.points.push_back(trajectoryPoint(rest_[a], zero, zero, time));
+    connection_->sendGoal(a, goal);
+  }
+  const ros::Time ends_by = ros::Time::now() + ros::Duration(time);
+  for (std::size_t a = 0; a < 2; ++a) connection_->waitForGoal(a, what, ends_by, RobotConnection::Blame::Robot);
+}
+
 void FoldOnRobotTask::moveToStart() {
   // Both arms together, each segment as long as the widest joint move needs at half its velocity limit (the
   // configured move_time at least): from where the arms are to above the start, then down onto the cloth.
@@ -232,7 +255,8 @@ void FoldOnRobotTask::moveToStart() {
     connection_->sendGoal(a, goal);
   }
   const ros::Time ends_by = ros::Time::now() + ros::Duration(up + down);
-  for (std::size_t a = 0; a < 2; ++a) connection_->waitForGoal(a, "move to the start", ends_by);
+  for (std::size_t a = 0; a < 2; ++a)
+    connection_->waitForGoal(a, "move to the start", ends_by, RobotConnection::Blame::Robot);
 }
 
 std::string FoldOnRobotTask::recover() noexcept {
@@ -269,12 +293,10 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
     goal.goal_time_tolerance = ros::Duration(kGoalTimeShare * task_.config().settle);
     connection_->sendGoal(a, goal);
   }
-  if (connection_->paused()) {
-    // Both controllers have the goals (or one refused it) before the clock goes on.
-    connection_->waitFor([&] { return connection_->goalAnswered(0) && connection_->goalAnswered(1); },
-                         "the arms' controllers (the fold's goals)");
-    for (std::size_t a = 0; a < 2; ++a) {
-      if (connection_->goalFailed(a)) connection_->waitForGoal(a, "fold trajectory", ros::Time());
+  connection_->waitForAnswers(start, robot_.start_delay, "the fold's goals");
+  for (std::size_t a = 0; a < 2; ++a) {
+    if (connection_->goalFailed(a)) {
+      connection_->waitForGoal(a, "fold trajectory", ros::Time(), RobotConnection::Blame::Policy);
     }
   }
   // The grippers open at the planned release, on the robot's clock: the gripper's loop does it at its time, however
@@ -292,7 +314,8 @@ ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
       [&] { return connection_->goalFailed(0) || connection_->goalFailed(1) || ros::Time::now() >= release; },
       "the robot's clock (the fold's release)", release);
   const ros::Time ends_by = release + ros::Duration(kGoalTimeShare * task_.config().settle);
-  for (std::size_t a = 0; a < 2; ++a) connection_->waitForGoal(a, "fold trajectory", ends_by);
+  for (std::size_t a = 0; a < 2; ++a)
+    connection_->waitForGoal(a, "fold trajectory", ends_by, RobotConnection::Blame::Policy);
   connection_->record(false);
   return release;
 }
@@ -425,6 +448,10 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
       connection_->connectArms();
       reconnect_ = false;
     }
+    if (robot_.clear_view) {  // a person lays the cloth flat with the arms out of the way, and the camera sees it so
+      moved = true;
+      moveClear("move out of the camera's view before the reset");
+    }
     observeFlat(connection_->reset());  // the flat cloth: images of the reset scene (this process's clock may lag)
     moved = true;
     moveToStart();
@@ -435,8 +462,12 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     // start_delay before the fold, however long the messages take.
     if (!robot_.pause_service.empty()) connection_->pause(true);
     for (std::size_t a = 0; a < 2; ++a) connection_->grasp(a, true);
-    const ros::Time settled = fold(plan) + ros::Duration(task_.config().settle);
+    ros::Time settled = fold(plan) + ros::Duration(task_.config().settle);
     connection_->waitUntil(settled, "the cloth settling");
+    if (robot_.clear_view) {  // the images with the arms out of the way
+      moveClear("move out of the camera's view before the images");
+      settled = ros::Time::now();
+    }
     terms = observe(settled, acceleration_cost);
     if (connection_->paused()) connection_->pause(false);  // a simulator stepped to the settled cloth runs on
     last_robot_seconds_ = last_move_seconds_ + (ros::Time::now() - at_start).toSec();

@@ -2,6 +2,7 @@
 
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/SimStep.h"
+#include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/ros_layer/trajectory_messages.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 
@@ -23,6 +24,8 @@ namespace {
 
 /// Wall-clock pause between polls of a wait [s]: short against a rollout, long against the spinner's work.
 constexpr double kPoll = 0.002;
+/// An arm's states this far apart while its goal ran [s] mean the robot's loop or transport stopped.
+constexpr double kStateGap = 0.1;
 /// Colour and depth images stamped this far apart are of one moment [s] (a Kinect's two cameras run apart).
 constexpr double kFrameSpread = 0.02;
 /// Controller states of each arm to wait for after a reset before commanding the arms.
@@ -74,6 +77,9 @@ struct RobotConnection::ArmState {
   Eigen::VectorXd actual;  ///< The last measured positions (empty before a state came).
   double stamp = -std::numeric_limits<double>::infinity();  ///< Of the last state [s].
   long fresh = 0;  ///< States received with a stamp other than the one before: the robot's progress.
+  /// The longest stop of its states since the last goal was sent [s, of their stamps or of their arrival], and when
+  /// the last one came (monotonic wall clock).
+  double gap = 0.0, arrival = 0.0;
   /// Around a reset: the last stamp before it and when it answered, and the states since that are the reset
   /// scene's (a clock gone back, or on past the answer), with the last one's stamp.
   double before_reset = -std::numeric_limits<double>::infinity();
@@ -155,7 +161,16 @@ RobotConnection::RobotConnection(const RobotInterfaces& robot, std::vector<std::
         [this, raw, dofs](const bimanual_skills::JointTrajectoryControllerState::ConstPtr& s) {
           const std::lock_guard<std::mutex> lock(mutex_);
           const double t = s->header.stamp.toSec();
-          if (t != raw->stamp) ++raw->fresh;
+          if (t != raw->stamp) {
+            ++raw->fresh;
+            // How long the robot's states stopped while a goal ran: by their stamps (a clock that went on without
+            // them) and by when they came (a transport that held them).
+            const double arrival = realtime::monotonicSeconds();
+            if (t > raw->stamp) raw->gap = std::max(raw->gap, t - raw->stamp);
+            // (Not while this object holds a simulator's clock: a paused simulator sends nothing on purpose.)
+            if (raw->arrival > 0.0 && !paused_) raw->gap = std::max(raw->gap, arrival - raw->arrival);
+            raw->arrival = arrival;
+          }
           raw->stamp = t;
           if (t < raw->before_reset - 1e-9 || t > raw->reset_answered) {
             ++raw->after_reset;
@@ -319,7 +334,28 @@ bool RobotConnection::goalAnswered(std::size_t a) const {
   return goalFailed(a) || arms_[a]->client->getState() != actionlib::SimpleClientGoalState::PENDING;
 }
 
+void RobotConnection::waitForAnswers(const ros::Time& start, double delay, const std::string& what) {
+  waitFor(
+      [&] {
+        for (std::size_t a = 0; a < arms_.size(); ++a) {
+          if (!goalAnswered(a)) return false;
+        }
+        return true;
+      },
+      "the controllers (" + what + ")");
+  const double late = (ros::Time::now() - start).toSec();
+  if (paused_ || late <= 0.0) return;
+  std::ostringstream why;
+  why << what << " were answered " << late << " s after their start (start_delay " << delay
+      << " s is short for this robot's transport; the robot's)";
+  throw RobotFault{tasks::FoldOutcome::RobotFailed, why.str()};
+}
+
 void RobotConnection::sendGoal(std::size_t a, const bimanual_skills::FollowJointTrajectoryGoal& goal) {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    states_[a]->gap = 0.0;
+  }
   Arm& arm = *arms_[a];
   arm.client->sendGoal(goal);
   arm.goal_sent = true;
@@ -342,7 +378,7 @@ void RobotConnection::settle() {
   }
 }
 
-void RobotConnection::waitForGoal(std::size_t a, const std::string& what, const ros::Time& ends_by) {
+void RobotConnection::waitForGoal(std::size_t a, const std::string& what, const ros::Time& ends_by, Blame blame) {
   Arm& arm = *arms_[a];
   Client& client = *arm.client;
   waitWhileMoving(
@@ -356,12 +392,28 @@ void RobotConnection::waitForGoal(std::size_t a, const std::string& what, const 
       },
       arm.name + "'s " + what, ends_by);
   const auto result = client.getResult();
-  if (client.getState() != actionlib::SimpleClientGoalState::SUCCEEDED || !result) {
-    throw RobotFault{
-        tasks::FoldOutcome::ControllerFailed,
-        arm.name + "'s " + what + " ended " + client.getState().toString() +
-            (result ? std::string(": ") + errorName(result->error_code) + " " + result->error_string : "")};
+  if (client.getState() == actionlib::SimpleClientGoalState::SUCCEEDED && result) return;
+  std::string why = arm.name + "'s " + what + " ended " + client.getState().toString() +
+                    (result ? std::string(": ") + errorName(result->error_code) + " " + result->error_string : "");
+  // Only a policy that the robot ran as asked is the policy's failure: a goal before its first point, or one that
+  // ended because the robot's loop or its states stopped, is the robot's (run again, never learned from).
+  double gap = 0.0;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    gap = states_[a]->gap;
   }
+  const bool loop = result && (result->error_string.find("the control loop stopped") != std::string::npos ||
+                               result->error_string.find("StaleState") != std::string::npos);
+  if (blame == Blame::Robot) {
+    throw RobotFault{tasks::FoldOutcome::RobotFailed, why + " (before the policy's first point: the robot's)"};
+  }
+  if (loop || gap > kStateGap) {
+    std::ostringstream robot;
+    robot << why << " (the robot's: " << (loop ? "its control loop stopped" : "its states stopped") << "; states "
+          << gap << " s apart at most)";
+    throw RobotFault{tasks::FoldOutcome::RobotFailed, robot.str()};
+  }
+  throw RobotFault{tasks::FoldOutcome::ControllerFailed, why};
 }
 
 void RobotConnection::pause(bool paused) {
@@ -552,10 +604,21 @@ bool RobotConnection::moveWithin(const std::vector<Eigen::VectorXd>& targets, do
     goal.trajectory.points.push_back(trajectoryPoint(targets[a], zero, zero, time));
     sendGoal(a, goal);
   }
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(time + timeout);
+  // At most the move's time and `timeout` more, and no longer than `timeout` after every arm's controller last sent
+  // a state (a controller that stalled will not get there).
+  const auto limit = std::chrono::duration<double>(timeout);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(time) + limit;
+  auto silent = std::chrono::steady_clock::now() + limit;
+  long seen = progress().slowest;
   bool there = true;
   for (const auto& arm : arms_) {
-    while (!arm->client->getState().isDone() && std::chrono::steady_clock::now() < deadline && ros::ok()) {
+    while (!arm->client->getState().isDone() && ros::ok()) {
+      const auto now = std::chrono::steady_clock::now();
+      if (const long slowest = progress().slowest; slowest > seen) {
+        seen = slowest;
+        silent = now + limit;
+      }
+      if (now > deadline || now > silent) break;
       std::this_thread::sleep_for(std::chrono::duration<double>(kPoll));
     }
     there = there && arm->client->getState() == actionlib::SimpleClientGoalState::SUCCEEDED;
@@ -698,9 +761,12 @@ RobotConnection::Frame RobotConnection::frame(const ros::Time& after, bool with_
         out.info = info_;
         out.depth_info = depth_info_;
         out.cloth = cloth_;
-        // Stamped after `after` and not ahead of this clock: an image of the last rollout's end, rendered late and
-        // stamped later than the reset scene on a simulator whose clock went back, is not of this scene.
-        const ros::Time latest = ros::Time::now() + ros::Duration(kAheadOfClock);
+        // Stamped after `after` and not ahead of the robot's clock, as its arms' states tell it (this process's clock
+        // may still show the time before a simulator's reset: an image of the last rollout's end, rendered late, would
+        // pass as one of the reset scene).
+        double robot = -std::numeric_limits<double>::infinity();
+        for (const auto& arm : states_) robot = std::max(robot, arm->stamp);
+        const ros::Time latest(std::max(0.0, robot + kAheadOfClock));
         const auto fresh = [&](const auto& m) { return m && m->header.stamp >= after && m->header.stamp <= latest; };
         // One frame: colour and depth taken together (a camera that stamps them apart, within 20 ms).
         return fresh(out.image) && fresh(out.depth) && fresh(out.info) && fresh(out.depth_info) &&

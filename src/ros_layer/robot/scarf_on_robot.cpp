@@ -139,7 +139,8 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
     const double move = RobotConnection::moveTime({at}, {start}, limits, robot_.move_time);
     goal.trajectory.points.push_back(trajectoryPoint(start, zero, zero, move));
     connection_->sendGoal(0, goal);
-    connection_->waitForGoal(0, "move to the start", ros::Time::now() + ros::Duration(move));
+    connection_->waitForGoal(0, "move to the start", ros::Time::now() + ros::Duration(move),
+                             RobotConnection::Blame::Robot);
   }
   // A simulator stands still until the controller has the goal: the scarf hangs for hold_before exactly.
   if (!robot_.pause_service.empty()) connection_->pause(true);
@@ -178,10 +179,8 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   const double after_motion = (plan.end - plan.move_end) * plan.dt;
   goal.goal_time_tolerance = ros::Duration(0.5 * after_motion);
   connection_->sendGoal(0, goal);
-  if (connection_->paused()) {
-    connection_->waitFor([&] { return connection_->goalAnswered(0); }, "the arm's controller (the motion's goal)");
-    if (connection_->goalFailed(0)) connection_->waitForGoal(0, "motion", ros::Time());
-  }
+  connection_->waitForAnswers(origin, robot_.start_delay, "the motion's goal");
+  if (connection_->goalFailed(0)) connection_->waitForGoal(0, "motion", ros::Time(), RobotConnection::Blame::Policy);
   if (c.release) connection_->scheduleRelease(0, origin + ros::Duration(plan.release * plan.dt));
   const ros::Time end = origin + ros::Duration(plan.end * plan.dt);
   if (connection_->paused() && !robot_.step_service.empty()) {
@@ -191,7 +190,8 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   }
   connection_->waitWhileMoving([&] { return connection_->goalFailed(0) || ros::Time::now() >= end; },
                                "the robot's clock (the scarf settling)", end);
-  connection_->waitForGoal(0, "motion", origin + ros::Duration(plan.move_end * plan.dt + 0.5 * after_motion));
+  connection_->waitForGoal(0, "motion", origin + ros::Duration(plan.move_end * plan.dt + 0.5 * after_motion),
+                           RobotConnection::Blame::Policy);
   connection_->record(false);
 
   // The cost's terms (the plan's accelerations are in already): the controller's observer, the camera's colour image.

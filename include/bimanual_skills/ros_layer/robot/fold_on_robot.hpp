@@ -60,6 +60,9 @@ struct FoldRobotInterfaces : RobotInterfaces {
   /// stands still from the grasp until both controllers have accepted them. A controller that gets its goal after the
   /// start skips the points already past (control_msgs' rule), which the path tolerance then fails.
   double start_delay = 0.5;
+  /// A camera that sees the arms (a robot's): before the reset and before the scored images the arms go to their
+  /// rest posture (the robot file's start), out of the camera's view, and the images are taken there.
+  bool clear_view = false;
 
   /// \throws std::invalid_argument naming the field that is out of range.
   void validate() const;
@@ -96,6 +99,9 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   /// The steps of a rollout; each throws RobotFault.
   /// Both arms from where they are to above the start, then onto the cloth, timed from the velocity limits.
   void moveToStart();
+  /// Both arms from where they are to their rest posture, out of the camera's view (clear_view); the robot's when it
+  /// fails.
+  void moveClear(const std::string& what);
   /// After a failed rollout that moved the robot: opens the grippers and lifts the arms to above their start, each
   /// step bounded (kRecoveryTimeout); says what it did.
   std::string recover() noexcept;
@@ -125,6 +131,7 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   tasks::FoldReward reward_;
   FoldRobotInterfaces robot_;
   std::vector<Eigen::VectorXd> above_start_;  ///< Each arm's start configuration with the tool approach_height higher.
+  std::vector<Eigen::VectorXd> rest_;         ///< Each arm's rest posture (clear_view).
   std::mutex mutex_;              ///< Guards the camera model and the recording (written by the connection's spinner).
   vision::PinholeCamera camera_;  ///< The perspective camera as last checked (under mutex_).
   std::unique_ptr<RgbdReader> reader_;    ///< Its images as the vision module takes them (under mutex_).

@@ -27,6 +27,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <atomic>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -177,12 +178,21 @@ class RobotConnection {
   /// Steps a paused simulator to `until` [s of its clock] at `dt` per step; throws with the reason.
   void stepUntil(double until, double dt, const std::string& what);
   void waitUntil(const ros::Time& time, const std::string& what);
+  /// Whose failure a goal that does not succeed is: the robot's (a move before the policy's first point), or the
+  /// policy's unless the robot's loop or states stopped while it ran.
+  enum class Blame { Robot, Policy };
   /// Waits for arm a's goal to end (waitWhileMoving, its motion due to end by `ends_by` of the robot's clock; zero:
-  /// unbounded by the stamps): RobotFailed when its server goes, ControllerFailed when it does not succeed.
-  void waitForGoal(std::size_t a, const std::string& what, const ros::Time& ends_by);
+  /// unbounded by the stamps): RobotFailed when its server goes or the failure is the robot's (see Blame: a result
+  /// saying the control loop stopped or its states were stale, or states more than 0.1 s apart while it ran),
+  /// ControllerFailed when the policy's goal does not succeed.
+  void waitForGoal(std::size_t a, const std::string& what, const ros::Time& ends_by, Blame blame);
   /// Whether arm a's server went or its goal ended other than SUCCEEDED; whether its controller answered the goal.
   bool goalFailed(std::size_t a) const;
   bool goalAnswered(std::size_t a) const;
+  /// Waits (the timeout) until every arm's controller has answered its goal (accepted or refused it): on a simulator
+  /// this object paused, before its clock goes on; on a robot before `start`, or the goals came late (a transport
+  /// slow for the start's delay `delay`: RobotFailed, the robot's). `what` names the goals.
+  void waitForAnswers(const ros::Time& start, double delay, const std::string& what);
   /// Sends `goal` to arm a's controller.
   void sendGoal(std::size_t a, const bimanual_skills::FollowJointTrajectoryGoal& goal);
   /// Cancels every arm's goal that has not ended.
@@ -212,8 +222,8 @@ class RobotConnection {
   /// The cloth's nodes of a point cloud with float x, y, z fields; false for a cloud without them.
   static bool cloudVertices(const sensor_msgs::PointCloud2& cloud, Eigen::Matrix3Xd& vertices);
 
-  /// A camera or cloth message stamped further ahead of this process's clock [s] is of another timeline (a
-  /// simulator's, before its reset) and not used.
+  /// A camera or cloth message stamped further ahead of the robot's clock (its arms' latest states) [s] is of
+  /// another timeline (a simulator's, before its reset) and not used.
   static constexpr double kAheadOfClock = 0.5;
 
  private:
@@ -256,8 +266,8 @@ class RobotConnection {
   double scene_reset_answered_ = std::numeric_limits<double>::infinity();
   tf2_ros::Buffer tf_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
-  bool paused_ = false;     ///< Whether this object paused the simulator (and must resume it).
-  double paused_at_ = 0.0;  ///< The simulator's time when it last paused [s].
+  std::atomic<bool> paused_{false};  ///< Whether this object paused the simulator (and must resume it).
+  double paused_at_ = 0.0;           ///< The simulator's time when it last paused [s].
 };
 
 }  // namespace bimanual_skills::ros_layer
