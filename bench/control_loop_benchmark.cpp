@@ -8,6 +8,10 @@
 //           Allocations in the hosted loop's control part come from the node's own counter.
 //   pacing: bullet_sim free-running at real time with the cloth: the real-time factor measured on /clock after
 //           start, a pause, a reset and a step.
+//   services: bullet_sim's ~pause, ~step, ~grasp and ~reset answer times as the robot path calls them
+//           (ros_layer::ServiceCaller: persistent connections) beside plain non-persistent roscpp calls (the robot
+//           path's calls before, the baseline), with a second simulator and a learner busy on the same cores (on a
+//           ROS master of their own): median, p99, max and the calls that returned without an answer.
 // It starts a ROS master of its own when none answers, and the nodes with roslaunch (launch/sim.launch; the loop
 // experiment without the cloth: config/sim_arms.yaml). Writes DIR/summary.json, DIR/loop.csv (one row per
 // configuration and run), DIR/periods_*.csv (pooled over the runs), DIR/pacing.csv and
@@ -26,11 +30,14 @@
 #include <std_srvs/Trigger.h>
 #include <trajectory_msgs/JointTrajectory.h>
 
+#include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/SimStep.h"
 #include "bimanual_skills/realtime/clock.hpp"
+#include "bimanual_skills/ros_layer/bounded_call.hpp"
 
 #include <pthread.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -215,6 +222,107 @@ double realtimeFactor(double seconds) {
   return (samples.back().second - samples.front().second) / (samples.back().first - samples.front().first);
 }
 
+/// Median, p99 and max of `times` [s].
+struct Times {
+  double median = 0.0, p99 = 0.0, max = 0.0;
+};
+Times timesOf(std::vector<double> times) {
+  Times t;
+  if (times.empty()) return t;
+  std::sort(times.begin(), times.end());
+  t.median = times[times.size() / 2];
+  t.p99 = times[std::min(times.size() - 1, times.size() * 99 / 100)];
+  t.max = times.back();
+  return t;
+}
+
+/// The services experiment (see the file comment).
+void serviceTimes(const bs::bench::ExperimentOptions& options, const std::string& log,
+                  std::vector<bs::bench::JsonRow>& rows) {
+  const int rounds = options.quick ? 20 : 200;
+  bs::bench::Child simulator({"roslaunch", "bimanual_skills", "sim.launch"}, log);
+  // The load on the same cores: a second simulator and a learner folding in-process, on a master of their own.
+  const int port = 12711 + static_cast<int>(::getpid() % 1000);
+  const std::string other = "ROS_MASTER_URI=http://localhost:" + std::to_string(port);
+  bs::bench::Child other_master({"rosmaster", "--core", "-p", std::to_string(port)}, log);
+  for (int i = 0; i < 100 && !bs::bench::listening(port); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  bs::bench::Child other_simulator(
+      {"env", other, "roslaunch", "-p", std::to_string(port), "bimanual_skills", "sim.launch", "realtime_factor:=0"},
+      log);
+  bs::bench::Child learner({"env", other, "roslaunch", "-p", std::to_string(port), "bimanual_skills", "fold.launch",
+                            "out:=" + options.out + "/busy_learner", "jobs:=1"},
+                           log);
+  ros::NodeHandle node;
+  if (!ros::topic::waitForMessage<sensor_msgs::JointState>("/joint_states", node, ros::Duration(60.0))) {
+    throw std::runtime_error("services: no joint states from the simulation (see " + log + ")");
+  }
+  std::this_thread::sleep_for(std::chrono::seconds(5));  // the load has started
+  bs::ros_layer::ServiceCaller caller(node);
+  std::map<std::string, std::vector<double>> times;  // "method service" -> answer times [s]
+  std::map<std::string, int> lost;                   // calls without an answer
+  std::ofstream csv(options.out + "/services.csv");
+  csv << "method,service,round,answer_s,answered\n";
+  const auto timed = [&](const std::string& method, const std::string& service, int round, const auto& call) {
+    const double start = rt::monotonicSeconds();
+    const bool answered = call();
+    const double seconds = rt::monotonicSeconds() - start;
+    const std::string key = method + " " + service;
+    if (answered) {
+      times[key].push_back(seconds);
+    } else {
+      ++lost[key];
+    }
+    csv << method << ',' << service << ',' << round << ',' << seconds << ',' << (answered ? 1 : 0) << '\n';
+  };
+  // One round: pause, 20 steps, a gripper opening, resume; every 20th round a reset. Each request by the robot
+  // path's caller, then by a plain non-persistent call.
+  for (int round = 0; round < rounds; ++round) {
+    for (const std::string method : {"persistent", "non_persistent"}) {
+      const bool persistent = method == "persistent";
+      const auto ask = [&](const std::string& name, auto& request) {
+        if (persistent) return caller.call(name, request, 10.0) == bs::ros_layer::CallOutcome::Answered;
+        ros::ServiceClient client = node.serviceClient<std::remove_reference_t<decltype(request)>>(name);
+        return client.call(request);
+      };
+      std_srvs::SetBool pause;
+      pause.request.data = true;
+      timed(method, "pause", round, [&] { return ask("/bullet_sim/pause", pause); });
+      bimanual_skills::SimStep step;
+      step.request.steps = 20;
+      timed(method, "step", round, [&] { return ask("/bullet_sim/step", step); });
+      bimanual_skills::ClothGrasp grasp;
+      grasp.request.arm = "left";
+      grasp.request.grasp = false;
+      timed(method, "grasp", round, [&] { return ask("/bullet_sim/grasp", grasp); });
+      pause.request.data = false;
+      timed(method, "resume", round, [&] { return ask("/bullet_sim/pause", pause); });
+      if (round % 20 == 0) {
+        std_srvs::Trigger reset;
+        timed(method, "reset", round, [&] { return ask("/bullet_sim/reset", reset); });
+      }
+    }
+  }
+  for (const auto& [key, values] : times) {
+    const Times t = timesOf(values);
+    const std::size_t space = key.find(' ');
+    std::printf(
+        "  services: %-15s %-7s %4zu answers: median %6.2f ms, p99 %6.2f ms, max %7.2f ms; %d without an "
+        "answer\n",
+        key.substr(0, space).c_str(), key.substr(space + 1).c_str(), values.size(), 1e3 * t.median, 1e3 * t.p99,
+        1e3 * t.max, lost[key]);
+    rows.emplace_back()
+        .add("experiment", "services")
+        .add("method", key.substr(0, space))
+        .add("service", key.substr(space + 1))
+        .add("answers", static_cast<double>(values.size()))
+        .add("without_answer", static_cast<double>(lost[key]))
+        .add("answer_median_s", t.median)
+        .add("answer_p99_s", t.p99)
+        .add("answer_max_s", t.max);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -225,9 +333,9 @@ int main(int argc, char** argv) {
       "control_loop_benchmark",
       "The control loop of the simulated robot as its nodes run it: loop period, jitter beyond the machine's noise\n"
       "floor and trajectory-to-torque latency under a competing load, hosted in bullet_sim's loop against\n"
-      "ctc_controller processes driven by joint-state messages; and the simulator's real-time factor after pause,\n"
-      "reset and step.",
-      {"loop", "pacing", "all"},
+      "ctc_controller processes driven by joint-state messages; the simulator's real-time factor after pause,\n"
+      "reset and step; and its services' answer times with a second simulator and a learner busy beside it.",
+      {"loop", "pacing", "services", "all"},
       false,
       false,
       [&](bs::cli::CommandLine& line) {
@@ -268,7 +376,10 @@ int main(int argc, char** argv) {
         "thread(s), node logs in %s\n",
         options.seed, runs, seconds, load_threads, log.c_str());
     std::vector<bs::bench::JsonRow> rows;
-    if (options.experiment != "pacing") {
+    const auto runs_experiment = [&options](const char* name) {
+      return options.experiment == "all" || options.experiment == name;
+    };
+    if (runs_experiment("loop")) {
       std::ofstream csv(options.out + "/loop.csv");
       csv << "design,priority,run,samples,period_median_s,period_p99_s,period_p999_s,period_max_s,jitter_p99_s,"
              "jitter_p999_s,jitter_p999_beyond_floor_s,latency_median_s,latency_p99_s,latency_max_s,commands,"
@@ -357,7 +468,8 @@ int main(int argc, char** argv) {
         }
       }
     }
-    if (options.experiment != "loop") {
+    if (runs_experiment("services")) serviceTimes(options, log, rows);
+    if (runs_experiment("pacing")) {
       std::ofstream csv(options.out + "/pacing.csv");
       csv << "when,realtime_factor\n";
       bs::bench::Child launch({"roslaunch", "bimanual_skills", "sim.launch"}, log);

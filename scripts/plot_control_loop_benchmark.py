@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
 """Plots and tables of control_loop_benchmark: DIR/periods.png (the distribution of the loop period of each design
-beside the noise floor) and DIR/tables.md (summary.json's loop rows and pacing.csv as Markdown). Usage: plot_control_loop_benchmark.py DIR"""
+beside the noise floor), DIR/services.png (the services' answer times by caller) and DIR/tables.md (summary.json's
+loop and services rows and pacing.csv as Markdown). Usage: plot_control_loop_benchmark.py DIR"""
 import csv
 import json
 import os
@@ -67,6 +68,30 @@ def main():
         fig.suptitle("Control loop period under a competing load (control_loop_benchmark)")
         fig.tight_layout()
         fig.savefig(os.path.join(out, "periods.png"), dpi=110)
+    service_rows = [r for r in results if r["experiment"] == "services"]
+    if service_rows:
+        lines += ["", "| service | caller | answers | median [ms] | p99 [ms] | max [ms] | without an answer |",
+                  "|---|---|---:|---:|---:|---:|---:|"]
+        for r in sorted(service_rows, key=lambda r: (r["service"], r["method"])):
+            lines.append(f"| {r['service']} | {r['method'].replace('_', '-')} | {int(r['answers'])} | "
+                         f"{1e3 * r['answer_median_s']:.2f} | {1e3 * r['answer_p99_s']:.2f} | "
+                         f"{1e3 * r['answer_max_s']:.2f} | {int(r['without_answer'])} |")
+        fig, ax = plt.subplots(figsize=(8, 4.5))
+        for method, color in (("persistent", "tab:blue"), ("non_persistent", "tab:red")):
+            times = [1e3 * float(r["answer_s"]) for r in read_rows(os.path.join(out, "services.csv"))
+                     if r["method"] == method and r["answered"] == "1"]
+            if times:
+                times = np.sort(times)
+                ax.semilogx(times, np.arange(1, len(times) + 1) / len(times), color=color,
+                            label=method.replace("_", "-") + " (" + str(len(times)) + " answers)")
+        ax.axvline(50.0, color="0.5", linestyle="--", label="50 ms")
+        ax.set_xlabel("answer time [ms]")
+        ax.set_ylabel("fraction of calls answered sooner")
+        ax.set_title("bullet_sim's ~pause, ~step, ~grasp, ~reset beside a second simulator and a busy learner")
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(os.path.join(out, "services.png"), dpi=110)
     pacing = os.path.join(out, "pacing.csv")
     if os.path.exists(pacing):
         lines += ["", "| when | real-time factor (target 1) |", "|---|---:|"]
