@@ -69,7 +69,7 @@ const std::string kUsage =
         "(0.05)\n"
         "  ~loop_priority        SCHED_FIFO priority of the loop thread, 1-99 (0: unchanged, the default)\n"
         "  ~max_step_duration    most simulated seconds one ~step call may ask for (default 60)\n"
-        "  ~max_payload          heaviest ~set_payload [kg] (default 4, the WAM's rated payload)\n"
+        "  ~max_payload          heaviest ~set_payload [kg] (default: the robot file's rated payload, else 4)\n"
         "  ~max_force, ~max_torque  largest ~apply_wrench [N, N m] (default 200, 50)\n"
         "  ~command_timeout      simulated s after which an external command is stale: zero torque plus braking "
         "(0.05)\n"
@@ -220,8 +220,11 @@ class BulletSimNode {
     for (const std::vector<std::string>* list : {&external, &hosted}) {
       for (const std::string& name : *list) {
         if (simulation_->armIndex(name) < 0) {
+          std::string known;
+          for (const std::string& a : all_arms) known += (known.empty() ? "" : ", ") + a;
           throw std::invalid_argument("~hosted_controllers and ~external_controllers name an unknown arm '" + name +
-                                      "'");
+                                      "' (the robot's arms: " + known +
+                                      "; sim.launch takes them as first_arm:=NAME second_arm:=NAME)");
         }
       }
     }
@@ -456,7 +459,9 @@ class BulletSimNode {
     if (!std::isfinite(payload.mass) || payload.mass < 0.0 || payload.mass > max_payload_) {
       std::ostringstream message;
       message << "rejected: mass " << payload.mass << " kg; it must lie in [0, " << max_payload_
-              << "] kg (~max_payload; the WAM's rated payload is 4 kg)";
+              << "] kg (~max_payload";
+      if (robot_file_) message << "; the robot file's rated payload is " << robot_file_->rated_payload << " kg";
+      message << ")";
       response.message = message.str();
       return true;
     }

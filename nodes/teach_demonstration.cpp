@@ -55,6 +55,8 @@ const char* const kUsage =
     "Parameters (private):\n"
     "  ~config          learning file: its simulation gives the arms and tool links, its kernels the DMPs'\n"
     "                   (default: the package's config/fold_demo.yaml)\n"
+    "  ~robot           robot file (config/robots/*.yaml) whose arms and tool links are taught, instead of the one\n"
+    "                   the learning file's simulation names (teach.launch robot:=FILE sets it)\n"
     "  ~out             directory of the DMP files and taught_poses.csv (default: taught, in the working directory)\n"
     "  ~mode            teleoperation or hand (default teleoperation)\n"
     "  ~world_frame     root link of robot_description, the frame of hands and poses (default world)\n"
@@ -94,13 +96,15 @@ class TeachNode {
     out_ = parameters_.text("out", "taught");
     teleoperation_ = parameters_.text("mode", "teleoperation", {"teleoperation", "hand"}) == "teleoperation";
     world_ = parameters_.text("world_frame", "world");
+    const std::string robot = parameters_.text("robot", "");
     timeout_ = parameters_.number("service_timeout", 5.0, 0.1, 60.0);
     const std::string grasp = parameters_.text("grasp_service", "bullet_sim/grasp");
     parameters_.warnUnknown();
 
     const bs::rollout::FoldLearningConfig learning = bs::rollout::FoldLearningConfig::fromYamlFile(config);
     kernels_ = learning.task.kernels;
-    const bs::sim::SimConfig sim = bs::sim::SimConfig::fromYamlFile(learning.task.sim_config);
+    // The arms and their tool links: the robot file's (the learning file's simulation names one by default).
+    const bs::sim::SimConfig sim = bs::sim::SimConfig::fromYamlFile(learning.task.sim_config, robot);
     std::string urdf;
     if (!node_.getParam("robot_description", urdf)) throw std::invalid_argument("no robot_description parameter");
     for (const bs::sim::ArmConfig& a : sim.arms) {

@@ -112,6 +112,7 @@ TEST(TeachDemonstration, APersonTeachesTheFold) {
   bs::rollout::FoldLearningConfig config = bs::rollout::FoldLearningConfig::fromYamlFile(
       ros::package::getPath("bimanual_skills") + "/config/fold_demo.yaml");
   config.task.demonstration_files = files;
+  ros::param::get("/teach_demonstration/robot", config.task.robot);  // the taught pair's robot file ("" the WAM's)
   bs::tasks::ClothFoldTask task(config.task);
   const bs::tasks::FoldRollout rollout = task.run(task.demonstrationParameters());
   EXPECT_EQ(rollout.outcome, bs::tasks::FoldOutcome::Ok) << rollout.reason;
@@ -128,7 +129,7 @@ TEST(TeachDemonstration, BadHandTargetsAreRefused) {
   target.header.frame_id = "world";
   target.point.x = std::numeric_limits<double>::quiet_NaN();
   hand_pub.publish(target);
-  target.header.frame_id = "left_wam_base";
+  target.header.frame_id = "no_such_frame";
   target.point.x = 0.5;
   hand_pub.publish(target);
   ros::Duration(0.5).sleep();
