@@ -113,7 +113,10 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   Camera cameraImages(const ros::Time& after, bool with_cloth);
   /// The flat cloth after the reset: the fold reward's reference.
   void observeFlat(const ros::Time& after);
-  tasks::FoldRewardTerms observe(const ros::Time& after, double acceleration_cost);
+  /// The reward of the first images after `after`; the fold's quality from `settled_cloth` (the cloth at the task's
+  /// settle time, when the images come later) or else from the cloth that came with the images.
+  tasks::FoldRewardTerms observe(const ros::Time& after, double acceleration_cost,
+                                 const sensor_msgs::PointCloud2ConstPtr& settled_cloth = nullptr);
   /// Why the camera whose camera_info is `info` cannot be used (its model, size, distortion, frame on tf); "" when
   /// it can. For a perspective camera, sets camera_ (intrinsics and pose).
   std::string cameraProblem(const sensor_msgs::CameraInfo& info);
