@@ -193,6 +193,7 @@ class BulletSimNode {
         throw std::invalid_argument("~hardware: a robot runs at real time (~realtime_factor 1)");
       }
       if (loop.paused) throw std::invalid_argument("~hardware: a robot cannot start paused (~paused)");
+      loop.pausable = false;  // as a driver's loop: its clock is never held
       publishing.publish_clock = false;
       publishing.raw_rgbd = true;
       publishing.arms_in_view = true;

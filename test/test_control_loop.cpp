@@ -1,7 +1,8 @@
 // hosting::ControlLoop without ROS: a fake robot of two WAM arms integrated with the project's forward dynamics
 // (known ground truth), hosted controllers and arms commanded from another thread, pause and step, a robot that
-// stops, lockstep matched by stamps (repeatable bit for bit), bounded requests, bad input, and the cycle's allocation
-// count; and hosting::SimulatedRobot (the Bullet simulation as the loop's robot) doing scheduled gripper commands.
+// stops, lockstep matched by stamps (repeatable bit for bit), bounded requests, bad input, the cycle's allocation
+// count, states that cannot be read or are stale (the arm held against gravity), a driver that cannot be paused; and
+// hosting::SimulatedRobot (the Bullet simulation as the loop's robot) doing scheduled gripper commands.
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/hosting/control_loop.hpp"
 #include "bimanual_skills/hosting/simulated_robot.hpp"
@@ -37,15 +38,22 @@ class FakeRobot final : public bh::LoopRobot {
   }
   int armCount() const noexcept override { return 2; }
   int jointCount(int arm) const noexcept override { return arm == 0 || arm == 1 ? 7 : 0; }
+  /// Arm 0 faults (Fault, the state untouched) for steps in [fault_from, fault_to), and repeats its last sample
+  /// (the stamp and values of step frozen_from − 1) for steps in [frozen_from, frozen_to): a driver's stale sample.
   sim::RobotStatus readJointState(int arm, sim::JointState& state) noexcept override {
+    if (arm == 0 && steps_ >= fault_from && steps_ < fault_to) return sim::RobotStatus::Fault;
+    if (arm == 0 && steps_ >= frozen_from && steps_ < frozen_to) return sim::RobotStatus::Ok;
     state.position = q_[arm];
     state.velocity = qd_[arm];
     state.effort = tau_[arm];
+    state.time = time();
+    if (arm == 0 && steps_ < positions_.cols()) positions_.col(steps_) = q_[0];
     return sim::RobotStatus::Ok;
   }
   sim::RobotStatus writeJointTorques(int arm, const Eigen::Ref<const Eigen::VectorXd>& torque) noexcept override {
     tau_[arm] = torque;
     if (arm == 1 && written_.size() < written_.capacity()) written_.push_back(torque[1]);
+    if (arm == 0 && steps_ < torques_.cols()) torques_.col(steps_) = torque;
     return sim::RobotStatus::Ok;
   }
   double time() const noexcept override { return static_cast<double>(steps_) * kDt; }
@@ -67,7 +75,10 @@ class FakeRobot final : public bh::LoopRobot {
   bk::ChainModel model_ = bimanual_skills::test_support::wamWithRotors();
   bd::DynamicsData data_{model_};
   Eigen::VectorXd q_[2], qd_[2], qdd_[2], tau_[2];
-  std::vector<double> written_;  ///< Arm 1's second joint torque, per cycle.
+  std::vector<double> written_;                                 ///< Arm 1's second joint torque, per cycle.
+  Eigen::MatrixXd positions_ = Eigen::MatrixXd::Zero(7, 1000);  ///< Arm 0's position read at each step.
+  Eigen::MatrixXd torques_ = Eigen::MatrixXd::Zero(7, 1000);    ///< Arm 0's torque written at each step.
+  long fault_from = -1, fault_to = -1, frozen_from = -1, frozen_to = -1;
   long steps_ = 0;
   double stop_at_;
 };
@@ -375,6 +386,73 @@ TEST(ControlLoop, BadInputGetsAClearAnswer) {
   ASSERT_TRUE(waitFor([&] { return loop.counts().rejected_commands == 2; }));
   loop.torqueCommand(7, 0.0, three, 3);  // no such arm: ignored
   EXPECT_EQ(loop.counts().rejected_commands, 2);
+}
+
+TEST(ControlLoop, AnArmWhoseStatesCannotBeReadOrAreStaleIsHeldAgainstGravityNotLetFall) {
+  // A driver's read fails for 50 cycles, then it repeats one old sample for 100: the hosted controller never gets
+  // them (or refuses them once older than its state_timeout, 0.05 s), and the arm gets the gravity torque of its last
+  // valid posture (computed here independently from the model), counted, instead of zero torque.
+  FakeRobot robot;
+  RecordingSink sink;
+  bh::LoopSettings settings = fast();
+  settings.paused = true;
+  CountingProbe probe;
+  bh::ControlLoop loop(robot, sink, settings, &probe);
+  bc::RealtimeArmController left(robot.model_, noFriction(), controllerConfig());
+  loop.host(0, left, [](const std::string&) {});
+  Running running(loop);
+  ASSERT_TRUE(loop.step(100).success);
+  EXPECT_EQ(loop.counts().faulted_states, 0);
+  EXPECT_EQ(loop.counts().unusable_states, 0);
+  robot.fault_from = 100;
+  robot.fault_to = 150;
+  robot.frozen_from = 200;
+  robot.frozen_to = 300;
+  ASSERT_TRUE(loop.step(250).success);
+  const bh::LoopCounts counts = loop.counts();
+  EXPECT_EQ(counts.faulted_states, 50);
+  EXPECT_EQ(counts.control_allocations, 0) << "holding the arm allocated";
+  bd::DynamicsData data(robot.model_);
+  Eigen::VectorXd gravity(7);
+  ASSERT_EQ(bd::gravityTorques(robot.model_, data, robot.positions_.col(99), gravity), bd::DynamicsStatus::Success);
+  ASSERT_GT(gravity.norm(), 1.0);
+  for (long k = 100; k < 150; ++k) {
+    EXPECT_LT((robot.torques_.col(k) - gravity).norm(), 1e-9) << "cycle " << k << " while the read failed";
+  }
+  EXPECT_LT((robot.positions_.col(150) - robot.positions_.col(99)).cwiseAbs().maxCoeff(), 2e-3)
+      << "the arm moved while its states could not be read";
+  // The repeated sample (stamped 0.199 s): used while younger than the timeout, then refused as stale from about
+  // t = 0.25 s on.
+  EXPECT_GE(counts.unusable_states, 49);
+  EXPECT_LE(counts.unusable_states, 51);
+  ASSERT_EQ(bd::gravityTorques(robot.model_, data, robot.positions_.col(199), gravity), bd::DynamicsStatus::Success);
+  for (long k = 252; k < 300; ++k) {
+    EXPECT_LT((robot.torques_.col(k) - gravity).norm(), 1e-9) << "cycle " << k << " on a stale state";
+  }
+  EXPECT_LT((robot.positions_.col(300) - robot.positions_.col(199)).cwiseAbs().maxCoeff(), 5e-3);
+  // Fresh states again: the controller holds where the arm is and goes on.
+  const bc::ArmControllerState* state = left.latestState();
+  ASSERT_NE(state, nullptr);
+  EXPECT_EQ(state->status, bc::ControllerStatus::Ok) << bc::toString(state->status);
+}
+
+TEST(ControlLoop, ADriverThatCannotBePausedRefusesPauseAndStepAndRunsOn) {
+  FakeRobot robot;
+  RecordingSink sink;
+  bh::LoopSettings settings = fast();
+  settings.pausable = false;
+  bh::ControlLoop loop(robot, sink, settings);
+  Running running(loop);
+  for (const bh::LoopOutcome& refused : {loop.pause(true), loop.step(10)}) {
+    EXPECT_FALSE(refused.success);
+    EXPECT_NE(refused.message.find("cannot be held or stepped"), std::string::npos) << refused.message;
+  }
+  EXPECT_TRUE(loop.pause(false).success);
+  EXPECT_FALSE(loop.paused());
+  const long before = loop.counts().cycles;
+  EXPECT_TRUE(waitFor([&] { return loop.counts().cycles > before + 100; })) << "the loop stopped";
+  settings.paused = true;
+  EXPECT_THROW(bh::ControlLoop(robot, sink, settings), std::invalid_argument);
 }
 
 TEST(SimulatedRobot, DoesAScheduledGripperCommandInTheFirstCycleAtOrAfterItsTimeAndDropsItOnReset) {

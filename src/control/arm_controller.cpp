@@ -69,7 +69,7 @@ ArmController::ArmController(const kinematics::ChainModel& model, const dynamics
     throw std::invalid_argument("ArmController: stop_deceleration and min_stop_time must be finite and > 0");
   }
   ctc_.setFrictionCompensation(config.friction_compensation);
-  q_d_ = qd_d_ = qdd_d_ = error_ = applied_ = accel_sign_ = Eigen::VectorXd::Zero(n);
+  q_d_ = qd_d_ = qdd_d_ = error_ = applied_ = accel_sign_ = q_valid_ = Eigen::VectorXd::Zero(n);
 }
 
 void ArmController::holdAt(double t, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept {
@@ -81,6 +81,17 @@ void ArmController::stopAt(double t) noexcept {
   const double duration = std::max(min_stop_time_, 2.0 * qd_d_.cwiseAbs().maxCoeff() / stop_deceleration_);
   trajectory_.stop(t, q_d_, qd_d_, qdd_d_, duration);
   mode_ = ControllerMode::Hold;
+}
+
+bool ArmController::holdingTorque(Eigen::Ref<Eigen::VectorXd> torque) noexcept {
+  if (torque.size() != q_valid_.size()) return false;
+  if (!started_ ||
+      dynamics::gravityTorques(ctc_.model(), dynamics_, q_valid_, torque) != dynamics::DynamicsStatus::Success) {
+    torque.setZero();
+    return false;
+  }
+  torque = torque.cwiseMax(-torque_limit_).cwiseMin(torque_limit_);
+  return true;
 }
 
 bool ArmController::stale(double now) noexcept {
@@ -131,6 +142,7 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
   }
   last_period_ = started_ && !was_stale_ ? stamp - last_stamp_ : 0.0;
   last_stamp_ = stamp;
+  q_valid_ = q;
   if (!started_ || was_stale_) {
     observer_.reset(q, qd);  // a start, or states again after a gap: the estimate restarts here
     started_ = true;

@@ -38,12 +38,15 @@ void LoopSettings::validate() const {
     throw std::invalid_argument("lockstep_timeout must be positive and finite");
   }
   if (statistics_capacity == 0) throw std::invalid_argument("statistics_capacity must be positive");
+  if (paused && !pausable)
+    throw std::invalid_argument("a loop that cannot be paused (pausable false) cannot start paused");
 }
 
 /// One arm in the loop.
 struct ControlLoop::Arm {
   int joints = 0;
   Eigen::VectorXd torque;
+  sim::RobotStatus read = sim::RobotStatus::Ok;  ///< How this cycle's state read went.
   // Hosted.
   control::RealtimeArmController* controller = nullptr;
   std::function<void(const std::string&)> stopped;
@@ -258,16 +261,23 @@ bool ControlLoop::cycle() noexcept {
   const double t = robot_.time();
   robot_.due(t);  // outside the probe: a simulated gripper attaches the cloth (Bullet allocates)
   if (probe_) probe_->begin();
-  for (std::size_t a = 0; a < arms_.size(); ++a) robot_.readJointState(static_cast<int>(a), states_[a]);
+  for (std::size_t a = 0; a < arms_.size(); ++a) {
+    arms_[a]->read = robot_.readJointState(static_cast<int>(a), states_[a]);
+    if (arms_[a]->read != sim::RobotStatus::Ok) faulted_.fetch_add(1, std::memory_order_relaxed);
+  }
   handOut(t, false);
   if (settings_.lockstep) waitForAnswers(t);
   for (std::size_t a = 0; a < arms_.size(); ++a) {
     Arm& arm = *arms_[a];
     const sim::JointState& state = states_[a];
-    if (arm.controller) {
-      const auto status = arm.controller->update(t, t, state.position, state.velocity, state.effort, arm.torque);
+    if (arm.controller && arm.read != sim::RobotStatus::Ok) {
+      (void)arm.controller->holdingTorque(arm.torque);  // no state this cycle: held where it was last seen
+    } else if (arm.controller) {
+      const auto status =
+          arm.controller->update(t, state.time, state.position, state.velocity, state.effort, arm.torque);
       if (status == control::ControllerStatus::InvalidState || status == control::ControllerStatus::StaleState) {
-        arm.torque.setZero();
+        unusable_.fetch_add(1, std::memory_order_relaxed);
+        (void)arm.controller->holdingTorque(arm.torque);
       }
       if (arm.controller->commandsTaken() != arm.commands_taken) {
         arm.commands_taken = arm.controller->commandsTaken();
@@ -376,7 +386,14 @@ LoopOutcome ControlLoop::call(std::function<LoopOutcome()> request, double wait)
   return submit(requests_mutex_, requests_, r, wait);
 }
 
+LoopOutcome ControlLoop::notPausable() const {
+  return {false,
+          "this robot's clock cannot be held or stepped (LoopSettings::pausable is false: a robot's loop runs on)",
+          robot_.time()};
+}
+
 LoopOutcome ControlLoop::pause(bool paused, double wait) {
+  if (paused && !settings_.pausable) return notPausable();
   return call(
       [this, paused] {
         if (!paused) interruptStep("the loop was resumed");
@@ -391,6 +408,7 @@ LoopOutcome ControlLoop::pause(bool paused, double wait) {
 }
 
 LoopOutcome ControlLoop::step(std::uint32_t cycles, double wait) {
+  if (!settings_.pausable) return notPausable();
   auto r = std::make_shared<Request>();
   r->cycles = cycles;
   return submit(requests_mutex_, requests_, r, wait);
@@ -406,6 +424,8 @@ LoopCounts ControlLoop::counts() const noexcept {
   c.late_commands = late_.load();
   c.lockstep_timeouts = lockstep_timeouts_.load();
   c.schedule_restarts = slips_.load();
+  c.faulted_states = faulted_.load();
+  c.unusable_states = unusable_.load();
   return c;
 }
 
@@ -417,7 +437,8 @@ void ControlLoop::writeStatistics(std::ostream& out) const {
   const LoopCounts c = counts();
   out << "cycles," << c.cycles << "\ncontrol_allocations," << c.control_allocations
       << "\ncontrol_cycles_that_allocated," << c.control_cycles_that_allocated << "\nphysics_steps_that_allocated,"
-      << c.robot_steps_that_allocated << '\n';
+      << c.robot_steps_that_allocated << "\nfaulted_states," << c.faulted_states << "\nunusable_states,"
+      << c.unusable_states << '\n';
 }
 
 }  // namespace bimanual_skills::hosting

@@ -69,6 +69,10 @@ class ArmController {
 
   /// True (and the controller will hold at the next fresh state) if no state newer than now − timeout arrived.
   bool stale(double now) noexcept;
+  /// What to send while the states cannot be used (stale, invalid, unread): the gravity torque at the last valid
+  /// measured posture (within the torque limits), so that an arm without brakes does not fall; zero before the
+  /// first valid state. Returns false in that case. Real-time safe.
+  bool holdingTorque(Eigen::Ref<Eigen::VectorXd> torque) noexcept;
 
   /// Switches mode at the next update (hold: a smooth stop from the desired state, or from the measured one after
   /// gravity compensation, ArmControllerConfig::stop_deceleration; track: the loaded trajectory, if any, else
@@ -120,7 +124,7 @@ class ArmController {
   bool mode_request_ = false, trajectory_request_ = false;
   bool started_ = false, was_stale_ = false;
   double last_stamp_ = 0.0, last_period_ = 0.0;
-  Eigen::VectorXd q_d_, qd_d_, qdd_d_, error_, applied_, accel_sign_;
+  Eigen::VectorXd q_d_, qd_d_, qdd_d_, error_, applied_, accel_sign_, q_valid_;
 };
 
 }  // namespace bimanual_skills::control

@@ -159,6 +159,9 @@ class RealtimeArmController {
   double lastCommandTaken() const noexcept { return command_taken_at_; }
   /// Whether the states stopped (ArmController::stale); call from the loop thread.
   bool stale(double now) noexcept { return controller_.stale(now); }
+  /// ArmController::holdingTorque: the gravity torque at the last valid posture, for a loop whose states cannot be
+  /// used (loop thread).
+  bool holdingTorque(Eigen::Ref<Eigen::VectorXd> torque) noexcept { return controller_.holdingTorque(torque); }
 
   const kinematics::ChainModel& model() const noexcept { return controller_.model(); }
   int joints() const noexcept { return controller_.model().nq(); }

@@ -72,6 +72,9 @@ struct LoopSettings {
   bool lockstep = false;          ///< Each cycle waits for the outside commands that answer its states.
   double lockstep_timeout = 0.2;  ///< Wall seconds a lockstep cycle waits before braking the arms that did not answer.
   bool paused = false;            ///< Start paused.
+  /// Whether pause() and step() may hold the robot's clock: a simulator's can stand still, a robot's cannot (a
+  /// driver sets false; pause(true) and step() then fail saying so, and the loop never stops writing torques).
+  bool pausable = true;
   std::size_t statistics_capacity = 200000;  ///< Periods and cycle times kept (the newest).
 
   /// \throws std::invalid_argument naming the bad setting.
@@ -99,6 +102,8 @@ struct LoopCounts {
   long late_commands = 0;      ///< Lockstep: outside commands answering an older state (dropped).
   long lockstep_timeouts = 0;  ///< Lockstep cycles that went on without every answer.
   long schedule_restarts = 0;  ///< LoopPacer slips.
+  long faulted_states = 0;     ///< Arm states the robot could not read (readJointState not Ok): the arm held.
+  long unusable_states = 0;    ///< States a hosted controller refused (stale stamp, NaN/Inf): the arm held.
 };
 
 class ControlLoop {
@@ -112,6 +117,10 @@ class ControlLoop {
 
   // ---- Set-up, before run() ----
   /// Arm `arm` is driven by `controller` in the loop; `stopped` is told why when the loop stops (not when paused).
+  /// Each cycle the controller gets the state's own stamp (sim::JointState::time, on the robot's clock): a state
+  /// that stopped changing is stale. While the robot cannot read the arm's state, or the controller refuses it
+  /// (stale, NaN/Inf), the arm gets the gravity torque at its last valid posture
+  /// (RealtimeArmController::holdingTorque), never zero torque, and the loop counts it (LoopCounts).
   void host(int arm, control::RealtimeArmController& controller, std::function<void(const std::string&)> stopped);
   /// Arm `arm` takes torque commands from outside (torqueCommand()): stale after `timeout` robot seconds, then
   /// braked with `damping` [N m s/rad per joint]; with `lockstep_waits`, a lockstep cycle waits for its answer.
@@ -166,6 +175,7 @@ class ControlLoop {
   void endStep(bool success, const std::string& why);
   /// Ends a step() in progress, unsuccessfully, with `why` (nothing without one).
   void interruptStep(const std::string& why);
+  LoopOutcome notPausable() const;
   std::vector<std::shared_ptr<Request>> takeRequests();
 
   LoopRobot& robot_;
@@ -187,7 +197,8 @@ class ControlLoop {
   double handed_out_ = std::numeric_limits<double>::quiet_NaN();  ///< Stamp of the last states handed out.
   double next_stopped_hand_out_ = 0.0;
   std::atomic<long> cycles_{0}, control_allocations_{0}, control_cycles_that_allocated_{0},
-      robot_steps_that_allocated_{0}, rejected_{0}, late_{0}, lockstep_timeouts_{0}, slips_{0};
+      robot_steps_that_allocated_{0}, rejected_{0}, late_{0}, lockstep_timeouts_{0}, slips_{0}, faulted_{0},
+      unusable_{0};
 };
 
 }  // namespace bimanual_skills::hosting

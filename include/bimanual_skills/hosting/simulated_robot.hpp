@@ -27,8 +27,11 @@ class SimulatedRobot final : public LoopRobot {
 
   int armCount() const noexcept override { return simulation_.armCount(); }
   int jointCount(int arm) const noexcept override { return simulation_.jointCount(arm); }
+  /// The arm's state stamped on the robot's clock (time()).
   sim::RobotStatus readJointState(int arm, sim::JointState& state) noexcept override {
-    return simulation_.readJointState(arm, state);
+    const sim::RobotStatus status = simulation_.readJointState(arm, state);
+    state.time += offset_;
+    return status;
   }
   sim::RobotStatus writeJointTorques(int arm, const Eigen::Ref<const Eigen::VectorXd>& torque) noexcept override {
     return simulation_.writeJointTorques(arm, torque);

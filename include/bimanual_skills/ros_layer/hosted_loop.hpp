@@ -105,6 +105,18 @@ class LoopDiagnostics {
     add(status, "rejected_external_commands", std::to_string(counts.rejected_commands));
     add(status, "late_external_commands", std::to_string(counts.late_commands));
     add(status, "lockstep_timeouts", std::to_string(counts.lockstep_timeouts));
+    add(status, "faulted_states", std::to_string(counts.faulted_states));
+    add(status, "unusable_states", std::to_string(counts.unusable_states));
+    // Since the last status: arms held because their states could not be used.
+    const long unread = counts.faulted_states - last_faulted_, unusable = counts.unusable_states - last_unusable_;
+    last_faulted_ = counts.faulted_states;
+    last_unusable_ = counts.unusable_states;
+    if (status.level == diagnostic_msgs::DiagnosticStatus::OK && unread + unusable > 0) {
+      status.level = diagnostic_msgs::DiagnosticStatus::WARN;
+      status.message +=
+          "; arms held on states that could not be used since the last status: " + std::to_string(unread) +
+          " unread, " + std::to_string(unusable) + " stale or not finite";
+    }
     return status;
   }
 
@@ -117,6 +129,7 @@ class LoopDiagnostics {
 
  private:
   double last_wall_ = 0.0, last_time_ = 0.0;
+  long last_faulted_ = 0, last_unusable_ = 0;
 };
 
 }  // namespace bimanual_skills::ros_layer
