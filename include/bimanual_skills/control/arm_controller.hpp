@@ -70,8 +70,8 @@ class ArmController {
   /// True (and the controller will hold at the next fresh state) if no state newer than now − timeout arrived.
   bool stale(double now) noexcept;
   /// What to send while the states cannot be used (stale, invalid, unread): the gravity torque at the last valid
-  /// measured posture (within the torque limits), so that an arm without brakes does not fall; zero before the
-  /// first valid state. Returns false in that case. Real-time safe.
+  /// measured posture (within the torque limits), so that an arm without brakes does not fall. Returns false, with
+  /// zero torque, before the first valid state (false and untouched for a wrongly sized `torque`). Real-time safe.
   bool holdingTorque(Eigen::Ref<Eigen::VectorXd> torque) noexcept;
 
   /// Switches mode at the next update (hold: a smooth stop from the desired state, or from the measured one after

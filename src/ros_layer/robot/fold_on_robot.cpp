@@ -92,16 +92,8 @@ FoldOnRobotTask::FoldOnRobotTask(const tasks::ClothFoldConfig& task, const tasks
   for (int a = 0; a < 2; ++a) {
     // Above the start: the tool comes down onto the cloth's corner instead of sweeping over the table.
     const Eigen::VectorXd& start = task_.startPositions()[static_cast<std::size_t>(a)];
-    kinematics::ChainData data(task_.armModel(a));
-    (void)kinematics::forwardKinematics(task_.armModel(a), data, start);
-    Eigen::Isometry3d above = data.tipPose();
-    above.translation() += task_.basePose(a).linear().transpose() * Eigen::Vector3d(0.0, 0.0, robot_.approach_height);
-    kinematics::GlobalIkParameters parameters;
-    parameters.timeout = 1.0;  // never binding: the same configuration under any load
-    kinematics::GlobalIkSolver solver(task_.armModel(a), parameters);
-    Eigen::VectorXd above_start = start;
-    if (solver.solve(above, start, above_start).status != kinematics::IkStatus::Converged ||
-        (above_start - start).cwiseAbs().maxCoeff() > 0.5) {
+    Eigen::VectorXd above_start;
+    if (!raised(a, start, robot_.approach_height, above_start)) {
       throw std::invalid_argument("fold on the robot: no configuration of " + robot_.arms[static_cast<std::size_t>(a)] +
                                   " near its start with the tool " + std::to_string(robot_.approach_height) +
                                   " m above it");
@@ -224,27 +216,30 @@ std::vector<Eigen::VectorXd> FoldOnRobotTask::velocityLimits() const {
   return {task_.armModel(0).velocityLimits(), task_.armModel(1).velocityLimits()};
 }
 
+bool FoldOnRobotTask::raised(int a, const Eigen::VectorXd& q, double height, Eigen::VectorXd& out) const {
+  kinematics::ChainData data(task_.armModel(a));
+  (void)kinematics::forwardKinematics(task_.armModel(a), data, q);
+  Eigen::Isometry3d up = data.tipPose();
+  up.translation() += task_.basePose(a).linear().transpose() * Eigen::Vector3d(0.0, 0.0, height);
+  kinematics::GlobalIkParameters parameters;
+  parameters.timeout = 1.0;  // never binding: the same configuration under any load
+  kinematics::GlobalIkSolver solver(task_.armModel(a), parameters);
+  Eigen::VectorXd solution = q;
+  if (solver.solve(up, q, solution).status != kinematics::IkStatus::Converged ||
+      (solution - q).cwiseAbs().maxCoeff() > 0.5) {
+    return false;
+  }
+  out = solution;
+  return true;
+}
+
 void FoldOnRobotTask::moveClear(const std::string& what) {
   // Straight up first, then to the rest posture: a tool just released on the folded cloth must not sweep through it
   // on its way out.
   const std::vector<Eigen::VectorXd> now = connection_->measuredPositions();
   std::vector<Eigen::VectorXd> lifted = now;
-  for (std::size_t a = 0; a < 2; ++a) {
-    const int arm = static_cast<int>(a);
-    kinematics::ChainData data(task_.armModel(arm));
-    (void)kinematics::forwardKinematics(task_.armModel(arm), data, now[a]);
-    Eigen::Isometry3d up = data.tipPose();
-    up.translation() += task_.basePose(arm).linear().transpose() * Eigen::Vector3d(0.0, 0.0, kClearLift);
-    kinematics::GlobalIkParameters parameters;
-    parameters.timeout = 0.2;
-    kinematics::GlobalIkSolver solver(task_.armModel(arm), parameters);
-    Eigen::VectorXd q = now[a];
-    // No lift that stays near this posture (an arm at its limits): the straight move as before.
-    if (solver.solve(up, now[a], q).status == kinematics::IkStatus::Converged &&
-        (q - now[a]).cwiseAbs().maxCoeff() <= 0.5) {
-      lifted[a] = q;
-    }
-  }
+  // No lift near this posture (an arm at its limits): it goes straight to the rest posture.
+  for (std::size_t a = 0; a < 2; ++a) (void)raised(static_cast<int>(a), now[a], kClearLift, lifted[a]);
   const double lift = RobotConnection::moveTime(now, lifted, velocityLimits(), 0.25 * robot_.move_time);
   const double time = lift + RobotConnection::moveTime(lifted, rest_, velocityLimits(), robot_.move_time);
   for (std::size_t a = 0; a < 2; ++a) {

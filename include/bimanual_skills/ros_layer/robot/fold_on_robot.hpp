@@ -102,6 +102,9 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   /// Both arms from where they are to their rest posture, out of the camera's view (clear_view); the robot's when it
   /// fails.
   void moveClear(const std::string& what);
+  /// Arm a's configuration near `q` (within 0.5 rad per joint) with the tool `height` [m] higher, by global IK
+  /// seeded at q, into `out`; false (out untouched) when there is none.
+  bool raised(int a, const Eigen::VectorXd& q, double height, Eigen::VectorXd& out) const;
   /// After a failed rollout that moved the robot: opens the grippers and lifts the arms to above their start, each
   /// step bounded (kRecoveryTimeout); says what it did.
   std::string recover() noexcept;
