@@ -88,6 +88,9 @@ class Rig {
         simulation_(config_),
         camera_(bs::tasks::rendererFor(config_), bs::tasks::rgbdCameraFor(config_)),
         rng_(seed) {
+    if (simulation_.resetToStart() != bs::sim::SimStatus::Ok) {  // where bullet_sim starts them
+      throw std::invalid_argument("the robot file's start postures are refused by the simulation");
+    }
     object_ = camera_.addMovingSolid(bs::tasks::sceneSolid(config_.object.body));
     bs::tracking::ObjectTrackerConfig tracker;
     // The object as the scene has it: its shape, size and colour (nothing assumed of a can).

@@ -117,7 +117,8 @@ const std::string kUsage =
     "  Each hosted controller serves ARM/command (trajectory_msgs/JointTrajectory), ARM/follow_joint_trajectory\n"
     "  (bimanual_skills/FollowJointTrajectory action), ARM/set_mode and publishes ARM/state, ARM/estimated_wrench,\n"
     "  ARM/estimated_external_torque (sensor_msgs/JointState, effort: the observer's joint torques), ARM/tool_paths.\n"
-    "Sets ~world_digest: sim::SimConfig::worldDigest of ~config (with its URDF and plant files).\n"
+    "Sets ~world_digest: sim::SimConfig::worldDigest of ~config (with its URDF and plant files), and ~time_origin:\n"
+    "the robot clock's time at the simulation's t = 0 (0; with ~hardware, the wall's time of the last reset).\n"
     "Services: ~reset (std_srvs/Trigger), ~pause (std_srvs/SetBool), ~step (bimanual_skills/SimStep, bounded),\n"
     "  ~set_payload, ~apply_wrench (bounded), ~grasp (bimanual_skills/ClothGrasp: takes the cloth nodes and the\n"
     "  moving object in reach, fails when there are none; a stamp ahead, at most 600 s, is done by the loop in its\n"
@@ -131,6 +132,7 @@ class BulletSimNode {
  public:
   BulletSimNode(ros::NodeHandle& node, ros::NodeHandle& private_node) {
     private_node.deleteParam("world_digest");  // ours, of an earlier run: set below
+    private_node.deleteParam("time_origin");
     bs::ros_layer::ParameterReader p(private_node, "bullet_sim");
     const std::string config_path = p.text("config", ros::package::getPath("bimanual_skills") + "/config/sim.yaml");
     const std::string robot_path = p.text("robot", "");
@@ -291,6 +293,9 @@ class BulletSimNode {
     diagnostics_publisher_ = node.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     // Clients that assume a world (the learner) compare it with theirs before they use the simulator's services.
     private_node.setParam("world_digest", world_digest_);
+    // The robot clock's time at the simulation's t = 0, when a scripted scene (the object's path) starts: 0 on the
+    // simulated clock, the wall's time of the last reset with ~hardware.
+    private_node.setParam("time_origin", robot_->time() - simulation_->time());
     // The services on a queue and threads of their own: a long ~step or a loop that is slow to take a request never
     // holds up the controllers' topics and timers, and those never hold up a service.
     ros::NodeHandle services(private_node);
@@ -413,6 +418,7 @@ class BulletSimNode {
     });
     response.success = r.success;
     response.message = r.message;
+    if (r.success) ros::NodeHandle("~").setParam("time_origin", r.time);
     ROS_INFO("bullet_sim: %s", response.message.c_str());
     return true;
   }
@@ -481,6 +487,7 @@ class BulletSimNode {
     });
     response.success = r.success;
     response.message = r.message;
+    if (r.success) ros::NodeHandle("~").setParam("time_origin", r.time);
     ROS_INFO("bullet_sim: %s", response.message.c_str());
     return true;
   }

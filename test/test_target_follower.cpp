@@ -40,6 +40,7 @@ class Rig {
  public:
   explicit Rig(const bs::sim::SimConfig& config, const bs::control::TargetFollowerConfig& follow = {})
       : simulation_(config) {
+    EXPECT_EQ(simulation_.resetToStart(), bs::sim::SimStatus::Ok);  // as bullet_sim starts
     for (int a = 0; a < 2; ++a) {
       models_.push_back(std::make_unique<bs::kinematics::ChainModel>(simulation_.armModel(a)));
       bs::control::ArmControllerConfig c;
@@ -241,6 +242,47 @@ TEST(TargetFollower, AJumpHoldsThenTheNewPlaceIsFollowed) {
   EXPECT_EQ(at_jump, HoldReason::Jumped);
   const Eigen::Vector3d goal = second + config.object.grasp_point + follow.pregrasp;
   EXPECT_LT((rig.tool() - goal).norm(), 0.01) << "the new place was not followed";
+}
+
+/// The tool's yaw in the world: the heading of its x axis seen from above [rad].
+double yawOf(const Eigen::Isometry3d& tool) {
+  return std::atan2(tool.linear()(1, 0), tool.linear()(0, 0));
+}
+
+TEST(TargetFollower, KeepsTheStartsYawSoTheWristTurnsNoHalfTurn) {
+  // The WAM's start tool points down yawed π from the default tool_orientation. With keep_yaw it follows with the
+  // yaw it has, the wrist far from its limits. Without, the wrist turns about half a turn, and the forearm, turning,
+  // sweeps through the can: the VelocityLimit that ended following 0.5 s after it started (through ROS too). Here
+  // the can is made not to collide in that run, to see the turn end against a joint limit, the tool short of its
+  // goal.
+  bs::sim::SimConfig config = trackScene();
+  config.object.path.size.setZero();
+  config.object.path.away_probability = 0.0;
+  const Eigen::Vector3d can = config.object.path.centre;
+  for (const bool keep : {true, false}) {
+    bs::control::TargetFollowerConfig follow;
+    follow.track_time = 1e3;
+    follow.keep_yaw = keep;
+    config.object.body.collides = keep;
+    Rig rig(config, follow);
+    const double start_yaw = yawOf(rig.simulation().toolPose(0));
+    rig.run(5.0, [&](double t) { return fixedAt(can, t); });
+    const double turned = std::remainder(yawOf(rig.simulation().toolPose(0)) - start_yaw, 2.0 * M_PI);
+    const Eigen::VectorXd& q = rig.follower().reference();
+    const double margin =
+        std::min((q - rig.model().lowerLimits()).minCoeff(), (rig.model().upperLimits() - q).minCoeff());
+    std::printf("keep_yaw %d: the tool turned %.3f rad about the vertical; the reference %.3f rad from a limit\n", keep,
+                turned, margin);
+    const double miss = (rig.tool() - (can + config.object.grasp_point + follow.pregrasp)).norm();
+    if (keep) {
+      EXPECT_LT(miss, 0.01);
+      EXPECT_LT(std::abs(turned), 0.1);
+      EXPECT_GT(margin, 0.3);
+    } else {
+      EXPECT_GT(std::abs(turned), 2.5);  // towards the default orientation's yaw, about π away
+      EXPECT_LT(margin, 0.1);
+    }
+  }
 }
 
 TEST(TargetFollower, ApproachesAndGraspsTheCanOnceStillAndFollowedLongEnough) {

@@ -83,7 +83,11 @@ void TargetFollowerConfig::validate(int joints) const {
 }
 
 TargetFollower::TargetFollower(const kinematics::ChainModel& model, const TargetFollowerConfig& config)
-    : model_(model), config_((config.validate(model.nq()), config)), clik_(model, config.clik), fk_(model) {
+    : model_(model),
+      config_((config.validate(model.nq()), config)),
+      clik_(model, config.clik),
+      fk_(model),
+      orientation_(config.tool_orientation) {
   const int n = model.nq();
   for (Eigen::VectorXd* v : {&q_r_, &v_r_, &q_goal_, &q_goal_previous_, &v_goal_, &v_wanted_}) v->setZero(n);
   const Eigen::VectorXd margin = Eigen::VectorXd::Constant(n, config_.limit_margin);
@@ -111,6 +115,20 @@ void TargetFollower::start(double t, const Eigen::Ref<const Eigen::VectorXd>& q,
   q_r_ = q.cwiseMax(lower_).cwiseMin(upper_);
   v_r_ = qd;
   q_goal_ = q_r_;
+  orientation_ = config_.tool_orientation;
+  if (config_.keep_yaw && kinematics::forwardKinematics(model_, fk_, q_r_) == kinematics::KinematicsStatus::Success) {
+    // Turned about the vertical so that the axis (x or y) more level in both points, seen from above, as the tool's
+    // does now.
+    const Eigen::Matrix3d now = config_.base.linear() * fk_.tipPose().linear();
+    const auto level = [&](int k) {
+      return std::min(now.col(k).head<2>().norm(), orientation_.col(k).head<2>().norm());
+    };
+    const int k = level(0) >= level(1) ? 0 : 1;
+    if (level(k) > 1e-3) {
+      const double yaw = std::atan2(now(1, k), now(0, k)) - std::atan2(orientation_(1, k), orientation_(0, k));
+      orientation_ = Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix() * orientation_;
+    }
+  }
   goal_valid_ = false;
   offset_ = 1.0;
   followed_since_ = t;
@@ -129,7 +147,7 @@ void TargetFollower::hold(HoldReason reason) noexcept {
 
 bool TargetFollower::solve(const Eigen::Vector3d& position) noexcept {
   Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
-  target.linear() = config_.tool_orientation;
+  target.linear() = orientation_;
   target.translation() = position;
   const Eigen::Isometry3d in_base = config_.base.inverse(Eigen::Isometry) * target;
   for (int k = 0; k < config_.clik_iterations; ++k) {

@@ -55,6 +55,8 @@ const char* const kControllerParameterHelp =
     "                        world axes [m] ([0, 0, 0.1], [0, 0, 0])\n"
     "  follow/tool_rpy       the tool's orientation while following, roll pitch yaw in the world [rad] ([pi, 0, 0]:\n"
     "                        pointing down)\n"
+    "  follow/keep_yaw       true: the tool keeps the yaw it has when following starts, tilted as tool_rpy says (a\n"
+    "                        round object's yaw is free); false: tool_rpy's yaw (true)\n"
     "  follow/rate           follower updates per second of the robot's clock (125)\n"
     "  follow/time_constant, follow/velocity_limit, follow/acceleration_limit  the reference's pull [s] (0.1) and\n"
     "                        limits per joint [rad/s, rad/s^2] (half the URDF's velocity limits, 4)\n"
@@ -185,6 +187,7 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
         (Eigen::AngleAxisd(rpy[2], Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(rpy[1], Eigen::Vector3d::UnitY()) *
          Eigen::AngleAxisd(rpy[0], Eigen::Vector3d::UnitX()))
             .toRotationMatrix();
+    f.keep_yaw = p.boolean("follow/keep_yaw", true);
     f.period = 1.0 / p.number("follow/rate", 125.0, 1.0, 1000.0);
     f.time_constant = p.number("follow/time_constant", f.time_constant, 1e-3, 10.0);
     f.velocity_limit =

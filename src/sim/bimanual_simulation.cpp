@@ -577,6 +577,17 @@ SimStatus BimanualSimulation::reset(const std::vector<ArmState>& state) {
   return SimStatus::Ok;
 }
 
+SimStatus BimanualSimulation::resetToStart() {
+  std::vector<ArmState> state;
+  for (int a = 0; a < armCount(); ++a) {
+    const Eigen::Index n = jointCount(a);
+    const auto k = static_cast<std::size_t>(a);
+    const bool given = k < config().arms.size() && config().arms[k].start.size() == n;
+    state.push_back({given ? config().arms[k].start : Eigen::VectorXd::Zero(n), Eigen::VectorXd::Zero(n)});
+  }
+  return reset(state);
+}
+
 void BimanualSimulation::setRandomGenerator(const std::mt19937& rng) noexcept {
   impl_->rng = rng;
   for (Impl::Arm& arm : impl_->arms) arm.plant.resetNoise();

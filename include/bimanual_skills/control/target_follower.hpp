@@ -1,19 +1,19 @@
 /// \file
 /// The tool follows a tracked object and grasps it (thesis Sec. 4.3.2, Fig. 4.10: the tracked target through CLIK
 /// into the compliant computed-torque controller). Every update (≥ 100 Hz): the target's estimate is predicted to
-/// now with its velocity; the tool's goal is the object's grasp point plus a pre-grasp offset, with a fixed
-/// orientation; a few CLIK steps (Sec. 3.1.5, the thesis' joint-limit-aware scheme) from the last joint goal give
-/// the joints' goal q*; the joint reference moves towards it, v = v_ff + (q* − q_r)/τ with v_ff the rate of change
-/// of q* (the target's motion through the arm), its velocity and acceleration limited per joint and its positions
-/// kept inside the limits; and it is handed to the computed-torque controller as a short trajectory segment
-/// (Waypoints). It holds, stopping at its acceleration limit, when the target is not tracked, when its estimate is
-/// older than max_age, or when it jumps (an estimate farther than `jump` from where the last one predicted it: it
-/// settles for `settle` before following again), and says why. Once it has followed without a hold for
-/// track_time, the target moves slower than grasp_speed and the tool is within follow_tolerance of its goal, the
-/// offset shrinks at approach_speed towards the grasp point, and grows back while the target moves faster than twice
-/// grasp_speed (slow spells add up; the track goes on); at the grasp point, within grasp_tolerance, it asks for the
-/// gripper to close (graspRequested) and waits for the answer (graspDone): held, it stays there; refused, it backs
-/// off to the pre-grasp point and tries again. Construction allocates; everything else is real-time safe.
+/// now with its velocity; the tool's goal is the object's grasp point plus a pre-grasp offset, with an orientation
+/// fixed at the start (pointing down, with the yaw the tool had: keep_yaw); a few CLIK steps (Sec. 3.1.5, the thesis'
+/// joint-limit-aware scheme) from the last joint goal give the joints' goal q*; the joint reference moves towards it, v
+/// = v_ff + (q* − q_r)/τ with v_ff the rate of change of q* (the target's motion through the arm), its velocity and
+/// acceleration limited per joint and its positions kept inside the limits; and it is handed to the computed-torque
+/// controller as a short trajectory segment (Waypoints). It holds, stopping at its acceleration limit, when the target
+/// is not tracked, when its estimate is older than max_age, or when it jumps (an estimate farther than `jump` from
+/// where the last one predicted it: it settles for `settle` before following again), and says why. Once it has followed
+/// without a hold for track_time, the target moves slower than grasp_speed and the tool is within follow_tolerance of
+/// its goal, the offset shrinks at approach_speed towards the grasp point, and grows back while the target moves faster
+/// than twice grasp_speed (slow spells add up; the track goes on); at the grasp point, within grasp_tolerance, it asks
+/// for the gripper to close (graspRequested) and waits for the answer (graspDone): held, it stays there; refused, it
+/// backs off to the pre-grasp point and tries again. Construction allocates; everything else is real-time safe.
 #pragma once
 
 #include "bimanual_skills/control/joint_trajectory.hpp"
@@ -39,6 +39,11 @@ struct TargetFollowerConfig {
   Eigen::Isometry3d base = Eigen::Isometry3d::Identity();  ///< The arm's base in the world.
   /// The tool's orientation in the world while it follows (default: pointing down, z of the tool along −z).
   Eigen::Matrix3d tool_orientation = Eigen::Vector3d(1.0, -1.0, -1.0).asDiagonal();
+  /// true: the tool keeps the yaw (its turn about the world's vertical) it has when following starts, with
+  /// tool_orientation's tilt: a round object leaves the yaw free, and a yaw fixed in the world can ask the wrist for
+  /// half a turn, reached either way round (the WAM's start tool is yawed π from the default: the arm took one way
+  /// or the other on a rounding, the other one into joint 7's limit). false: tool_orientation as it is.
+  bool keep_yaw = true;
   Eigen::Vector3d grasp_offset = Eigen::Vector3d::Zero();      ///< Object centre → grasp point (world axes) [m].
   Eigen::Vector3d pregrasp = Eigen::Vector3d(0.0, 0.0, 0.10);  ///< Grasp point → where the tool follows [m].
   double period = 0.008;                                       ///< [s] between updates (125 Hz).
@@ -111,6 +116,9 @@ class TargetFollower {
   double targetStamp() const noexcept { return used_stamp_; }
   /// The share of the pre-grasp offset the goal has (1 following, 0 at the grasp point).
   double offset() const noexcept { return offset_; }
+  /// The tool's orientation (world) it follows with since start(): tool_orientation, turned to the start's yaw
+  /// with keep_yaw.
+  const Eigen::Matrix3d& toolOrientation() const noexcept { return orientation_; }
   const Eigen::VectorXd& reference() const noexcept { return q_r_; }
   const Eigen::VectorXd& referenceVelocity() const noexcept { return v_r_; }
   const TargetFollowerConfig& config() const noexcept { return config_; }
@@ -126,6 +134,7 @@ class TargetFollower {
   kinematics::ChainData fk_;
   Waypoints waypoints_;
   Eigen::VectorXd q_r_, v_r_, q_goal_, q_goal_previous_, v_goal_, v_wanted_, lower_, upper_, v_max_, a_max_;
+  Eigen::Matrix3d orientation_;
   Eigen::Vector3d goal_ = Eigen::Vector3d::Zero(), tool_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero(), last_velocity_ = Eigen::Vector3d::Zero();
   FollowPhase phase_ = FollowPhase::Idle;

@@ -141,6 +141,9 @@ class BimanualSimulation final : public RobotInterface {
   /// exactly that of a new simulation in this state. Allowed after a divergence.
   /// InvalidArgument (nothing changed) for wrong sizes, non-finite values or positions outside the limits.
   SimStatus reset(const std::vector<ArmState>& state);
+  /// reset() to the arms' start postures (SimConfig::arms' start, the robot file's; zero for an arm without one),
+  /// at rest: where bullet_sim starts them.
+  SimStatus resetToStart();
   /// Replaces the sensor-noise generator.
   void setRandomGenerator(const std::mt19937& rng) noexcept;
 
