@@ -56,6 +56,8 @@ const char* const kUsage =
     "  ~hue_tolerance       degrees (12); ~min_saturation (0.5), ~min_value (0.15) in [0, 1]\n"
     "  ~min_pixels (30), ~min_points (20)  fewer pixels of its colour: not seen; fewer with a depth: not measured\n"
     "  ~min_stddev          floor of the measurement's standard deviation [m] (0.002)\n"
+    "  ~outlier_distance    points this far off the fitted surface (or the object's half diagonal and this from\n"
+    "                       the points' median) are not the object's: an arm in front of it [m] (0.01)\n"
     "  ~acceleration_noise  the filter's q [m^2/s^3] (1); ~gate chi^2 (16.27); ~lost_after [s] (0.5);\n"
     "  ~reject_limit        measurements in a row outside the gate that lose it (5)\n"
     "  ~camera_timeout      [s] of the clock without a frame: the camera counts as stopped (0.5)\n"
@@ -115,6 +117,7 @@ class ObjectTrackerNode {
     locator.min_pixels = p.integer("min_pixels", locator.min_pixels, 1, 1000000);
     locator.min_points = p.integer("min_points", locator.min_points, 4, locator.max_points);
     locator.min_stddev = p.number("min_stddev", locator.min_stddev, 1e-5, 1.0);
+    locator.outlier_distance = p.number("outlier_distance", locator.outlier_distance, 1e-4, 1.0);
     config.filter.acceleration_noise = p.number("acceleration_noise", config.filter.acceleration_noise, 1e-6, 1e4);
     config.filter.gate = p.number("gate", config.filter.gate, 0.1, 1e6);
     config.filter.lost_after = p.number("lost_after", config.filter.lost_after, 0.01, 60.0);

@@ -68,12 +68,14 @@ void ObjectLocatorConfig::validate(const char* where) const {
   if (max_points > 100000) fail(where, "max_points must be at most 10^5");
   if (!positive(min_stddev, 1.0)) fail(where, "min_stddev must lie in (0, 1] m");
   if (iterations < 1 || iterations > 100) fail(where, "iterations must lie in [1, 100]");
+  if (!positive(outlier_distance, 1.0)) fail(where, "outlier_distance must lie in (0, 1] m");
 }
 
 ObjectLocator::ObjectLocator(const ObjectLocatorConfig& config) : config_(config) {
   config_.validate("ObjectLocator");
   kernel_ = cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(3, 3));
   points_.reserve(static_cast<std::size_t>(config_.max_points));
+  scratch_.reserve(static_cast<std::size_t>(config_.max_points));
 }
 
 double ObjectLocator::surfaceDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& centre) const noexcept {
@@ -152,15 +154,32 @@ LocateStatus ObjectLocator::locate(const cv::Mat& bgr, const cv::Mat& depth, con
       points_.push_back(camera.backProject(column, row, z));
     }
   }
-  const int n = static_cast<int>(points_.size());
+  // Points far from the others' median (farther than the object's half diagonal and outlier_distance) are not on it.
+  Eigen::Vector3d median;
+  for (int a = 0; a < 3; ++a) {
+    scratch_.clear();
+    for (const Eigen::Vector3d& p : points_) scratch_.push_back(p[a]);
+    const auto middle = scratch_.begin() + static_cast<std::ptrdiff_t>(scratch_.size() / 2);
+    std::nth_element(scratch_.begin(), middle, scratch_.end());
+    median[a] = *middle;
+  }
+  const Eigen::Vector3d& size = config_.shape.size;
+  Eigen::Vector3d extent = size;  // the box's; a cylinder's and a ball's bounding boxes
+  if (config_.shape.shape == SceneSolid::Shape::Cylinder)
+    extent = Eigen::Vector3d(2.0 * size[0], 2.0 * size[0], size[1]);
+  if (config_.shape.shape == SceneSolid::Shape::Sphere) extent = Eigen::Vector3d::Constant(2.0 * size[0]);
+  const double reach = 0.5 * extent.norm() + config_.outlier_distance;
+  points_.erase(std::remove_if(points_.begin(), points_.end(),
+                               [&](const Eigen::Vector3d& p) { return (p - median).norm() > reach; }),
+                points_.end());
+  if (static_cast<int>(points_.size()) < config_.min_points) return LocateStatus::NoDepth;
 
   // A start for the fit: the points' centroid moved away from the camera by (π/4) r (the visible near side's
   // offset), its height from the top of the points for an upright cylinder or box.
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   double top = -1e300;
   for (const Eigen::Vector3d& p : points_) centre += p, top = std::max(top, p.z());
-  centre /= n;
-  const Eigen::Vector3d& size = config_.shape.size;
+  centre /= static_cast<double>(points_.size());
   const double radius = config_.shape.shape == SceneSolid::Shape::Box ? 0.25 * (size[0] + size[1]) : size[0];
   Eigen::Vector3d away = centre - camera.pose.translation();
   if (config_.shape.shape == SceneSolid::Shape::Sphere) {
@@ -171,9 +190,34 @@ LocateStatus ObjectLocator::locate(const cv::Mat& bgr, const cv::Mat& depth, con
     centre.z() = top - 0.5 * (config_.shape.shape == SceneSolid::Shape::Box ? size[2] : size[1]);
   }
 
-  // Gauss–Newton on the points' distances to the surface (numerical Jacobian, 3 parameters).
   Eigen::Matrix3d normal = Eigen::Matrix3d::Identity();
   double sum = 0.0;
+  if (!fit(centre, normal, sum)) return LocateStatus::NoFit;
+  // Points off the fitted surface (what stands in front of it) out, and the fit again without them.
+  const std::size_t before = points_.size();
+  points_.erase(std::remove_if(points_.begin(), points_.end(),
+                               [&](const Eigen::Vector3d& p) {
+                                 return std::abs(surfaceDistance(p, centre)) > config_.outlier_distance;
+                               }),
+                points_.end());
+  if (static_cast<int>(points_.size()) < config_.min_points) return LocateStatus::NoFit;
+  if (points_.size() < before && !fit(centre, normal, sum)) return LocateStatus::NoFit;
+  const int n = static_cast<int>(points_.size());
+  if (!centre.allFinite()) return LocateStatus::NoFit;
+  measurement.position = centre;
+  measurement.points = n;
+  measurement.rms = std::sqrt(sum / n);
+  const double sigma = std::max(measurement.rms, config_.min_stddev);
+  // The fit's covariance, plus the floor on each axis: the points' errors are not independent (the sensor's noise is
+  // spatially correlated and the shape model is not exact), so n points do not shrink it as 1/n.
+  const Eigen::Matrix3d inverse = (normal + 1e-9 * Eigen::Matrix3d::Identity()).inverse();
+  measurement.covariance =
+      sigma * sigma * inverse + config_.min_stddev * config_.min_stddev * Eigen::Matrix3d::Identity();
+  measurement.covariance = 0.5 * (measurement.covariance + measurement.covariance.transpose()).eval();
+  return LocateStatus::Ok;
+}
+
+bool ObjectLocator::fit(Eigen::Vector3d& centre, Eigen::Matrix3d& normal, double& sum) const noexcept {
   for (int iteration = 0; iteration < config_.iterations; ++iteration) {
     normal.setZero();
     Eigen::Vector3d gradient = Eigen::Vector3d::Zero();
@@ -191,22 +235,11 @@ LocateStatus ObjectLocator::locate(const cv::Mat& bgr, const cv::Mat& depth, con
       sum += r * r;
     }
     const Eigen::Vector3d delta = -(normal + 1e-9 * Eigen::Matrix3d::Identity()).ldlt().solve(gradient);
-    if (!delta.allFinite()) return LocateStatus::NoFit;
+    if (!delta.allFinite()) return false;
     centre += delta;
     if (delta.norm() < 1e-7) break;
   }
-  if (!centre.allFinite()) return LocateStatus::NoFit;
-  measurement.position = centre;
-  measurement.points = n;
-  measurement.rms = std::sqrt(sum / n);
-  const double sigma = std::max(measurement.rms, config_.min_stddev);
-  // The fit's covariance, plus the floor on each axis: the points' errors are not independent (the sensor's noise is
-  // spatially correlated and the shape model is not exact), so n points do not shrink it as 1/n.
-  const Eigen::Matrix3d inverse = (normal + 1e-9 * Eigen::Matrix3d::Identity()).inverse();
-  measurement.covariance =
-      sigma * sigma * inverse + config_.min_stddev * config_.min_stddev * Eigen::Matrix3d::Identity();
-  measurement.covariance = 0.5 * (measurement.covariance + measurement.covariance.transpose()).eval();
-  return LocateStatus::Ok;
+  return centre.allFinite();
 }
 
 }  // namespace bimanual_skills::vision

@@ -30,6 +30,10 @@ struct ObjectLocatorConfig {
   int max_points = 600;         ///< The fit uses at most this many points (evenly subsampled).
   double min_stddev = 0.002;    ///< Floor of the measurement's standard deviation per axis [m].
   int iterations = 10;          ///< Gauss–Newton iterations at most.
+  /// [m] Points not the object's are dropped: farther than the object's half diagonal and this from the points'
+  /// median before the fit, and farther than this from the fitted surface after it (then fitted again). Such points
+  /// come from what stands in front of it (an arm: its depth registered onto the object's pixels at the edges).
+  double outlier_distance = 0.01;
 
   /// \throws std::invalid_argument naming `where` and the entry out of range.
   void validate(const char* where) const;
@@ -78,9 +82,14 @@ class ObjectLocator {
   double surfaceDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& centre) const noexcept;
 
  private:
+  /// Gauss–Newton on the points' distances to the surface from `centre`: the normal matrix and the sum of squared
+  /// distances at the last iterate. False for a non-finite step.
+  bool fit(Eigen::Vector3d& centre, Eigen::Matrix3d& normal, double& sum) const noexcept;
+
   ObjectLocatorConfig config_;
   cv::Mat hsv_, mask_, opened_, labels_, stats_, centroids_, component_, kernel_;
   std::vector<Eigen::Vector3d> points_;
+  std::vector<double> scratch_;
 };
 
 }  // namespace bimanual_skills::vision
