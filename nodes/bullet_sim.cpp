@@ -487,7 +487,6 @@ class BulletSimNode {
     });
     response.success = r.success;
     response.message = r.message;
-    if (r.success) ros::NodeHandle("~").setParam("time_origin", r.time);
     ROS_INFO("bullet_sim: %s", response.message.c_str());
     return true;
   }

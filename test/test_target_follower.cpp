@@ -281,6 +281,7 @@ TEST(TargetFollower, KeepsTheStartsYawSoTheWristTurnsNoHalfTurn) {
     } else {
       EXPECT_GT(std::abs(turned), 2.5);  // towards the default orientation's yaw, about π away
       EXPECT_LT(margin, 0.1);
+      EXPECT_GT(miss, 0.03);
     }
   }
 }

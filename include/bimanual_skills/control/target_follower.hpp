@@ -116,9 +116,6 @@ class TargetFollower {
   double targetStamp() const noexcept { return used_stamp_; }
   /// The share of the pre-grasp offset the goal has (1 following, 0 at the grasp point).
   double offset() const noexcept { return offset_; }
-  /// The tool's orientation (world) it follows with since start(): tool_orientation, turned to the start's yaw
-  /// with keep_yaw.
-  const Eigen::Matrix3d& toolOrientation() const noexcept { return orientation_; }
   const Eigen::VectorXd& reference() const noexcept { return q_r_; }
   const Eigen::VectorXd& referenceVelocity() const noexcept { return v_r_; }
   const TargetFollowerConfig& config() const noexcept { return config_; }
@@ -134,7 +131,7 @@ class TargetFollower {
   kinematics::ChainData fk_;
   Waypoints waypoints_;
   Eigen::VectorXd q_r_, v_r_, q_goal_, q_goal_previous_, v_goal_, v_wanted_, lower_, upper_, v_max_, a_max_;
-  Eigen::Matrix3d orientation_;
+  Eigen::Matrix3d orientation_;  ///< The tool's while following since start(): tool_orientation, with keep_yaw turned.
   Eigen::Vector3d goal_ = Eigen::Vector3d::Zero(), tool_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero(), last_velocity_ = Eigen::Vector3d::Zero();
   FollowPhase phase_ = FollowPhase::Idle;
