@@ -7,6 +7,7 @@
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/ros_layer/robot/scarf_on_robot.hpp"
 #include "io/summary_json.hpp"
+#include "io/yaml_io.hpp"
 #include "learner_shell.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
@@ -16,6 +17,7 @@
 #include <sensor_msgs/JointState.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <visualization_msgs/MarkerArray.h>
+#include <yaml-cpp/yaml.h>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -54,6 +56,11 @@ const char* const kUsage =
     "  ~jobs, ~runs, ~updates, ~rollouts, ~seed, ~algorithms  instead of the learning file's (a list of\n"
     "                algorithms, e.g. rosparam set scarf_learner/algorithms \"[PI2-CMA, IDR-DMP_CMU]\")\n"
     "  ~torque_weight  weight of the observer's term c_torque instead of the file's (0: the cost without it)\n"
+    "  ~write_scarf_files PREFIX  with ~robot (a robot file): write the learning files of the scarf on that pair\n"
+    "                and exit: PREFIX_scarf_learning.yaml, _scarf_sim.yaml, _scarf_start.yaml and _mannequin.yaml,\n"
+    "                ~config's with the scene (mannequin, scarf, camera, demonstration) turned and shifted to stand\n"
+    "                to the holding arm as it stands to the WAM's, and the arm's start solved by global IK\n"
+    "                (tasks::scarfPlacementOn, scarfStartOn); config/robots/offset_wrist_scarf_*.yaml come from it\n"
     "  ~replay_best  after learning, replay the best final policy on the topics in a loop until shut down\n"
     "                (default false: exit when done)\n"
     "  ~worker_namespace, ~workers  run the rollouts on rollout workers (task scarf; they read ~config on their\n"
@@ -111,7 +118,8 @@ class ScarfLearnerNode {
     l.algorithms = parameters_.texts("algorithms", l.algorithms);
     const bool reweighted = parameters_.has("torque_weight");
     config_.task.torque_weight = parameters_.number("torque_weight", config_.task.torque_weight, 0.0, 1e6);
-    l.validate(7);
+    task_ = std::make_unique<br::ScarfRolloutTask>(config_.task);
+    l.validate(task_->task().dofs());
     std::string workers;
     std::unique_ptr<br::Evaluator> evaluator =
         bs::nodes::workerDispatcher(parameters_, private_node_, "scarf", config_path_,
@@ -125,7 +133,6 @@ class ScarfLearnerNode {
       evaluator = makeRobotBackend();
     }
     parameters_.warnUnknown();
-    task_ = std::make_unique<br::ScarfRolloutTask>(config_.task);
     if (!evaluator) {
       evaluator = std::make_unique<br::ParallelEvaluator>(
           [this] { return std::make_unique<br::ScarfRolloutTask>(config_.task); }, l.jobs);
@@ -430,11 +437,104 @@ class ScarfLearnerNode {
 
 }  // namespace
 
+/// ~write_scarf_files PREFIX: the learning files of ~config placed for ~robot (see the usage).
+void writeScarfFiles(const std::string& prefix) {
+  bs::ros_layer::ParameterReader parameters(ros::NodeHandle("~"), "scarf_learner");
+  const std::string config_path =
+      parameters.text("config", ros::package::getPath("bimanual_skills") + "/config/scarf_learning.yaml");
+  const br::ScarfLearningConfig config = br::ScarfLearningConfig::fromYamlFile(config_path);
+  if (!parameters.has("robot")) throw std::invalid_argument("~write_scarf_files needs ~robot (a robot file)");
+  const std::string robot = std::filesystem::absolute(parameters.text("robot", "")).string();
+  const bt::ScarfPlacement placement = bt::scarfPlacementOn(config.task, robot);
+  const Eigen::VectorXd start = bt::scarfStartOn(config.task, robot);
+
+  const std::filesystem::path base = std::filesystem::absolute(prefix);
+  const std::string stem = base.filename().string();
+  const auto file = [&](const std::string& name) { return base.parent_path() / (stem + "_" + name + ".yaml"); };
+  const auto number = [](double v) {
+    char text[32];
+    std::snprintf(text, sizeof text, "%.6f", std::abs(v) < 5e-7 ? 0.0 : v);
+    return std::string(text);
+  };
+  const auto list = [&](const Eigen::Vector3d& v) {
+    YAML::Node out(YAML::NodeType::Sequence);
+    out.SetStyle(YAML::EmitterStyle::Flow);
+    for (int i = 0; i < 3; ++i) out.push_back(number(v[i]));
+    return out;
+  };
+  const auto vector = [](const YAML::Node& node) {
+    return Eigen::Vector3d(node[0].as<double>(), node[1].as<double>(), node[2].as<double>());
+  };
+  // A body's pose ({xyz, rpy}) placed: its position moved, its yaw turned.
+  const auto place = [&](YAML::Node body) {
+    body["xyz"] = list(placement.apply(body["xyz"] ? vector(body["xyz"]) : Eigen::Vector3d::Zero()));
+    Eigen::Vector3d rpy = body["rpy"] ? vector(body["rpy"]) : Eigen::Vector3d::Zero();
+    rpy.z() += placement.yaw;
+    body["rpy"] = list(rpy);
+  };
+  const auto write = [&](const std::filesystem::path& path, const std::string& what, const YAML::Node& node) {
+    std::ofstream out(path);
+    out << "# " << what << ": " << std::filesystem::path(config_path).filename().string() << " placed for "
+        << std::filesystem::path(robot).filename().string() << "\n# (the scene turned by " << number(placement.yaw)
+        << " rad about z and shifted by [" << number(placement.shift.x()) << ", " << number(placement.shift.y()) << ", "
+        << number(placement.shift.z())
+        << "] m,\n# so that it stands to the arm as to the WAM's). Written by scarf_learner _write_scarf_files:="
+           "PREFIX _robot:=FILE.\n"
+        << YAML::Dump(node) << "\n";
+    if (!out.flush()) throw std::runtime_error("cannot write " + path.string());
+    std::printf("scarf_learner: wrote %s\n", path.c_str());
+  };
+
+  const YAML::Node learning_in = YAML::LoadFile(config_path);
+  const YAML::Node sim_in = YAML::LoadFile(config.task.sim_config);
+  const std::string obstacles_name =
+      sim_in["obstacles"] && sim_in["obstacles"].IsScalar() ? sim_in["obstacles"].as<std::string>() : std::string();
+  YAML::Node obstacles =
+      obstacles_name.empty()
+          ? YAML::Clone(sim_in["obstacles"])
+          : YAML::Clone(YAML::LoadFile(bs::io::resolvePath(config.task.sim_config, obstacles_name))["obstacles"]);
+  for (YAML::Node o : obstacles) place(o);
+  YAML::Node scene;
+  scene["obstacles"] = obstacles;
+  write(file("mannequin"), "The scarf's mannequin", scene);
+
+  YAML::Node sim = YAML::Clone(sim_in);
+  sim["robot"] = std::filesystem::path(robot).lexically_relative(base.parent_path()).string();
+  sim["obstacles"] = stem + "_mannequin.yaml";
+  if (sim["cloth"]) place(sim["cloth"]);
+  write(file("scarf_sim"), "The scarf's scene", sim);
+
+  YAML::Node start_file = YAML::Clone(YAML::LoadFile(config.task.start));
+  YAML::Node posture(YAML::NodeType::Sequence);
+  posture.SetStyle(YAML::EmitterStyle::Flow);
+  for (Eigen::Index i = 0; i < start.size(); ++i) posture.push_back(number(start[i]));
+  start_file["initial_positions"] = YAML::Node(YAML::NodeType::Map);
+  start_file["initial_positions"][config.task.arm] = posture;
+  for (const char* point : {"rgbd_eye", "rgbd_target"}) {
+    if (start_file[point]) start_file[point] = list(placement.apply(vector(start_file[point])));
+  }
+  write(file("scarf_start"), "The scarf's start (bullet_sim overrides)", start_file);
+
+  YAML::Node learning = YAML::Clone(learning_in);
+  learning["sim"] = stem + "_scarf_sim.yaml";
+  learning["start"] = stem + "_scarf_start.yaml";
+  if (learning["task"] && learning["task"]["demo_waypoints"]) {
+    YAML::Node waypoints(YAML::NodeType::Sequence);
+    for (const Eigen::Vector3d& w : config.task.demo_waypoints) waypoints.push_back(list(placement.apply(w)));
+    learning["task"]["demo_waypoints"] = waypoints;
+  }
+  write(file("scarf_learning"), "Learning the scarf", learning);
+}
+
 int main(int argc, char** argv) {
   bs::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "scarf_learner");
   const ros::NodeHandle keep_alive;
   try {
+    if (std::string prefix; ros::param::get("~write_scarf_files", prefix)) {
+      writeScarfFiles(prefix);
+      return 0;
+    }
     ScarfLearnerNode node;
     node.run();
   } catch (const std::exception& e) {

@@ -24,8 +24,10 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <sstream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace bs = bimanual_skills;
 namespace br = bimanual_skills::rollout;
@@ -211,6 +213,60 @@ TEST(ScarfOnRobot, ALearningWithAKilledSimulatorStopsWithTheReason) {
   std::getline(faults_csv, line);  // the header
   while (std::getline(faults_csv, line)) last = line;
   EXPECT_NE(last.find("/bullet_sim/"), std::string::npos) << "the simulator's interface by name: " << last;
+}
+
+// test/scarf_offset_wrist.test: scarf.launch robot:=config/robots/offset_wrist.yaml backend:=ros learns through ROS
+// on the Panda-like pair (its learning files placed for it by scarf_learner _write_scarf_files): every rollout is
+// the robot's to the end, the noise-free policy's c_t is the in-process task's on that pair (the same plan), and its
+// camera sees the scarf and the mannequin.
+TEST(OtherPair, ScarfLaunchLearnsThroughROSOnTheOffsetWristPair) {
+  std::string out, config_path;
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(400.0);
+  while (ros::ok() && ros::WallTime::now() < deadline &&
+         !(ros::param::get("/scarf_learner/out", out) && std::filesystem::exists(out + "/summary.json"))) {
+    ros::WallDuration(0.2).sleep();
+  }
+  ASSERT_TRUE(std::filesystem::exists(out + "/summary.json")) << "scarf_learner did not finish in 400 s";
+  ASSERT_TRUE(ros::param::get("/scarf_learner/config", config_path));
+  const br::ScarfLearningConfig config = br::ScarfLearningConfig::fromYamlFile(config_path);
+  EXPECT_NE(config.task.sim_config.find("offset_wrist"), std::string::npos) << config.task.sim_config;
+  br::ScarfRolloutTask local(config.task);
+  EXPECT_EQ(local.task().jointNames()[static_cast<std::size_t>(local.task().arm())].front(), "left_joint1");
+  const br::RolloutResult in_process = local.run(local.initialParameters(), 1);
+  ASSERT_TRUE(in_process.ok) << in_process.reason;
+
+  std::ifstream csv(out + "/rollouts.csv");
+  std::string line;
+  ASSERT_TRUE(std::getline(csv, line));
+  const auto cells = [](const std::string& text) {
+    std::vector<std::string> out;
+    std::stringstream stream(text);
+    for (std::string cell; std::getline(stream, cell, ',');) out.push_back(cell);
+    return out;
+  };
+  const std::vector<std::string> header = cells(line);
+  const auto column = [&](const std::string& name) {
+    return static_cast<std::size_t>(std::find(header.begin(), header.end(), name) - header.begin());
+  };
+  const std::size_t outcome = column("outcome"), kind = column("kind"), epoch = column("epoch"),
+                    c_t = column("c_acceleration"), d = column("d"), cost = column("cost");
+  ASSERT_LT(cost, header.size());
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    const std::vector<std::string> row = cells(line);
+    ASSERT_GT(row.size(), cost) << line;
+    ++rows;
+    EXPECT_EQ(row[outcome], "Ok") << line;
+    EXPECT_TRUE(std::isfinite(std::stod(row[cost]))) << line;
+    EXPECT_GT(std::stod(row[d]), 0.0) << "the camera saw the scarf and the nose mark: " << line;
+    if (row[kind] == "policy" && row[epoch] == "0") {
+      // The learner's first policy is its DMP's encoding of the demonstration: the same plan to rounding.
+      EXPECT_NEAR(std::stod(row[c_t]), term(in_process, "c_acceleration"), 1e-9) << "the same plan, the same c_t";
+      std::printf("the demonstration on the offset-wrist pair: cost %s through ROS, %.3f in-process\n",
+                  row[cost].c_str(), -in_process.reward);
+    }
+  }
+  EXPECT_EQ(rows, 8) << "the noise-free policy and 3 rollouts of each of 2 epochs (1 update)";
 }
 
 int main(int argc, char** argv) {

@@ -2,6 +2,7 @@
 // (the scarf not wound round the neck), a loop 4 cm tighter wins on the camera and on the mesh's ground truth, a
 // rollout is repeatable bit for bit for a seed, the cost is the sum of its terms (the observer's term removable),
 // the control part of every period allocates nothing, and bad policies and bad files get a clear answer.
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/rollout/coordinated_parameters.hpp"
 #include "bimanual_skills/rollout/scarf_learning.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
@@ -162,4 +163,52 @@ TEST(ScarfTask, BadPoliciesAndFilesGetAClearAnswer) {
   c = config.task;
   c.torque_weight = -1.0;
   refused(c, "torque_weight");
+}
+
+// The scene placed for the offset-wrist pair (scarf_learner _write_scarf_files): the turn and shift take the WAM's
+// left base onto the offset-wrist arm's, the start puts that arm's tool where the placed scene holds the scarf's
+// end, pointing as its own start does; the shipped files are that placement, and the demonstration stands to the
+// arm as the WAM's does (the same waypoints relative to the base).
+TEST(ScarfTask, TheSceneAndStartPlacedForAnotherPairStandToItsArmAsToTheWAMs) {
+  const br::ScarfLearningConfig wam = shipped();
+  const std::string robot = BIMANUAL_SKILLS_SOURCE_DIR "/config/robots/offset_wrist.yaml";
+  const bt::ScarfPlacement placement = bt::scarfPlacementOn(wam.task, robot);
+  EXPECT_NEAR(placement.yaw, -M_PI / 2, 1e-12);  // urdf/bimanual_offset_wrist.urdf's left base
+  EXPECT_LT((placement.shift - Eigen::Vector3d(0.15, 0.75, 0.15)).norm(), 1e-12);
+  const bt::ScarfTask wam_task(wam.task);
+  const br::ScarfLearningConfig placed = br::ScarfLearningConfig::fromYamlFile(
+      BIMANUAL_SKILLS_SOURCE_DIR "/config/robots/offset_wrist_scarf_learning.yaml");
+  const bt::ScarfTask task(placed.task);
+  // Every waypoint relative to the holding arm's base as the WAM's.
+  ASSERT_EQ(placed.task.demo_waypoints.size(), wam.task.demo_waypoints.size());
+  for (std::size_t k = 0; k < wam.task.demo_waypoints.size(); ++k) {
+    EXPECT_LT((task.basePose().inverse() * placed.task.demo_waypoints[k] -
+               wam_task.basePose().inverse() * wam.task.demo_waypoints[k])
+                  .norm(),
+              1e-5)
+        << "waypoint " << k;
+  }
+  EXPECT_LT((task.mannequin().neck - placement.apply(wam_task.mannequin().neck)).norm(), 1e-5);
+  EXPECT_LT((task.camera().pose.translation() - placement.apply(wam_task.camera().pose.translation())).norm(), 1e-5);
+  // The start: the tool at the placed grasp, pointing as the robot file's start does (down).
+  const Eigen::VectorXd start = bt::scarfStartOn(wam.task, robot);
+  EXPECT_LT((start - task.startPosition()).norm(), 1e-5) << "the shipped start file is this solution";
+  namespace bk = bimanual_skills::kinematics;
+  bk::ChainData fk(task.armModel()), wam_fk(wam_task.armModel());
+  (void)bk::forwardKinematics(task.armModel(), fk, start);
+  (void)bk::forwardKinematics(wam_task.armModel(), wam_fk, wam_task.startPosition());
+  const Eigen::Isometry3d tool = task.basePose() * fk.tipPose();
+  EXPECT_LT((tool.translation() - placement.apply(wam_task.basePose() * wam_fk.tipPose().translation())).norm(), 1e-6);
+  EXPECT_LT((tool.linear().col(2) - Eigen::Vector3d(0, 0, -1)).norm(), 1e-6) << "pointing down";
+  // The WAM placed for itself: no turn, no shift.
+  const bt::ScarfPlacement same = bt::scarfPlacementOn(wam.task, BIMANUAL_SKILLS_SOURCE_DIR "/config/robots/wam.yaml");
+  EXPECT_NEAR(same.yaw, 0.0, 1e-12);
+  EXPECT_LT(same.shift.norm(), 1e-12);
+  EXPECT_THROW(
+      {
+        bt::ScarfTaskConfig right_less = wam.task;
+        right_less.arm = "middle";
+        (void)bt::scarfPlacementOn(right_less, robot);
+      },
+      std::invalid_argument);
 }

@@ -5,6 +5,7 @@
 #include "io/digest.hpp"
 #include "io/yaml_io.hpp"
 
+#include <algorithm>
 #include <sstream>
 #include <stdexcept>
 
@@ -118,7 +119,13 @@ ScarfLearningConfig ScarfLearningConfig::fromYamlFile(const std::string& path) {
   }
   io::withContext(where, [&] {
     c.task.validate();
-    c.learning.validate(7);
+    // The learning's variants against the holding arm's joints on the simulation file's robot (a robot file given
+    // later is checked again by the learner).
+    const sim::SimConfig sim = sim::SimConfig::fromYamlFile(c.task.sim_config);
+    const auto arm =
+        std::find_if(sim.arms.begin(), sim.arms.end(), [&](const sim::ArmConfig& a) { return a.name == c.task.arm; });
+    if (arm == sim.arms.end()) io::fail("task arm '" + c.task.arm + "' is not an arm of '" + c.task.sim_config + "'");
+    c.learning.validate(static_cast<int>(arm->start.size()));
   });
   return c;
 }

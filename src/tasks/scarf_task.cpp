@@ -8,6 +8,7 @@
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/signal/acceleration_sign.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
+#include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
 #include "io/yaml_io.hpp"
 
@@ -63,7 +64,7 @@ struct ScarfTask::Impl {
   vision::PinholeCamera camera;
   std::unique_ptr<vision::PerspectiveRenderer> renderer;
   Eigen::Matrix3Xi triangles;     ///< The scarf's.
-  Eigen::MatrixXd demonstration;  ///< samples × 7
+  Eigen::MatrixXd demonstration;  ///< samples × the arm's joints
   primitives::DrDmpParameters dmp;
   Eigen::VectorXd demonstration_weights;
   std::unique_ptr<kinematics::ChainModel> model;           ///< The holding arm's.
@@ -185,6 +186,61 @@ ScarfTask::ScarfTask(const ScarfTaskConfig& config) : impl_(std::make_unique<Imp
 }
 
 ScarfTask::~ScarfTask() = default;
+
+Eigen::Vector3d ScarfPlacement::apply(const Eigen::Vector3d& point) const {
+  return Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * point + shift;
+}
+
+namespace {
+
+/// The holding arm's base pose in the world with the simulation file on `robot` ("": its own).
+Eigen::Isometry3d holdingBase(const ScarfTaskConfig& config, const std::string& robot) {
+  const sim::BimanualSimulation simulation(sim::SimConfig::fromYamlFile(config.sim_config, robot));
+  const int arm = simulation.armIndex(config.arm);
+  if (arm < 0) {
+    throw std::invalid_argument("scarf placement: the robot of '" + config.sim_config + "'" +
+                                (robot.empty() ? "" : " on '" + robot + "'") + " has no arm '" + config.arm + "'");
+  }
+  return simulation.basePose(arm);
+}
+
+}  // namespace
+
+ScarfPlacement scarfPlacementOn(const ScarfTaskConfig& config, const std::string& robot) {
+  const Eigen::Isometry3d from = holdingBase(config, ""), to = holdingBase(config, robot);
+  const Eigen::Isometry3d motion = to * from.inverse();
+  if ((motion.linear().col(2) - Eigen::Vector3d::UnitZ()).norm() > 1e-6) {
+    throw std::invalid_argument("scarf placement: arm '" + config.arm + "' of '" + robot +
+                                "' stands tilted against the scene's robot's; place the scene by hand");
+  }
+  ScarfPlacement placement;
+  placement.yaw = std::atan2(motion.linear()(1, 0), motion.linear()(0, 0));
+  placement.shift = motion.translation();
+  return placement;
+}
+
+Eigen::VectorXd scarfStartOn(const ScarfTaskConfig& config, const std::string& robot) {
+  const ScarfTask task(config);
+  kinematics::ChainData fk(task.armModel());
+  (void)kinematics::forwardKinematics(task.armModel(), fk, task.startPosition());
+  const Eigen::Vector3d grasp = scarfPlacementOn(config, robot).apply(task.basePose() * fk.tipPose().translation());
+
+  const sim::BimanualSimulation simulation(sim::SimConfig::fromYamlFile(config.sim_config, robot));
+  const int arm = simulation.armIndex(config.arm);
+  const kinematics::ChainModel& model = simulation.armModel(arm);
+  kinematics::ChainData data(model);
+  (void)kinematics::forwardKinematics(model, data, simulation.config().arms[static_cast<std::size_t>(arm)].start);
+  Eigen::Isometry3d tool = simulation.basePose(arm) * data.tipPose();
+  tool.translation() = grasp;
+  try {
+    return sim::postureFromToolPose(model, simulation.basePose(arm).inverse() * tool);
+  } catch (const std::exception& e) {
+    throw std::invalid_argument("scarf start: arm '" + config.arm + "' of '" + robot +
+                                "' cannot hold the scarf's end at (" + std::to_string(grasp.x()) + ", " +
+                                std::to_string(grasp.y()) + ", " + std::to_string(grasp.z()) +
+                                ") pointing as its start does: " + e.what());
+  }
+}
 
 int ScarfTask::dofs() const noexcept {
   return static_cast<int>(impl_->demonstration.cols());

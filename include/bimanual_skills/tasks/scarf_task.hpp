@@ -108,6 +108,22 @@ struct ScarfPlan {
 /// computes them: c_acceleration, c_torque, c_cam and cost.
 void scoreScarfRollout(const ScarfTaskConfig& config, ScarfRollout& rollout);
 
+/// The scarf's scene placed for another pair: the turn about the vertical and the shift that take the holding arm's
+/// base on the simulation file's robot to its base on `robot` (a robot file). Applied to the mannequin, the scarf,
+/// the camera and the demonstration's waypoints, they stand to that arm as they stand to the simulation file's.
+struct ScarfPlacement {
+  double yaw = 0.0;                                 ///< [rad] about world z
+  Eigen::Vector3d shift = Eigen::Vector3d::Zero();  ///< [m, world], after the turn
+  Eigen::Vector3d apply(const Eigen::Vector3d& point) const;
+};
+/// \throws std::invalid_argument when `robot` has no such arm or its base is tilted against the other's.
+ScarfPlacement scarfPlacementOn(const ScarfTaskConfig& config, const std::string& robot);
+
+/// The holding arm's start on `robot` with the scene placed by scarfPlacementOn: its tool where the placed start
+/// file puts the tool of the simulation file's robot, pointing as `robot`'s start does, solved by global IK
+/// (sim::postureFromToolPose). \throws std::invalid_argument when that pose is out of the arm's reach.
+Eigen::VectorXd scarfStartOn(const ScarfTaskConfig& config, const std::string& robot);
+
 /// The task. Construction builds the simulation, controllers, camera and demonstration (allocates, throws
 /// std::invalid_argument with the reason); run() starts every rollout from a new simulation. One object per thread.
 class ScarfTask {
