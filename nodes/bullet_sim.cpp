@@ -384,13 +384,24 @@ class BulletSimNode {
   void onCommand(std::size_t arm, const bimanual_skills::JointEffortCommand& message) {
     const std::vector<std::string>& joints = joint_names_[arm];
     const bool named = message.name.empty() || message.name == joints;
-    if (!named || message.effort.size() != joints.size()) {
-      ROS_WARN_THROTTLE(1.0, "bullet_sim: effort_command for %s rejected: %zu efforts%s for the joints %s, ...",
+    const std::size_t n = joints.size();
+    const bool impedance = !message.position.empty() || !message.velocity.empty() || !message.stiffness.empty() ||
+                           !message.damping.empty();
+    const bool sized =
+        message.effort.size() == n && (!impedance || (message.position.size() == n && message.velocity.size() == n &&
+                                                      message.stiffness.size() == n && message.damping.size() == n));
+    if (!named || !sized) {
+      ROS_WARN_THROTTLE(1.0,
+                        "bullet_sim: effort_command for %s rejected: %zu efforts%s%s for the joints %s, ... (the "
+                        "impedance's position, velocity, stiffness and damping: all empty or all of the efforts' size)",
                         simulation_->config().arms[arm].name.c_str(), message.effort.size(),
-                        named ? "" : " named otherwise", joints.front().c_str());
+                        impedance ? " with an impedance" : "", named ? "" : " named otherwise", joints.front().c_str());
     }
     const double stamp = message.header.stamp.isZero() ? std::nan("") : message.header.stamp.toSec();
-    loop_->torqueCommand(static_cast<int>(arm), stamp, message.effort.data(), named ? message.effort.size() : 0);
+    const bs::hosting::CommandImpedance arrays{message.position.data(), message.velocity.data(),
+                                               message.stiffness.data(), message.damping.data()};
+    loop_->torqueCommand(static_cast<int>(arm), stamp, message.effort.data(), named && sized ? n : 0,
+                         impedance ? &arrays : nullptr);
   }
 
   /// Publisher thread: logs the scheduled gripper commands the loop did since the last call.

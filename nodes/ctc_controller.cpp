@@ -46,7 +46,11 @@ const std::string kUsage =
         "                        default\n"
         "  ~loop_priority        SCHED_FIFO priority of the control thread, 1-99 (0: unchanged, the default)\n"
         "  ~statistics_file      at exit, write the control steps' wall periods and the times commands were taken\n"
-        "                        (CSV)\n") +
+        "                        (CSV)\n"
+        "  ~local_impedance      true: each command carries the computed-torque law's PD part as a joint impedance\n"
+        "                        (setpoint, Kp, Kv) that the robot closes at its own rate until the next command,\n"
+        "                        the effort the rest (as torque-controlled arms' drivers take it: a late or bursty\n"
+        "                        command stream then leaves no joint open-loop); false (default): torque only\n") +
     bs::ros_layer::kControllerParameterHelp +
     "Reads robot_description. Topics (relative to the namespace; remap joint_states in a launch file): subscribes\n"
     "joint_states (sensor_msgs/JointState; effort, when complete, is taken as the torque the robot applied) and\n"
@@ -71,6 +75,7 @@ class CtcControllerNode {
     const std::string arm = parameters.text("arm", ns);
     loop_priority_ = parameters.integer("loop_priority", 0, 0, 99);
     statistics_file_ = parameters.text("statistics_file", "");
+    local_impedance_ = parameters.boolean("local_impedance", false);
     // The robot file (config/robots/*.yaml), when given: the arm's chain, gains and friction model by default.
     const std::string robot_path = parameters.text("robot", "");
     bs::ros_layer::ControllerDefaults defaults;
@@ -91,6 +96,11 @@ class CtcControllerNode {
     none_.resize(0);
     command_.name = interface_->jointNames();
     command_.effort.assign(static_cast<std::size_t>(n), 0.0);
+    if (local_impedance_) {
+      for (auto* v : {&command_.position, &command_.velocity, &command_.stiffness, &command_.damping}) {
+        v->assign(static_cast<std::size_t>(n), 0.0);
+      }
+    }
     nominal_period_ = 1.0 / interface_->settings().config.observer.rate_hz;
     effort_publisher_ = node.advertise<bimanual_skills::JointEffortCommand>("effort_command", 10);
     ros::NodeHandle state_node(node);
@@ -207,8 +217,29 @@ class CtcControllerNode {
     last_stamp_ = stamp;
     if (wall - last_period_check_ > 5.0 && periods_.recorded() >= 200) checkRate(wall);
     std::copy(torque_.data(), torque_.data() + torque_.size(), command_.effort.begin());
+    if (local_impedance_) splitImpedance();
     command_.header.stamp = message.header.stamp;  // the state it answers: a lockstep loop matches the two
     effort_publisher_.publish(command_);
+  }
+
+  /// ~local_impedance: the command's effort without the PD part Kp (q_d − q) + Kv (q̇_d − q̇) of this state, and
+  /// that part as the impedance the robot closes itself (at this state it adds it back). Without a PD part
+  /// (gravity compensation) the gains are zero.
+  void splitImpedance() {
+    const bc::ArmController& controller = interface_->realtime().controller();
+    const bool pd = controller.started() && controller.mode() != bc::ControllerMode::GravityCompensation;
+    const bc::ComputedTorqueGains& gains = controller.gains();
+    const Eigen::VectorXd& q_d = controller.desiredPosition();
+    const Eigen::VectorXd& qd_d = controller.desiredVelocity();
+    for (Eigen::Index i = 0; i < torque_.size(); ++i) {
+      const auto k = static_cast<std::size_t>(i);
+      const double kp = pd ? gains.kp[i] : 0.0, kv = pd ? gains.kv[i] : 0.0;
+      command_.position[k] = pd ? q_d[i] : q_[i];
+      command_.velocity[k] = pd ? qd_d[i] : qd_[i];
+      command_.stiffness[k] = kp;
+      command_.damping[k] = kv;
+      command_.effort[k] = torque_[i] - kp * (command_.position[k] - q_[i]) - kv * (command_.velocity[k] - qd_[i]);
+    }
   }
 
   /// Warns when the states' rate differs from the observer's nominal rate by more than 20 %.
@@ -262,7 +293,7 @@ class CtcControllerNode {
   double last_step_wall_ = 0.0;
   std::uint64_t commands_taken_ = 0;
   int loop_priority_ = 0;
-  bool priority_requested_ = false;
+  bool priority_requested_ = false, local_impedance_ = false;
   std::string statistics_file_;
   std::atomic<long> foreign_{0}, duplicates_{0}, reordered_{0}, incomplete_{0};
 };

@@ -28,6 +28,7 @@
 #include <algorithm>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -176,6 +177,7 @@ class ObjectTrackerNode {
     const double t = image->header.stamp.toSec();
     problem_.clear();
     bs::vision::PinholeCamera camera;
+    std::optional<bs::vision::PinholeCamera> depth_camera;
     problem_ = reader();
     Eigen::Isometry3d pose;
     pose.matrix().setConstant(std::nan(""));  // a frame without a pose is a frame the tracker cannot use
@@ -187,10 +189,12 @@ class ObjectTrackerNode {
         problem_ = "no pose of the camera frame '" + image->header.frame_id + "' in '" + world_ + "': " + e.what();
       }
       camera = reader_->camera(pose);
+      depth_camera = reader_->depthCamera(pose);
     }
     cv::Mat bgr, metres;
     if (problem_.empty()) problem_ = reader_->read(*image, *depth, bgr, metres);
-    const bs::tracking::TrackedState& state = tracker_->frame(t, bgr, metres, camera);
+    const bs::tracking::TrackedState& state =
+        tracker_->frame(t, bgr, metres, camera, depth_camera ? &*depth_camera : nullptr);
     publish(state, image->header.stamp);
     if (debug_.getNumSubscribers() > 0 && !bgr.empty()) {
       cv_bridge::CvImage out(image->header, "bgr8", bgr.clone());

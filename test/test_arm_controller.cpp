@@ -387,18 +387,47 @@ TEST(ArmController, ModesAndNoAllocation) {
 TEST(TorqueCommandGate, UsesFreshCommandsAndBrakesOtherwise) {
   bsim::TorqueCommandGate gate(2, 0.05, Eigen::Vector2d(2.0, 1.0));
   Eigen::Vector2d out;
-  const Eigen::Vector2d velocity(0.5, -1.0), not_a_number(std::nan(""), 0.0);
+  const Eigen::Vector2d position(0.1, 0.2), velocity(0.5, -1.0), not_a_number(std::nan(""), 0.0);
   const Eigen::Vector3d three_joints = Eigen::Vector3d::Zero();
   NoAllocGuard guard;
-  EXPECT_TRUE(gate.torque(0.0, velocity, out));  // nothing received yet: brake
+  EXPECT_TRUE(gate.torque(0.0, position, velocity, out));  // nothing received yet: brake
   EXPECT_LT((out - Eigen::Vector2d(-1.0, 1.0)).norm(), 1e-15);
   EXPECT_EQ(gate.accept(1.0, Eigen::Vector2d(3.0, 4.0)), bsim::RobotStatus::Ok);
-  EXPECT_FALSE(gate.torque(1.04, velocity, out));
+  EXPECT_FALSE(gate.torque(1.04, position, velocity, out));
   EXPECT_LT((out - Eigen::Vector2d(3.0, 4.0)).norm(), 1e-15);
   EXPECT_EQ(gate.accept(1.01, not_a_number), bsim::RobotStatus::InvalidCommand);
   EXPECT_EQ(gate.accept(1.01, three_joints), bsim::RobotStatus::InvalidCommand);
-  EXPECT_FALSE(gate.torque(1.04, velocity, out));
+  EXPECT_FALSE(gate.torque(1.04, position, velocity, out));
   EXPECT_LT((out - Eigen::Vector2d(3.0, 4.0)).norm(), 1e-15);  // the rejected commands changed nothing
-  EXPECT_TRUE(gate.torque(1.06, velocity, out));               // stale: never replayed
+  EXPECT_TRUE(gate.torque(1.06, position, velocity, out));     // stale: never replayed
   EXPECT_LT((out - Eigen::Vector2d(-1.0, 1.0)).norm(), 1e-15);
+}
+
+// A command with a joint impedance: the robot adds K (q_d + q̇_d (t − t_c) − q) + D (q̇_d − q̇) at each of its steps,
+// the setpoint moving on at its velocity, until the command is stale; bad impedances are refused and change nothing;
+// a torque-only command drops the impedance.
+TEST(TorqueCommandGate, ClosesTheCommandsJointImpedanceBetweenCommands) {
+  bsim::TorqueCommandGate gate(2, 0.05, Eigen::Vector2d(2.0, 1.0));
+  Eigen::Vector2d out;
+  const Eigen::Vector2d torque(3.0, 4.0), q_d(1.0, -1.0), qd_d(0.5, 0.0), k(100.0, 10.0), d(5.0, 1.0);
+  const Eigen::Vector2d negative(-1.0, 1.0), not_a_number(std::nan(""), 0.0);
+  NoAllocGuard guard;
+  ASSERT_EQ(gate.accept(1.0, torque, q_d, qd_d, k, d), bsim::RobotStatus::Ok);
+  const Eigen::Vector2d q(1.01, -0.9), qd(0.4, 0.2);
+  EXPECT_FALSE(gate.torque(1.02, q, qd, out));
+  const Eigen::Vector2d expected =
+      torque + k.cwiseProduct(q_d + 0.02 * qd_d - q) + d.cwiseProduct(qd_d - qd);  // (4.5, 3.8)
+  EXPECT_LT((out - expected).norm(), 1e-12);
+  // At the command's own state the impedance adds nothing but its damping of the velocity error.
+  EXPECT_FALSE(gate.torque(1.0, q_d, qd_d, out));
+  EXPECT_LT((out - torque).norm(), 1e-12);
+  EXPECT_EQ(gate.accept(1.01, torque, q_d, qd_d, negative, d), bsim::RobotStatus::InvalidCommand);
+  EXPECT_EQ(gate.accept(1.01, torque, not_a_number, qd_d, k, d), bsim::RobotStatus::InvalidCommand);
+  EXPECT_FALSE(gate.torque(1.02, q, qd, out));
+  EXPECT_LT((out - expected).norm(), 1e-12) << "the refused commands changed nothing";
+  EXPECT_TRUE(gate.torque(1.06, q, qd, out));  // stale: braking, no impedance
+  EXPECT_LT((out + Eigen::Vector2d(2.0, 1.0).cwiseProduct(qd)).norm(), 1e-15);
+  ASSERT_EQ(gate.accept(2.0, torque), bsim::RobotStatus::Ok);
+  EXPECT_FALSE(gate.torque(2.01, q, qd, out));
+  EXPECT_LT((out - torque).norm(), 1e-15) << "a torque-only command has no impedance";
 }

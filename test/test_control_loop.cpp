@@ -355,6 +355,39 @@ TEST(ControlLoop, LockstepWithoutAnAnswerBrakesAfterItsTimeout) {
   EXPECT_NEAR(robot.written_[0], -10.0 * 0.5, 1e-12) << "no command: braking, tau = -D qd";
 }
 
+TEST(ControlLoop, ACommandsJointImpedanceIsClosedByTheRobotUntilTheNextCommand) {
+  // One command with an impedance about the arm's posture, then none: each later cycle's torque on joint 2 is the
+  // effort plus K (q_d + q̇_d t − q) + D (q̇_d − q̇) of that cycle's state, until the command is stale (50 ms). Bad
+  // impedances (a negative gain) are rejected and counted.
+  FakeRobot robot;
+  RecordingSink sink;
+  bh::LoopSettings settings = fast();
+  settings.paused = true;
+  bh::ControlLoop loop(robot, sink, settings);
+  loop.commandFromOutside(1, 0.05, Eigen::VectorXd::Constant(7, 10.0), false);
+  const Eigen::VectorXd effort = Eigen::VectorXd::Constant(7, 1.0), q_d = robot.q_[1],
+                        qd_d = Eigen::VectorXd::Constant(7, 0.1), k = Eigen::VectorXd::Constant(7, 50.0),
+                        d = Eigen::VectorXd::Constant(7, 2.0);
+  const bh::CommandImpedance impedance{q_d.data(), qd_d.data(), k.data(), d.data()};
+  loop.torqueCommand(1, std::nan(""), effort.data(), 7, &impedance);
+  Running running(loop);
+  ASSERT_TRUE(loop.step(1).success);  // takes the command at t = 0 (the state: q_d, at rest)
+  ASSERT_EQ(robot.written_.size(), 1u);
+  EXPECT_NEAR(robot.written_[0], 1.0 + 2.0 * 0.1, 1e-12) << "at the setpoint, moving 0.1 rad/s short of it";
+  for (int cycle = 1; cycle <= 10; ++cycle) {
+    const double t = robot.time();
+    const double q = robot.q_[1][1], qd = robot.qd_[1][1];
+    ASSERT_TRUE(loop.step(1).success);
+    EXPECT_NEAR(robot.written_.back(), 1.0 + 50.0 * (q_d[1] + 0.1 * t - q) + 2.0 * (0.1 - qd), 1e-9)
+        << "cycle " << cycle;
+  }
+  const Eigen::VectorXd negative = Eigen::VectorXd::Constant(7, -1.0);
+  const bh::CommandImpedance bad{q_d.data(), qd_d.data(), negative.data(), d.data()};
+  loop.torqueCommand(1, std::nan(""), effort.data(), 7, &bad);
+  ASSERT_TRUE(loop.step(1).success);
+  EXPECT_EQ(loop.counts().rejected_commands, 1);
+}
+
 TEST(ControlLoop, BadInputGetsAClearAnswer) {
   FakeRobot robot;
   RecordingSink sink;

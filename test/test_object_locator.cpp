@@ -199,6 +199,21 @@ TEST(ObjectLocator, SaysWhyAFrameGivesNoMeasurement) {
   camera.setMovingPose(index, at(scene.object.path.centre));
   (void)camera.render(none, no_triangles);
   ASSERT_EQ(locator.locate(camera.bgr(), camera.depth(), camera.camera(), m), LocateStatus::Ok);
+  // Depth registered from a camera of its own that sees the can cut by its edge (here: the colour camera turned
+  // so that the can's centre is at its image's left edge): part of the can has no depth, and what that camera sees
+  // past its edge lands on the rest. The same camera turned back: measured.
+  {
+    bs::vision::PinholeCamera depth_camera = camera.camera();
+    Eigen::Vector3d uvz;
+    ASSERT_TRUE(depth_camera.project(scene.object.path.centre, uvz));
+    depth_camera.cx -= uvz.x();
+    EXPECT_EQ(locator.locate(camera.bgr(), camera.depth(), camera.camera(), m, &depth_camera), LocateStatus::AtEdge);
+    depth_camera = camera.camera();
+    depth_camera.pose.translation() += depth_camera.pose.linear().col(0) * 0.025;  // a Kinect's baseline
+    EXPECT_EQ(locator.locate(camera.bgr(), camera.depth(), camera.camera(), m, &depth_camera), LocateStatus::Ok);
+    depth_camera.fx = std::nan("");
+    EXPECT_EQ(locator.locate(camera.bgr(), camera.depth(), camera.camera(), m, &depth_camera), LocateStatus::BadCamera);
+  }
   // No depth (a sensor that returned nothing), the wrong encoding or size, a camera pose that is not rigid.
   cv::Mat holes(camera.depth().size(), CV_32FC1, cv::Scalar(std::nan("")));
   EXPECT_EQ(locator.locate(camera.bgr(), holes, camera.camera(), m), LocateStatus::NoDepth);

@@ -136,6 +136,11 @@ TEST(RgbdReader, DepthOnItsOwnFrameIsRegisteredFromTfOrRefusedByName) {
   }
   EXPECT_GT(both, 200000);
   EXPECT_GT(close, 0.95 * both) << "the registered depth is not the colour camera's";
+  // The depth camera as placed by the colour camera's pose (what the locator bounds its measurements by).
+  const std::optional<bv::PinholeCamera> placed = reader.depthCamera(colour.pose);
+  ASSERT_TRUE(placed.has_value());
+  EXPECT_NEAR(placed->fx, 580.0, 1e-9);
+  EXPECT_LT((placed->pose.matrix() - depth.pose.matrix()).norm(), 1e-12);
   // The same frame at half the resolution (a depth_registered stream of another mode): resampled onto the colour's
   // pixels.
   bv::PinholeCamera half = colour;
@@ -146,6 +151,7 @@ TEST(RgbdReader, DepthOnItsOwnFrameIsRegisteredFromTfOrRefusedByName) {
   half.cx = 0.5 * (colour.cx + 0.5) - 0.5;
   half.cy = 0.5 * (colour.cy + 0.5) - 0.5;
   const br::RgbdReader resampling(colour_info, br::cameraInfo(half, header("rgb_optical")), std::nullopt, false);
+  EXPECT_FALSE(resampling.depthCamera(colour.pose).has_value()) << "the same camera: its depth is the colour's view";
   ASSERT_EQ(resampling.read(image("rgb_optical", "bgr8", by_colour.bgr),
                             image("rgb_optical", "32FC1", look(half).metres), bgr, metres),
             "");

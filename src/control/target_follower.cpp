@@ -10,6 +10,9 @@ namespace bimanual_skills::control {
 
 namespace {
 
+/// Periods ahead of the update that each reference segment ends (TargetFollower::update).
+constexpr double kSegmentPeriods = 5.0;
+
 bool finitePositive(double v, double high) {
   return std::isfinite(v) && v > 0.0 && v <= high;
 }
@@ -259,7 +262,10 @@ bool TargetFollower::update(double t, const FollowTarget& target,
       v_r_[j] = 0.0;
     }
   }
-  const double h = 2.0 * config_.period;
+  // The segment reaches the reference extrapolated kSegmentPeriods periods ahead: states that come late or after a
+  // robot's stall (stamps 20-30 ms apart) still sample the segment, not its end held still, whose stop and restart
+  // would be acceleration spikes.
+  const double h = kSegmentPeriods * config_.period;
   waypoints_.times[0] = h;
   waypoints_.positions.col(0) = (q_r_ + v_r_ * h).cwiseMax(lower_).cwiseMin(upper_);
   waypoints_.velocities.col(0) = v_r_;

@@ -122,13 +122,26 @@ void ControlLoop::commandFromOutside(int arm, double timeout, const Eigen::Vecto
   outside_unlocked_ = outside_unlocked_ || !settings_.lockstep || !lockstep_waits;
 }
 
-void ControlLoop::torqueCommand(int arm, double answers, const double* torque, std::size_t size) {
+void ControlLoop::torqueCommand(int arm, double answers, const double* torque, std::size_t size,
+                                const CommandImpedance* impedance) {
   if (arm < 0 || arm >= static_cast<int>(arms_.size())) return;
   Arm& a = *arms_[static_cast<std::size_t>(arm)];
   if (!a.commands) return;
   TorqueCommand& command = a.commands->writeSlot();
   command.well_formed = size == static_cast<std::size_t>(a.joints);
+  command.impedance = false;
   if (command.well_formed) command.torque = Eigen::Map<const Eigen::VectorXd>(torque, a.joints);
+  if (command.well_formed && impedance != nullptr) {
+    if (!impedance->position || !impedance->velocity || !impedance->stiffness || !impedance->damping) {
+      command.well_formed = false;
+    } else {
+      command.position = Eigen::Map<const Eigen::VectorXd>(impedance->position, a.joints);
+      command.velocity = Eigen::Map<const Eigen::VectorXd>(impedance->velocity, a.joints);
+      command.stiffness = Eigen::Map<const Eigen::VectorXd>(impedance->stiffness, a.joints);
+      command.damping = Eigen::Map<const Eigen::VectorXd>(impedance->damping, a.joints);
+      command.impedance = true;
+    }
+  }
   command.answers = answers;
   a.commands->publish();
 }
@@ -290,11 +303,14 @@ bool ControlLoop::cycle() noexcept {
         // In lockstep a stamped command applies to the state it answers only; unstamped ones to the current state.
         if (settings_.lockstep && !std::isnan(command->answers) && std::abs(command->answers - t) > kStampTolerance) {
           late_.fetch_add(1, std::memory_order_relaxed);
-        } else if (!command->well_formed || arm.gate->accept(t, command->torque) != sim::RobotStatus::Ok) {
+        } else if (!command->well_formed ||
+                   (command->impedance ? arm.gate->accept(t, command->torque, command->position, command->velocity,
+                                                          command->stiffness, command->damping)
+                                       : arm.gate->accept(t, command->torque)) != sim::RobotStatus::Ok) {
           rejected_.fetch_add(1, std::memory_order_relaxed);
         }
       }
-      arm.gate->torque(t, state.velocity, arm.torque);
+      arm.gate->torque(t, state.position, state.velocity, arm.torque);
     } else {
       arm.torque.setZero();
     }

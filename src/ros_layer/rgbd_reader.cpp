@@ -46,6 +46,8 @@ struct RgbdReader::Impl {
   vision::CameraCalibration colour;
   std::unique_ptr<vision::Rectifier> colour_rectifier, depth_rectifier;
   std::unique_ptr<vision::DepthRegistration> registration;  ///< Null: the depth is on the colour camera's pixels.
+  /// With registration from another frame: the rectified depth camera, its optical frame in the colour camera's.
+  std::optional<vision::PinholeCamera> depth_camera;
 };
 
 RgbdReader::RgbdReader(const sensor_msgs::CameraInfo& colour) : impl_(std::make_unique<Impl>()) {
@@ -120,6 +122,10 @@ RgbdReader::RgbdReader(const sensor_msgs::CameraInfo& colour, const sensor_msgs:
     m.registration = std::make_unique<vision::DepthRegistration>(
         depth_camera, colour_camera, same_frame ? Eigen::Isometry3d::Identity() : *colour_from_depth);
     said << (same_frame ? ", resampled to the colour's pixels" : ", registered here into the colour camera");
+    if (!same_frame) {
+      m.depth_camera = depth_camera;
+      m.depth_camera->pose = *colour_from_depth;
+    }
   }
   description_ += said.str();
 }
@@ -191,6 +197,13 @@ std::string RgbdReader::read(const sensor_msgs::Image& colour, const sensor_msgs
 
 vision::PinholeCamera RgbdReader::camera(const Eigen::Isometry3d& pose) const {
   return impl_->colour.rectifiedCamera(pose);
+}
+
+std::optional<vision::PinholeCamera> RgbdReader::depthCamera(const Eigen::Isometry3d& colour_pose) const {
+  if (!impl_->depth_camera) return std::nullopt;
+  vision::PinholeCamera placed = *impl_->depth_camera;
+  placed.pose = colour_pose * impl_->depth_camera->pose;
+  return placed;
 }
 
 }  // namespace bimanual_skills::ros_layer

@@ -47,7 +47,7 @@ ObjectTracker::ObjectTracker(const ObjectTrackerConfig& config)
     : config_((config.validate("object tracker"), config)), locator_(config.locator), filter_(config.filter) {}
 
 const TrackedState& ObjectTracker::frame(double t, const cv::Mat& bgr, const cv::Mat& depth,
-                                         const vision::PinholeCamera& camera) {
+                                         const vision::PinholeCamera& camera, const vision::PinholeCamera* depth_view) {
   if (!std::isfinite(t)) {
     ++state_.dropped;
     return state_;
@@ -66,7 +66,7 @@ const TrackedState& ObjectTracker::frame(double t, const cv::Mat& bgr, const cv:
   last_frame_ = t;
   state_.last_frame = t;
   ++state_.frames;
-  state_.located = locator_.locate(bgr, depth, camera, state_.measurement);
+  state_.located = locator_.locate(bgr, depth, camera, state_.measurement, depth_view);
   state_.update = signal::TargetTracker::Update::Invalid;
   if (state_.located == vision::LocateStatus::Ok) {
     ++state_.measured;

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -96,13 +97,13 @@ double ObjectLocator::surfaceDistance(const Eigen::Vector3d& p, const Eigen::Vec
 }
 
 LocateStatus ObjectLocator::locate(const cv::Mat& bgr, const cv::Mat& depth, const PinholeCamera& camera,
-                                   ObjectMeasurement& measurement) {
+                                   ObjectMeasurement& measurement, const PinholeCamera* depth_view) {
   measurement = ObjectMeasurement{};
   if (bgr.type() != CV_8UC3 || depth.type() != CV_32FC1 || bgr.rows != camera.height || bgr.cols != camera.width ||
       depth.size() != bgr.size()) {
     return LocateStatus::WrongImage;
   }
-  if (!camera.usable()) return LocateStatus::BadCamera;
+  if (!camera.usable() || (depth_view != nullptr && !depth_view->usable())) return LocateStatus::BadCamera;
   // The object's colour in HSV (OpenCV: H in [0, 180), S and V in [0, 255]); a hue range across 0 is two ranges.
   cv::cvtColor(bgr, hsv_, cv::COLOR_BGR2HSV);
   const double h = 0.5 * config_.hue, tolerance = 0.5 * config_.hue_tolerance;
@@ -135,12 +136,31 @@ LocateStatus ObjectLocator::locate(const cv::Mat& bgr, const cv::Mat& depth, con
   if (x0 == 0 || y0 == 0 || x1 == bgr.cols || y1 == bgr.rows) return LocateStatus::AtEdge;
   // Its depth pixels in the world, evenly subsampled to at most max_points.
   int with_depth = 0;
+  float near = std::numeric_limits<float>::infinity(), far = -near;
   for (int row = y0; row < y1; ++row) {
     for (int column = x0; column < x1; ++column) {
-      with_depth += component_.at<unsigned char>(row, column) != 0 && std::isfinite(depth.at<float>(row, column));
+      const float z = depth.at<float>(row, column);
+      if (component_.at<unsigned char>(row, column) == 0 || !std::isfinite(z)) continue;
+      ++with_depth;
+      near = std::min(near, z);
+      far = std::max(far, z);
     }
   }
   if (with_depth < config_.min_points) return LocateStatus::NoDepth;
+  if (depth_view != nullptr) {
+    // The box's corners at the nearest and farthest depth on it, as the depth camera sees them.
+    for (const float z : {near, far}) {
+      for (const int u : {x0, x1 - 1}) {
+        for (const int v : {y0, y1 - 1}) {
+          Eigen::Vector3d uvz;
+          if (!depth_view->project(camera.backProject(u, v, z), uvz) || uvz.x() < 0.0 ||
+              uvz.x() > depth_view->width - 1.0 || uvz.y() < 0.0 || uvz.y() > depth_view->height - 1.0) {
+            return LocateStatus::AtEdge;
+          }
+        }
+      }
+    }
+  }
   const double stride = std::max(1.0, static_cast<double>(with_depth) / config_.max_points);
   points_.clear();
   double next = 0.0;

@@ -107,6 +107,7 @@ class ArmController {
   /// The disturbance observer (its counters of irregular steps and restarts).
   const DisturbanceObserver& observer() const noexcept { return observer_; }
   const kinematics::ChainModel& model() const noexcept { return ctc_.model(); }
+  const ComputedTorqueGains& gains() const noexcept { return ctc_.gains(); }
 
  private:
   void holdAt(double t, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept;

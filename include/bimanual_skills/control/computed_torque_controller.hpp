@@ -44,6 +44,7 @@ class ComputedTorqueController {
 
   const kinematics::ChainModel& model() const noexcept { return model_; }
   const dynamics::FrictionModel& friction() const noexcept { return friction_; }
+  const ComputedTorqueGains& gains() const noexcept { return gains_; }
   /// The last feed-forward (model) part of u, before the PD terms and saturation.
   const Eigen::VectorXd& feedforward() const noexcept { return feedforward_; }
 

@@ -134,6 +134,9 @@ class RealtimeArmController {
   /// The newest state if the loop produced one since the last call, else nullptr; valid until the next call.
   /// One reader thread.
   const ArmControllerState* latestState() noexcept { return states_.readNew(); }
+  /// The loop thread's view of the controller: the last update's desired state, its gains and mode (what a robot
+  /// that closes the joint impedance itself needs: ctc_controller ~local_impedance).
+  const ArmController& controller() const noexcept { return controller_; }
   /// Makes the arm able to follow a tracked target (ControllerCommand::Kind::Follow): a TargetFollower run in the
   /// loop every config.period of the states' clock, its segments given to the controller in the same cycle. Call
   /// before the loop runs (allocates). \throws std::invalid_argument for an invalid config.

@@ -95,8 +95,8 @@ class TargetFollower {
   void start(double t, const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd,
              bool grasp = true) noexcept;
   /// One update at time t with the latest estimate and the measured joint positions: moves the reference and
-  /// writes waypoints() (a segment from the controller's desired state to the reference one period ahead). False
-  /// (nothing written) when idle or for inputs of the wrong size.
+  /// writes waypoints() (a segment from the controller's desired state to the reference extrapolated five periods
+  /// ahead, which the next update replaces). False (nothing written) when idle or for inputs of the wrong size.
   bool update(double t, const FollowTarget& target, const Eigen::Ref<const Eigen::VectorXd>& q_measured) noexcept;
   /// The gripper's answer to graspRequested(): true, it holds the object; false, it did not.
   void graspDone(bool held) noexcept;

@@ -84,8 +84,20 @@ struct LoopSettings {
 /// An outside torque command [N m] for one arm, answering the state stamped `answers` (NaN: unstamped).
 struct TorqueCommand {
   Eigen::VectorXd torque;
+  /// With `impedance`: the joint impedance the robot closes between commands (sim::TorqueCommandGate), each sized
+  /// like `torque`.
+  Eigen::VectorXd position, velocity, stiffness, damping;
+  bool impedance = false;
   double answers = std::numeric_limits<double>::quiet_NaN();
   bool well_formed = false;
+};
+
+/// A torque command's joint impedance as arrays of the command's size (TorqueCommand).
+struct CommandImpedance {
+  const double* position = nullptr;
+  const double* velocity = nullptr;
+  const double* stiffness = nullptr;
+  const double* damping = nullptr;
 };
 
 /// How a request of another thread ended.
@@ -149,8 +161,10 @@ class ControlLoop {
   /// states as forced and answers; fails at once when running, stopped, or another step() runs.
   LoopOutcome step(std::uint32_t cycles, double wait = 5.0);
   /// An outside command for arm `arm` (one writer thread per arm): `answers` is the stamp of the state it answers
-  /// (NaN: unstamped). Sizes and values are checked by the loop (rejected_commands).
-  void torqueCommand(int arm, double answers, const double* torque, std::size_t size);
+  /// (NaN: unstamped); `impedance`, if any, the joint impedance the robot closes until the next command. Sizes and
+  /// values are checked by the loop (rejected_commands).
+  void torqueCommand(int arm, double answers, const double* torque, std::size_t size,
+                     const CommandImpedance* impedance = nullptr);
 
   double time() const noexcept { return time_.load(std::memory_order_relaxed); }
   bool paused() const noexcept { return paused_.load(std::memory_order_relaxed); }

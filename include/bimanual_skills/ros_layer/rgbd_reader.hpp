@@ -57,6 +57,9 @@ class RgbdReader {
 
   /// The rectified colour camera (P's intrinsics) with its optical frame at `pose`.
   vision::PinholeCamera camera(const Eigen::Isometry3d& pose) const;
+  /// When depth is registered here from a camera of its own: that rectified depth camera, placed by the colour
+  /// camera's optical frame at `colour_pose` (what it sees past its edge has no depth on the colour's pixels).
+  std::optional<vision::PinholeCamera> depthCamera(const Eigen::Isometry3d& colour_pose) const;
   /// What it does, for logs ("640 x 480 rectified from plumb_bob, 16UC1 depth registered from
   /// camera_depth_optical_frame").
   const std::string& description() const noexcept { return description_; }

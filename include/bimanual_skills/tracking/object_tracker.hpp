@@ -58,8 +58,10 @@ class ObjectTracker {
   explicit ObjectTracker(const ObjectTrackerConfig& config);
 
   /// One frame stamped `t` [s]: colour (bgr8) and registered depth (32FC1, metres) seen by `camera` (its pose in
-  /// the world at `t`).
-  const TrackedState& frame(double t, const cv::Mat& bgr, const cv::Mat& depth, const vision::PinholeCamera& camera);
+  /// the world at `t`); `depth_view`, the depth camera when its depth was registered here
+  /// (vision::ObjectLocator::locate).
+  const TrackedState& frame(double t, const cv::Mat& bgr, const cv::Mat& depth, const vision::PinholeCamera& camera,
+                            const vision::PinholeCamera* depth_view = nullptr);
   /// The estimate predicted to `t` (≥ the last frame's stamp) without a new frame: lost with CameraStopped once the
   /// last frame is older than camera_timeout.
   TrackedState at(double t) const;

@@ -48,7 +48,7 @@ enum class LocateStatus {
   WrongImage,  ///< Not bgr8 and 32FC1 of the camera's size.
   BadCamera,   ///< Non-finite or non-rigid pose, bad intrinsics.
   NotSeen,     ///< Too few pixels of the object's colour.
-  AtEdge,      ///< Cut by the image's edge: part of it is out of view, and its fit would be biased.
+  AtEdge,      ///< Cut by the image's (or the depth camera's) edge: part of it is out of view, its fit biased.
   NoDepth,     ///< Seen, but too few of its pixels have a depth.
   NoFit,       ///< The shape fit did not converge to a finite centre.
 };
@@ -70,8 +70,11 @@ class ObjectLocator {
   explicit ObjectLocator(const ObjectLocatorConfig& config);
 
   /// The object in this frame (colour bgr8 and registered depth 32FC1 in metres, NaN: no return) seen by `camera`.
+  /// `depth_view`: the depth camera (its pose in the world) when the depth was registered from a camera of its own:
+  /// an object whose box, at its depths, reaches beyond that camera's image is AtEdge (only part of it has depth,
+  /// and what the depth camera sees past its edge lands on its pixels), as one cut by the colour image's edge.
   LocateStatus locate(const cv::Mat& bgr, const cv::Mat& depth, const PinholeCamera& camera,
-                      ObjectMeasurement& measurement);
+                      ObjectMeasurement& measurement, const PinholeCamera* depth_view = nullptr);
 
   /// The last frame's mask of the object's colour (after the opening) and of the component taken (255).
   const cv::Mat& colourMask() const noexcept { return mask_; }
