@@ -436,4 +436,24 @@ TEST(TargetFollower, RunsInTheRealtimeControllersLoopWithoutAllocatingAndReports
   ASSERT_NE(s, nullptr);
   EXPECT_FALSE(s->following);
   EXPECT_EQ(s->mode, bs::control::ControllerMode::Hold);
+  // Following again, then the states stop a second (a stopped loop or link): the controller holds and restarts where
+  // the arm is, and following ends saying the states were stale, not that the clock went back.
+  left.command(start);
+  for (int k = 0; k < 20; ++k) {
+    ASSERT_EQ(simulation.readJointState(0, state), bs::sim::RobotStatus::Ok);
+    (void)left.update(simulation.time(), state.time, state.position, state.velocity, state.effort, torque);
+    ASSERT_EQ(simulation.writeJointTorques(0, torque), bs::sim::RobotStatus::Ok);
+    ASSERT_NE(simulation.step(), bs::sim::SimStatus::ArmDiverged);
+  }
+  ASSERT_TRUE(left.latestState()->following);
+  const double later = simulation.time() + 1.0;
+  EXPECT_EQ(left.update(later, state.time, state.position, state.velocity, state.effort, torque),
+            bs::control::ControllerStatus::StaleState);
+  EXPECT_NE(left.update(later, later, state.position, state.velocity, state.effort, torque),
+            bs::control::ControllerStatus::StaleState);
+  s = left.latestState();
+  ASSERT_NE(s, nullptr);
+  EXPECT_FALSE(s->following);
+  EXPECT_TRUE(s->follow_interrupted);
+  EXPECT_EQ(s->follow_stopped, bs::control::ControllerStatus::StaleState);
 }

@@ -284,8 +284,13 @@ ControllerStatus RealtimeArmController::update(double now, double stamp, const E
     following_ = false;
     follower_->stop();
     follow_interrupted_ = true;
-    follow_stopped_ = status;
+    // A restart after stale states (the loop or the link stopped a while) is said as such, not as a clock gone back.
+    follow_stopped_ = (status == ControllerStatus::Ok || status == ControllerStatus::Saturated) &&
+                              previous_status_ == ControllerStatus::StaleState
+                          ? ControllerStatus::StaleState
+                          : status;
   }
+  previous_status_ = status;
   if (status == ControllerStatus::InvalidState || status == ControllerStatus::StaleState) {
     if (goal_ == GoalState::Active && status == ControllerStatus::StaleState) {
       goal_ = GoalState::Aborted;

@@ -537,6 +537,8 @@ void ArmControllerInterface::follow(const bc::ArmControllerState& s, const ros::
     reason = std::string("the controller left tracking: ") +
              (s.follow_stopped == bc::ControllerStatus::Ok || s.follow_stopped == bc::ControllerStatus::Saturated
                   ? "it restarted (the robot's clock went back)"
+              : s.follow_stopped == bc::ControllerStatus::StaleState
+                  ? "its states came late or stopped (StaleState); it held the arm and restarted where it was"
                   : bc::toString(s.follow_stopped));
   } else if (holding) {
     reason = std::string(bc::toString(s.follow_reason)) + (target_problem_.empty() ? "" : " (" + target_problem_ + ")");

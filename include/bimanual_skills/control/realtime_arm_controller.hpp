@@ -101,7 +101,8 @@ struct ArmControllerState {
   double follow_latency = std::numeric_limits<double>::quiet_NaN();
   bool grasp_requested = false;  ///< The follower asks for the gripper to close (answer: graspDone()).
   /// Following ended without a command: the controller left tracking on its own, with the status of that update
-  /// (VelocityLimit, StaleState; Ok or Saturated: it restarted, the clock went back).
+  /// (VelocityLimit; StaleState, also when it restarted after stale states; Ok or Saturated: it restarted, the clock
+  /// went back).
   bool follow_interrupted = false;
   ControllerStatus follow_stopped = ControllerStatus::Ok;
 };
@@ -215,7 +216,8 @@ class RealtimeArmController {
   double follow_latency_ = std::numeric_limits<double>::quiet_NaN();
   bool follow_interrupted_ = false;
   ControllerStatus follow_stopped_ = ControllerStatus::Ok;
-  std::atomic<int> grasp_answer_{-1};  ///< −1 none, 0 not held, 1 held.
+  ControllerStatus previous_status_ = ControllerStatus::Ok;  ///< The last update's.
+  std::atomic<int> grasp_answer_{-1};                        ///< −1 none, 0 not held, 1 held.
 };
 
 }  // namespace bimanual_skills::control
