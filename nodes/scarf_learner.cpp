@@ -80,7 +80,9 @@ const char* const kUsage =
     "                ~camera_depth (depth or depth_registered), ~register_depth (false), ~cloth_topic\n"
     "                (bullet_sim/cloth: the scarf's truth; \"\":\n"
     "                none), ~world_digest_param, ~world_frame (world), ~trajectory_rate (100 Hz), ~start_delay\n"
-    "                (0.5 s), ~move_time (2 s), ~robot_timeout (30 s: every wait, service calls included),\n"
+    "                (0.5 s), ~move_time (2 s), ~move_before_reset (false; true for a robot whose reset leaves the\n"
+    "                arm where it is: it moves to the start first and the reset lays the scarf in its tool),\n"
+    "                ~robot_timeout (30 s: every wait, service calls included),\n"
     "                ~reset_timeout (660 s)\n"
     "\n"
     "Writes into DIR: rollouts.csv, rollout_parameters.csv (every rollout as it finishes), epochs.csv, "
@@ -183,6 +185,7 @@ class ScarfLearnerNode {
     robot.trajectory_rate = parameters_.number("trajectory_rate", robot.trajectory_rate, 1.0, 1000.0);
     robot.start_delay = parameters_.number("start_delay", robot.start_delay, 0.0, 10.0);
     robot.move_time = parameters_.number("move_time", robot.move_time, 0.1, 60.0);
+    robot.move_before_reset = parameters_.boolean("move_before_reset", robot.move_before_reset);
     robot.validate();
     robot_backend_ = true;
     const bt::ScarfTaskConfig task = config_.task;

@@ -125,23 +125,27 @@ std::string ScarfOnRobotTask::cameraProblem(const sensor_msgs::CameraInfo& info)
   return why.str();
 }
 
+void ScarfOnRobotTask::moveToStart() {
+  const Eigen::VectorXd& start = task_.startPosition();
+  const Eigen::VectorXd at = connection_->measuredPositions().front();
+  if ((at - start).cwiseAbs().maxCoeff() <= kAtStart) return;
+  const std::vector<Eigen::VectorXd> limits = {task_.armModel().velocityLimits()};
+  RobotConnection::Arm& arm = connection_->arm(0);
+  bimanual_skills::FollowJointTrajectoryGoal goal;
+  goal.trajectory.joint_names = arm.joints;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(start.size());
+  const double move = RobotConnection::moveTime({at}, {start}, limits, robot_.move_time);
+  goal.trajectory.points.push_back(trajectoryPoint(start, zero, zero, move));
+  connection_->sendGoal(0, goal);
+  connection_->waitForGoal(0, "move to the start", ros::Time::now() + ros::Duration(move),
+                           RobotConnection::Blame::Robot);
+}
+
 void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   const tasks::ScarfTaskConfig& c = task_.config();
   const Eigen::VectorXd& start = task_.startPosition();
-  const std::vector<Eigen::VectorXd> limits = {task_.armModel().velocityLimits()};
   // The arm at the task's start, holding the scarf (the reset's, or a move there).
-  const Eigen::VectorXd at = connection_->measuredPositions().front();
-  if ((at - start).cwiseAbs().maxCoeff() > kAtStart) {
-    RobotConnection::Arm& arm = connection_->arm(0);
-    bimanual_skills::FollowJointTrajectoryGoal goal;
-    goal.trajectory.joint_names = arm.joints;
-    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(start.size());
-    const double move = RobotConnection::moveTime({at}, {start}, limits, robot_.move_time);
-    goal.trajectory.points.push_back(trajectoryPoint(start, zero, zero, move));
-    connection_->sendGoal(0, goal);
-    connection_->waitForGoal(0, "move to the start", ros::Time::now() + ros::Duration(move),
-                             RobotConnection::Blame::Robot);
-  }
+  moveToStart();
   // A simulator stands still until the controller has the goal: the scarf hangs for hold_before exactly.
   if (!robot_.pause_service.empty()) connection_->pause(true);
   const ros::Time origin = ros::Time::now() + ros::Duration(robot_.start_delay);
@@ -272,6 +276,7 @@ rollout::RolloutResult ScarfOnRobotTask::run(const Eigen::VectorXd& parameters, 
       connection_->connectArms();
       reconnect_ = false;
     }
+    if (robot_.move_before_reset) moveToStart();
     (void)connection_->reset();
     moved = true;
     runPlan(plan);

@@ -40,6 +40,9 @@ struct ScarfRobotInterfaces : RobotInterfaces {
   /// To the start when the reset leaves the arm elsewhere, at least [s of the robot's clock] (within half the
   /// joints' velocity limits).
   double move_time = 2.0;
+  /// Move the arm to the start before the reset, which then lays the scarf in its tool: for a robot whose reset
+  /// leaves the arm where it is (a person lays the scene anew; bullet_sim ~hardware).
+  bool move_before_reset = false;
 
   /// \throws std::invalid_argument naming the field that is out of range.
   void validate() const;
@@ -67,6 +70,8 @@ class ScarfOnRobotTask : public rollout::RolloutTask, public rollout::RecordedSc
   /// Why the camera whose camera_info is `info` is not the task's; "" when it is.
   std::string cameraProblem(const sensor_msgs::CameraInfo& info);
   void onTorque(const sensor_msgs::JointStateConstPtr& message);
+  /// Moves the arm to the task's start (a trajectory goal within half its velocity limits) unless it is there.
+  void moveToStart();
   /// Runs the plan from the reset scene; fills last_'s measures.
   void runPlan(const tasks::ScarfPlan& plan);
   /// After a failure once the arm moved: the tool opens, the arm goes back to its start; says how it went.
