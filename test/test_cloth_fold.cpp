@@ -190,6 +190,23 @@ TEST(ClothFold, ReferencesBeyondTheJointLimitsFailInBothBackendsAlike) {
   EXPECT_EQ(bt::foldOutcomeFromString("OutOfLimits", "test"), bt::FoldOutcome::OutOfLimits);
 }
 
+// The rollout's arms are driven by the robot path's controller (control::ArmController, as ctc_controller runs it):
+// its velocity monitor stops a rollout whose arm moves faster than the limit, as it would stop the robot, and the
+// rollout says so; with the robot's own limits the demonstration runs.
+TEST(ClothFold, TheRobotPathsVelocityMonitorStopsARolloutThatMovesTooFast) {
+  bt::ClothFoldConfig c = config();
+  c.velocity_limit = Eigen::VectorXd::Constant(1, 0.1);
+  bt::ClothFoldTask slow(c);
+  const bt::FoldRollout stopped = slow.run(slow.demonstrationParameters());
+  std::printf("limit 0.1 rad/s: %s: %s\n", bt::toString(stopped.outcome), stopped.reason.c_str());
+  EXPECT_EQ(stopped.outcome, bt::FoldOutcome::ControllerFailed);
+  EXPECT_NE(stopped.reason.find("over its velocity limit 0.1"), std::string::npos) << stopped.reason;
+  c.velocity_limit = Eigen::VectorXd::Constant(3, 1.0);
+  EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
+  c.velocity_limit = Eigen::VectorXd::Constant(1, -1.0);
+  EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
+}
+
 TEST(ClothFold, BadConfiguration) {
   bt::ClothFoldConfig c = config();
   c.ik_method = "XYZ";

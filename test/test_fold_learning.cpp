@@ -174,6 +174,12 @@ TEST(FoldLearning, LearningFiles) {
             std::string::npos);
   EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\ntask: {demo_lag: 0.95}\n").find("demo_lag"),
             std::string::npos);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\ntask: {velocity_limit: 0}\n").find("velocity_limit"),
+            std::string::npos);
+  EXPECT_EQ(
+      br::FoldLearningConfig::fromYamlFile(write("sim: " + kSource + "/config/sim.yaml\ntask: {velocity_limit: 1.5}\n"))
+          .task.velocity_limit,
+      Eigen::VectorXd::Constant(1, 1.5));
   // A setting gives its weights; an entry beside it overrides one of them.
   const br::FoldLearningConfig goal = br::FoldLearningConfig::fromYamlFile(
       write("sim: " + kSource + "/config/sim.yaml\nreward: {setting: goal, acceleration_weight: 0.003}\n"));

@@ -87,7 +87,7 @@ TEST(ScarfOnRobot, RunsTheDemonstrationAsTheTaskDoesInProcess) {
   EXPECT_GT(last.path_times.size(), 100);
   EXPECT_NEAR(last.simulated_seconds, 10.3, 1e-9);
   EXPECT_EQ(r.trajectory.rows(), 3);
-  // The tool's measured path ends where the in-process one does (the same references, another controller).
+  // The tool's measured path ends where the in-process one does (the same references and controller; another timeline).
   EXPECT_LT((r.trajectory.rightCols(1) - in_process.trajectory.rightCols(1)).norm(), 0.02);
 }
 

@@ -93,6 +93,24 @@ TEST(ScarfTask, TheDemonstrationFailsAsChosenAndIsRepeatableAndTheControlAllocat
   EXPECT_THROW(task.truthOf(Eigen::Matrix3Xd::Zero(3, 5)), std::invalid_argument);
 }
 
+// The arms are driven by the robot path's controller (control::ArmController, as ctc_controller runs it): with the
+// WAM's own velocity limits (2 rad/s) its monitor stops the demonstration where the hand knocks the mannequin's
+// shoulder (a jolt of about 3 rad/s on the wrist), as the robot's would; the learning file's 3.5 rad/s, which
+// scarf.launch gives ctc_controller too, lets it run.
+TEST(ScarfTask, TheRobotPathsVelocityMonitorStopsTheJoltAtTheWAMsLimits) {
+  bt::ScarfTaskConfig config = shipped().task;
+  EXPECT_EQ(config.velocity_limit, 3.5);
+  config.velocity_limit = 0.0;
+  bt::ScarfTask task(config);
+  const bt::ScarfRollout r = demonstration(task, 1);
+  std::printf("the WAM's limits: %s: %s\n", bt::toString(r.outcome), r.reason.c_str());
+  EXPECT_EQ(r.outcome, bt::FoldOutcome::ControllerFailed);
+  EXPECT_NE(r.reason.find("over its velocity limit 2"), std::string::npos) << r.reason;
+  EXPECT_EQ(r.cost, config.failure_cost);
+  config.velocity_limit = std::nan("");
+  EXPECT_THROW(bt::ScarfTask{config}, std::invalid_argument);
+}
+
 TEST(ScarfTask, ALoopFourCentimetresTighterWindsTheScarfOnTheCameraAndInTruth) {
   bt::ScarfTaskConfig config = shipped().task;
   config.demo_waypoints = withRadius(config.demo_waypoints, 0.17);

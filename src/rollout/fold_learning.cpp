@@ -71,12 +71,18 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     const std::string at = where + " task";
     io::checkKeys(task, at,
                   {"kernels", "duration", "ik_method", "max_ik_error", "max_tracking_error", "demo_reach", "demo_lift",
-                   "demo_drop", "demo_lag", "demonstration", "policy"});
+                   "demo_drop", "demo_lag", "demonstration", "policy", "velocity_limit"});
     if (task["kernels"]) c.task.kernels = io::readInt(task, "kernels", at);
     c.task.duration = io::readDouble(task, "duration", at, c.task.duration);
     if (task["ik_method"]) c.task.ik_method = io::readString(task, "ik_method", at);
     c.task.max_ik_error = io::readDouble(task, "max_ik_error", at, c.task.max_ik_error);
     c.task.max_tracking_error = io::readDouble(task, "max_tracking_error", at, c.task.max_tracking_error);
+    if (task["velocity_limit"]) {
+      const double limit = io::readDouble(task, "velocity_limit", at, 0.0);
+      if (!(limit > 0.0) || !std::isfinite(limit))
+        io::fail(at + ": 'velocity_limit' must be a finite speed > 0 [rad/s]");
+      c.task.velocity_limit = Eigen::VectorXd::Constant(1, limit);
+    }
     c.task.demo_reach = io::readDouble(task, "demo_reach", at, c.task.demo_reach);
     c.task.demo_lift = io::readDouble(task, "demo_lift", at, c.task.demo_lift);
     c.task.demo_drop = io::readDouble(task, "demo_drop", at, c.task.demo_drop);

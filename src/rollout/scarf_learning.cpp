@@ -19,12 +19,12 @@ std::string settingsText(const tasks::ScarfTaskConfig& c) {
   const auto n = [](double v) { return io::exactNumber(v); };
   text << "arm " << c.arm << "\nkernels " << c.kernels << "\nduration " << n(c.duration) << "\nhold_before "
        << n(c.hold_before) << "\nhold_after " << n(c.hold_after) << "\nsettle " << n(c.settle) << "\nrelease "
-       << (c.release ? 1 : 0) << "\nmax_tracking_error " << n(c.max_tracking_error) << "\nacceleration_weight "
-       << n(c.acceleration_weight) << "\ntorque_weight " << n(c.torque_weight) << "\nfailure_cost " << n(c.failure_cost)
-       << "\nd_ref " << n(c.camera.d_ref) << "\nhanging_level " << n(c.camera.hanging_level) << "\nalpha "
-       << n(c.camera.alpha) << "\ndistance_weight " << n(c.camera.distance_weight) << "\nhanging_weight "
-       << n(c.camera.hanging_weight) << "\nprinted " << (c.camera.printed ? 1 : 0) << "\nband " << c.camera.band
-       << "\nwaypoints";
+       << (c.release ? 1 : 0) << "\nmax_tracking_error " << n(c.max_tracking_error) << "\nvelocity_limit "
+       << n(c.velocity_limit) << "\nacceleration_weight " << n(c.acceleration_weight) << "\ntorque_weight "
+       << n(c.torque_weight) << "\nfailure_cost " << n(c.failure_cost) << "\nd_ref " << n(c.camera.d_ref)
+       << "\nhanging_level " << n(c.camera.hanging_level) << "\nalpha " << n(c.camera.alpha) << "\ndistance_weight "
+       << n(c.camera.distance_weight) << "\nhanging_weight " << n(c.camera.hanging_weight) << "\nprinted "
+       << (c.camera.printed ? 1 : 0) << "\nband " << c.camera.band << "\nwaypoints";
   for (const Eigen::Vector3d& w : c.demo_waypoints) text << ' ' << n(w.x()) << ' ' << n(w.y()) << ' ' << n(w.z());
   text << '\n';
   return text.str();
@@ -43,7 +43,7 @@ ScarfLearningConfig ScarfLearningConfig::fromYamlFile(const std::string& path) {
     const std::string at = where + " task";
     io::checkKeys(task, at,
                   {"arm", "kernels", "duration", "hold_before", "hold_after", "settle", "release", "demo_waypoints",
-                   "max_tracking_error", "acceleration_weight", "torque_weight", "failure_cost"});
+                   "max_tracking_error", "velocity_limit", "acceleration_weight", "torque_weight", "failure_cost"});
     tasks::ScarfTaskConfig& t = c.task;
     if (task["arm"]) t.arm = io::readString(task, "arm", at);
     if (task["kernels"]) t.kernels = io::readInt(task, "kernels", at);
@@ -59,6 +59,7 @@ ScarfLearningConfig ScarfLearningConfig::fromYamlFile(const std::string& path) {
       }
     }
     t.max_tracking_error = io::readDouble(task, "max_tracking_error", at, t.max_tracking_error);
+    t.velocity_limit = io::readDouble(task, "velocity_limit", at, t.velocity_limit);
     t.acceleration_weight = io::readDouble(task, "acceleration_weight", at, t.acceleration_weight);
     t.torque_weight = io::readDouble(task, "torque_weight", at, t.torque_weight);
     t.failure_cost = io::readDouble(task, "failure_cost", at, t.failure_cost);

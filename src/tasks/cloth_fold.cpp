@@ -1,14 +1,13 @@
 #include "bimanual_skills/tasks/cloth_fold.hpp"
 
-#include "bimanual_skills/control/computed_torque_controller.hpp"
-#include "bimanual_skills/control/disturbance_observer.hpp"
+#include "bimanual_skills/control/arm_controller.hpp"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/primitives/dmp_yaml.hpp"
 #include "bimanual_skills/primitives/dr_dmp.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
-#include "bimanual_skills/signal/acceleration_sign.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
+#include "bimanual_skills/tasks/in_process_control.hpp"
 
 #include <algorithm>
 #include <array>
@@ -25,9 +24,6 @@ using primitives::CartesianDmp;
 using primitives::CartesianDmpState;
 using primitives::Pose;
 
-/// Low computed-torque gains (about a tenth of libbarrett's stiff position gains; config/robots/wam.yaml).
-/// |q̈_ref| below this counts as no acceleration for the observer's friction sign [rad/s²].
-constexpr double kAccelerationDeadBand = 1e-3;
 /// Samples per second of the scripted demonstration the DMPs are fitted to.
 constexpr double kDemonstrationRate = 100.0;
 
@@ -53,8 +49,8 @@ std::unique_ptr<primitives::DrDmp> makeForcing(const ClothFoldTask& task,
 
 /// The joint references of a rollout, period by period: the two DMPs driven by the forcing terms while the
 /// movement runs, followed by one CLIK step per period from the start configuration, and ∫ ‖q̈_ref‖² dt. Open loop
-/// (nothing measured enters), so a rollout's references can be computed before it runs (ClothFoldTask::plan) or
-/// as it runs, with the same result.
+/// (nothing measured enters): a rollout's references are computed before it runs (ClothFoldTask::plan) and
+/// tracked as one trajectory.
 struct ReferenceGenerator {
   ReferenceGenerator(const std::vector<CartesianDmp>& dmps, std::unique_ptr<primitives::DrDmp> forcing,
                      const std::vector<Eigen::VectorXd>& start_q, double dt)
@@ -186,29 +182,32 @@ struct ClothFoldTask::Impl {
   control::ComputedTorqueGains gains;
   std::vector<dynamics::FrictionModel> friction;
   std::vector<bool> with_friction;
-  std::vector<std::unique_ptr<control::ComputedTorqueController>> controllers;
-  std::vector<std::unique_ptr<control::DisturbanceObserver>> observers;
-  std::vector<kinematics::ClikData> clik;
+  std::vector<control::ArmControllerConfig> controller_configs;
+  std::vector<std::unique_ptr<control::ArmController>> controllers;
   kinematics::ClikParameters clik_parameters;
   std::vector<CartesianDmp> demonstration;
   std::vector<std::vector<Pose>> demonstration_paths;
   std::vector<Eigen::VectorXd> start_q;
 
-  /// New controllers, observers and CLIK data for both arms: a rollout must not depend on which rollouts ran before
-  /// it on this task (their filters, warm starts and damping carry state).
+  /// New controllers for both arms (the robot path's ArmController, room for a whole rollout's periods): a
+  /// rollout must not depend on which rollouts ran before it on this task (filters and trajectories carry state).
   void resetControl() {
+    if (controller_configs.empty()) {
+      const double dt = simulation->stepSize();
+      const int periods =
+          static_cast<int>(std::lround((config.hold_before + config.duration + config.hold_after) / dt)) +
+          static_cast<int>(std::lround(config.settle / dt)) + 1;
+      for (int arm = 0; arm < 2; ++arm) {
+        controller_configs.push_back(inProcessControllerConfig(simulation->armModel(arm), gains,
+                                                               with_friction[static_cast<std::size_t>(arm)], dt,
+                                                               config.velocity_limit, std::max(2, periods)));
+      }
+    }
     controllers.clear();
-    observers.clear();
-    clik.clear();
     for (int arm = 0; arm < 2; ++arm) {
       const auto a = static_cast<std::size_t>(arm);
-      const kinematics::ChainModel& model = simulation->armModel(arm);
-      controllers.push_back(std::make_unique<control::ComputedTorqueController>(model, friction[a], gains));
-      controllers.back()->setFrictionCompensation(with_friction[a]);
-      control::ObserverGains observer = control::ObserverGains::diagonal(model.nq(), 10.0, 0.0, 100.0, 0.0, 10.0);
-      observer.rate_hz = 1.0 / simulation->stepSize();
-      observers.push_back(std::make_unique<control::DisturbanceObserver>(model, friction[a], observer));
-      clik.emplace_back(model, clik_parameters);
+      controllers.push_back(
+          std::make_unique<control::ArmController>(simulation->armModel(arm), friction[a], controller_configs[a]));
     }
   }
 
@@ -479,15 +478,19 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   Impl& m = *impl_;
   FoldRollout out;
   const auto wall_start = std::chrono::steady_clock::now();
-  std::unique_ptr<primitives::DrDmp> forcing = makeForcing(*this, coordination, latent_weights, out.reason);
-  if (!forcing) {
-    out.outcome = FoldOutcome::InvalidPolicy;
+  // The references first (open loop, as the robot path sends them), then the controllers track them.
+  const FoldPlan plan = this->plan(coordination, latent_weights);
+  out.acceleration_cost = plan.acceleration_cost;
+  out.max_ik_error = plan.max_ik_error;
+  if (plan.outcome != FoldOutcome::Ok) {
+    out.outcome = plan.outcome;
+    out.reason = plan.reason;
     return out;
   }
   // A new simulation and new controllers for every rollout: after reset() a simulation whose cloth was grasped
   // differs from a new one in the last bits, which the contacts amplify (0.6 mm on the cloth after a fold), and the
-  // CLIK data and controllers carry state from the last rollout; new ones make rollouts repeatable bit for bit
-  // whichever worker runs them and whatever it ran before.
+  // controllers carry state from the last rollout; new ones make rollouts repeatable bit for bit whichever worker
+  // runs them and whatever it ran before.
   sim::SimConfig sim_config = m.sim_config;
   sim_config.seed = seed;
   m.simulation = std::make_unique<sim::BimanualSimulation>(sim_config);
@@ -506,20 +509,16 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
 
   const double dt = simulation.stepSize();
   const int n = 7;
-  ReferenceGenerator references(m.demonstration, std::move(forcing), m.start_q, dt);
-  std::vector<Eigen::VectorXd>&q_ref = references.q_ref, &qd_ref = references.qd_ref, &qdd_ref = references.qdd_ref;
-  std::vector<sim::JointState> measured(2, sim::JointState(n));
-  Eigen::VectorXd torque(n), accel_sign(n);
-  std::vector<Eigen::VectorXd> applied(2, Eigen::VectorXd::Zero(n));  // torque of the last period, per arm
+  const int steps = static_cast<int>(plan.position[0].cols());
+  std::vector<control::Waypoints> waypoints;
   for (int arm = 0; arm < 2; ++arm) {
-    simulation.readJointState(arm, measured[static_cast<std::size_t>(arm)]);
-    m.observers[static_cast<std::size_t>(arm)]->reset(measured[static_cast<std::size_t>(arm)].position,
-                                                      measured[static_cast<std::size_t>(arm)].velocity);
+    const auto a = static_cast<std::size_t>(arm);
+    waypoints.push_back(plannedWaypoints(plan.position[a], plan.velocity[a], plan.acceleration[a], 0, dt));
   }
-  const int move_start = static_cast<int>(std::lround(m.config.hold_before / dt));
-  const int move_end = move_start + static_cast<int>(std::lround(m.config.duration / dt));
-  const int release = move_end + static_cast<int>(std::lround(m.config.hold_after / dt));
-  const int steps = release + static_cast<int>(std::lround(m.config.settle / dt));
+  std::vector<sim::JointState> measured(2, sim::JointState(n));
+  Eigen::VectorXd torque(n);
+  std::vector<kinematics::ChainData> commanded_kinematics;
+  for (int arm = 0; arm < 2; ++arm) commanded_kinematics.emplace_back(simulation.armModel(arm));
   const int path_every = std::max(1, static_cast<int>(std::lround(1.0 / (m.config.path_rate * dt))));
   const int cloth_every =
       m.config.cloth_rate > 0.0 ? std::max(1, static_cast<int>(std::lround(1.0 / (m.config.cloth_rate * dt)))) : 0;
@@ -532,52 +531,44 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   };
 
   for (int k = 0; k < steps && out.outcome == FoldOutcome::Ok; ++k) {
-    if (k == release) {
+    if (k == plan.release) {
       for (int arm = 0; arm < 2; ++arm) (void)simulation.release(arm);
-    }
-    const bool moving = k >= move_start && k < move_end;
-    if (!references.stepForcing(moving)) {
-      fail(FoldOutcome::InvalidPolicy, "the coordinated forcing terms are not finite");
-      break;
     }
     if (k % path_every == 0) path_times.push_back(simulation.time());
     if (cloth_every > 0 && k % cloth_every == 0) {
       out.cloth_frames.push_back(simulation.cloth().vertices());
       cloth_times.push_back(simulation.time());
     }
+    const double now = simulation.time();
     for (int arm = 0; arm < 2 && out.outcome == FoldOutcome::Ok; ++arm) {
       const auto a = static_cast<std::size_t>(arm);
-      kinematics::ClikData& clik = m.clik[a];
-      // Reference: the DMP's pose (held before and after the movement), followed by one CLIK step per period.
-      std::string reason;
-      const FoldOutcome planned = references.stepArm(arm, moving, simulation.armModel(arm), m.clik_parameters,
-                                                     simulation.basePose(arm), clik, m.config.max_ik_error, reason);
-      if (planned != FoldOutcome::Ok) {
-        fail(planned, reason);
-        break;
-      }
-
-      // The controller on the measured state.
+      control::ArmController& controller = *m.controllers[a];
       sim::JointState& state = measured[a];
       simulation.readJointState(arm, state);
-      const double tracking = (q_ref[a] - state.position).cwiseAbs().maxCoeff();
+      // The controller starts holding the arm where it stands (the plan's start), then tracks the plan from the
+      // next period on.
+      const control::ControllerStatus status = controller.update(now, now, state.position, state.velocity, torque);
+      const std::string stop =
+          controllerStopReason(status, arm, state.velocity, m.controller_configs[a].velocity_limit);
+      if (!stop.empty()) {
+        fail(FoldOutcome::ControllerFailed, stop);
+        break;
+      }
+      if (k == 0 && controller.setTrajectory(waypoints[a]) != control::TrajectoryStatus::Ok) {
+        throw std::logic_error("cloth fold: the controller refused the planned references");
+      }
+      const double tracking = controller.trackingError().cwiseAbs().maxCoeff();
       out.max_tracking_error = std::max(out.max_tracking_error, tracking);
       if (tracking > m.config.max_tracking_error) {
         fail(FoldOutcome::ControllerFailed,
              "arm " + std::to_string(arm) + " is " + std::to_string(tracking) + " rad off its references");
         break;
       }
-      if (m.controllers[a]->update(state.position, state.velocity, q_ref[a], qd_ref[a], qdd_ref[a], torque) ==
-          control::ControlStatus::InvalidInput) {
-        fail(FoldOutcome::ControllerFailed, "invalid controller input on arm " + std::to_string(arm));
-        break;
-      }
-      signal::signWithDeadBand(qdd_ref[a], kAccelerationDeadBand, accel_sign);
-      (void)m.observers[a]->update(state.position, state.velocity, applied[a], accel_sign);
-      applied[a] = torque;
       simulation.writeJointTorques(arm, torque);
       if (k % path_every == 0) {
-        commanded[a].push_back(simulation.basePose(arm) * Eigen::Vector3d(clik.kinematics.tipPose().translation()));
+        (void)kinematics::forwardKinematics(simulation.armModel(arm), commanded_kinematics[a], plan.position[a].col(k));
+        commanded[a].push_back(simulation.basePose(arm) *
+                               Eigen::Vector3d(commanded_kinematics[a].tipPose().translation()));
         actual[a].push_back(simulation.toolPose(arm).translation());
         joints[a].push_back(state.position);
       }
@@ -588,8 +579,6 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
     if (status == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the cloth diverged");
     out.max_edge_stretch = std::max(out.max_edge_stretch, simulation.cloth().maxEdgeStretch());
   }
-  out.acceleration_cost = references.acceleration_cost;
-  out.max_ik_error = references.max_ik_error;
 
   // A failure may stop the loop between the arms: keep the samples both arms have.
   const std::size_t samples = std::min({path_times.size(), commanded[0].size(), commanded[1].size()});

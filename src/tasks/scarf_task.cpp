@@ -1,15 +1,14 @@
 #include "bimanual_skills/tasks/scarf_task.hpp"
 
-#include "bimanual_skills/control/computed_torque_controller.hpp"
-#include "bimanual_skills/control/disturbance_observer.hpp"
+#include "bimanual_skills/control/arm_controller.hpp"
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
-#include "bimanual_skills/signal/acceleration_sign.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
+#include "bimanual_skills/tasks/in_process_control.hpp"
 #include "io/yaml_io.hpp"
 
 #include <algorithm>
@@ -25,8 +24,6 @@ namespace {
 constexpr double kDemonstrationRate = 100.0;
 /// Damping of the observer's torques mapped to a force on the tool (ScarfRollout::mean_force_error).
 constexpr double kForceDamping = 0.1;
-/// |q̈_ref| below this counts as no acceleration for the observer's friction sign [rad/s²].
-constexpr double kAccelerationDeadBand = 1e-3;
 
 double minimumJerk(double s) {
   return s * s * s * (10.0 + s * (-15.0 + 6.0 * s));
@@ -36,10 +33,10 @@ double minimumJerk(double s) {
 
 void ScarfTaskConfig::validate() const {
   if (kernels < 2 || !(duration > 0.0) || !(hold_before >= 0.0) || !(hold_after >= 0.0) || !(settle >= 0.0) ||
-      !(max_tracking_error > 0.0) || !(path_rate > 0.0) || !(cloth_rate >= 0.0)) {
+      !(max_tracking_error > 0.0) || !std::isfinite(velocity_limit) || !(path_rate > 0.0) || !(cloth_rate >= 0.0)) {
     throw std::invalid_argument(
         "scarf task: kernels >= 2, a positive duration, tracking limit and path rate, holds, settle and cloth rate >= "
-        "0");
+        "0, a finite velocity limit");
   }
   if (!(acceleration_weight >= 0.0) || !(torque_weight >= 0.0) || !std::isfinite(acceleration_weight) ||
       !std::isfinite(torque_weight) || !(failure_cost > 0.0) || !std::isfinite(failure_cost)) {
@@ -388,11 +385,12 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
     out.outcome = outcome;
     out.reason = reason + (t >= 0.0 ? " at t = " + std::to_string(t) + " s" : std::string());
   };
-  std::unique_ptr<primitives::DrDmp> dmp;
-  try {
-    dmp = m.dmpOf(coordination, latent_weights);
-  } catch (const std::invalid_argument& e) {
-    fail(FoldOutcome::InvalidPolicy, std::string("the policy does not fit the task's DMP: ") + e.what(), -1.0);
+  // The references first (open loop, as the robot path sends them), then the controllers track them.
+  const ScarfPlan plan = this->plan(coordination, latent_weights);
+  out.acceleration = plan.acceleration_cost;
+  if (plan.outcome != FoldOutcome::Ok) {
+    out.outcome = plan.outcome;
+    out.reason = plan.reason;
     out.cost = c.failure_cost;
     return out;
   }
@@ -409,38 +407,45 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
     return out;
   }
   const int arms = simulation.armCount();
-  std::vector<std::unique_ptr<control::ComputedTorqueController>> controllers;
-  std::vector<std::unique_ptr<control::DisturbanceObserver>> observers;
-  std::vector<sim::JointState> measured;
-  std::vector<Eigen::VectorXd> applied;
-  for (int a = 0; a < arms; ++a) {
-    const kinematics::ChainModel& model = simulation.armModel(a);
-    controllers.push_back(
-        std::make_unique<control::ComputedTorqueController>(model, m.friction[static_cast<std::size_t>(a)], m.gains));
-    controllers.back()->setFrictionCompensation(m.with_friction[static_cast<std::size_t>(a)]);
-    control::ObserverGains gains = control::ObserverGains::diagonal(model.nq(), 10.0, 0.0, 100.0, 0.0, 10.0);
-    gains.rate_hz = 1.0 / simulation.stepSize();
-    observers.push_back(
-        std::make_unique<control::DisturbanceObserver>(model, m.friction[static_cast<std::size_t>(a)], gains));
-    measured.emplace_back(model.nq());
-    simulation.readJointState(a, measured.back());
-    observers.back()->reset(measured.back().position, measured.back().velocity);
-    applied.push_back(Eigen::VectorXd::Zero(model.nq()));
-  }
-
   const double dt = simulation.stepSize();
-  const int move_start = static_cast<int>(std::lround(c.hold_before / dt));
-  const int move_end = move_start + static_cast<int>(std::lround(c.duration / dt));
-  const int release = move_end + static_cast<int>(std::lround(c.hold_after / dt));
-  const int steps = release + static_cast<int>(std::lround(c.settle / dt));
+  const int steps = plan.end;
+  const Eigen::VectorXd velocity_limit =
+      c.velocity_limit > 0.0 ? Eigen::VectorXd::Constant(1, c.velocity_limit) : Eigen::VectorXd();
+  std::vector<control::ArmControllerConfig> configs;
+  std::vector<std::unique_ptr<control::ArmController>> controllers;
+  std::vector<sim::JointState> measured;
+  for (int a = 0; a < arms; ++a) {
+    const auto i = static_cast<std::size_t>(a);
+    const kinematics::ChainModel& model = simulation.armModel(a);
+    configs.push_back(inProcessControllerConfig(model, m.gains, m.with_friction[i], dt, velocity_limit,
+                                                std::max(2, static_cast<int>(plan.position.cols()) + 1)));
+    controllers.push_back(std::make_unique<control::ArmController>(model, m.friction[i], configs.back()));
+    measured.emplace_back(model.nq());
+  }
+  // The holding arm's trajectory: at its start until the period before the motion, then the planned references;
+  // at rest at their end after it. The other arms hold where they start.
+  control::Waypoints waypoints;
+  {
+    const Eigen::Index columns = plan.position.cols() + (plan.move_start >= 1 ? 1 : 0);
+    Eigen::MatrixXd position(plan.position.rows(), columns), velocity(position.rows(), columns),
+        acceleration(position.rows(), columns);
+    position.rightCols(plan.position.cols()) = plan.position;
+    velocity.rightCols(plan.position.cols()) = plan.velocity;
+    acceleration.rightCols(plan.position.cols()) = plan.acceleration;
+    if (plan.move_start >= 1) {
+      position.col(0) = m.start[static_cast<std::size_t>(m.arm)];
+      velocity.col(0).setZero();
+      acceleration.col(0).setZero();
+    }
+    waypoints =
+        plannedWaypoints(position, velocity, acceleration, plan.move_start - (plan.move_start >= 1 ? 1 : 0), dt);
+  }
   const int path_every = std::max(1, static_cast<int>(std::lround(1.0 / (c.path_rate * dt))));
   const int cloth_every =
       c.cloth_rate > 0.0 ? std::max(1, static_cast<int>(std::lround(1.0 / (c.cloth_rate * dt)))) : 0;
   const int n = dofs();
   const kinematics::ChainModel& model = simulation.armModel(m.arm);
-  primitives::DrDmpState state = dmp->initialState();
-  Eigen::VectorXd q_ref = m.start[static_cast<std::size_t>(m.arm)], qd_ref = Eigen::VectorXd::Zero(n),
-                  qdd_ref = Eigen::VectorXd::Zero(n), torque, accel_sign(n);
+  Eigen::VectorXd torque(n);
   std::vector<Eigen::VectorXd> joints;
   std::vector<Eigen::Vector3d> tools;
   std::vector<double> path_times, cloth_times;
@@ -449,61 +454,29 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
   Eigen::Matrix<double, 6, 6> jjt;
   Eigen::Matrix<double, 6, 1> estimated;
   int torque_samples = 0;
-  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(n);
-  torque.resize(n);
-  // Why the control part stopped the rollout (described outside it: it allocates nothing).
-  enum class Stop { None, DmpNotFinite, OutOfLimits, Tracking, ControllerInput };
+  const control::ArmController& holder = *controllers[static_cast<std::size_t>(m.arm)];
   for (int k = 0; k < steps && out.outcome == FoldOutcome::Ok; ++k) {
     const double t = simulation.time();
-    if (k == release && c.release) (void)simulation.release(m.arm);
-    const bool moving = k >= move_start && k < move_end;
-    Stop stop = Stop::None;
+    if (k == plan.release && c.release) (void)simulation.release(m.arm);
+    control::ControllerStatus status = control::ControllerStatus::Ok;
     int stopped_arm = 0;
     double tracking = 0.0;
-    // The control part of the period: the DMP's step, then every arm's state read, controller, observer and torque.
+    // The control part of the period: every arm's state read, controller (with its observer) and torque.
     if (probe != nullptr) probe->begin();
-    if (moving) {
-      if (dmp->step(state, dt) == primitives::DmpStatus::InvalidInput || !state.dmp.y.allFinite()) {
-        stop = Stop::DmpNotFinite;
-      } else {
-        q_ref = state.dmp.y;
-        qd_ref = state.dmp.yd;
-        qdd_ref = state.dmp.ydd;
-        out.acceleration += qdd_ref.squaredNorm() * dt;
-        if (!model.withinLimits(q_ref, 0.0)) stop = Stop::OutOfLimits;
-      }
-    } else if (k == move_end) {
-      qd_ref.setZero();
-      qdd_ref.setZero();
-    }
-    for (int a = 0; a < arms && stop == Stop::None; ++a) {
+    for (int a = 0; a < arms; ++a) {
       const auto i = static_cast<std::size_t>(a);
       sim::JointState& s = measured[i];
       simulation.readJointState(a, s);
       const bool holding = a == m.arm;
-      const Eigen::VectorXd& reference = holding ? q_ref : m.start[i];
-      tracking = (reference - s.position).cwiseAbs().maxCoeff();
+      status = controllers[i]->update(t, t, s.position, s.velocity, torque);
       stopped_arm = a;
+      if (status != control::ControllerStatus::Ok && status != control::ControllerStatus::Saturated) break;
+      tracking = controllers[i]->trackingError().cwiseAbs().maxCoeff();
       if (holding) out.max_tracking_error = std::max(out.max_tracking_error, tracking);
-      if (tracking > c.max_tracking_error) {
-        stop = Stop::Tracking;
-        break;
-      }
-      if (controllers[i]->update(s.position, s.velocity, reference, holding ? qd_ref : zero, holding ? qdd_ref : zero,
-                                 torque) == control::ControlStatus::InvalidInput) {
-        stop = Stop::ControllerInput;
-        break;
-      }
-      if (holding) {
-        signal::signWithDeadBand(qdd_ref, kAccelerationDeadBand, accel_sign);
-      } else {
-        accel_sign.setZero();
-      }
-      (void)observers[i]->update(s.position, s.velocity, applied[i], accel_sign);
-      applied[i] = torque;
+      if (tracking > c.max_tracking_error) break;
       simulation.writeJointTorques(a, torque);
-      if (holding && k >= move_start && k < release) {
-        const Eigen::VectorXd& tau = observers[i]->externalTorque();
+      if (holding && k >= plan.move_start && k < plan.release) {
+        const Eigen::VectorXd& tau = controllers[i]->estimatedExternalTorque();
         torque_sum += tau.cwiseAbs().mean();
         out.peak_abs_torque = std::max(out.peak_abs_torque, tau.cwiseAbs().maxCoeff());
         const double force = simulation.clothWrench(a).head<3>().norm();
@@ -513,31 +486,26 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
       }
     }
     if (probe != nullptr) out.control_allocations += probe->end();
-    switch (stop) {
-      case Stop::None:
-        break;
-      case Stop::DmpNotFinite:
-        fail(FoldOutcome::InvalidPolicy, "the DMP's references are not finite", t);
-        break;
-      case Stop::OutOfLimits:
-        fail(FoldOutcome::OutOfLimits, "the DMP's references leave the joint limits", t);
-        break;
-      case Stop::Tracking:
-        fail(FoldOutcome::ControllerFailed,
-             "arm " + std::to_string(stopped_arm) + " is " + std::to_string(tracking) + " rad off its references", t);
-        break;
-      case Stop::ControllerInput:
-        fail(FoldOutcome::ControllerFailed, "invalid controller input on arm " + std::to_string(stopped_arm), t);
-        break;
+    const auto i = static_cast<std::size_t>(stopped_arm);
+    const std::string stop = controllerStopReason(status, stopped_arm, measured[i].velocity, configs[i].velocity_limit);
+    if (!stop.empty()) {
+      fail(FoldOutcome::ControllerFailed, stop, t);
+    } else if (tracking > c.max_tracking_error) {
+      fail(FoldOutcome::ControllerFailed,
+           "arm " + std::to_string(stopped_arm) + " is " + std::to_string(tracking) + " rad off its references", t);
     }
     if (out.outcome != FoldOutcome::Ok) break;
-    if (k >= move_start && k < release) {
+    if (k == 0 &&
+        controllers[static_cast<std::size_t>(m.arm)]->setTrajectory(waypoints) != control::TrajectoryStatus::Ok) {
+      throw std::logic_error("scarf task: the controller refused the planned references");
+    }
+    if (k >= plan.move_start && k < plan.release) {
       // The observer's estimate as a force on the tool, against the scarf's (both in the world frame).
       const sim::JointState& s = measured[static_cast<std::size_t>(m.arm)];
       (void)kinematics::computeJacobian(model, jacobian, s.position);
       jjt.noalias() = jacobian.jacobian * jacobian.jacobian.transpose();
       jjt.diagonal().array() += kForceDamping * kForceDamping;
-      estimated.noalias() = jacobian.jacobian * observers[static_cast<std::size_t>(m.arm)]->externalTorque();
+      estimated.noalias() = jacobian.jacobian * holder.estimatedExternalTorque();
       estimated = jjt.ldlt().solve(estimated);
       const Eigen::Vector3d force = simulation.basePose(m.arm).linear() * estimated.head<3>();
       const double error = (force - simulation.clothWrench(m.arm).head<3>()).norm();
@@ -553,9 +521,9 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
       out.cloth_frames.push_back(simulation.cloth().vertices());
       cloth_times.push_back(t);
     }
-    const sim::SimStatus status = simulation.step();
-    if (status == sim::SimStatus::ArmDiverged) fail(FoldOutcome::SimulationDiverged, "an arm diverged", t);
-    if (status == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the scarf diverged", t);
+    const sim::SimStatus status_after = simulation.step();
+    if (status_after == sim::SimStatus::ArmDiverged) fail(FoldOutcome::SimulationDiverged, "an arm diverged", t);
+    if (status_after == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the scarf diverged", t);
   }
   out.mean_abs_torque = torque_samples > 0 ? torque_sum / torque_samples : 0.0;
   out.mean_tool_force = torque_samples > 0 ? force_sum / torque_samples : 0.0;

@@ -46,8 +46,12 @@ struct ClothFoldConfig {
   std::string ik_method = "ED";     ///< CLIK method (a thesis name, e.g. "CTP+SD+SVF").
   double max_ik_error = 0.05;       ///< Task error of the CLIK references beyond which the rollout fails [m].
   double max_tracking_error = 0.3;  ///< Joint tracking error beyond which the rollout fails [rad].
-  double path_rate = 50.0;          ///< Samples per second of the recorded tool and joint paths.
-  double cloth_rate = 0.0;          ///< Cloth meshes recorded per second (FoldRollout::cloth_frames); 0: none.
+  /// The controllers' velocity monitor [rad/s] (the robot path's ArmController runs every arm; a joint faster than
+  /// this stops the rollout as ControllerFailed): one entry for every joint or one per joint; empty: the robot's
+  /// velocity limits, as `ctc_controller`'s `~velocity_limit` defaults.
+  Eigen::VectorXd velocity_limit;
+  double path_rate = 50.0;  ///< Samples per second of the recorded tool and joint paths.
+  double cloth_rate = 0.0;  ///< Cloth meshes recorded per second (FoldRollout::cloth_frames); 0: none.
   /// The scripted demonstration (deliberately imperfect, as a first kinesthetic attempt would be): the far corners
   /// are carried on arcs of radius `demo_reach` × the cloth's half length and put down `demo_drop` above the table.
   double demo_reach = 0.85, demo_lift = 0.6, demo_drop = 0.06;

@@ -45,8 +45,12 @@ struct ScarfTaskConfig {
   /// achieving the task.
   std::vector<Eigen::Vector3d> demo_waypoints;
   double max_tracking_error = 0.3;  ///< Joint tracking error beyond which the rollout fails [rad].
-  double path_rate = 50.0;          ///< Samples per second of the recorded tool and joint paths.
-  double cloth_rate = 0.0;          ///< Scarf meshes recorded per second (ScarfRollout::cloth_frames); 0: none.
+  /// The controllers' velocity monitor [rad/s] on every joint of every arm (the robot path's ArmController runs
+  /// them; a joint faster than this stops the rollout as ControllerFailed); <= 0: the robot's velocity limits, as
+  /// `ctc_controller`'s `~velocity_limit` defaults.
+  double velocity_limit = 0.0;
+  double path_rate = 50.0;  ///< Samples per second of the recorded tool and joint paths.
+  double cloth_rate = 0.0;  ///< Scarf meshes recorded per second (ScarfRollout::cloth_frames); 0: none.
 
   ScarfCameraConfig camera;
   /// camera.d_ref and camera.hanging_level from the start file's camera (referenceDistance(), hangingLevel())
