@@ -431,3 +431,27 @@ TEST(TorqueCommandGate, ClosesTheCommandsJointImpedanceBetweenCommands) {
   EXPECT_FALSE(gate.torque(2.01, q, qd, out));
   EXPECT_LT((out - torque).norm(), 1e-15) << "a torque-only command has no impedance";
 }
+
+// A command that came late: its setpoint is the one of the state it answers and moves on from that state's stamp,
+// not from when the command arrived; a stamp after the arrival or older than the timeout counts from the arrival.
+TEST(TorqueCommandGate, MovesTheSetpointOnFromTheStateTheCommandAnswers) {
+  bsim::TorqueCommandGate gate(2, 0.05, Eigen::Vector2d(2.0, 1.0));
+  Eigen::Vector2d out;
+  const Eigen::Vector2d torque(3.0, 4.0), q_d(1.0, -1.0), qd_d(0.5, -0.2), k(100.0, 10.0), d(5.0, 1.0);
+  const Eigen::Vector2d q(1.01, -0.9), qd(0.4, 0.2);
+  const auto expected = [&](double ahead) {
+    return Eigen::Vector2d(torque + k.cwiseProduct(q_d + ahead * qd_d - q) + d.cwiseProduct(qd_d - qd));
+  };
+  NoAllocGuard guard;
+  ASSERT_EQ(gate.accept(1.0, torque, q_d, qd_d, k, d, 0.97), bsim::RobotStatus::Ok);  // answers a state 30 ms old
+  EXPECT_FALSE(gate.torque(1.02, q, qd, out));
+  EXPECT_LT((out - expected(0.05)).norm(), 1e-12);
+  EXPECT_FALSE(gate.torque(1.04, q, qd, out)) << "stale by the arrival, not by the answered stamp";
+  EXPECT_LT((out - expected(0.07)).norm(), 1e-12);
+  ASSERT_EQ(gate.accept(2.0, torque, q_d, qd_d, k, d, 2.5), bsim::RobotStatus::Ok);  // a stamp ahead of the clock
+  EXPECT_FALSE(gate.torque(2.02, q, qd, out));
+  EXPECT_LT((out - expected(0.02)).norm(), 1e-12);
+  ASSERT_EQ(gate.accept(3.0, torque, q_d, qd_d, k, d, 2.9), bsim::RobotStatus::Ok);  // older than the timeout
+  EXPECT_FALSE(gate.torque(3.02, q, qd, out));
+  EXPECT_LT((out - expected(0.02)).norm(), 1e-12);
+}

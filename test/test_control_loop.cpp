@@ -358,7 +358,7 @@ TEST(ControlLoop, LockstepWithoutAnAnswerBrakesAfterItsTimeout) {
 TEST(ControlLoop, ACommandsJointImpedanceIsClosedByTheRobotUntilTheNextCommand) {
   // One command with an impedance about the arm's posture, then none: each later cycle's torque on joint 2 is the
   // effort plus K (q_d + q̇_d t − q) + D (q̇_d − q̇) of that cycle's state, until the command is stale (50 ms). Bad
-  // impedances (a negative gain) are rejected and counted.
+  // impedances (a negative gain) are rejected and counted; a stamped command's setpoint moves on from its stamp.
   FakeRobot robot;
   RecordingSink sink;
   bh::LoopSettings settings = fast();
@@ -386,6 +386,17 @@ TEST(ControlLoop, ACommandsJointImpedanceIsClosedByTheRobotUntilTheNextCommand) 
   loop.torqueCommand(1, std::nan(""), effort.data(), 7, &bad);
   ASSERT_TRUE(loop.step(1).success);
   EXPECT_EQ(loop.counts().rejected_commands, 1);
+  // A command stamped with the state it answers, 10 ms before the cycle that takes it: the setpoint is that state's
+  // and has moved on from its stamp (not from the cycle's time).
+  const double answered = robot.time() - 0.01;
+  loop.torqueCommand(1, answered, effort.data(), 7, &impedance);
+  for (int cycle = 0; cycle < 3; ++cycle) {
+    const double t = robot.time();
+    const double q = robot.q_[1][1], qd = robot.qd_[1][1];
+    ASSERT_TRUE(loop.step(1).success);
+    EXPECT_NEAR(robot.written_.back(), 1.0 + 50.0 * (q_d[1] + 0.1 * (t - answered) - q) + 2.0 * (0.1 - qd), 1e-9)
+        << "cycle " << cycle;
+  }
 }
 
 TEST(ControlLoop, BadInputGetsAClearAnswer) {

@@ -305,7 +305,7 @@ bool ControlLoop::cycle() noexcept {
           late_.fetch_add(1, std::memory_order_relaxed);
         } else if (!command->well_formed ||
                    (command->impedance ? arm.gate->accept(t, command->torque, command->position, command->velocity,
-                                                          command->stiffness, command->damping)
+                                                          command->stiffness, command->damping, command->answers)
                                        : arm.gate->accept(t, command->torque)) != sim::RobotStatus::Ok) {
           rejected_.fetch_add(1, std::memory_order_relaxed);
         }

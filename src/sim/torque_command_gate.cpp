@@ -36,7 +36,7 @@ RobotStatus TorqueCommandGate::accept(double now, const Eigen::Ref<const Eigen::
                                       const Eigen::Ref<const Eigen::VectorXd>& position,
                                       const Eigen::Ref<const Eigen::VectorXd>& velocity,
                                       const Eigen::Ref<const Eigen::VectorXd>& stiffness,
-                                      const Eigen::Ref<const Eigen::VectorXd>& damping) noexcept {
+                                      const Eigen::Ref<const Eigen::VectorXd>& damping, double setpoint_time) noexcept {
   const Eigen::Index n = command_.size();
   for (const auto* v : {&position, &velocity, &stiffness, &damping}) {
     if (v->size() != n || !v->allFinite()) return RobotStatus::InvalidCommand;
@@ -48,6 +48,8 @@ RobotStatus TorqueCommandGate::accept(double now, const Eigen::Ref<const Eigen::
   stiffness_ = stiffness;
   impedance_damping_ = damping;
   impedance_ = true;
+  setpoint_time_ =
+      std::isfinite(setpoint_time) && setpoint_time <= now && now - setpoint_time <= timeout_ ? setpoint_time : now;
   return RobotStatus::Ok;
 }
 
@@ -57,7 +59,7 @@ bool TorqueCommandGate::torque(double now, const Eigen::Ref<const Eigen::VectorX
   if (received_ && now - last_time_ <= timeout_) {
     out = command_;
     if (impedance_) {
-      const double ahead = std::max(0.0, now - last_time_);
+      const double ahead = std::max(0.0, now - setpoint_time_);
       out.array() += stiffness_.array() * (setpoint_.array() + setpoint_velocity_.array() * ahead - position.array()) +
                      impedance_damping_.array() * (setpoint_velocity_.array() - velocity.array());
     }

@@ -9,6 +9,8 @@
 
 #include "bimanual_skills/sim/robot_interface.hpp"
 
+#include <limits>
+
 #include <Eigen/Core>
 
 namespace bimanual_skills::sim {
@@ -24,12 +26,15 @@ class TorqueCommandGate {
   /// A command received at time `now`: InvalidCommand (and the previous command stays) for a wrong size or NaN/Inf.
   RobotStatus accept(double now, const Eigen::Ref<const Eigen::VectorXd>& torque) noexcept;
   /// The same with a joint impedance: setpoint `position` and `velocity`, `stiffness` [N m/rad] and `damping`
-  /// [N m s/rad] per joint (finite, the gains ≥ 0); InvalidCommand otherwise.
+  /// [N m s/rad] per joint (finite, the gains ≥ 0); InvalidCommand otherwise. The setpoint is the one of time
+  /// `setpoint_time` (the stamp of the state the command answers) and moves on at its velocity from there; NaN, a time
+  /// after `now` or one more than the timeout before it: from `now`.
   RobotStatus accept(double now, const Eigen::Ref<const Eigen::VectorXd>& torque,
                      const Eigen::Ref<const Eigen::VectorXd>& position,
                      const Eigen::Ref<const Eigen::VectorXd>& velocity,
                      const Eigen::Ref<const Eigen::VectorXd>& stiffness,
-                     const Eigen::Ref<const Eigen::VectorXd>& damping) noexcept;
+                     const Eigen::Ref<const Eigen::VectorXd>& damping,
+                     double setpoint_time = std::numeric_limits<double>::quiet_NaN()) noexcept;
 
   /// The torque to apply at `now` given the measured state: the last command (with its impedance) while fresh,
   /// else −D q̇. Returns true when braking.
@@ -47,6 +52,7 @@ class TorqueCommandGate {
   Eigen::VectorXd setpoint_, setpoint_velocity_, stiffness_, impedance_damping_;  ///< The command's impedance.
   double timeout_;
   double last_time_ = 0.0;
+  double setpoint_time_ = 0.0;  ///< When the impedance's setpoint held.
   bool received_ = false, impedance_ = false;
 };
 
