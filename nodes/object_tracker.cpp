@@ -26,6 +26,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -67,7 +68,9 @@ const char* const kUsage =
     "(bimanual_skills/TrackedObject: every frame, and\n"
     "  at 20 Hz while frames stop), ~pose (geometry_msgs/PoseWithCovarianceStamped, while tracked), ~markers (the\n"
     "  estimate, its 3-sigma ellipsoid and velocity; green tracked, red lost), ~debug_image (bgr8: the frame with\n"
-    "  the object outlined) and /diagnostics (1 Hz: state, frames, processing time).\n";
+    "  the object outlined) and /diagnostics (1 Hz: state, frames, processing time and its medians by stage: a "
+    "frame's\n"
+    "  age on arrival, the pose lookup, reading, locating).\n";
 
 class ObjectTrackerNode {
  public:
@@ -174,6 +177,7 @@ class ObjectTrackerNode {
 
   void onFrame(const sensor_msgs::Image::ConstPtr& image, const sensor_msgs::Image::ConstPtr& depth) {
     const ros::WallTime started = ros::WallTime::now();
+    arrival_age_.push_back((ros::Time::now() - image->header.stamp).toSec());
     const double t = image->header.stamp.toSec();
     problem_.clear();
     bs::vision::PinholeCamera camera;
@@ -191,11 +195,16 @@ class ObjectTrackerNode {
       camera = reader_->camera(pose);
       depth_camera = reader_->depthCamera(pose);
     }
+    const ros::WallTime posed = ros::WallTime::now();
     cv::Mat bgr, metres;
     if (problem_.empty()) problem_ = reader_->read(*image, *depth, bgr, metres);
+    const ros::WallTime read = ros::WallTime::now();
     const bs::tracking::TrackedState& state =
         tracker_->frame(t, bgr, metres, camera, depth_camera ? &*depth_camera : nullptr);
     publish(state, image->header.stamp);
+    stages_[0].push_back((posed - started).toSec());
+    stages_[1].push_back((read - posed).toSec());
+    stages_[2].push_back((ros::WallTime::now() - read).toSec());
     if (debug_.getNumSubscribers() > 0 && !bgr.empty()) {
       cv_bridge::CvImage out(image->header, "bgr8", bgr.clone());
       std::vector<std::vector<cv::Point>> contours;
@@ -309,8 +318,11 @@ class ObjectTrackerNode {
     diagnostic_msgs::DiagnosticStatus status;
     status.name = ros::this_node::getName();
     status.hardware_id = "object_tracker";
-    std::vector<double> times;
+    std::vector<double> times, arrival;
     times.swap(processing_);
+    arrival.swap(arrival_age_);
+    std::array<std::vector<double>, 3> stages;
+    for (std::size_t k = 0; k < stages.size(); ++k) stages[k].swap(stages_[k]);
     status.level = last_tracking_ ? diagnostic_msgs::DiagnosticStatus::OK : diagnostic_msgs::DiagnosticStatus::WARN;
     status.message = last_message_.empty() ? "no camera frame yet" : last_message_;
     const bs::tracking::TrackedState& s = tracker_->last();
@@ -334,6 +346,19 @@ class ObjectTrackerNode {
          << (times.empty() ? 0.0 : 1e3 * times[times.size() / 2]) << " ms, max "
          << (times.empty() ? 0.0 : 1e3 * times.back()) << " ms";
     add("last second", text.str());
+    // Where a frame's time goes, for a latency budget: its age when it reached this node (transport, the pairing of
+    // colour and depth, the queue), then the stages of its processing.
+    const auto median = [](std::vector<double>& v) {
+      if (v.empty()) return 0.0;
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
+      return 1e3 * v[v.size() / 2];
+    };
+    std::ostringstream split;
+    split.precision(3);
+    split << std::fixed << "age on arrival " << median(arrival) << " ms; the camera's pose (tf) " << median(stages[0])
+          << " ms, reading (conversion, undistortion, registration) " << median(stages[1])
+          << " ms, locating and filtering " << median(stages[2]) << " ms";
+    add("last second, medians", split.str());
     add("frames, measured, accepted, rejected, dropped",
         std::to_string(s.frames) + ", " + std::to_string(s.measured) + ", " + std::to_string(s.accepted) + ", " +
             std::to_string(s.rejected) + ", " + std::to_string(s.dropped));
@@ -360,7 +385,9 @@ class ObjectTrackerNode {
   std::unique_ptr<Sync> sync_;
   ros::Timer stop_timer_;
   ros::SteadyTimer diagnostics_timer_;
-  std::vector<double> processing_;  ///< Wall time of each frame since the last diagnostics [s].
+  std::vector<double> processing_;   ///< Wall time of each frame since the last diagnostics [s].
+  std::vector<double> arrival_age_;  ///< Each frame's age (this node's clock − its stamp) when it arrived [s].
+  std::array<std::vector<double>, 3> stages_;  ///< Pose lookup, reading, locating and filtering, per frame [s].
   std::string last_message_;
   bool last_tracking_ = false;
 };
