@@ -144,6 +144,7 @@ class Rig {
         target.tracking = s.tracking;
         target.position = s.position;
         target.velocity = s.velocity;
+        target.measured = s.last_accepted;
         pending.push_back({t + settings_.latency, target});
         next_frame += 1.0 / kCameraRate;
         if (was_tracking && !s.tracking) {

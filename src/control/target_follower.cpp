@@ -80,6 +80,9 @@ void TargetFollowerConfig::validate(int joints) const {
   if (!finitePositive(grasp_speed, 10.0)) fail("grasp_speed must lie in (0, 10] m/s");
   if (!finitePositive(follow_tolerance, 1.0)) fail("follow_tolerance must lie in (0, 1] m");
   if (!finitePositive(approach_speed, 10.0)) fail("approach_speed must lie in (0, 10] m/s");
+  if (!finitePositive(speed_time_constant, 10.0) || !finitePositive(position_time_constant, 10.0)) {
+    fail("speed_time_constant and position_time_constant must lie in (0, 10] s");
+  }
   if (!finitePositive(grasp_tolerance, 1.0)) fail("grasp_tolerance must lie in (0, 1] m");
   if (clik_iterations < 1 || clik_iterations > 100) fail("clik_iterations must lie in [1, 100]");
   clik.validate();
@@ -136,7 +139,7 @@ void TargetFollower::start(double t, const Eigen::Ref<const Eigen::VectorXd>& q,
   offset_ = 1.0;
   followed_since_ = t;
   jumped_at_ = -1e300;
-  last_stamp_ = used_stamp_ = std::numeric_limits<double>::quiet_NaN();
+  last_stamp_ = used_stamp_ = filtered_stamp_ = std::numeric_limits<double>::quiet_NaN();
   grasp_answered_ = false;
   phase_ = FollowPhase::Holding;
   reason_ = HoldReason::NoTarget;
@@ -179,16 +182,34 @@ bool TargetFollower::update(double t, const FollowTarget& target,
     why = HoldReason::Invalid;
   } else if (!target.tracking) {
     why = HoldReason::NoTarget;
-    last_stamp_ = std::numeric_limits<double>::quiet_NaN();  // a target found again is not a jump from the lost one
+    // A target found again is not a jump from the lost one, nor filtered with it.
+    last_stamp_ = filtered_stamp_ = std::numeric_limits<double>::quiet_NaN();
   } else {
     if (target.stamp != last_stamp_) {
       if (std::isfinite(last_stamp_)) {
         const Eigen::Vector3d predicted = last_position_ + last_velocity_ * (target.stamp - last_stamp_);
-        if ((target.position - predicted).norm() > config_.jump) jumped_at_ = t;
+        if ((target.position - predicted).norm() > config_.jump) {
+          jumped_at_ = t;
+          filtered_stamp_ = std::numeric_limits<double>::quiet_NaN();  // the new place is filtered afresh
+        }
       }
       last_stamp_ = target.stamp;
       last_position_ = target.position;
       last_velocity_ = target.velocity;
+      // The filters take each measured estimate once (a prediction of a hidden object is left out).
+      if (!std::isfinite(target.measured) || target.measured >= target.stamp) {
+        if (!std::isfinite(filtered_stamp_)) {
+          filtered_position_ = target.position;
+          filtered_velocity_ = target.velocity;
+        } else {
+          const double h = std::max(0.0, target.stamp - filtered_stamp_);
+          filtered_velocity_ +=
+              (1.0 - std::exp(-h / config_.speed_time_constant)) * (target.velocity - filtered_velocity_);
+          filtered_position_ +=
+              (1.0 - std::exp(-h / config_.position_time_constant)) * (target.position - filtered_position_);
+        }
+        filtered_stamp_ = target.stamp;
+      }
     }
     if (t - target.stamp > config_.max_age) {
       why = HoldReason::Stale;
@@ -212,8 +233,8 @@ bool TargetFollower::update(double t, const FollowTarget& target,
     }
     used_stamp_ = target.stamp;
     const double age = std::max(0.0, t - target.stamp);
-    const Eigen::Vector3d grasp_point = target.position + target.velocity * age + config_.grasp_offset;
-    const double speed = target.velocity.norm();
+    const bool filtered = std::isfinite(filtered_stamp_);
+    const double speed = filtered ? filtered_velocity_.norm() : target.velocity.norm();
     if (grasp_ && phase_ == FollowPhase::Following && t - followed_since_ >= config_.track_time &&
         speed < config_.grasp_speed && tool_error_ < config_.follow_tolerance) {
       phase_ = FollowPhase::Approaching;  // from wherever the offset stands: slow spells add up
@@ -224,6 +245,11 @@ bool TargetFollower::update(double t, const FollowTarget& target,
     const double share = length > 0.0 ? config_.approach_speed * dt / length : 1.0;
     const bool closer = phase_ == FollowPhase::Approaching || phase_ == FollowPhase::Closing;
     offset_ = std::clamp(offset_ + (closer ? -share : share), 0.0, 1.0);
+    // Following, the object's estimate predicted to now; on the approach and the grasp (a slow object), where it was
+    // measured, filtered: neither its noise nor the prediction of an object the hand hides moves the tool.
+    const Eigen::Vector3d grasp_point =
+        (closer && filtered ? filtered_position_ : Eigen::Vector3d(target.position + target.velocity * age)) +
+        config_.grasp_offset;
     goal_ = grasp_point + offset_ * config_.pregrasp;
     q_goal_previous_ = q_goal_;
     if (!solve(goal_)) {

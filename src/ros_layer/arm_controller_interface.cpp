@@ -64,6 +64,8 @@ const char* const kControllerParameterHelp =
     "                        [m] (0.05) from where the last predicted it, for settle [s] (0.5)\n"
     "  follow/track_time, follow/grasp_speed, follow/follow_tolerance  approach once followed this long [s] (2),\n"
     "                        the object slower than grasp_speed [m/s] (0.03), the tool this near [m] (0.02)\n"
+    "  follow/speed_time_constant, follow/position_time_constant  low-pass filters [s] (0.3, 0.1) on the measured\n"
+    "                        estimates: the approach's speed, and its grasp point (held where last measured)\n"
     "  follow/approach_speed, follow/grasp_tolerance  [m/s] (0.1); close within this of the grasp point [m] (0.01)\n"
     "  follow/clik_iterations  CLIK steps per update (3)\n";
 
@@ -198,6 +200,8 @@ ControllerSettings readControllerSettings(ParameterReader& p, const std::string&
     f.settle = p.number("follow/settle", f.settle, 0.0, 60.0);
     f.track_time = p.number("follow/track_time", f.track_time, 0.0, 3600.0);
     f.grasp_speed = p.number("follow/grasp_speed", f.grasp_speed, 1e-4, 10.0);
+    f.speed_time_constant = p.number("follow/speed_time_constant", f.speed_time_constant, 1e-3, 10.0);
+    f.position_time_constant = p.number("follow/position_time_constant", f.position_time_constant, 1e-3, 10.0);
     f.follow_tolerance = p.number("follow/follow_tolerance", f.follow_tolerance, 1e-4, 1.0);
     f.approach_speed = p.number("follow/approach_speed", f.approach_speed, 1e-4, 10.0);
     f.grasp_tolerance = p.number("follow/grasp_tolerance", f.grasp_tolerance, 1e-4, 1.0);
@@ -483,6 +487,7 @@ void ArmControllerInterface::onTarget(const bimanual_skills::TrackedObject::Cons
   const auto& p = message->pose.pose.position;
   target.position = Eigen::Vector3d(p.x, p.y, p.z);
   target.velocity = Eigen::Vector3d(message->velocity.x, message->velocity.y, message->velocity.z);
+  if (!message->last_accepted.isZero()) target.measured = message->last_accepted.toSec();
   std::string problem;
   if (message->header.frame_id != settings_.world_frame) {
     problem = "the target is in frame '" + message->header.frame_id + "', the robot's root is '" +

@@ -11,9 +11,11 @@
 /// where the last one predicted it: it settles for `settle` before following again), and says why. Once it has followed
 /// without a hold for track_time, the target moves slower than grasp_speed and the tool is within follow_tolerance of
 /// its goal, the offset shrinks at approach_speed towards the grasp point, and grows back while the target moves faster
-/// than twice grasp_speed (slow spells add up; the track goes on); at the grasp point, within grasp_tolerance, it asks
-/// for the gripper to close (graspRequested) and waits for the answer (graspDone): held, it stays there; refused, it
-/// backs off to the pre-grasp point and tries again. Construction allocates; everything else is real-time safe.
+/// than twice grasp_speed (slow spells add up; the track goes on); the speed is the low-pass filtered one of the
+/// measured estimates, and on the approach the grasp point their filtered position; at the grasp point, within
+/// grasp_tolerance, it asks for the gripper to close (graspRequested) and waits for the answer (graspDone): held, it
+/// stays there; refused, it backs off to the pre-grasp point and tries again. Construction allocates; everything else
+/// is real-time safe.
 #pragma once
 
 #include "bimanual_skills/control/joint_trajectory.hpp"
@@ -33,6 +35,9 @@ struct FollowTarget {
   bool tracking = false;
   Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< Its centre [m].
   Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< [m/s].
+  /// The stamp of the last frame whose measurement the estimate took in (TrackedObject::last_accepted): an estimate
+  /// with an older one is a prediction (the object not seen, e.g. hidden by the hand). NaN: every estimate is measured.
+  double measured = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct TargetFollowerConfig {
@@ -58,9 +63,15 @@ struct TargetFollowerConfig {
   double grasp_speed = 0.03;           ///< [m/s] the target must be slower than to approach.
   double follow_tolerance = 0.02;      ///< [m] the tool within this of the pre-grasp point to approach.
   double approach_speed = 0.05;        ///< [m/s] of the offset's change on the approach (and back).
-  double grasp_tolerance = 0.01;       ///< [m] the tool within this of the grasp point: close the gripper.
-  int clik_iterations = 3;             ///< CLIK steps per update.
-  kinematics::ClikParameters clik;     ///< The thesis' defaults (CTP with SVF and selective damping).
+  /// τ [s] of the low-pass filters on the measured estimates (predictions are left out): the approach is gated on the
+  /// filtered velocity's norm, and on the approach and the grasp the grasp point is the filtered position, not
+  /// extrapolated, so that an estimate's noise (a depth camera's jitter) neither switches the approach on and off nor
+  /// moves the tool, and an object hidden by the hand leaves the grasp point where it was last seen.
+  double speed_time_constant = 0.3;
+  double position_time_constant = 0.1;
+  double grasp_tolerance = 0.01;    ///< [m] the tool within this of the grasp point: close the gripper.
+  int clik_iterations = 3;          ///< CLIK steps per update.
+  kinematics::ClikParameters clik;  ///< The thesis' defaults (CTP with SVF and selective damping).
 
   /// \throws std::invalid_argument naming the entry out of range (sizes checked against `joints` when > 0).
   void validate(int joints) const;
@@ -138,6 +149,9 @@ class TargetFollower {
   HoldReason reason_ = HoldReason::None;
   double t_ = 0.0, followed_since_ = 0.0, jumped_at_ = -1e300, last_stamp_ = std::numeric_limits<double>::quiet_NaN();
   double used_stamp_ = std::numeric_limits<double>::quiet_NaN();
+  /// The filtered measured estimate (speed_time_constant, position_time_constant) and the stamp it holds (NaN: none).
+  Eigen::Vector3d filtered_position_ = Eigen::Vector3d::Zero(), filtered_velocity_ = Eigen::Vector3d::Zero();
+  double filtered_stamp_ = std::numeric_limits<double>::quiet_NaN();
   double offset_ = 1.0;  ///< Share of the pre-grasp offset applied (1 following, 0 at the grasp point).
   double tool_error_ = 0.0;
   bool goal_valid_ = false, grasp_answered_ = false, grasp_ = true;
