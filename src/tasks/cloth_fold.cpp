@@ -189,25 +189,15 @@ struct ClothFoldTask::Impl {
   std::vector<std::vector<Pose>> demonstration_paths;
   std::vector<Eigen::VectorXd> start_q;
 
-  /// New controllers for both arms (the robot path's ArmController, room for a whole rollout's periods): a
+  /// New controllers for both arms (the robot path's ArmController) with room for a plan of `periods` periods: a
   /// rollout must not depend on which rollouts ran before it on this task (filters and trajectories carry state).
-  void resetControl() {
-    if (controller_configs.empty()) {
-      const double dt = simulation->stepSize();
-      const int periods =
-          static_cast<int>(std::lround((config.hold_before + config.duration + config.hold_after) / dt)) +
-          static_cast<int>(std::lround(config.settle / dt)) + 1;
-      for (int arm = 0; arm < 2; ++arm) {
-        controller_configs.push_back(inProcessControllerConfig(simulation->armModel(arm), gains,
-                                                               with_friction[static_cast<std::size_t>(arm)], dt,
-                                                               config.velocity_limit, std::max(2, periods)));
-      }
-    }
+  void resetControl(int periods) {
     controllers.clear();
     for (int arm = 0; arm < 2; ++arm) {
       const auto a = static_cast<std::size_t>(arm);
-      controllers.push_back(
-          std::make_unique<control::ArmController>(simulation->armModel(arm), friction[a], controller_configs[a]));
+      control::ArmControllerConfig c = controller_configs[a];
+      c.trajectory_capacity = std::max(2, periods);
+      controllers.push_back(std::make_unique<control::ArmController>(simulation->armModel(arm), friction[a], c));
     }
   }
 
@@ -299,8 +289,10 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
     }
     m.friction.push_back(friction);
     m.with_friction.push_back(with_friction);
+    // Checked here (a bad velocity limit is refused at once); the capacity is each rollout's plan's.
+    m.controller_configs.push_back(
+        inProcessControllerConfig(model, m.gains, with_friction, m.simulation->stepSize(), config.velocity_limit, 2));
   }
-  m.resetControl();
 
   // The demonstration: the scripted arcs fitted by two Cartesian DMPs; the start configurations by global IK.
   primitives::DmpParameters dmp;
@@ -494,7 +486,6 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   sim::SimConfig sim_config = m.sim_config;
   sim_config.seed = seed;
   m.simulation = std::make_unique<sim::BimanualSimulation>(sim_config);
-  m.resetControl();
   sim::BimanualSimulation& simulation = *m.simulation;
   std::vector<sim::ArmState> start;
   for (const Eigen::VectorXd& q : m.start_q) start.push_back({q, Eigen::VectorXd::Zero(q.size())});
@@ -510,6 +501,7 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   const double dt = simulation.stepSize();
   const int n = 7;
   const int steps = static_cast<int>(plan.position[0].cols());
+  m.resetControl(steps);
   std::vector<control::Waypoints> waypoints;
   for (int arm = 0; arm < 2; ++arm) {
     const auto a = static_cast<std::size_t>(arm);
