@@ -3,16 +3,20 @@
 // std::normal_distribution on a std::mt19937 (the peer); and the reward's image terms (segmentation, minimum-area
 // rectangle, Sobel) on the rendered images; the perspective RGB-D camera (640 × 480, Kinect-like errors) and the
 // re-projection of its depth into the 320 × 240 map; the tracking experiment's frame (the camera over a can) and
-// the can located in it, beside a naive centroid. Seed 7 for the noise.
+// the can located in it, beside a naive centroid; a Kinect's raw frame read (rectified, registered), beside a
+// registration that turns every pixel corner per frame. Seed 7 for the noise.
 //
 //   vision_bench [--benchmark_format=json] [--benchmark_repetitions=N] ...
 //   vision_bench --figures      writes the flat and half-folded cloth's images as PNG into the current directory
 #include "bench_timing.hpp"
 #include "benchmark_main.hpp"
+#include "bimanual_skills/vision/camera_calibration.hpp"
 #include "bimanual_skills/vision/cloth_renderer.hpp"
+#include "bimanual_skills/vision/depth_registration.hpp"
 #include "bimanual_skills/vision/image_reward.hpp"
 #include "bimanual_skills/vision/object_locator.hpp"
 #include "bimanual_skills/vision/perspective_camera.hpp"
+#include "bimanual_skills/vision/raw_rgbd_sensor.hpp"
 #include "bimanual_skills/vision/synthetic_cloth.hpp"
 
 #include <benchmark/benchmark.h>
@@ -22,6 +26,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <string>
 
@@ -154,6 +159,115 @@ void BM_TrackingFrame(benchmark::State& state) {
   if (stage > 0) state.counters["error_mm"] = 1e3 * error;
 }
 
+/// The naive registration, DepthRegistration as it was before it kept its corners' rays: each pixel's four corners
+/// back-projected through the depth intrinsics and turned by the 3 × 3 rotation, per frame.
+void naiveRegistration(const cv::Mat& depth, const bv::PinholeCamera& d, const bv::PinholeCamera& c,
+                       const Eigen::Isometry3d& colour_from_depth, cv::Mat& out) {
+  const float far = std::numeric_limits<float>::infinity();
+  out.create(c.height, c.width, CV_32FC1);
+  out.setTo(far);
+  const Eigen::Matrix3d r = colour_from_depth.linear();
+  const Eigen::Vector3d t = colour_from_depth.translation();
+  for (int v = 0; v < depth.rows; ++v) {
+    const float* row = depth.ptr<float>(v);
+    for (int u = 0; u < depth.cols; ++u) {
+      const double z = row[u];
+      if (!(z > 0.0) || !std::isfinite(z)) continue;
+      double u_lo = std::numeric_limits<double>::infinity(), u_hi = -u_lo, v_lo = u_lo, v_hi = -u_lo, zc = 0.0;
+      bool in_front = true;
+      for (const double du : {-0.5, 0.5}) {
+        for (const double dv : {-0.5, 0.5}) {
+          const Eigen::Vector3d p = r * Eigen::Vector3d((u + du - d.cx) / d.fx * z, (v + dv - d.cy) / d.fy * z, z) + t;
+          in_front = in_front && p.z() > 0.0;
+          const double uc = c.fx * p.x() / p.z() + c.cx, vc = c.fy * p.y() / p.z() + c.cy;
+          u_lo = std::min(u_lo, uc);
+          u_hi = std::max(u_hi, uc);
+          v_lo = std::min(v_lo, vc);
+          v_hi = std::max(v_hi, vc);
+          zc += 0.25 * p.z();
+        }
+      }
+      if (!in_front) continue;
+      const int c0 = std::max(0, static_cast<int>(std::ceil(u_lo - 1e-9))),
+                c1 = std::min(c.width - 1, static_cast<int>(std::floor(u_hi + 1e-9)));
+      const int r0 = std::max(0, static_cast<int>(std::ceil(v_lo - 1e-9))),
+                r1 = std::min(c.height - 1, static_cast<int>(std::floor(v_hi + 1e-9)));
+      if (c0 > c1 || r0 > r1) {
+        const long cu = std::lround(0.5 * (u_lo + u_hi)), cv = std::lround(0.5 * (v_lo + v_hi));
+        if (cu < 0 || cv < 0 || cu >= c.width || cv >= c.height) continue;
+        float& cell = out.at<float>(static_cast<int>(cv), static_cast<int>(cu));
+        cell = std::min(cell, static_cast<float>(zc));
+        continue;
+      }
+      for (int rr = r0; rr <= r1; ++rr) {
+        for (int cc = c0; cc <= c1; ++cc) out.at<float>(rr, cc) = std::min(out.at<float>(rr, cc), float(zc));
+      }
+    }
+  }
+  out.setTo(std::numeric_limits<float>::quiet_NaN(), out == far);
+}
+
+/// Reading a Kinect's raw frame (RawRgbdSensor at 640 × 480 over the tracking experiment's can, the arms' reading
+/// in object_tracker and the learners' RgbdReader): args {stage: 0 the colour rectified, 1 the depth to metres and
+/// rectified, 2 the depth registered into the colour camera, 3 its baseline (naiveRegistration)}. Counters: the
+/// registered depth's largest difference from the baseline's where either has one [mm], and the pixels where only
+/// one has.
+void BM_RawRgbdReading(benchmark::State& state) {
+  bv::ClothRendererParameters p = scene(320, 240);
+  bv::RawRgbdSensorConfig config;
+  config.colour = bv::PinholeCamera::lookingAt(Eigen::Vector3d(1.15, 0.0, p.table.height + 1.3),
+                                               Eigen::Vector3d(0.5, 0.0, p.table.height));
+  bv::RawRgbdSensor sensor(p, config);
+  bv::SceneSolid can;
+  can.shape = bv::SceneSolid::Shape::Cylinder;
+  can.size = Eigen::Vector3d(0.033, 0.12, 0.0);
+  can.colour = Eigen::Vector3d(0.95, 0.45, 0.08);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.translation() = Eigen::Vector3d(0.5, 0.1, p.table.height + 0.23);
+  sensor.setMovingPose(sensor.addMovingSolid(can), pose);
+  std::mt19937 rng(kSeed);
+  (void)sensor.render(Eigen::Matrix3Xd(3, 0), Eigen::Matrix3Xi(3, 0), rng);
+  const bv::Rectifier colour(sensor.colourCalibration()), depth(sensor.depthCalibration());
+  const bv::PinholeCamera depth_camera = sensor.depthCalibration().rectifiedCamera(),
+                          colour_camera = sensor.colourCalibration().rectifiedCamera();
+  const bv::DepthRegistration registration(depth_camera, colour_camera, config.colour_from_depth);
+  cv::Mat bgr, metres, rectified, registered, naive;
+  (void)bv::depthToMetres(sensor.depthMillimetres(), true, metres);
+  (void)depth.rectifyDepth(metres, rectified);
+  const int stage = static_cast<int>(state.range(0));
+  timeBatches(
+      state, 1,
+      [&](int) {
+        if (stage == 0) {
+          benchmark::DoNotOptimize(colour.rectifyColour(sensor.rawBgr(), bgr));
+        } else if (stage == 1) {
+          benchmark::DoNotOptimize(bv::depthToMetres(sensor.depthMillimetres(), true, metres));
+          benchmark::DoNotOptimize(depth.rectifyDepth(metres, rectified));
+        } else if (stage == 2) {
+          benchmark::DoNotOptimize(registration.registerDepth(rectified, registered));
+        } else {
+          naiveRegistration(rectified, depth_camera, colour_camera, config.colour_from_depth, naive);
+        }
+        benchmark::DoNotOptimize(bgr.data);
+      },
+      1);
+  if (stage >= 2) {
+    (void)registration.registerDepth(rectified, registered);
+    naiveRegistration(rectified, depth_camera, colour_camera, config.colour_from_depth, naive);
+    double largest = 0.0;
+    int one_only = 0;
+    for (int v = 0; v < naive.rows; ++v) {
+      for (int u = 0; u < naive.cols; ++u) {
+        const float a = registered.at<float>(v, u), b = naive.at<float>(v, u);
+        if (std::isfinite(a) != std::isfinite(b)) ++one_only;
+        if (std::isfinite(a) && std::isfinite(b)) largest = std::max(largest, std::abs(double(a) - b));
+      }
+    }
+    state.counters["vs_baseline_mm"] = 1e3 * largest;
+    state.counters["vs_baseline_holes"] = one_only;
+  }
+}
+
 /// The peer of the noise: the same per-pixel draws (depth and three colour channels) from std::normal_distribution
 /// on the std::mt19937 itself.
 void BM_NoiseWithStdNormal(benchmark::State& state) {
@@ -273,6 +387,7 @@ BENCHMARK(BM_PerspectiveCamera)
     ->ArgNames({"folded", "reproject"})
     ->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_TrackingFrame)->DenseRange(0, 2)->ArgName("stage")->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_RawRgbdReading)->DenseRange(0, 3)->ArgName("stage")->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_NoiseWithStdNormal)->Arg(320)->Arg(640)->ArgName("columns")->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_NoiseWithOpenCv)->Arg(320)->Arg(640)->ArgName("columns")->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_ImageReward)

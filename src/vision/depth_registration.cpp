@@ -19,6 +19,14 @@ DepthRegistration::DepthRegistration(const PinholeCamera& depth, const PinholeCa
       (r * r.transpose() - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6 || r.determinant() < 0.0) {
     throw std::invalid_argument("depth registration: the transform between the cameras is not rigid and finite");
   }
+  const int corners_x = depth.width + 1;
+  corner_rays_.resize(3, static_cast<Eigen::Index>(corners_x) * (depth.height + 1));
+  for (int v = 0; v <= depth.height; ++v) {
+    for (int u = 0; u < corners_x; ++u) {
+      corner_rays_.col(static_cast<Eigen::Index>(v) * corners_x + u) =
+          r * Eigen::Vector3d((u - 0.5 - depth.cx) / depth.fx, (v - 0.5 - depth.cy) / depth.fy, 1.0);
+    }
+  }
 }
 
 bool DepthRegistration::registerDepth(const cv::Mat& depth, cv::Mat& out) const {
@@ -26,8 +34,8 @@ bool DepthRegistration::registerDepth(const cv::Mat& depth, cv::Mat& out) const 
   const float far = std::numeric_limits<float>::infinity();
   out.create(colour_.height, colour_.width, CV_32FC1);
   out.setTo(far);
-  const Eigen::Matrix3d r = colour_from_depth_.linear();
   const Eigen::Vector3d t = colour_from_depth_.translation();
+  const Eigen::Index corners_x = depth.cols + 1;
   for (int v = 0; v < depth.rows; ++v) {
     const float* row = depth.ptr<float>(v);
     for (int u = 0; u < depth.cols; ++u) {
@@ -36,10 +44,9 @@ bool DepthRegistration::registerDepth(const cv::Mat& depth, cv::Mat& out) const 
       // The pixel's four corners at its depth, in the colour camera: the footprint it covers there.
       double u_lo = std::numeric_limits<double>::infinity(), u_hi = -u_lo, v_lo = u_lo, v_hi = -u_lo, zc = 0.0;
       bool in_front = true;
-      for (const double du : {-0.5, 0.5}) {
-        for (const double dv : {-0.5, 0.5}) {
-          const Eigen::Vector3d p =
-              r * Eigen::Vector3d((u + du - depth_.cx) / depth_.fx * z, (v + dv - depth_.cy) / depth_.fy * z, z) + t;
+      for (const Eigen::Index du : {0, 1}) {
+        for (const Eigen::Index dv : {0, 1}) {
+          const Eigen::Vector3d p = z * corner_rays_.col((v + dv) * corners_x + u + du) + t;
           if (!(p.z() > 0.0)) {
             in_front = false;
             break;

@@ -4,7 +4,9 @@
 /// depth_image_proc/register give. Each depth pixel with a return is back-projected through the depth camera's
 /// intrinsics, moved into the colour camera's optical frame and projected there; its footprint (the projections of
 /// its four corners) is filled with its z where nothing nearer lies (a z-buffer), so that a colour image finer than
-/// the depth image has no holes between the points. Pixels no point reaches are NaN.
+/// the depth image has no holes between the points. Pixels no point reaches are NaN. The corners' rays, turned into
+/// the colour camera, are computed once (a 3-vector per corner of the depth image), so that a pixel costs its four
+/// corners' scaling and projection.
 #pragma once
 
 #include "bimanual_skills/vision/perspective_camera.hpp"
@@ -29,6 +31,9 @@ class DepthRegistration {
  private:
   PinholeCamera depth_, colour_;
   Eigen::Isometry3d colour_from_depth_;
+  /// Column (v · (width + 1) + u): the ray through the depth image's pixel corner (u − ½, v − ½) at unit depth,
+  /// in the colour camera's axes (R [(u − ½ − cx)/fx, (v − ½ − cy)/fy, 1]ᵀ).
+  Eigen::Matrix3Xd corner_rays_;
 };
 
 }  // namespace bimanual_skills::vision
