@@ -27,6 +27,11 @@ std::string settingsText(const tasks::ScarfTaskConfig& c) {
        << (c.camera.printed ? 1 : 0) << "\nband " << c.camera.band << "\nwaypoints";
   for (const Eigen::Vector3d& w : c.demo_waypoints) text << ' ' << n(w.x()) << ' ' << n(w.y()) << ' ' << n(w.z());
   text << '\n';
+  if (c.clear_posture.size() > 0) {  // a learning without the move reads as before it existed
+    text << "clear_time " << n(c.clear_time) << "\nclear_posture";
+    for (const double q : c.clear_posture) text << ' ' << n(q);
+    text << '\n';
+  }
   return text.str();
 }
 
@@ -42,8 +47,9 @@ ScarfLearningConfig ScarfLearningConfig::fromYamlFile(const std::string& path) {
   if (const YAML::Node task = root["task"]) {
     const std::string at = where + " task";
     io::checkKeys(task, at,
-                  {"arm", "kernels", "duration", "hold_before", "hold_after", "settle", "release", "demo_waypoints",
-                   "max_tracking_error", "velocity_limit", "acceleration_weight", "torque_weight", "failure_cost"});
+                  {"arm", "kernels", "duration", "hold_before", "hold_after", "settle", "release", "clear_posture",
+                   "clear_time", "demo_waypoints", "max_tracking_error", "velocity_limit", "acceleration_weight",
+                   "torque_weight", "failure_cost"});
     tasks::ScarfTaskConfig& t = c.task;
     if (task["arm"]) t.arm = io::readString(task, "arm", at);
     if (task["kernels"]) t.kernels = io::readInt(task, "kernels", at);
@@ -52,6 +58,8 @@ ScarfLearningConfig ScarfLearningConfig::fromYamlFile(const std::string& path) {
     t.hold_after = io::readDouble(task, "hold_after", at, t.hold_after);
     t.settle = io::readDouble(task, "settle", at, t.settle);
     if (task["release"]) t.release = io::readBool(task, "release", at);
+    if (task["clear_posture"]) t.clear_posture = io::readVector(task, "clear_posture", at);
+    t.clear_time = io::readDouble(task, "clear_time", at, t.clear_time);
     if (const YAML::Node points = task["demo_waypoints"]) {
       if (!points.IsSequence()) io::fail(at + ": 'demo_waypoints' must be a list of [x, y, z]");
       for (std::size_t k = 0; k < points.size(); ++k) {

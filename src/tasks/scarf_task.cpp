@@ -24,6 +24,9 @@ namespace {
 constexpr double kDemonstrationRate = 100.0;
 /// Damping of the observer's torques mapped to a force on the tool (ScarfRollout::mean_force_error).
 constexpr double kForceDamping = 0.1;
+/// How far the tool rises after it lets go before the arm goes to clear_posture [m], and the largest joint step that
+/// lift may take [rad] (else the arm goes straight).
+constexpr double kClearLift = 0.15, kMaxLiftStep = 1.0;
 
 double minimumJerk(double s) {
   return s * s * s * (10.0 + s * (-15.0 + 6.0 * s));
@@ -41,6 +44,12 @@ void ScarfTaskConfig::validate() const {
   if (!(acceleration_weight >= 0.0) || !(torque_weight >= 0.0) || !std::isfinite(acceleration_weight) ||
       !std::isfinite(torque_weight) || !(failure_cost > 0.0) || !std::isfinite(failure_cost)) {
     throw std::invalid_argument("scarf task: finite acceleration_weight, torque_weight >= 0 and failure_cost > 0");
+  }
+  if (!clear_posture.allFinite() || !std::isfinite(clear_time) || clear_time < 0.0 || clear_time > settle ||
+      (clear_posture.size() > 0) != (clear_time > 0.0)) {
+    throw std::invalid_argument(
+        "scarf task: clear_posture (finite joints) and a clear_time in (0, settle] go together (neither: the arm "
+        "stays where it lets go)");
   }
   for (const Eigen::Vector3d& w : demo_waypoints) {
     if (!w.allFinite()) throw std::invalid_argument("scarf task: a demonstration waypoint is not finite");
@@ -176,6 +185,11 @@ ScarfTask::ScarfTask(const ScarfTaskConfig& config) : impl_(std::make_unique<Imp
   }
   m.triangles = simulation.cloth().triangles();
   m.model = std::make_unique<kinematics::ChainModel>(simulation.armModel(m.arm));
+  if (config.clear_posture.size() > 0 &&
+      (config.clear_posture.size() != n || !m.model->withinLimits(config.clear_posture, 0.0))) {
+    throw std::invalid_argument("scarf task: clear_posture needs " + std::to_string(n) + " joints of arm '" +
+                                config.arm + "' within its limits");
+  }
   m.base = simulation.basePose(m.arm);
   for (int a = 0; a < simulation.armCount(); ++a) m.joint_names.push_back(simulation.armModel(a).jointNames());
   m.dmp.dmp.kernels = config.kernels;
@@ -331,6 +345,7 @@ ScarfPlan ScarfTask::plan(const std::vector<Eigen::MatrixXd>& coordination,
   out.move_start = static_cast<int>(std::lround(c.hold_before / out.dt));
   out.move_end = out.move_start + static_cast<int>(std::lround(c.duration / out.dt));
   out.release = out.move_end + static_cast<int>(std::lround(c.hold_after / out.dt));
+  out.clear_end = out.release + static_cast<int>(std::lround(c.clear_time / out.dt));
   out.end = out.release + static_cast<int>(std::lround(c.settle / out.dt));
   std::unique_ptr<primitives::DrDmp> dmp;
   try {
@@ -361,6 +376,25 @@ ScarfPlan ScarfTask::plan(const std::vector<Eigen::MatrixXd>& coordination,
       out.outcome = FoldOutcome::OutOfLimits;
       out.reason = "the DMP's references leave the joint limits at t = " + std::to_string(t) + " s";
       return out;
+    }
+  }
+  if (out.clear_end > out.release) {
+    // Out of the camera's view: straight up first (a tool just released beside the scarf must not sweep it off the
+    // shoulders on its way out), then to clear_posture.
+    out.lift_end = out.release + (out.clear_end - out.release) / 4;
+    const Eigen::VectorXd last = out.position.col(steps - 1);
+    out.lifted = last;
+    kinematics::ChainData data(*m.model);
+    (void)kinematics::forwardKinematics(*m.model, data, last);
+    Eigen::Isometry3d up = data.tipPose();
+    up.translation() += m.base.linear().transpose() * Eigen::Vector3d(0.0, 0.0, kClearLift);
+    kinematics::GlobalIkParameters parameters;
+    parameters.timeout = 1.0;  // never binding: the same posture under any load
+    Eigen::VectorXd lifted = last;
+    if (kinematics::GlobalIkSolver(*m.model, parameters).solve(up, last, lifted).status ==
+            kinematics::IkStatus::Converged &&
+        (lifted - last).cwiseAbs().maxCoeff() <= kMaxLiftStep) {
+      out.lifted = lifted;  // else (an arm near its limits) it leaves without the lift
     }
   }
   return out;
@@ -440,6 +474,15 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
     waypoints =
         plannedWaypoints(position, velocity, acceleration, plan.move_start - (plan.move_start >= 1 ? 1 : 0), dt);
   }
+  // From the release on (loaded after its update, from the rest the motion's references end in): up, then out of the
+  // camera's view.
+  control::Waypoints leave;
+  if (plan.clear_end > plan.release) {
+    leave.times = Eigen::Vector2d((plan.lift_end - plan.release - 1) * dt, (plan.clear_end - plan.release - 1) * dt);
+    leave.positions.resize(plan.lifted.size(), 2);
+    leave.positions << plan.lifted, c.clear_posture;
+    leave.velocities = leave.accelerations = Eigen::MatrixXd::Zero(plan.lifted.size(), 2);
+  }
   const int path_every = std::max(1, static_cast<int>(std::lround(1.0 / (c.path_rate * dt))));
   const int cloth_every =
       c.cloth_rate > 0.0 ? std::max(1, static_cast<int>(std::lround(1.0 / (c.cloth_rate * dt)))) : 0;
@@ -495,8 +538,10 @@ ScarfRollout ScarfTask::run(const std::vector<Eigen::MatrixXd>& coordination, co
            "arm " + std::to_string(stopped_arm) + " is " + std::to_string(tracking) + " rad off its references", t);
     }
     if (out.outcome != FoldOutcome::Ok) break;
-    if (k == 0 &&
-        controllers[static_cast<std::size_t>(m.arm)]->setTrajectory(waypoints) != control::TrajectoryStatus::Ok) {
+    if ((k == 0 &&
+         controllers[static_cast<std::size_t>(m.arm)]->setTrajectory(waypoints) != control::TrajectoryStatus::Ok) ||
+        (k == plan.release && leave.times.size() > 0 &&
+         controllers[static_cast<std::size_t>(m.arm)]->setTrajectory(leave) != control::TrajectoryStatus::Ok)) {
       throw std::logic_error("scarf task: the controller refused the planned references");
     }
     if (k >= plan.move_start && k < plan.release) {

@@ -40,6 +40,13 @@ struct ScarfTaskConfig {
   /// and the scarf settles [s].
   double hold_before = 1.0, hold_after = 0.3, settle = 2.0;
   bool release = true;
+  /// A camera that sees the arm (a robot's): from the release on, while the scarf settles, the tool rises 0.15 m,
+  /// then the arm goes to `clear_posture` (its joints, within its limits), in `clear_time` [s] (≤ settle; a quarter
+  /// of it the lift, at rest between), so that the image at the end of `settle` shows the scarf, not the arm. The
+  /// motion before the release is the same with it as without; both backends run it on the same timeline
+  /// (ScarfPlan). Empty (and clear_time 0): the arm stays where it lets go.
+  Eigen::VectorXd clear_posture;
+  double clear_time = 0.0;
   /// The demonstration: the tool's positions [m, world] after its start with the start's orientation, each solved by
   /// global IK closest to the one before, reached in equal times (minimum jerk in joint space). Deliberately not
   /// achieving the task.
@@ -101,8 +108,14 @@ struct ScarfPlan {
   FoldOutcome outcome = FoldOutcome::Ok;
   std::string reason;
   double dt = 0.001;
-  /// Steps of the motion's start, its end, the release and the images (the settled scarf).
-  int move_start = 0, move_end = 0, release = 0, end = 0;
+  /// Steps of the motion's start, its end, the release, the end of the move out of the camera's view
+  /// (ScarfTaskConfig::clear_posture; the release without one) and the images (the settled scarf).
+  int move_start = 0, move_end = 0, release = 0, clear_end = 0, end = 0;
+  /// With clear_posture: the step the tool is up (a quarter of the way to clear_end) and the posture there, the tool
+  /// 0.15 m above where it let go (global IK closest to the last reference; that reference where the lift would
+  /// take a joint more than 1 rad).
+  int lift_end = 0;
+  Eigen::VectorXd lifted;
   /// The DMP's references over the motion: column j is the reference of step move_start + j.
   Eigen::MatrixXd position, velocity, acceleration;
   double acceleration_cost = 0.0;  ///< Σ ‖q̈_ref‖² dt over the motion [rad²/s³] (ScarfRollout::acceleration).

@@ -176,11 +176,18 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
     if (j == last) break;
   }
   goal.trajectory.points.push_back(trajectoryPoint(plan.position.col(last), zero, zero, plan.move_end * plan.dt));
+  int last_point = plan.move_end;
+  if (plan.clear_end > plan.release) {  // held until the release, then up and out of the camera's view (as in-process)
+    goal.trajectory.points.push_back(trajectoryPoint(plan.position.col(last), zero, zero, plan.release * plan.dt));
+    goal.trajectory.points.push_back(trajectoryPoint(plan.lifted, zero, zero, plan.lift_end * plan.dt));
+    goal.trajectory.points.push_back(trajectoryPoint(c.clear_posture, zero, zero, plan.clear_end * plan.dt));
+    last_point = plan.clear_end;
+  }
   goal.path_tolerance = pathTolerances(arm.joints, c.max_tracking_error);
   // The end as the path, decided within half the time to the images (a simulator stepped to them stands still
   // there): a goal that ends far off is the policy's.
   goal.goal_tolerance = goal.path_tolerance;
-  const double after_motion = (plan.end - plan.move_end) * plan.dt;
+  const double after_motion = (plan.end - last_point) * plan.dt;
   goal.goal_time_tolerance = ros::Duration(0.5 * after_motion);
   connection_->sendGoal(0, goal);
   connection_->waitForAnswers(origin, robot_.start_delay, "the motion's goal");
@@ -194,7 +201,7 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   }
   connection_->waitWhileMoving([&] { return connection_->goalFailed(0) || ros::Time::now() >= end; },
                                "the robot's clock (the scarf settling)", end);
-  connection_->waitForGoal(0, "motion", origin + ros::Duration(plan.move_end * plan.dt + 0.5 * after_motion),
+  connection_->waitForGoal(0, "motion", origin + ros::Duration(last_point * plan.dt + 0.5 * after_motion),
                            RobotConnection::Blame::Policy);
   connection_->record(false);
 
