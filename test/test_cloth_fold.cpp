@@ -72,6 +72,46 @@ TEST(ClothFold, TheDemonstrationFoldsTheClothRepeatably) {
   EXPECT_EQ(first.acceleration_cost, second.acceleration_cost);
 }
 
+// A robot whose camera sees the arms takes its images once they are out of its view; image_delay puts the
+// in-process images at the same moment: q is still the cloth's at the settle time (to the bit), the reward's images
+// show the cloth image_delay later, slid on.
+TEST(ClothFold, TheImagesComeImageDelayAfterTheSettleTimeAndQStaysTheSettledCloths) {
+  bt::ClothFoldTask task(config());
+  bt::ClothFoldConfig delayed_config = config();
+  delayed_config.image_delay = 2.0;
+  bt::ClothFoldTask delayed(delayed_config);
+  const bt::FoldRollout now = task.run(task.demonstrationParameters()),
+                        later = delayed.run(delayed.demonstrationParameters());
+  ASSERT_EQ(now.outcome, bt::FoldOutcome::Ok) << now.reason;
+  ASSERT_EQ(later.outcome, bt::FoldOutcome::Ok) << later.reason;
+  EXPECT_EQ(later.cloth_vertices, now.cloth_vertices);
+  EXPECT_EQ(later.fold.q, now.fold.q);
+  EXPECT_EQ(now.cloth_image_vertices.cols(), 0);
+  ASSERT_EQ(later.cloth_image_vertices.cols(), now.cloth_vertices.cols());
+  const double slid = (later.cloth_image_vertices - later.cloth_vertices).colwise().norm().maxCoeff();
+  std::printf("the cloth 2 s after the settle time: nodes moved up to %.1f mm; q %.3f at the settle time, %.3f then\n",
+              1e3 * slid, later.fold.q, delayed.foldQualityOf(later.cloth_image_vertices).q);
+  EXPECT_GT(slid, 1e-3) << "the cloth is still sliding after the settle time";
+  EXPECT_NEAR(later.simulated_seconds - now.simulated_seconds, 2.0, 1e-9);
+  // The reward scores the later mesh: as if it were the rollout's only one.
+  bt::FoldRewardConfig reward_config = bt::rewardSetting({}, "fold", "test");
+  reward_config.renderer = bt::rendererFor(delayed.simConfig());
+  const auto evaluate = [&](const bt::FoldRollout& rollout) {
+    bt::FoldReward reward(reward_config, 0.3, delayed.idealFoldVertices(), delayed.clothTriangles());
+    std::mt19937 rng(5);
+    return reward.evaluate(rollout, rng);
+  };
+  bt::FoldRollout as_final = later;
+  as_final.cloth_vertices = later.cloth_image_vertices;
+  as_final.cloth_image_vertices.resize(3, 0);
+  EXPECT_EQ(evaluate(later).r_fold, evaluate(as_final).r_fold);
+  EXPECT_EQ(evaluate(later).mean_gradient, evaluate(as_final).mean_gradient);
+  EXPECT_NE(evaluate(later).mean_gradient, evaluate(now).mean_gradient);
+  bt::ClothFoldConfig bad = config();
+  bad.image_delay = -1.0;
+  EXPECT_THROW(bt::ClothFoldTask{bad}, std::invalid_argument);
+}
+
 TEST(ClothFold, ThePlanHoldsTheReferencesTheRolloutFollows) {
   bt::ClothFoldTask task(config());
   const std::vector<Eigen::MatrixXd> identity{

@@ -180,6 +180,9 @@ TEST(FoldLearning, LearningFiles) {
       br::FoldLearningConfig::fromYamlFile(write("sim: " + kSource + "/config/sim.yaml\ntask: {velocity_limit: 1.5}\n"))
           .task.velocity_limit,
       Eigen::VectorXd::Constant(1, 1.5));
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\ntask: {image_delay: -1}\n").find("image_delay"),
+            std::string::npos);
+  EXPECT_EQ(br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_hardware_check.yaml").task.image_delay, 4.0);
   // A setting gives its weights; an entry beside it overrides one of them.
   const br::FoldLearningConfig goal = br::FoldLearningConfig::fromYamlFile(
       write("sim: " + kSource + "/config/sim.yaml\nreward: {setting: goal, acceleration_weight: 0.003}\n"));

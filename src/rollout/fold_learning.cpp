@@ -71,7 +71,7 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     const std::string at = where + " task";
     io::checkKeys(task, at,
                   {"kernels", "duration", "ik_method", "max_ik_error", "max_tracking_error", "demo_reach", "demo_lift",
-                   "demo_drop", "demo_lag", "demonstration", "policy", "velocity_limit"});
+                   "demo_drop", "demo_lag", "demonstration", "policy", "velocity_limit", "image_delay"});
     if (task["kernels"]) c.task.kernels = io::readInt(task, "kernels", at);
     c.task.duration = io::readDouble(task, "duration", at, c.task.duration);
     if (task["ik_method"]) c.task.ik_method = io::readString(task, "ik_method", at);
@@ -87,6 +87,9 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     c.task.demo_lift = io::readDouble(task, "demo_lift", at, c.task.demo_lift);
     c.task.demo_drop = io::readDouble(task, "demo_drop", at, c.task.demo_drop);
     c.task.demo_lag = io::readDouble(task, "demo_lag", at, c.task.demo_lag);
+    c.task.image_delay = io::readDouble(task, "image_delay", at, c.task.image_delay);
+    if (!(c.task.image_delay >= 0.0 && c.task.image_delay <= 60.0))
+      io::fail(at + ": 'image_delay' must be in [0, 60] s");
     if (!(c.task.demo_lag >= 0.0 && c.task.demo_lag < 0.9)) io::fail(at + ": 'demo_lag' must be in [0, 0.9)");
     if (task["policy"]) c.task.policy = tasks::foldPolicyFromString(io::readString(task, "policy", at), at);
     if (const YAML::Node files = task["demonstration"]) {

@@ -254,6 +254,8 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
   }
   if (!(config.demo_lag >= 0.0 && config.demo_lag < 0.9))
     throw std::invalid_argument("cloth fold: demo_lag in [0, 0.9)");
+  if (!(config.image_delay >= 0.0) || !std::isfinite(config.image_delay))
+    throw std::invalid_argument("cloth fold: image_delay >= 0 and finite");
   m.sim_config = sim::SimConfig::fromYamlFile(config.sim_config, config.robot);
   if (!m.sim_config.has_cloth) throw std::invalid_argument("cloth fold: '" + config.sim_config + "' has no cloth");
   m.simulation = std::make_unique<sim::BimanualSimulation>(m.sim_config);
@@ -592,6 +594,27 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   out.cloth_times =
       Eigen::Map<const Eigen::VectorXd>(cloth_times.data(), static_cast<Eigen::Index>(cloth_times.size()));
   out.cloth_vertices = simulation.cloth().vertices();
+  const int image_steps = static_cast<int>(std::lround(m.config.image_delay / dt));
+  // The images' moment: the arms hold (this simulator's arms touch the cloth only through their grippers, released by
+  // now, so where a robot's arms go meanwhile does not change the cloth) and the cloth slides on.
+  for (int k = 0; k < image_steps && out.outcome == FoldOutcome::Ok; ++k) {
+    const double now = simulation.time();
+    for (int arm = 0; arm < 2 && out.outcome == FoldOutcome::Ok; ++arm) {
+      const auto a = static_cast<std::size_t>(arm);
+      sim::JointState& state = measured[a];
+      simulation.readJointState(arm, state);
+      const control::ControllerStatus status =
+          m.controllers[a]->update(now, now, state.position, state.velocity, torque);
+      const std::string stop =
+          controllerStopReason(status, arm, state.velocity, m.controller_configs[a].velocity_limit);
+      if (!stop.empty()) fail(FoldOutcome::ControllerFailed, stop);
+      simulation.writeJointTorques(arm, torque);
+    }
+    const sim::SimStatus status = simulation.step();
+    if (status == sim::SimStatus::ArmDiverged) fail(FoldOutcome::SimulationDiverged, "an arm diverged");
+    if (status == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the cloth diverged");
+  }
+  if (image_steps > 0) out.cloth_image_vertices = simulation.cloth().vertices();
   out.cloth_triangles = simulation.cloth().triangles();
   out.cloth_rest_vertices = simulation.cloth().restVertices();
   const sim::ClothParameters& cloth = simulation.cloth().parameters();

@@ -86,7 +86,8 @@ FoldReward::FoldReward(const FoldRewardConfig& config, double flat_area, const E
 }
 
 FoldRewardTerms FoldReward::evaluate(const FoldRollout& rollout, std::mt19937& rng) {
-  renderer_.render(rollout.cloth_vertices, rollout.cloth_triangles, rng);
+  renderer_.render(rollout.cloth_image_vertices.cols() > 0 ? rollout.cloth_image_vertices : rollout.cloth_vertices,
+                   rollout.cloth_triangles, rng);
   // The flat cloth after the reset: the rollout's cloth at rest, drawn after the final images so that those stay
   // what the same seed gave before the fold term existed.
   image_.clearFlat();

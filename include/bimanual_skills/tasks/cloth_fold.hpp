@@ -38,6 +38,10 @@ struct ClothFoldConfig {
   int kernels = 20;       ///< DMP weights per DoF.
   double duration = 4.0;  ///< Of the fold movement [s].
   double hold_before = 0.2, hold_after = 0.3, settle = 1.0;  ///< Around the movement [s].
+  /// The reward's images are of the cloth this long after the settle time [s] (q stays the cloth's at the settle
+  /// time): a robot whose camera sees the arms takes them once the arms are out of its view (the robot path's
+  /// clear_view), and the cloth slides on meanwhile; the same delay in-process puts both on one timeline.
+  double image_delay = 0.0;
   /// Computed-torque gains per joint (low, as in Ch. 4); empty: the robot file's.
   Eigen::VectorXd kp, kv;
   /// Friction model files per arm for the controllers and observers ("" = no friction compensation); empty: the
@@ -92,7 +96,9 @@ struct FoldRollout {
   Eigen::VectorXd path_times;                                 ///< Simulated time of each path sample [s].
   std::vector<Eigen::Matrix3Xd> cloth_frames;                 ///< Cloth meshes at cloth_rate (world frame).
   Eigen::VectorXd cloth_times;                                ///< Simulated time of each cloth frame [s].
-  Eigen::Matrix3Xd cloth_vertices;                            ///< Final cloth mesh (world frame).
+  Eigen::Matrix3Xd cloth_vertices;                            ///< The cloth mesh at the settle time (world frame): q's.
+  /// The cloth mesh the reward's images show, image_delay after the settle time (empty: cloth_vertices').
+  Eigen::Matrix3Xd cloth_image_vertices;
   Eigen::Matrix3Xi cloth_triangles;
   Eigen::Matrix3Xd cloth_rest_vertices;
   /// A robot's rollout: the images its camera sent at moments of the rollout (colour bgr8, depth 32FC1 [m]), the last

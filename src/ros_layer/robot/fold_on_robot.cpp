@@ -481,17 +481,31 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     // start_delay before the fold, however long the messages take.
     if (!robot_.pause_service.empty()) connection_->pause(true);
     for (std::size_t a = 0; a < 2; ++a) connection_->grasp(a, true);
-    ros::Time settled = fold(plan) + ros::Duration(task_.config().settle);
+    const ros::Time settled = fold(plan) + ros::Duration(task_.config().settle);
     connection_->waitUntil(settled, "the cloth settling");
     // The fold's quality is the cloth's at the task's settle time, as on every backend; the cloth slides on after
-    // it (0.05 of q within 3 s on the demonstration), and the images come once the arms are out of the way.
+    // it (0.05 of q within 3 s on the demonstration), and the images come once the arms are out of the way, at the
+    // task's image_delay after the settle time, as in-process.
+    const double delay = task_.config().image_delay;
     sensor_msgs::PointCloud2ConstPtr cloth_settled;
-    if (robot_.clear_view) {
-      cloth_settled = cameraImages(settled, true).cloth;
-      moveClear("move out of the camera's view before the images");
-      settled = ros::Time::now();
+    if (robot_.clear_view || delay > 0.0) cloth_settled = cameraImages(settled, true).cloth;
+    if (robot_.clear_view) moveClear("move out of the camera's view before the images");
+    ros::Time images = settled + ros::Duration(delay);
+    if (connection_->paused() && !robot_.step_service.empty()) {
+      connection_->stepUntil(images.toSec(), task_.simConfig().step, "stepping the simulator to the images' time");
+    } else if (ros::Time::now() < images) {
+      connection_->waitUntil(images, "the images' time");
+    } else if (robot_.clear_view) {
+      // Later than in-process: the arms were out of the camera's view only after the images' time.
+      const double late = (ros::Time::now() - images).toSec();
+      ROS_WARN_THROTTLE(60.0,
+                        "fold on the robot: the arms were out of the camera's view %.2f s after the settle time, "
+                        "%.2f s later than the task's image_delay (%.2f s): the images come that much later than "
+                        "in-process; raise image_delay in the learning file for one timeline",
+                        delay + late, late, delay);
+      images = ros::Time::now();
     }
-    terms = observe(settled, acceleration_cost, cloth_settled);
+    terms = observe(images, acceleration_cost, cloth_settled);
     if (connection_->paused()) connection_->pause(false);  // a simulator stepped to the settled cloth runs on
     last_robot_seconds_ = last_move_seconds_ + (ros::Time::now() - at_start).toSec();
   } catch (const RobotFault& failure) {
