@@ -18,6 +18,7 @@
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/tasks/dr_tasks.hpp"
 #include "cli/package_share.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "experiment_cli.hpp"
 #include "parallel_runs.hpp"
 
@@ -1094,6 +1095,7 @@ void writeSummary(const Options& options, const std::vector<Summary>& rows) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bb::ExperimentProgram program;
   program.name = "dr_benchmark";
   program.description =

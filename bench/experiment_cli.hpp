@@ -5,6 +5,7 @@
 
 #include "cli/command_line.hpp"
 #include "cli/package_share.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "io/summary_json.hpp"
 
 #include <sys/wait.h>
@@ -80,7 +81,8 @@ using io::JsonRow;
 /// Writes DIR/summary.json of an experiment program (io::writeSummaryJson). \throws std::runtime_error.
 inline void writeSummaryJson(const ExperimentOptions& options, const std::string& program,
                              const std::vector<JsonRow>& rows) {
-  io::writeSummaryJson(options.out + "/summary.json", {program, options.experiment, options.seed, options.quick}, rows);
+  io::writeSummaryJson(options.out + "/summary.json",
+                       {program, options.experiment, options.seed, options.quick, cli::numericsState()}, rows);
 }
 
 /// Runs the package's plot script `scripts/SCRIPT` as `/usr/bin/python3 SCRIPT DIR` (an argument vector, no shell:

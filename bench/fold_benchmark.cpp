@@ -27,6 +27,7 @@
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "cli/package_share.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "experiment_cli.hpp"
 #include "parallel_runs.hpp"
 
@@ -450,6 +451,7 @@ void ceilingExperiment(const Options& options, const br::FoldLearningConfig& con
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   std::string config_path;
   long count = 0;
   bs::bench::ExperimentProgram program;

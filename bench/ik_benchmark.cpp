@@ -9,6 +9,7 @@
 #include "bimanual_skills/kinematics/chain_model.hpp"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "cli/package_share.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "experiment_cli.hpp"
 
 #include <kdl/chainfksolverpos_recursive.hpp>
@@ -549,6 +550,7 @@ void writeSummary(const Options& options, const std::vector<Summary>& rows) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   Arm arm;
   bimanual_skills::bench::ExperimentProgram program;
   program.name = "ik_benchmark";

@@ -19,6 +19,7 @@
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
 #include "cli/package_share.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "experiment_cli.hpp"
 #include "parallel_runs.hpp"
 
@@ -517,6 +518,7 @@ void writeSummary(const Options& options, const std::vector<Summary>& rows) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bimanual_skills::bench::ExperimentProgram program;
   program.name = "ps_benchmark";
   program.description =

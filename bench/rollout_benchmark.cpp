@@ -23,6 +23,7 @@
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "cli/package_share.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "experiment_cli.hpp"
 #include "ros_processes.hpp"
 
@@ -189,6 +190,7 @@ std::vector<int> parseCounts(const std::string& option, const std::string& text)
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   std::string config, workers_text = "1,2,4", threads_text = "1,2,4,8,16", external;  // config: (config/fold_demo.yaml)
   long rollouts = 0;
   bs::bench::ExperimentProgram program;

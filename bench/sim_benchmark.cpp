@@ -26,6 +26,7 @@
 #include "bimanual_skills/tasks/cloth_fold.hpp"
 #include "bimanual_skills/tasks/scarf_task.hpp"
 #include "cli/package_share.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "experiment_cli.hpp"
 #include "sim_experiments.hpp"
 #include "testing/allocation_counter.hpp"
@@ -527,6 +528,7 @@ const std::vector<std::pair<std::string, std::function<void(const Options&, std:
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bs::bench::ExperimentProgram program;
   program.name = "sim_benchmark";
   program.description =

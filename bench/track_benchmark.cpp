@@ -15,6 +15,7 @@
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
 #include "bimanual_skills/tracking/object_tracker.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "experiment_cli.hpp"
 #include "io/csv_records.hpp"
 #include "testing/allocation_counter.hpp"
@@ -266,6 +267,7 @@ std::string number(double v) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   Settings settings;
   bs::bench::ExperimentProgram program;
   program.name = kProgram;

@@ -25,6 +25,7 @@
 #include "bimanual_skills/workspace/placement_search.hpp"
 #include "bimanual_skills/workspace/workspace_map.hpp"
 #include "cli/package_share.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "experiment_cli.hpp"
 
 #include <algorithm>
@@ -388,6 +389,7 @@ void searchExperiment(const bs::bench::ExperimentOptions& options, const Setting
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   double resolution = 0.0, step = 0.0;
   std::string cache = bw::WorkspaceMap::defaultCacheDirectory();
   bool no_cache = false;

@@ -2,6 +2,7 @@
 // both arms' forward kinematics from the core library, and checks them against the transforms that
 // robot_state_publisher derives from the same robot_description. Exits (0 on agreement) unless ~hold is true.
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "cli/pinned_numerics.hpp"
 
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
@@ -150,6 +151,7 @@ reads: robot_description, tf        publishes: /joint_states
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bimanual_skills::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "bimanual_fk_demo");
   ros::NodeHandle node("~");

@@ -2,6 +2,7 @@
 // /joint_states, and checks the tool poses robot_state_publisher then publishes against the targets.
 // Exits 0 when every arm was solved and reached its target within 1e-4 (m and rad), unless ~hold is true.
 #include "bimanual_skills/SolveIk.h"
+#include "cli/pinned_numerics.hpp"
 
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
@@ -74,6 +75,7 @@ calls: <arm>/solve_ik        publishes: /joint_states        reads: tf
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bimanual_skills::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "bimanual_ik_demo");
   ros::NodeHandle node("~");

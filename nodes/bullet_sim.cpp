@@ -16,6 +16,7 @@
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "io/whole_file.hpp"
 #include "node_cli.hpp"
 #include "sim_publishing.hpp"
@@ -636,6 +637,7 @@ class BulletSimNode {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bs::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "bullet_sim");
   ros::NodeHandle node, private_node("~");

@@ -11,6 +11,7 @@
 #include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
 #include "bimanual_skills/ros_layer/hosted_loop.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "io/whole_file.hpp"
 #include "node_cli.hpp"
 
@@ -301,6 +302,7 @@ class CtcControllerNode {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bs::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "ctc_controller");
   ros::NodeHandle node, private_node("~");

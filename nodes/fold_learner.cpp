@@ -9,6 +9,7 @@
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
 #include "bimanual_skills/tasks/fold_quality.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "io/summary_json.hpp"
 #include "learner_shell.hpp"
 #include "node_cli.hpp"
@@ -707,7 +708,8 @@ class FoldLearnerNode {
           .add("workers_lost", static_cast<int>(workers_lost_))
           .add("redispatched", static_cast<int>(redispatched_));
     }
-    bs::io::writeSummaryJson(out_ + "/summary.json", {"fold_learner", "fold", config_.seed, false}, rows);
+    bs::io::writeSummaryJson(out_ + "/summary.json",
+                             {"fold_learner", "fold", config_.seed, false, bs::cli::numericsState()}, rows);
   }
 
   /// Publishes the best rollout on the live topics in real time, in a loop: its camera images and tool paths once,
@@ -814,6 +816,7 @@ void writeFoldStart(const std::string& file) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bs::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "fold_learner");
   // Keeps the node up until main returns: the learner's handles are gone by the time an exception is caught, and

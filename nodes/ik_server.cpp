@@ -8,6 +8,7 @@
 #include "bimanual_skills/SolveIk.h"
 #include "bimanual_skills/kinematics/global_ik.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
+#include "cli/pinned_numerics.hpp"
 
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "node_cli.hpp"
@@ -327,6 +328,7 @@ example: rosservice call /left/solve_ik "{target: {header: {frame_id: world}, po
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bimanual_skills::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "ik_server");
   ros::NodeHandle node;

@@ -5,6 +5,7 @@
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "node_cli.hpp"
 
 #include <bimanual_skills/RolloutShare.h>
@@ -264,6 +265,7 @@ class RolloutWorker {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bs::nodes::handleCommandLine(argc, argv, usage());
   ros::init(argc, argv, "rollout_worker");
   try {

@@ -6,6 +6,7 @@
 #include "bimanual_skills/ros_layer/camera_messages.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/ros_layer/robot/scarf_on_robot.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "io/summary_json.hpp"
 #include "io/yaml_io.hpp"
 #include "learner_shell.hpp"
@@ -326,7 +327,8 @@ class ScarfLearnerNode {
         rows.push_back(row);
       }
     }
-    bs::io::writeSummaryJson(out_ + "/summary.json", {"scarf_learner", "scarf", config_.learning.seed, false}, rows);
+    bs::io::writeSummaryJson(out_ + "/summary.json",
+                             {"scarf_learner", "scarf", config_.learning.seed, false, bs::cli::numericsState()}, rows);
   }
 
   /// The demonstration's and every run's final policy again (the same rollouts: same policy, same seed), with the
@@ -530,6 +532,7 @@ void writeScarfFiles(const std::string& prefix) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bs::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "scarf_learner");
   const ros::NodeHandle keep_alive;

@@ -13,6 +13,7 @@
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "node_cli.hpp"
 
 #include <geometry_msgs/PointStamped.h>
@@ -356,6 +357,7 @@ class TeachNode {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bs::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "teach_demonstration");
   try {

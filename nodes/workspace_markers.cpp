@@ -3,6 +3,7 @@
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/workspace/workspace_map.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "node_cli.hpp"
 #include "scene_markers.hpp"
 
@@ -57,6 +58,7 @@ std_msgs::ColorRGBA heat(double t) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   bs::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "workspace_markers");
   ros::NodeHandle private_node("~");

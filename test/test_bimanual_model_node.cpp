@@ -1,5 +1,6 @@
 // rostest: the launched bimanual model publishes joint states and transforms that agree with the core library.
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "cli/pinned_numerics.hpp"
 
 #include <gtest/gtest.h>
 #include <ros/ros.h>
@@ -56,6 +57,7 @@ TEST(BimanualModel, PublishedTransformsEqualCoreForwardKinematics) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_bimanual_model");
   ros::AsyncSpinner spinner(1);

@@ -2,6 +2,7 @@
 // lost, a hung call ends at its deadline and is drained before the next one to its service (which is refused as
 // Busy meanwhile), a server that restarts is found again, a missing one is said, and timeouts leak no thread.
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
+#include "cli/pinned_numerics.hpp"
 
 #include <gtest/gtest.h>
 #include <ros/callback_queue.h>
@@ -181,6 +182,7 @@ TEST(ServiceCaller, TimeoutsLeakNoThread) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_bounded_call");
   ros::NodeHandle node;

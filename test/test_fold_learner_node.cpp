@@ -3,6 +3,8 @@
 // images and rollouts.csv, and that best_rollout.bag holds a replay: joint states of both arms, cloth frames, the
 // camera image. The images come with their CameraInfo, in a frame on tf. ~reward:=goal replaces the learning file's
 // reward setting, and the directory records it.
+#include "cli/pinned_numerics.hpp"
+
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <rosbag/bag.h>
@@ -146,6 +148,7 @@ TEST(FoldLearnerNode, PublishesEachRolloutAndWritesTheResults) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   ::testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_fold_learner_node");
   return RUN_ALL_TESTS();

@@ -15,6 +15,7 @@
 #include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "node_pid.hpp"
 
 #include <actionlib/client/simple_action_client.h>
@@ -518,6 +519,7 @@ TEST(SecondRobot, LearnsThroughROSThenHoldsAndTracksAGoal) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_fold_on_robot");
   ros::NodeHandle keep_alive;

@@ -13,6 +13,7 @@
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
 #include "bimanual_skills/ros_layer/robot/fold_on_robot.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "node_pid.hpp"
 
 #include <ros/callback_queue.h>
@@ -474,6 +475,7 @@ TEST(FoldHardware, ControllersThatStallOrDieAndACameraThatStopsAreTheRobotsFault
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_fold_robot_faults");
   ros::NodeHandle keep_alive;

@@ -5,6 +5,7 @@
 #include "bimanual_skills/SolveIk.h"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/kinematics/pose_error.hpp"
+#include "cli/pinned_numerics.hpp"
 
 #include <gtest/gtest.h>
 #include <ros/ros.h>
@@ -349,6 +350,7 @@ TEST(IkServer, ArmsAnswerInParallel) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_ik_server");
   ros::AsyncSpinner spinner(1);

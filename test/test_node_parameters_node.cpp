@@ -1,6 +1,8 @@
 // rostest (test/node_parameters.test): the nodes refuse mistyped and out-of-range private parameters at start with
 // the parameter's name and the reason (exit status non-zero, nothing half-started), and warn about keys they do not
 // know. Each node runs as a child process against the test's master.
+#include "cli/pinned_numerics.hpp"
+
 #include <gtest/gtest.h>
 #include <ros/ros.h>
 
@@ -70,6 +72,7 @@ TEST(NodeParameters, UnknownKeysAreWarnedAbout) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   ::testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_node_parameters");
   return RUN_ALL_TESTS();

@@ -2,6 +2,7 @@
 // experiment goes once in this process and once on the two workers of the test, and worker_0 is killed (SIGKILL) as
 // soon as the first experiment is done: the run on the workers must finish on the survivor and write exactly the
 // CSVs (learning curves) of the run in this process.
+#include "cli/pinned_numerics.hpp"
 #include "rollout_test_support.hpp"
 
 #include <ros/ros.h>
@@ -76,6 +77,7 @@ TEST(PsBenchmarkWorkers, TheCurvesOnWorkersAreThoseOfThisProcessDespiteADeadWork
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_ps_benchmark_workers");
   ros::NodeHandle node;

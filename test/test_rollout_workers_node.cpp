@@ -8,6 +8,7 @@
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "rollout_test_support.hpp"
 
 #include <bimanual_skills/RolloutShare.h>
@@ -283,6 +284,7 @@ TEST(RolloutWorkers, ABusyWorkerAnswersBusyToAnotherClientAndFinishesItsShare) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_rollout_workers");
   ros::NodeHandle node;

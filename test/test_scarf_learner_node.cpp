@@ -3,6 +3,8 @@
 // joint states reach their topics, and that the results directory gets summary.json (one row per epoch), the
 // rollouts with the task's terms, the camera's measures and the pictures (initial, final, filmstrip), and that the
 // plot script draws the learning curve, the camera views and the tables from it.
+#include "cli/pinned_numerics.hpp"
+
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
 #include <sensor_msgs/CameraInfo.h>
@@ -110,6 +112,7 @@ TEST(ScarfLearnerNode, PublishesEachRolloutAndWritesTheResults) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_scarf_learner_node");
   return RUN_ALL_TESTS();

@@ -11,6 +11,7 @@
 #include "bimanual_skills/rollout/parallel_evaluator.hpp"
 #include "bimanual_skills/rollout/scarf_learning.hpp"
 #include "bimanual_skills/ros_layer/robot/scarf_on_robot.hpp"
+#include "cli/pinned_numerics.hpp"
 #include "node_pid.hpp"
 
 #include <ros/ros.h>
@@ -337,6 +338,7 @@ TEST(Hardware, ScarfLaunchLearnsWithTheArmOutOfTheCamerasView) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   ::testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_scarf_on_robot");
   ros::NodeHandle keep_alive;

@@ -3,6 +3,7 @@
 // perspective camera sends images of the mannequin, the red mark on its nose above the neck it looks at, the blue
 // scarf, and nothing where nothing is.
 #include "bimanual_skills/sim/sim_config.hpp"
+#include "cli/pinned_numerics.hpp"
 
 #include <ros/package.h>
 #include <ros/ros.h>
@@ -121,6 +122,7 @@ TEST(ScarfScene, TheMannequinIsOnTheMarkersAndInTheCamerasImages) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_scene");
   return RUN_ALL_TESTS();

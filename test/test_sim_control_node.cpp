@@ -14,6 +14,7 @@
 #include "bimanual_skills/SetPayload.h"
 #include "bimanual_skills/SimStep.h"
 #include "bimanual_skills/realtime/clock.hpp"
+#include "cli/pinned_numerics.hpp"
 
 #include <actionlib/client/simple_action_client.h>
 #include <diagnostic_msgs/DiagnosticArray.h>
@@ -1339,6 +1340,7 @@ TEST_F(Rate500, EstimatesAPayloadAt500Hz) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   ::testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_sim_control");
   return RUN_ALL_TESTS();

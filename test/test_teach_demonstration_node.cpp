@@ -6,6 +6,7 @@
 // 3. A hand target that is not finite, or in another frame, is refused: the node is still there and answers.
 #include "bimanual_skills/primitives/dmp_yaml.hpp"
 #include "bimanual_skills/rollout/fold_learning.hpp"
+#include "cli/pinned_numerics.hpp"
 
 #include <geometry_msgs/PointStamped.h>
 #include <ros/package.h>
@@ -139,6 +140,7 @@ TEST(TeachDemonstration, BadHandTargetsAreRefused) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_teach_demonstration");
   ros::NodeHandle keep_alive;

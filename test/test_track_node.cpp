@@ -7,6 +7,7 @@
 #include "bimanual_skills/FollowerState.h"
 #include "bimanual_skills/SetControlMode.h"
 #include "bimanual_skills/TrackedObject.h"
+#include "cli/pinned_numerics.hpp"
 
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <gtest/gtest.h>
@@ -294,6 +295,7 @@ TEST_F(Track, GraspsTheCanOnSetModeGrasp) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_track");
   return RUN_ALL_TESTS();

@@ -1,6 +1,8 @@
 // rostest (test/workspace_markers.test): workspace_markers publishes a coarse map of the WAM, latched: the reachable
 // voxels up to the slice y = 0 (the cutaway) as one CUBE_LIST in the base frame with a colour per voxel, and arrows for
 // the tool cones of the slice y = 0, each of the voxel's edge in length and pointing along a unit axis.
+#include "cli/pinned_numerics.hpp"
+
 #include <ros/ros.h>
 #include <visualization_msgs/MarkerArray.h>
 
@@ -45,6 +47,7 @@ TEST(WorkspaceMarkers, PublishesTheMapAndTheCones) {
 }
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
   ros::init(argc, argv, "test_workspace_markers");
   ros::NodeHandle node;

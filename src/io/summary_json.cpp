@@ -12,6 +12,7 @@ void writeSummaryJson(const std::string& path, const SummaryHeader& header, cons
   summary["experiment"] = header.experiment;
   summary["seed"] = header.seed;
   summary["quick"] = header.quick;
+  if (!header.numerics.empty()) summary["numerics"] = header.numerics;
   summary["results"] = nlohmann::ordered_json::array();
   for (const JsonRow& row : rows) summary["results"].push_back(row.json());
   if (!writeWhole(path, [&summary](std::ostream& out) { out << summary.dump(2) << '\n'; })) {

@@ -1,7 +1,7 @@
 /// \file
-/// summary.json of the experiment programs and the learner: {"program", "experiment", "seed", "quick", "results":
-/// [rows]}, one row per result with its keys in the order they were added, written with nlohmann-json (every string
-/// escaped; a non-finite number, which JSON lacks, as null).
+/// summary.json of the experiment programs and the learner: {"program", "experiment", "seed", "quick", "numerics",
+/// "results": [rows]}, one row per result with its keys in the order they were added, written with nlohmann-json (every
+/// string escaped; a non-finite number, which JSON lacks, as null).
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -45,6 +45,8 @@ struct SummaryHeader {
   std::string program, experiment;
   std::uint32_t seed = 0;
   bool quick = false;
+  /// Whether the program ran with its numerics pinned (cli::numericsState()); "" leaves the key out.
+  std::string numerics;
 };
 
 /// Writes `path` (a summary.json) whole: to a temporary file renamed over it, so a reader never sees half of it.

@@ -11,6 +11,7 @@
 #include "bimanual_skills/dynamics/friction_yaml.hpp"
 #include "cli/command_line.hpp"
 #include "cli/package_share.hpp"
+#include "cli/pinned_numerics.hpp"
 
 #include <cstdio>
 #include <cstdlib>
@@ -45,6 +46,7 @@ bool parsePairs(const std::string& text, std::vector<std::pair<int, int>>& pairs
 }  // namespace
 
 int main(int argc, char** argv) {
+  bimanual_skills::cli::pinNumerics(argv);
   std::string model_name, in, out, sign = "logged", pairs_text;
   std::string urdf, base = "wam_base", tip = "wam_tool";
   bd::FrictionFitOptions options;

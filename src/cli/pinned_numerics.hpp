@@ -1,0 +1,106 @@
+/// \file
+/// One seed, one result on every x86-64 machine: the floating-point code that libraries pick by the CPU at run time,
+/// pinned to the x86-64 baseline before a program computes anything. Programs only (docs/ARCHITECTURE.md,
+/// "Reproducible across machines").
+///
+/// Two libraries this project's results pass through choose their code when the process starts:
+/// - glibc's libm takes FMA variants of exp, log, pow, sin, cos, tan, atan, atan2 (and FMA4 ones on old AMD CPUs)
+///   when the CPU has FMA. They round differently from the baseline ones in the last bit for some arguments, and a
+///   rollout with contacts turns one bit into another fold (the fold's demonstration: q 0.534 with FMA, 0.536
+///   without). glibc reads its tunables only at start: GLIBC_TUNABLES=glibc.cpu.hwcaps=-FMA,-FMA4 masks them.
+/// - OpenCV dispatches SSE4.1 ... AVX-512 kernels (Sobel, GaussianBlur, cvtColor): the (7.52) depth gradient moved
+///   in its 8th digit with them masked. OPENCV_CPU_DISABLE, also read at load time, masks them.
+/// So a program that finds either unmasked executes itself again once (/proc/self/exe, the same arguments) with
+/// both set. The cost was not measurable on a fold rollout (0.66 s median either way).
+#pragma once
+
+#if defined(__x86_64__)
+#include <sys/platform/x86.h>
+#endif
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+namespace bimanual_skills::cli {
+
+/// The glibc tunable, and its value that keeps libm on its baseline x86-64 code.
+inline constexpr const char* kHwcapsTunable = "glibc.cpu.hwcaps=";
+inline constexpr const char* kLibmMask = "-FMA,-FMA4";
+/// The kernels Debian's OpenCV dispatches beyond its SSE2 baseline (cv::getCPUFeaturesLine()'s starred ones).
+inline constexpr const char* kOpenCvMask = "SSE4.1,SSE4.2,FP16,AVX,AVX2,AVX512-SKX";
+/// Set in the re-executed process, so that a mask glibc ignores (a secure-execution process) cannot loop.
+inline constexpr const char* kPinnedMarker = "BIMANUAL_SKILLS_NUMERICS_PINNED";
+
+/// Whether glibc's libm runs its baseline code in this process (neither FMA nor FMA4 active). Always true off x86-64,
+/// where there is nothing of this kind to pin.
+inline bool libmPinned() noexcept {
+#if defined(__x86_64__)
+  return !CPU_FEATURE_ACTIVE(FMA) && !CPU_FEATURE_ACTIVE(FMA4);
+#else
+  return true;
+#endif
+}
+
+/// Whether OpenCV was told at load time to keep to its baseline kernels (OPENCV_CPU_DISABLE names kOpenCvMask).
+inline bool openCvPinned() noexcept {
+  const char* value = std::getenv("OPENCV_CPU_DISABLE");
+  return value != nullptr && std::strstr(value, kOpenCvMask) != nullptr;
+}
+
+/// "pinned" when both are, else what is not (for a program's summary.json and log).
+inline std::string numericsState() {
+  if (libmPinned() && openCvPinned()) return "pinned";
+  std::string state = "not pinned:";
+  if (!libmPinned()) state += " libm's FMA code active";
+  if (!openCvPinned()) state += std::string(libmPinned() ? "" : ",") + " OpenCV's dispatched kernels active";
+  return state;
+}
+
+/// Call first in main(), before anything computes: returns at once when both are pinned; otherwise adds the masks to
+/// the environment (keeping the caller's GLIBC_TUNABLES and OPENCV_CPU_DISABLE entries) and executes the program
+/// again with the same arguments, so it does not return. It returns, with a warning on stderr, when that is not
+/// possible or did not take: under valgrind (which would not follow; set both variables for it), when exec fails,
+/// or when the re-executed process still finds a mask ignored. argv is main()'s.
+inline void pinNumerics(char** argv) {
+  if (libmPinned() && openCvPinned()) return;
+  const auto warn = [](const std::string& why) {
+    std::fprintf(stderr, "%s: numerics not pinned (%s): results may differ in the last bits from other machines'\n",
+                 program_invocation_short_name, why.c_str());
+  };
+  if (std::getenv(kPinnedMarker) != nullptr) {
+    warn(numericsState() + " after re-executing with GLIBC_TUNABLES and OPENCV_CPU_DISABLE set");
+    return;
+  }
+  const char* preload = std::getenv("LD_PRELOAD");
+  if (preload != nullptr && std::strstr(preload, "vgpreload") != nullptr) {
+    warn(std::string("running under valgrind; set GLIBC_TUNABLES=") + kHwcapsTunable + kLibmMask +
+         " OPENCV_CPU_DISABLE=" + kOpenCvMask);
+    return;
+  }
+  if (!libmPinned()) {
+    // A caller's glibc.cpu.hwcaps entry gets the masks (glibc would keep one of two entries); else it is appended.
+    const char* old = std::getenv("GLIBC_TUNABLES");
+    std::string tunables = old != nullptr ? old : "";
+    const std::size_t entry = tunables.find(kHwcapsTunable);
+    if (entry != std::string::npos) {
+      tunables.insert(entry + std::strlen(kHwcapsTunable), std::string(kLibmMask) + ",");
+    } else {
+      tunables += std::string(tunables.empty() ? "" : ":") + kHwcapsTunable + kLibmMask;
+    }
+    setenv("GLIBC_TUNABLES", tunables.c_str(), 1);
+  }
+  if (!openCvPinned()) {
+    const char* old = std::getenv("OPENCV_CPU_DISABLE");
+    const std::string masks = old != nullptr && *old != '\0' ? std::string(old) + "," + kOpenCvMask : kOpenCvMask;
+    setenv("OPENCV_CPU_DISABLE", masks.c_str(), 1);
+  }
+  setenv(kPinnedMarker, "1", 1);
+  execv("/proc/self/exe", argv);
+  warn(std::string("cannot execute /proc/self/exe again: ") + std::strerror(errno));
+}
+
+}  // namespace bimanual_skills::cli
