@@ -1,7 +1,7 @@
 // The cloth fold's ground truth against what the camera rewards make of it, and the best fold there is:
 //
-//   fold_benchmark --experiment folds|ceiling|all --seed S --out DIR [--quick] [--count N] [--config FILE]
-//                  [--jobs N]
+//   fold_benchmark --experiment folds|ceiling|rgbd_noise|repeatability|all --seed S --out DIR [--quick]
+//                  [--count N] [--config FILE] [--jobs N]
 //
 // folds: N clearly different folds (default 30), each the noise-free scripted demonstration of a fold drawn with the
 //   seed: reach, lift, release height, duration and a late right arm (tasks::ClothFoldConfig's demo_*). Each is run
@@ -17,6 +17,9 @@
 //   scripted demonstration's reach, lift, release height and duration (60 generations of 10), then CMA-ES on q over
 //   the 12 goal offsets of the learner's policy from the best of those (120 generations of 12): 2040 rollouts.
 //   Writes DIR/ceiling.csv (every rollout, as each generation finishes) and q_max in summary.json.
+// repeatability: the learning file's demonstration N times (default 20, the thesis' count) with rollout seeds drawn
+//   from the seed, the task's robot noise (tasks::FoldNoise) and the camera's: mean, standard deviation and its share
+//   of the mean of the reward, its fold term, (7.52)'s R_color and R_depth, and q (DIR/repeatability.csv).
 // The learning file (--config, default config/fold_demo.yaml) gives the simulation, the controllers, the camera's
 // noise and the reward's settings; only the demonstration (and, in the ceiling's second stage, the goals) changes.
 #include "bimanual_skills/learning/covariance_adaptation.hpp"
@@ -285,6 +288,90 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
   }
 }
 
+/// repeatability: the learning file's demonstration run `count` times with rollout seeds drawn from the seed (the
+/// robot's noise of the file's task, if any, and the camera's), as the thesis ran its first attempt 20 times: mean,
+/// standard deviation and coefficient of variation of the reward, its image term, (7.52)'s R_color and R_depth on the
+/// same images, and q.
+void repeatabilityExperiment(const Options& options, const br::FoldLearningConfig& config, int count,
+                             std::vector<bs::bench::JsonRow>& rows) {
+  struct Repetition {
+    std::uint32_t seed = 0;
+    bt::FoldRollout rollout;
+    bt::FoldRewardTerms learned, thesis;
+  };
+  std::vector<Repetition> results(static_cast<std::size_t>(count));
+  std::mt19937 seeds(options.seed);
+  for (Repetition& r : results) r.seed = static_cast<std::uint32_t>(seeds());
+  std::printf("fold_benchmark repeatability: the demonstration %d times (noise %s), seed %u, %d threads\n", count,
+              config.task.noise.setting.c_str(), options.seed, options.jobs);
+  std::ofstream csv(options.out + "/repeatability.csv");
+  csv << "index,seed,outcome,reward,r_fold,r_acceleration,thesis_reward,r_color,r_depth,fold_quality,cloth_x,cloth_y,"
+         "cloth_yaw,release_left,release_right\n";
+  bs::bench::parallelRuns(
+      count, options.jobs,
+      [&](int i) {
+        Repetition& r = results[static_cast<std::size_t>(i)];
+        br::FoldRolloutTask task(config.task, config.reward);
+        bt::ClothFoldTask& fold = task.task();
+        r.rollout = fold.run({Eigen::MatrixXd::Identity(bt::ClothFoldTask::kDofs, bt::ClothFoldTask::kDofs)},
+                             fold.demonstrationParameters(), r.seed);
+        r.learned = task.score(r.rollout, r.seed);
+        // (7.52) on the same images: the same camera noise (FoldRolloutTask::score's stream).
+        bt::FoldReward thesis(bt::rewardSetting(config.reward, "thesis", "fold_benchmark"),
+                              fold.simConfig().cloth.length * fold.simConfig().cloth.width, fold.idealFoldVertices(),
+                              fold.clothTriangles());
+        std::seed_seq sequence{r.seed, 0x5eedu};
+        std::mt19937 rng(sequence);
+        r.thesis = thesis.evaluate(r.rollout, rng);
+      },
+      [&](int i) {
+        const Repetition& r = results[static_cast<std::size_t>(i)];
+        const bt::FoldNoiseDraw& n = r.rollout.noise;
+        std::printf("  repetition %2d: R %.4f (fold %.4f), R_color %.4f, R_depth %.4f, q %.3f  %s\n", i,
+                    r.learned.reward, r.learned.r_fold, r.thesis.r_color, r.thesis.r_depth, r.rollout.fold.q,
+                    bt::toString(r.rollout.outcome));
+        std::fflush(stdout);
+        csv << i << ',' << r.seed << ',' << bt::toString(r.rollout.outcome) << ',' << r.learned.reward << ','
+            << r.learned.r_fold << ',' << r.learned.r_acceleration << ',' << r.thesis.reward << ',' << r.thesis.r_color
+            << ',' << r.thesis.r_depth << ',' << r.rollout.fold.q << ',' << n.cloth_x << ',' << n.cloth_y << ','
+            << n.cloth_yaw << ',' << n.release[0] << ',' << n.release[1] << '\n'
+            << std::flush;
+      });
+  const auto summarise = [&](const std::string& signal, const auto& value) {
+    std::vector<double> values;
+    for (const Repetition& r : results) {
+      if (r.rollout.outcome == bt::FoldOutcome::Ok) values.push_back(value(r));
+    }
+    if (values.size() < 2) return;
+    const bs::learning::MeanInterval m = bs::learning::meanInterval95(values);
+    const double cv = m.mean != 0.0 ? m.std_dev / std::abs(m.mean) : 0.0;
+    std::printf("  %-14s %8.4f +- %.4f (std dev; %.1f %% of the mean), %d repetitions\n", signal.c_str(), m.mean,
+                m.std_dev, 100.0 * cv, m.n);
+    rows.emplace_back()
+        .add("experiment", "repeatability")
+        .add("noise", config.task.noise.setting)
+        .add("signal", signal)
+        .add("repetitions", m.n)
+        .add("mean", m.mean)
+        .add("std_dev", m.std_dev)
+        .add("coefficient_of_variation", cv);
+  };
+  std::printf("fold_benchmark repeatability (the thesis' 20 runs: R_depth 0.473 +- 0.029, R_color 0.799 +- 0.088):\n");
+  summarise("reward", [](const Repetition& r) { return r.learned.reward; });
+  summarise("r_fold", [](const Repetition& r) { return r.learned.r_fold; });
+  summarise("r_color", [](const Repetition& r) { return r.thesis.r_color; });
+  summarise("r_depth", [](const Repetition& r) { return r.thesis.r_depth; });
+  summarise("fold_quality", [](const Repetition& r) { return r.rollout.fold.q; });
+  int failed = 0;
+  for (const Repetition& r : results) failed += r.rollout.outcome != bt::FoldOutcome::Ok ? 1 : 0;
+  rows.emplace_back()
+      .add("experiment", "repeatability")
+      .add("noise", config.task.noise.setting)
+      .add("signal", "failed")
+      .add("repetitions", count)
+      .add("failed", failed);
+}
+
 /// rgbd_noise: the first `count` folds of the set, each scored `draws` times with fresh camera noise through the
 /// orthographic and the perspective camera: how much the fold term moves with the sensor's noise alone.
 void rgbdNoiseExperiment(const Options& options, const br::FoldLearningConfig& config, int count, int draws,
@@ -459,11 +546,13 @@ int main(int argc, char** argv) {
   program.description =
       "The cloth fold's ground truth (the fold quality q of the simulated mesh) against the camera rewards, on a\n"
       "set of clearly different scripted folds (folds); and q_max, the best fold a large search on q finds (ceiling).";
-  program.experiments = {"folds", "ceiling", "rgbd_noise", "all"};
+  program.experiments = {"folds", "ceiling", "rgbd_noise", "repeatability", "all"};
   program.with_jobs = true;
   program.extra = [&](bs::cli::CommandLine& line) {
     line.option("--config", "FILE", "fold learning file (default: config/fold_demo.yaml)", &config_path);
-    line.option("--count", "N", "folds of the folds experiment (default 30; 4 with --quick)", &count, 1, 10000);
+    line.option("--count", "N",
+                "folds of the folds experiment (default 30; 4 with --quick), repetitions of repeatability (20; 3)",
+                &count, 1, 10000);
   };
   const Options options = bs::bench::parseExperimentOptions(argc, argv, program);
   try {
@@ -478,6 +567,9 @@ int main(int argc, char** argv) {
     if (options.experiment == "rgbd_noise" || options.experiment == "all") {
       rgbdNoiseExperiment(options, config, count > 0 ? static_cast<int>(count) : (options.quick ? 2 : 8),
                           options.quick ? 3 : 20, rows);
+    }
+    if (options.experiment == "repeatability" || options.experiment == "all") {
+      repeatabilityExperiment(options, config, count > 0 ? static_cast<int>(count) : (options.quick ? 3 : 20), rows);
     }
     bs::bench::writeSummaryJson(options, "fold_benchmark", rows);
     bs::bench::runPlotScript("fold_benchmark", "plot_fold_benchmark.py", options.out);

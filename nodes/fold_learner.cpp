@@ -191,6 +191,11 @@ class FoldLearnerNode {
     const bool on_robot = parameters_.text("backend", "sim", {"sim", "ros"}) == "ros";
     if (on_robot) {
       if (evaluator) throw std::invalid_argument("~backend ros runs the rollouts on the robot, not on workers");
+      if (config_.task.noise.any()) {
+        throw std::invalid_argument("the learning file's task noise (" + config_.task.noise.setting +
+                                    ") stands in for a robot's repeatability in simulation; a robot brings its own: "
+                                    "remove it for ~backend ros");
+      }
       evaluator = makeRobotBackend();
     }
     parameters_.warnUnknown();

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -256,6 +257,59 @@ TEST(ClothFold, BadConfiguration) {
   EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
   c = config();
   c.sim_config = "/nonexistent.yaml";
+  EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
+}
+
+// The robot's noise (FoldNoise): drawn from the rollout's seed (the same seed, the same rollout; another seed, another
+// draw), the cloth laid where the draw says (its rest mesh shifted and turned by it), each cut at 3 σ; none by default.
+TEST(ClothFold, TheRobotsNoiseMovesTheClothAndTheReleaseByTheSeedsDraw) {
+  const bt::FoldNoise robot = bt::foldNoiseSetting("robot", "test");
+  EXPECT_EQ(robot.setting, "robot");
+  EXPECT_TRUE(robot.any());
+  EXPECT_FALSE(bt::foldNoiseSetting("none", "test").any());
+  EXPECT_THROW(bt::foldNoiseSetting("loud", "test"), std::invalid_argument);
+  for (std::uint32_t seed = 0; seed < 200; ++seed) {
+    const bt::FoldNoiseDraw d = bt::drawFoldNoise(robot, seed);
+    ASSERT_LE(std::abs(d.cloth_x), 3.0 * robot.cloth_position);
+    ASSERT_LE(std::abs(d.cloth_yaw), 3.0 * robot.cloth_yaw);
+    ASSERT_LE(std::abs(d.release[1]), 3.0 * robot.release_time);
+  }
+  EXPECT_NE(bt::drawFoldNoise(robot, 1).cloth_x, bt::drawFoldNoise(robot, 2).cloth_x);
+  EXPECT_EQ(bt::drawFoldNoise(bt::FoldNoise{}, 1).cloth_y, 0.0);
+
+  bt::ClothFoldConfig c = config();
+  bt::ClothFoldTask quiet(c);
+  c.noise = robot;
+  bt::ClothFoldTask noisy(c);
+  const std::vector<Eigen::MatrixXd> identity{Eigen::MatrixXd::Identity(12, 12)};
+  const Eigen::VectorXd theta = noisy.demonstrationParameters();
+  const bt::FoldRollout a = noisy.run(identity, theta, 7u), b = noisy.run(identity, theta, 7u);
+  const bt::FoldRollout other = noisy.run(identity, theta, 8u), plain = quiet.run(identity, theta, 7u);
+  ASSERT_EQ(a.outcome, bt::FoldOutcome::Ok) << a.reason;
+  ASSERT_EQ(other.outcome, bt::FoldOutcome::Ok) << other.reason;
+  EXPECT_EQ(a.fold.q, b.fold.q);
+  EXPECT_NE(a.fold.q, other.fold.q);
+  EXPECT_EQ(plain.noise.cloth_x, 0.0);
+  // The rest mesh is the plain one turned by the yaw about the cloth's centre, then shifted.
+  const bt::FoldNoiseDraw& d = a.noise;
+  EXPECT_EQ(d.cloth_x, bt::drawFoldNoise(robot, 7u).cloth_x);
+  const Eigen::Vector3d centre = plain.cloth_rest_vertices.rowwise().mean();
+  const Eigen::Matrix3d turn = Eigen::AngleAxisd(d.cloth_yaw, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  double worst = 0.0;
+  for (Eigen::Index i = 0; i < a.cloth_rest_vertices.cols(); ++i) {
+    const Eigen::Vector3d expected =
+        centre + turn * (plain.cloth_rest_vertices.col(i) - centre) + Eigen::Vector3d(d.cloth_x, d.cloth_y, 0.0);
+    worst = std::max(worst, (a.cloth_rest_vertices.col(i) - expected).norm());
+  }
+  EXPECT_LT(worst, 1e-9);
+  EXPECT_NE(a.fold.q, plain.fold.q);
+
+  bt::FoldNoise bad = robot;
+  bad.release_time = -0.01;
+  EXPECT_THROW(bad.validate("test"), std::invalid_argument);
+  bad = robot;
+  bad.cloth_position = 0.5;
+  c.noise = bad;
   EXPECT_THROW(bt::ClothFoldTask{c}, std::invalid_argument);
 }
 

@@ -195,6 +195,20 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_DOUBLE_EQ(heap.reward.image.fold_heap_weight, 2.5);
   EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\nreward: {fold_heap_weight: -1}\n").find("fold_heap_weight"),
             std::string::npos);
+  // The robot's noise: a named setting, and entries beside it that make it custom; refused out of range or unnamed.
+  EXPECT_FALSE(demo.task.noise.any());
+  const br::FoldLearningConfig robot =
+      br::FoldLearningConfig::fromYamlFile(write("sim: " + kSource + "/config/sim.yaml\ntask: {noise: robot}\n"));
+  EXPECT_EQ(robot.task.noise.setting, "robot");
+  EXPECT_DOUBLE_EQ(robot.task.noise.cloth_position, 0.01);
+  const br::FoldLearningConfig custom = br::FoldLearningConfig::fromYamlFile(
+      write("sim: " + kSource + "/config/sim.yaml\ntask: {noise: robot, release_noise: 0.02}\n"));
+  EXPECT_EQ(custom.task.noise.setting, "custom");
+  EXPECT_DOUBLE_EQ(custom.task.noise.release_time, 0.02);
+  EXPECT_DOUBLE_EQ(custom.task.noise.cloth_yaw, robot.task.noise.cloth_yaw);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\ntask: {noise: loud}\n").find("loud"), std::string::npos);
+  EXPECT_NE(message("sim: " + kSource + "/config/sim.yaml\ntask: {cloth_yaw_noise: 3}\n").find("yaw"),
+            std::string::npos);
 }
 
 TEST(FoldLearning, CoordinatedPolicyDrivesTheSameMotion) {

@@ -71,7 +71,8 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
     const std::string at = where + " task";
     io::checkKeys(task, at,
                   {"kernels", "duration", "ik_method", "max_ik_error", "max_tracking_error", "demo_reach", "demo_lift",
-                   "demo_drop", "demo_lag", "demonstration", "policy", "velocity_limit", "image_delay"});
+                   "demo_drop", "demo_lag", "demonstration", "policy", "velocity_limit", "image_delay", "noise",
+                   "cloth_position_noise", "cloth_yaw_noise", "release_noise"});
     if (task["kernels"]) c.task.kernels = io::readInt(task, "kernels", at);
     c.task.duration = io::readDouble(task, "duration", at, c.task.duration);
     if (task["ik_method"]) c.task.ik_method = io::readString(task, "ik_method", at);
@@ -92,6 +93,14 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
       io::fail(at + ": 'image_delay' must be in [0, 60] s");
     if (!(c.task.demo_lag >= 0.0 && c.task.demo_lag < 0.9)) io::fail(at + ": 'demo_lag' must be in [0, 0.9)");
     if (task["policy"]) c.task.policy = tasks::foldPolicyFromString(io::readString(task, "policy", at), at);
+    if (task["noise"]) c.task.noise = tasks::foldNoiseSetting(io::readString(task, "noise", at), at);
+    const tasks::FoldNoise named = c.task.noise;
+    c.task.noise.cloth_position = io::readDouble(task, "cloth_position_noise", at, named.cloth_position);
+    c.task.noise.cloth_yaw = io::readDouble(task, "cloth_yaw_noise", at, named.cloth_yaw);
+    c.task.noise.release_time = io::readDouble(task, "release_noise", at, named.release_time);
+    if (task["cloth_position_noise"] || task["cloth_yaw_noise"] || task["release_noise"])
+      c.task.noise.setting = "custom";
+    c.task.noise.validate(at);
     if (const YAML::Node files = task["demonstration"]) {
       if (!files.IsSequence() || files.size() != 2)
         io::fail(at + ": 'demonstration' must list two DMP files (left, right)");
@@ -181,9 +190,14 @@ struct FoldLearner::Impl {
     directory->lock("reward.txt", text.str(), "scored with another reward");
     // The world the rollouts ran in: the simulation file with its URDF and plant (on a robot through ROS the
     // simulator's is checked against it, FoldOnRobotTask).
-    directory->lock("world.txt",
-                    "sim_config " + sim::SimConfig::worldDigest(config.task.sim_config, config.task.robot) + "\n",
-                    "run in another world (simulation, URDF or plant file)");
+    // With the robot's noise, its σ too (a world without it writes what it always did).
+    std::string world = "sim_config " + sim::SimConfig::worldDigest(config.task.sim_config, config.task.robot) + "\n";
+    const tasks::FoldNoise& noise = config.task.noise;
+    if (noise.any()) {
+      world += "noise cloth_position " + io::exactNumber(noise.cloth_position) + " cloth_yaw " +
+               io::exactNumber(noise.cloth_yaw) + " release_time " + io::exactNumber(noise.release_time) + "\n";
+    }
+    directory->lock("world.txt", world, "run in another world (simulation, URDF or plant file, or the robot's noise)");
   }
 
   /// Evaluates a batch (records with coordination, weights and seed set): stored ones from the directory, the others

@@ -13,6 +13,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <random>
 #include <sstream>
 #include <stdexcept>
 
@@ -165,6 +166,45 @@ FoldPolicy foldPolicyFromString(const std::string& text, const std::string& wher
   throw std::invalid_argument(where + ": unknown policy '" + text + "' (weights, goals)");
 }
 
+void FoldNoise::validate(const std::string& where) const {
+  const auto check = [&](double sigma, double most, const char* what) {
+    if (!(sigma >= 0.0 && sigma <= most)) {
+      throw std::invalid_argument(where + ": the " + what + " noise must be in [0, " + std::to_string(most) + "]");
+    }
+  };
+  check(cloth_position, 0.05, "cloth position's [m]");
+  check(cloth_yaw, 0.2, "cloth yaw's [rad]");
+  check(release_time, 0.2, "release time's [s]");
+}
+
+FoldNoise foldNoiseSetting(const std::string& name, const std::string& where) {
+  FoldNoise noise;
+  noise.setting = name;
+  if (name == "robot") {
+    noise.cloth_position = 0.01;
+    noise.cloth_yaw = 0.035;
+    noise.release_time = 0.05;
+  } else if (name != "none") {
+    throw std::invalid_argument(where + ": unknown noise setting '" + name + "' (none, robot)");
+  }
+  return noise;
+}
+
+FoldNoiseDraw drawFoldNoise(const FoldNoise& noise, std::uint32_t seed) {
+  FoldNoiseDraw draw;
+  if (!noise.any()) return draw;
+  std::seed_seq sequence{seed, 0x0b07u};
+  std::mt19937 rng(sequence);
+  std::normal_distribution<double> normal;
+  const auto cut = [&](double sigma) { return sigma * std::clamp(normal(rng), -3.0, 3.0); };
+  draw.cloth_x = cut(noise.cloth_position);
+  draw.cloth_y = cut(noise.cloth_position);
+  draw.cloth_yaw = cut(noise.cloth_yaw);
+  draw.release[0] = cut(noise.release_time);
+  draw.release[1] = cut(noise.release_time);
+  return draw;
+}
+
 FoldOutcome foldOutcomeFromString(const std::string& text, const std::string& where) {
   for (const FoldOutcome outcome :
        {FoldOutcome::Ok, FoldOutcome::InvalidPolicy, FoldOutcome::GraspFailed, FoldOutcome::IkFailed,
@@ -256,6 +296,7 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
     throw std::invalid_argument("cloth fold: demo_lag in [0, 0.9)");
   if (!(config.image_delay >= 0.0) || !std::isfinite(config.image_delay))
     throw std::invalid_argument("cloth fold: image_delay >= 0 and finite");
+  config.noise.validate("cloth fold");
   m.sim_config = sim::SimConfig::fromYamlFile(config.sim_config, config.robot);
   if (!m.sim_config.has_cloth) throw std::invalid_argument("cloth fold: '" + config.sim_config + "' has no cloth");
   m.simulation = std::make_unique<sim::BimanualSimulation>(m.sim_config);
@@ -487,6 +528,12 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   // runs them and whatever it ran before.
   sim::SimConfig sim_config = m.sim_config;
   sim_config.seed = seed;
+  // The robot's noise: the cloth laid down a little elsewhere, the grippers opening a little early or late.
+  out.noise = drawFoldNoise(m.config.noise, seed);
+  if (m.config.noise.any()) {
+    sim_config.cloth.pose = Eigen::Translation3d(out.noise.cloth_x, out.noise.cloth_y, 0.0) * sim_config.cloth.pose *
+                            Eigen::AngleAxisd(out.noise.cloth_yaw, Eigen::Vector3d::UnitZ());
+  }
   m.simulation = std::make_unique<sim::BimanualSimulation>(sim_config);
   sim::BimanualSimulation& simulation = *m.simulation;
   std::vector<sim::ArmState> start;
@@ -524,9 +571,16 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
     out.reason = reason + " at t = " + std::to_string(simulation.time()) + " s";
   };
 
+  // Each gripper opens at the planned period, moved by its noise within the hold after the movement.
+  const int hold_after = static_cast<int>(std::lround(m.config.hold_after / dt));
+  int release[2];
+  for (int arm = 0; arm < 2; ++arm) {
+    release[arm] = std::clamp(plan.release + static_cast<int>(std::lround(out.noise.release[arm] / dt)),
+                              plan.release - hold_after + 1, steps - 1);
+  }
   for (int k = 0; k < steps && out.outcome == FoldOutcome::Ok; ++k) {
-    if (k == plan.release) {
-      for (int arm = 0; arm < 2; ++arm) (void)simulation.release(arm);
+    for (int arm = 0; arm < 2; ++arm) {
+      if (k == release[arm]) (void)simulation.release(arm);
     }
     if (k % path_every == 0) path_times.push_back(simulation.time());
     if (cloth_every > 0 && k % cloth_every == 0) {

@@ -32,6 +32,31 @@ const char* toString(FoldPolicy policy) noexcept;
 /// The inverse of toString(). \throws std::invalid_argument naming `where` for an unknown name.
 FoldPolicy foldPolicyFromString(const std::string& text, const std::string& where);
 
+/// The robot's repeatability, drawn for every rollout from its seed: how far the same policy's folds differ on a robot
+/// (the thesis, Sec. 7.2.3: 20 runs of its demonstration gave R_depth 0.473 ± 0.029 and R_color 0.799 ± 0.088). The
+/// simulated rollout is otherwise the same every time but for the camera's pixel noise, which the image terms average
+/// out (R ± 0.002). Each draw is normal and cut at 3 σ.
+struct FoldNoise {
+  std::string setting = "none";  ///< The named setting it came from (foldNoiseSetting()), or "custom".
+  double cloth_position = 0.0;   ///< σ of where the cloth lies after the reset, in x and in y [m].
+  double cloth_yaw = 0.0;        ///< σ of its turn about the vertical through its centre [rad].
+  double release_time = 0.0;     ///< σ of each gripper's opening, arm by arm, about the planned moment [s].
+  bool any() const noexcept { return cloth_position > 0.0 || cloth_yaw > 0.0 || release_time > 0.0; }
+  /// \throws std::invalid_argument naming `where` for a negative or non-finite σ, or one beyond 5 cm, 0.2 rad, 0.2 s.
+  void validate(const std::string& where) const;
+};
+/// A named setting: "none" (every σ 0) or "robot" (σ 1.0 cm, 0.035 rad, 0.05 s: the thesis' repeatability, as
+/// docs/RESULTS.md measures it). \throws std::invalid_argument naming `where` for another name.
+FoldNoise foldNoiseSetting(const std::string& name, const std::string& where);
+
+/// One rollout's draw of a FoldNoise: the cloth's placement offset and each gripper's release offset.
+struct FoldNoiseDraw {
+  double cloth_x = 0.0, cloth_y = 0.0, cloth_yaw = 0.0;  ///< [m], [m], [rad]
+  double release[2] = {0.0, 0.0};                        ///< Left, right [s]; > 0: later than planned.
+};
+/// The draw of rollout seed `seed` (its own stream: the camera's and the sensors' noise of the same seed unchanged).
+FoldNoiseDraw drawFoldNoise(const FoldNoise& noise, std::uint32_t seed);
+
 struct ClothFoldConfig {
   std::string sim_config;  ///< Simulation file with a cloth (config/sim.yaml).
   std::string robot;      ///< A robot file replacing the simulation file's (sim::SimConfig::fromYamlFile); "": its own.
@@ -63,6 +88,8 @@ struct ClothFoldConfig {
   /// later and makes the same arc in the time left (0: both arms together).
   double demo_lag = 0.0;
   FoldPolicy policy = FoldPolicy::WeightsAndGoals;
+  /// The robot's repeatability in simulation (none by default). The robot path has its robot's own.
+  FoldNoise noise;
   /// Instead of the scripted demonstration: one Cartesian DMP file per arm (left, right; primitives/dmp_yaml.hpp,
   /// quaternion-vector encoding, `kernels` kernels), e.g. those saveDemonstration() wrote, run over `duration`.
   std::vector<std::string> demonstration_files;
@@ -106,7 +133,8 @@ struct FoldRollout {
   /// rendered from its meshes.
   std::vector<cv::Mat> camera_colour, camera_depth;
   Eigen::VectorXd camera_times;
-  FoldQuality fold;  ///< The final cloth's fold quality (ground truth, fold_quality.hpp).
+  FoldQuality fold;     ///< The final cloth's fold quality (ground truth, fold_quality.hpp).
+  FoldNoiseDraw noise;  ///< The robot's noise this rollout drew (ClothFoldConfig::noise; zeros without it).
   double simulated_seconds = 0.0, wall_seconds = 0.0;
   double cloth_wall_seconds = 0.0;  ///< Of wall_seconds, inside the cloth's steps (sim::ClothTimings).
 };
