@@ -1,7 +1,7 @@
 // The cloth fold's ground truth against what the camera rewards make of it, and the best fold there is:
 //
 //   fold_benchmark --experiment folds|ceiling|rgbd_noise|repeatability|all --seed S --out DIR [--quick]
-//                  [--count N] [--config FILE] [--jobs N]
+//                  [--count N] [--config FILE] [--jobs N] [--family symmetric|strategies] [--from DIR]
 //
 // folds: N clearly different folds (default 30), each the noise-free scripted demonstration of a fold drawn with the
 //   seed: reach, lift, release height, duration and a late right arm (tasks::ClothFoldConfig's demo_*). Each is run
@@ -20,6 +20,11 @@
 // repeatability: the learning file's demonstration N times (default 20, the thesis' count) with rollout seeds drawn
 //   from the seed, the task's robot noise (tasks::FoldNoise) and the camera's: mean, standard deviation and its share
 //   of the mean of the reward, its fold term, (7.52)'s R_color and R_depth, and q (DIR/repeatability.csv).
+// learned: the final noise-free policies of a fold_learner directory (--from DIR) that are the task's whole policy
+//   (the standard DMP's, PI2-CMA's, CMA-ES's), each as learned and N times (default 4) moved by a fraction of the
+//   learner's exploration: Spearman's rho of the reward with q where learning ends (q >= 0.8), DIR/learned.csv.
+//   --family strategies runs the folds experiment on other strategies: one arm folding, the corners carried inwards
+//   (a diagonal fold), a late release.
 // The learning file (--config, default config/fold_demo.yaml) gives the simulation, the controllers, the camera's
 // noise and the reward's settings; only the demonstration (and, in the ceiling's second stage, the goals) changes.
 #include "bimanual_skills/learning/covariance_adaptation.hpp"
@@ -32,6 +37,7 @@
 #include "cli/package_share.hpp"
 #include "cli/pinned_numerics.hpp"
 #include "experiment_cli.hpp"
+#include "io/csv_records.hpp"
 #include "parallel_runs.hpp"
 
 #include <opencv2/imgcodecs.hpp>
@@ -42,6 +48,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <random>
@@ -66,12 +73,21 @@ std::vector<std::string> rewardSettings() {
 /// One scripted fold of the set.
 struct FoldDraw {
   double reach = 0.0, lift = 0.0, drop = 0.0, duration = 0.0, lag = 0.0;
+  double right_arc = 1.0, inward = 0.0;  ///< tasks::ClothFoldConfig's demo_right_arc, demo_inward.
+  double hold_after = -1.0;              ///< The hold before the release [s]; < 0: the learning file's.
 };
 
+/// The folds experiment's sets: both arms on mirrored arcs (the scripted demonstration's family), or other
+/// strategies: one arm folding, the corners carried inwards (a diagonal fold), the release late.
+enum class FoldFamily { Symmetric, Strategies };
+
 /// Fold `index` of the set of `seed`: reach 0–1.1 (the arc's end, × the cloth's half length before the fold line),
-/// lift 0.1–0.7, release height 0–0.3 m, duration 2.5–5 s, and in a third of the folds the right arm 10–40 % late.
-FoldDraw drawFold(std::uint32_t seed, int index) {
-  std::seed_seq sequence{seed, 0xf01du, static_cast<std::uint32_t>(index)};
+/// lift 0.1–0.7, release height 0–0.3 m, duration 2.5–5 s; in the symmetric family a third of the folds have the
+/// right arm 10–40 % late; in the strategies family (a stream of its own) a third each have the right arm make 0–30 %
+/// of its arc (one arm folds), the arcs end 30–90 % of the half width inwards (a diagonal fold), or the grippers open
+/// 0.8–2 s after the movement instead of 0.3 s (a late release).
+FoldDraw drawFold(std::uint32_t seed, int index, FoldFamily family = FoldFamily::Symmetric) {
+  std::seed_seq sequence{seed, family == FoldFamily::Symmetric ? 0xf01du : 0x57a7u, static_cast<std::uint32_t>(index)};
   std::mt19937 rng(sequence);
   std::uniform_real_distribution<double> unit(0.0, 1.0);
   FoldDraw d;
@@ -79,8 +95,16 @@ FoldDraw drawFold(std::uint32_t seed, int index) {
   d.lift = 0.1 + 0.6 * unit(rng);
   d.drop = 0.3 * unit(rng);
   d.duration = 2.5 + 2.5 * unit(rng);
-  const double late = unit(rng), lag = 0.1 + 0.3 * unit(rng);
-  d.lag = late < 1.0 / 3.0 ? lag : 0.0;
+  const double which = unit(rng), amount = unit(rng);
+  if (family == FoldFamily::Symmetric) {
+    d.lag = which < 1.0 / 3.0 ? 0.1 + 0.3 * amount : 0.0;
+  } else if (which < 1.0 / 3.0) {
+    d.right_arc = 0.3 * amount;
+  } else if (which < 2.0 / 3.0) {
+    d.inward = 0.3 + 0.6 * amount;
+  } else {
+    d.hold_after = 0.8 + 1.2 * amount;
+  }
   return d;
 }
 
@@ -92,6 +116,9 @@ bt::ClothFoldConfig withDemonstration(bt::ClothFoldConfig task, const FoldDraw& 
   task.demo_drop = d.drop;
   task.duration = d.duration;
   task.demo_lag = d.lag;
+  task.demo_right_arc = d.right_arc;
+  task.demo_inward = d.inward;
+  if (d.hold_after >= 0.0) task.hold_after = d.hold_after;
   return task;
 }
 
@@ -147,13 +174,15 @@ struct FoldResult {
   double perspective_coverage = 0.0;
 };
 
-void foldsExperiment(const Options& options, const br::FoldLearningConfig& config, int count,
+void foldsExperiment(const Options& options, const br::FoldLearningConfig& config, int count, FoldFamily family,
                      std::vector<bs::bench::JsonRow>& rows) {
+  const char* family_name = family == FoldFamily::Symmetric ? "symmetric" : "strategies";
   const std::string image_dir = options.out + "/folds";
   std::filesystem::create_directories(image_dir);
   const std::vector<std::string> settings = rewardSettings();
   std::ofstream csv(options.out + "/folds.csv");
-  csv << "index,reach,lift,drop,duration,lag,outcome,fold_quality,fold_distance,fold_displacement,acceleration_cost";
+  csv << "index,reach,lift,drop,duration,lag,right_arc,inward,hold_after,outcome,fold_quality,fold_distance,"
+         "fold_displacement,acceleration_cost";
   for (const std::string& s : settings) {
     csv << ',' << s << "_reward," << s << "_r_acceleration," << s << "_r_color," << s << "_r_depth," << s << "_r_goal,"
         << s << "_goal_mismatch," << s << "_r_fold";
@@ -162,12 +191,13 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
          "coverage,"
          "reason\n";
   std::vector<FoldResult> results(static_cast<std::size_t>(count));
-  std::printf("fold_benchmark folds: %d scripted folds of seed %u on %d threads\n", count, options.seed, options.jobs);
+  std::printf("fold_benchmark folds: %d scripted folds (%s family) of seed %u on %d threads\n", count, family_name,
+              options.seed, options.jobs);
   bs::bench::parallelRuns(
       count, options.jobs,
       [&](int i) {
         FoldResult& r = results[static_cast<std::size_t>(i)];
-        r.draw = drawFold(options.seed, i);
+        r.draw = drawFold(options.seed, i, family);
         bt::ClothFoldTask fold(withDemonstration(config.task, r.draw));
         const bt::FoldRollout rollout = fold.run(fold.demonstrationParameters());
         r.outcome = rollout.outcome;
@@ -208,12 +238,16 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
       },
       [&](int i) {
         const FoldResult& r = results[static_cast<std::size_t>(i)];
-        std::printf("  fold %2d: reach %.2f lift %.2f drop %.3f duration %.2f lag %.2f  q %6.3f  %s\n", i, r.draw.reach,
-                    r.draw.lift, r.draw.drop, r.draw.duration, r.draw.lag, r.fold.q, bt::toString(r.outcome));
+        std::printf(
+            "  fold %2d: reach %.2f lift %.2f drop %.3f duration %.2f lag %.2f right arc %.2f inward %.2f hold %.2f"
+            "  q %6.3f  %s\n",
+            i, r.draw.reach, r.draw.lift, r.draw.drop, r.draw.duration, r.draw.lag, r.draw.right_arc, r.draw.inward,
+            r.draw.hold_after, r.fold.q, bt::toString(r.outcome));
         std::fflush(stdout);
         csv << i << ',' << r.draw.reach << ',' << r.draw.lift << ',' << r.draw.drop << ',' << r.draw.duration << ','
-            << r.draw.lag << ',' << bt::toString(r.outcome) << ',' << r.fold.q << ',' << r.fold.distance << ','
-            << r.fold.displacement << ',' << r.acceleration_cost;
+            << r.draw.lag << ',' << r.draw.right_arc << ',' << r.draw.inward << ',' << r.draw.hold_after << ','
+            << bt::toString(r.outcome) << ',' << r.fold.q << ',' << r.fold.distance << ',' << r.fold.displacement << ','
+            << r.acceleration_cost;
         for (const bt::FoldRewardTerms& t : r.terms) {
           csv << ',' << t.reward << ',' << t.r_acceleration << ',' << t.r_color << ',' << t.r_depth << ',' << t.r_goal
               << ',' << t.goal_mismatch << ',' << t.r_fold;
@@ -246,6 +280,7 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
     std::printf("  %-30s %6.3f [%6.3f, %6.3f]\n", name.c_str(), rho.estimate, rho.low, rho.high);
     rows.emplace_back()
         .add("experiment", "ranking")
+        .add("family", family_name)
         .add("signal", name)
         .add("folds", static_cast<int>(q.size()))
         .add("spearman", rho.estimate)
@@ -285,6 +320,139 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
         .add("offset_mean", shift.mean)
         .add("offset_half_width_95", shift.half_width)
         .add("offset_std_dev", shift.std_dev);
+  }
+}
+
+/// A learning directory's final noise-free policies whose parameters are the task's whole policy (Ω = I: the
+/// standard DMP, PI2-CMA, CMA-ES): from its rollout_parameters.csv, the last epoch's `policy` rollout of each run.
+struct LearnedPolicy {
+  std::string algorithm;
+  int run = 0, epoch = -1;
+  Eigen::VectorXd theta;
+};
+
+std::vector<LearnedPolicy> finalPolicies(const std::string& dir, int parameters) {
+  const std::string path = dir + "/rollout_parameters.csv";
+  std::ifstream in(path);
+  if (!in) throw std::invalid_argument("cannot read " + path + " (--from: a fold_learner output directory)");
+  std::map<std::pair<std::string, int>, LearnedPolicy> last;
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n) {
+    if (n == 1 || line.empty()) continue;
+    const std::string where = path + " line " + std::to_string(n);
+    const std::vector<std::string> f = bs::io::splitCsv(line);
+    if (f.size() < 6) throw std::invalid_argument(where + ": too few fields");
+    if (f[3] != "policy" || bs::io::parseInteger(f[5], where) != parameters) continue;
+    if (f.size() != 6 + static_cast<std::size_t>(parameters)) throw std::invalid_argument(where + ": a short record");
+    LearnedPolicy p;
+    p.algorithm = f[0];
+    p.run = bs::io::parseInteger(f[1], where);
+    p.epoch = bs::io::parseInteger(f[2], where);
+    p.theta.resize(parameters);
+    for (int i = 0; i < parameters; ++i) p.theta[i] = bs::io::parseNumber(f[6 + static_cast<std::size_t>(i)], where);
+    LearnedPolicy& slot = last[{p.algorithm, p.run}];
+    if (p.epoch > slot.epoch) slot = p;
+  }
+  std::vector<LearnedPolicy> out;
+  for (const auto& entry : last) out.push_back(entry.second);
+  if (out.empty()) {
+    throw std::invalid_argument(path + " holds no noise-free policy of " + std::to_string(parameters) +
+                                " parameters (the standard DMP's, PI2-CMA's or CMA-ES's runs)");
+  }
+  return out;
+}
+
+/// learned: the reward where learning ends. Each final policy of `from` (finalPolicies) runs as learned and
+/// `perturbations` times moved by the learner's own exploration (initial_stddev per weight, goal_stddev per goal)
+/// scaled by 0.5 k / perturbations, k = 1 …: folds of q about 0.75–0.95 from strategies the learning found, not
+/// scripted. Spearman's ρ of the learning file's reward (and its image term) with q, over all of them and over those
+/// with q ≥ 0.8, with bootstrap intervals over the folds. Writes DIR/learned.csv.
+void learnedExperiment(const Options& options, const br::FoldLearningConfig& config, const std::string& from,
+                       int perturbations, std::vector<bs::bench::JsonRow>& rows) {
+  if (from.empty()) throw std::invalid_argument("the learned experiment needs --from DIR (a fold_learner directory)");
+  bt::ClothFoldTask probe(config.task);
+  const int basis = probe.policyBasisSize(), kernels = config.task.kernels;
+  const double goal_sigma = probe.dmpParameters().alpha_z * probe.dmpParameters().beta_z * config.goal_stddev;
+  const std::vector<LearnedPolicy> policies = finalPolicies(from, probe.parameterCount());
+  struct Fold {
+    const LearnedPolicy* policy = nullptr;
+    int k = 0;
+    double scale = 0.0;
+    std::uint32_t seed = 0;
+    bt::FoldRollout rollout;
+    bt::FoldRewardTerms terms;
+  };
+  std::vector<Fold> folds;
+  for (const LearnedPolicy& p : policies) {
+    for (int k = 0; k <= perturbations; ++k) {
+      Fold f;
+      f.policy = &p;
+      f.k = k;
+      f.scale = 0.5 * k / std::max(perturbations, 1);
+      folds.push_back(f);
+    }
+  }
+  std::mt19937 seeds(options.seed);
+  for (Fold& f : folds) f.seed = static_cast<std::uint32_t>(seeds());
+  std::printf("fold_benchmark learned: %zu final policies of %s, each as learned and %d times perturbed, seed %u\n",
+              policies.size(), from.c_str(), perturbations, options.seed);
+  std::ofstream csv(options.out + "/learned.csv");
+  csv << "algorithm,run,epoch,perturbation,scale,seed,outcome,fold_quality,reward,r_fold,fold_mismatch\n";
+  const std::vector<Eigen::MatrixXd> identity{
+      Eigen::MatrixXd::Identity(bt::ClothFoldTask::kDofs, bt::ClothFoldTask::kDofs)};
+  bs::bench::parallelRuns(
+      static_cast<int>(folds.size()), options.jobs,
+      [&](int i) {
+        Fold& f = folds[static_cast<std::size_t>(i)];
+        std::mt19937 rng(f.seed);
+        std::normal_distribution<double> normal;
+        Eigen::VectorXd theta = f.policy->theta;
+        for (Eigen::Index j = 0; j < theta.size(); ++j) {
+          const double sigma = static_cast<int>(j % basis) < kernels ? config.initial_stddev : goal_sigma;
+          theta[j] += f.scale * sigma * normal(rng);
+        }
+        br::FoldRolloutTask task(config.task, config.reward);
+        f.rollout = task.task().run(identity, theta, f.seed);
+        f.terms = task.score(f.rollout, f.seed);
+      },
+      [&](int i) {
+        const Fold& f = folds[static_cast<std::size_t>(i)];
+        std::printf("  %s run %d, perturbation %d (x%.3f): q %.3f, R %.4f  %s\n", f.policy->algorithm.c_str(),
+                    f.policy->run, f.k, f.scale, f.rollout.fold.q, f.terms.reward, bt::toString(f.rollout.outcome));
+        std::fflush(stdout);
+        csv << '"' << f.policy->algorithm << "\"," << f.policy->run << ',' << f.policy->epoch << ',' << f.k << ','
+            << f.scale << ',' << f.seed << ',' << bt::toString(f.rollout.outcome) << ',' << f.rollout.fold.q << ','
+            << f.terms.reward << ',' << f.terms.r_fold << ',' << f.terms.fold_mismatch << '\n'
+            << std::flush;
+      });
+  std::printf("fold_benchmark learned: Spearman's rho with q (95 %% bootstrap interval over the folds):\n");
+  for (const double q_low : {0.0, 0.8}) {
+    std::vector<double> q, reward, image;
+    double q_min = 1.0, q_max = 0.0;
+    for (const Fold& f : folds) {
+      if (f.rollout.outcome != bt::FoldOutcome::Ok || f.rollout.fold.q < q_low) continue;
+      q.push_back(f.rollout.fold.q);
+      reward.push_back(f.terms.reward);
+      image.push_back(-f.terms.fold_mismatch);
+      q_min = std::min(q_min, f.rollout.fold.q);
+      q_max = std::max(q_max, f.rollout.fold.q);
+    }
+    if (q.size() < 3) continue;
+    for (const auto& [signal, values] : {std::pair{"fold reward", &reward}, std::pair{"fold image term", &image}}) {
+      const bs::learning::BootstrapInterval rho = bs::learning::bootstrapSpearman(*values, q, 10000, options.seed);
+      std::printf("  %-16s q >= %.1f (%zu folds, q %.3f-%.3f): %6.3f [%6.3f, %6.3f]\n", signal, q_low, q.size(), q_min,
+                  q_max, rho.estimate, rho.low, rho.high);
+      rows.emplace_back()
+          .add("experiment", "learned_ranking")
+          .add("signal", signal)
+          .add("q_at_least", q_low)
+          .add("folds", static_cast<int>(q.size()))
+          .add("q_min", q_min)
+          .add("q_max", q_max)
+          .add("spearman", rho.estimate)
+          .add("spearman_low", rho.low)
+          .add("spearman_high", rho.high);
+    }
   }
 }
 
@@ -539,20 +707,24 @@ void ceilingExperiment(const Options& options, const br::FoldLearningConfig& con
 
 int main(int argc, char** argv) {
   bimanual_skills::cli::pinNumerics(argv);
-  std::string config_path;
+  std::string config_path, family = "symmetric", from;
   long count = 0;
   bs::bench::ExperimentProgram program;
   program.name = "fold_benchmark";
   program.description =
       "The cloth fold's ground truth (the fold quality q of the simulated mesh) against the camera rewards, on a\n"
       "set of clearly different scripted folds (folds); and q_max, the best fold a large search on q finds (ceiling).";
-  program.experiments = {"folds", "ceiling", "rgbd_noise", "repeatability", "all"};
+  program.experiments = {"folds", "ceiling", "rgbd_noise", "repeatability", "learned", "all"};
   program.with_jobs = true;
   program.extra = [&](bs::cli::CommandLine& line) {
     line.option("--config", "FILE", "fold learning file (default: config/fold_demo.yaml)", &config_path);
     line.option("--count", "N",
                 "folds of the folds experiment (default 30; 4 with --quick), repetitions of repeatability (20; 3)",
                 &count, 1, 10000);
+    line.option("--family", "NAME",
+                "folds' strategies: symmetric (mirrored arcs, default) or strategies (one arm, diagonal, late release)",
+                &family);
+    line.option("--from", "DIR", "learned: the fold_learner directory whose final policies it perturbs", &from);
   };
   const Options options = bs::bench::parseExperimentOptions(argc, argv, program);
   try {
@@ -561,12 +733,19 @@ int main(int argc, char** argv) {
     std::filesystem::create_directories(options.out);
     std::vector<bs::bench::JsonRow> rows;
     if (options.experiment == "folds" || options.experiment == "all") {
-      foldsExperiment(options, config, count > 0 ? static_cast<int>(count) : (options.quick ? 4 : 30), rows);
+      if (family != "symmetric" && family != "strategies") {
+        throw std::invalid_argument("--family: symmetric or strategies, not '" + family + "'");
+      }
+      foldsExperiment(options, config, count > 0 ? static_cast<int>(count) : (options.quick ? 4 : 30),
+                      family == "symmetric" ? FoldFamily::Symmetric : FoldFamily::Strategies, rows);
     }
     if (options.experiment == "ceiling" || options.experiment == "all") ceilingExperiment(options, config, rows);
     if (options.experiment == "rgbd_noise" || options.experiment == "all") {
       rgbdNoiseExperiment(options, config, count > 0 ? static_cast<int>(count) : (options.quick ? 2 : 8),
                           options.quick ? 3 : 20, rows);
+    }
+    if (options.experiment == "learned" || (options.experiment == "all" && !from.empty())) {
+      learnedExperiment(options, config, from, count > 0 ? static_cast<int>(count) : (options.quick ? 1 : 4), rows);
     }
     if (options.experiment == "repeatability" || options.experiment == "all") {
       repeatabilityExperiment(options, config, count > 0 ? static_cast<int>(count) : (options.quick ? 3 : 20), rows);

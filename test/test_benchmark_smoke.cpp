@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <sys/wait.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -390,6 +391,47 @@ TEST(FoldBenchmarkSmoke, QuickRunWritesEveryOutputTheSameOnAnyNumberOfJobs) {
     EXPECT_EQ(csvNumber(row, "fold_r_fold"), csvNumber(row, "fold_mismatch"));  // the fold setting's weight is 1
   }
   EXPECT_NE(runQuietly(std::string(FOLD_BENCHMARK) + " --experiment folds --count 0 --out " + one.string()), 0);
+  EXPECT_NE(summary.find("\"experiment\": \"repeatability\""), std::string::npos);
+  EXPECT_NE(summary.find("\"numerics\": \"pinned\""), std::string::npos);
+  EXPECT_EQ(readCsv(one / "repeatability.csv").size(), 3u);
+
+  // The second family of strategies, and the final policies of a learning directory perturbed (here a hand-written
+  // directory: one noise-free policy of the whole size, all zeros, and rows the experiment leaves out).
+  fs::remove_all(two);
+  ASSERT_EQ(runQuietly(std::string(FOLD_BENCHMARK) + " --experiment folds --family strategies --seed 2 --quick --out " +
+                       two.string()),
+            0);
+  const std::vector<CsvRow> strategies = readCsv(two / "folds.csv");
+  ASSERT_EQ(strategies.size(), 4u);
+  EXPECT_TRUE(std::any_of(strategies.begin(), strategies.end(), [](const CsvRow& r) {
+    return csvNumber(r, "right_arc") < 1.0 || csvNumber(r, "inward") > 0.0 || csvNumber(r, "hold_after") > 0.0;
+  }));
+  EXPECT_NE(readTextFile(two / "summary.json").find("\"family\": \"strategies\""), std::string::npos);
+  const fs::path learning = fs::temp_directory_path() / "bimanual_skills_fold_smoke_learning";
+  fs::create_directories(learning);
+  {
+    std::ofstream csv(learning / "rollout_parameters.csv");
+    csv << "algorithm,run,epoch,kind,index,size,weights...\n";
+    for (const char* prefix :
+         {"\"DR-DMP0(12)\",0,3,policy,0,252", "\"DR-DMP0(12)\",0,3,sample,0,252", "\"IDR-DMP_CMU\",0,3,policy,0,84"}) {
+      csv << prefix;
+      for (int i = 0; i < (std::string(prefix).find(",84") != std::string::npos ? 84 : 252); ++i) csv << ",0";
+      csv << '\n';
+    }
+  }
+  ASSERT_EQ(runQuietly(std::string(FOLD_BENCHMARK) + " --experiment learned --seed 2 --quick --from " +
+                       learning.string() + " --out " + two.string()),
+            0);
+  const std::vector<CsvRow> learned = readCsv(two / "learned.csv");
+  ASSERT_EQ(learned.size(), 2u);  // the policy as learned and once perturbed
+  EXPECT_EQ(learned[0].at("algorithm"), "DR-DMP0(12)");
+  EXPECT_EQ(csvNumber(learned[0], "scale"), 0.0);
+  EXPECT_GT(csvNumber(learned[1], "scale"), 0.0);
+  EXPECT_NE(runQuietly(std::string(FOLD_BENCHMARK) + " --experiment learned --quick --out " + two.string()), 0);
+  EXPECT_NE(
+      runQuietly(std::string(FOLD_BENCHMARK) + " --experiment folds --family mirrored --quick --out " + two.string()),
+      0);
+  fs::remove_all(learning);
 }
 
 TEST(TrackBenchmarkSmoke, QuickRunWritesEveryOutputTheSameOnAnyNumberOfJobsAndResumes) {

@@ -266,16 +266,18 @@ struct ClothFoldTask::Impl {
     const double lift = 0.015;
     const int samples = static_cast<int>(std::lround(config.duration * kDemonstrationRate)) + 1;
     const double lag = arm == 1 ? config.demo_lag : 0.0;
+    const double arc = arm == 1 ? config.demo_right_arc : 1.0;
+    const double inward = side * config.demo_inward * 0.5 * sim_config.cloth.width;
     std::vector<Pose> path;
     for (int k = 0; k < samples; ++k) {
       double s = std::clamp((static_cast<double>(k) / (samples - 1) - lag) / (1.0 - lag), 0.0, 1.0);
-      s = s * s * s * (10.0 + s * (-15.0 + 6.0 * s));  // minimum jerk
+      s = arc * s * s * s * (10.0 + s * (-15.0 + 6.0 * s));  // minimum jerk
       const double angle = M_PI * s;
       Pose pose;
       // The arc's radius shrinks from the corner's distance to the centre line to `radius`: it ends short of (or
       // beyond) the near edge, and `demo_drop` above the table.
       const double r = (half - 0.01) * (1.0 - s) + radius * s;
-      pose.position = Eigen::Vector3d(centre.x() + r * std::cos(angle), y,
+      pose.position = Eigen::Vector3d(centre.x() + r * std::cos(angle), y - inward * s,
                                       top + lift + config.demo_drop * s + config.demo_lift * r * std::sin(angle));
       pose.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI - 0.35 * std::sin(angle), Eigen::Vector3d::UnitY()));
       path.push_back(pose);
@@ -294,6 +296,10 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
   }
   if (!(config.demo_lag >= 0.0 && config.demo_lag < 0.9))
     throw std::invalid_argument("cloth fold: demo_lag in [0, 0.9)");
+  if (!(config.demo_right_arc >= 0.0 && config.demo_right_arc <= 1.0) ||
+      !(config.demo_inward >= 0.0 && config.demo_inward <= 0.9)) {
+    throw std::invalid_argument("cloth fold: demo_right_arc in [0, 1], demo_inward in [0, 0.9]");
+  }
   if (!(config.image_delay >= 0.0) || !std::isfinite(config.image_delay))
     throw std::invalid_argument("cloth fold: image_delay >= 0 and finite");
   config.noise.validate("cloth fold");

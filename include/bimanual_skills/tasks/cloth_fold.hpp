@@ -87,6 +87,11 @@ struct ClothFoldConfig {
   /// The right arm's lag in the scripted demonstration, a fraction of `duration` in [0, 0.9): it starts that much
   /// later and makes the same arc in the time left (0: both arms together).
   double demo_lag = 0.0;
+  /// How much of its arc the right arm makes, in [0, 1] (0: it holds its corner where it took it and one arm folds).
+  double demo_right_arc = 1.0;
+  /// The arcs' ends moved towards the cloth's centre line by this fraction of its half width, in [0, 0.9]: the far
+  /// corners meet inwards, a diagonal, triangular fold.
+  double demo_inward = 0.0;
   FoldPolicy policy = FoldPolicy::WeightsAndGoals;
   /// The robot's repeatability in simulation (none by default). The robot path has its robot's own.
   FoldNoise noise;
