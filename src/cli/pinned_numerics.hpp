@@ -30,8 +30,25 @@ namespace bimanual_skills::cli {
 /// The glibc tunable, and its value that keeps libm on its baseline x86-64 code.
 inline constexpr const char* kHwcapsTunable = "glibc.cpu.hwcaps=";
 inline constexpr const char* kLibmMask = "-FMA,-FMA4";
-/// The kernels Debian's OpenCV dispatches beyond its SSE2 baseline (cv::getCPUFeaturesLine()'s starred ones).
-inline constexpr const char* kOpenCvMask = "SSE4.1,SSE4.2,FP16,AVX,AVX2,AVX512-SKX";
+/// The kernels Debian's OpenCV dispatches beyond its SSE2 baseline (cv::getCPUFeaturesLine()'s starred ones) that
+/// this CPU has: OpenCV warns of a feature it is asked to disable and does not have.
+inline std::string openCvMask() {
+  std::string mask;
+#if defined(__x86_64__)
+  const auto add = [&mask](bool active, const char* name) {
+    if (active) mask += std::string(mask.empty() ? "" : ",") + name;
+  };
+  add(CPU_FEATURE_ACTIVE(SSE4_1), "SSE4.1");
+  add(CPU_FEATURE_ACTIVE(SSE4_2), "SSE4.2");
+  add(CPU_FEATURE_ACTIVE(F16C), "FP16");
+  add(CPU_FEATURE_ACTIVE(AVX), "AVX");
+  add(CPU_FEATURE_ACTIVE(AVX2), "AVX2");
+  add(CPU_FEATURE_ACTIVE(AVX512F) && CPU_FEATURE_ACTIVE(AVX512CD) && CPU_FEATURE_ACTIVE(AVX512BW) &&
+          CPU_FEATURE_ACTIVE(AVX512DQ) && CPU_FEATURE_ACTIVE(AVX512VL),
+      "AVX512-SKX");
+#endif
+  return mask;
+}
 /// Set in the re-executed process, so that a mask glibc ignores (a secure-execution process) cannot loop.
 inline constexpr const char* kPinnedMarker = "BIMANUAL_SKILLS_NUMERICS_PINNED";
 
@@ -45,10 +62,12 @@ inline bool libmPinned() noexcept {
 #endif
 }
 
-/// Whether OpenCV was told at load time to keep to its baseline kernels (OPENCV_CPU_DISABLE names kOpenCvMask).
-inline bool openCvPinned() noexcept {
+/// Whether OpenCV was told at load time to keep to its baseline kernels (OPENCV_CPU_DISABLE names openCvMask()).
+inline bool openCvPinned() {
+  const std::string mask = openCvMask();
+  if (mask.empty()) return true;
   const char* value = std::getenv("OPENCV_CPU_DISABLE");
-  return value != nullptr && std::strstr(value, kOpenCvMask) != nullptr;
+  return value != nullptr && std::strstr(value, mask.c_str()) != nullptr;
 }
 
 /// "pinned" when both are, else what is not (for a program's summary.json and log).
@@ -78,7 +97,7 @@ inline void pinNumerics(char** argv) {
   const char* preload = std::getenv("LD_PRELOAD");
   if (preload != nullptr && std::strstr(preload, "vgpreload") != nullptr) {
     warn(std::string("running under valgrind; set GLIBC_TUNABLES=") + kHwcapsTunable + kLibmMask +
-         " OPENCV_CPU_DISABLE=" + kOpenCvMask);
+         " OPENCV_CPU_DISABLE=" + openCvMask());
     return;
   }
   if (!libmPinned()) {
@@ -95,7 +114,7 @@ inline void pinNumerics(char** argv) {
   }
   if (!openCvPinned()) {
     const char* old = std::getenv("OPENCV_CPU_DISABLE");
-    const std::string masks = old != nullptr && *old != '\0' ? std::string(old) + "," + kOpenCvMask : kOpenCvMask;
+    const std::string masks = old != nullptr && *old != '\0' ? std::string(old) + "," + openCvMask() : openCvMask();
     setenv("OPENCV_CPU_DISABLE", masks.c_str(), 1);
   }
   setenv(kPinnedMarker, "1", 1);
