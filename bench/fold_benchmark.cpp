@@ -242,12 +242,12 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
             "  fold %2d: reach %.2f lift %.2f drop %.3f duration %.2f lag %.2f right arc %.2f inward %.2f hold %.2f"
             "  q %6.3f  %s\n",
             i, r.draw.reach, r.draw.lift, r.draw.drop, r.draw.duration, r.draw.lag, r.draw.right_arc, r.draw.inward,
-            r.draw.hold_after, r.fold.q, bt::toString(r.outcome));
+            r.draw.hold_after >= 0.0 ? r.draw.hold_after : config.task.hold_after, r.fold.q, bt::toString(r.outcome));
         std::fflush(stdout);
         csv << i << ',' << r.draw.reach << ',' << r.draw.lift << ',' << r.draw.drop << ',' << r.draw.duration << ','
-            << r.draw.lag << ',' << r.draw.right_arc << ',' << r.draw.inward << ',' << r.draw.hold_after << ','
-            << bt::toString(r.outcome) << ',' << r.fold.q << ',' << r.fold.distance << ',' << r.fold.displacement << ','
-            << r.acceleration_cost;
+            << r.draw.lag << ',' << r.draw.right_arc << ',' << r.draw.inward << ','
+            << (r.draw.hold_after >= 0.0 ? r.draw.hold_after : config.task.hold_after) << ',' << bt::toString(r.outcome)
+            << ',' << r.fold.q << ',' << r.fold.distance << ',' << r.fold.displacement << ',' << r.acceleration_cost;
         for (const bt::FoldRewardTerms& t : r.terms) {
           csv << ',' << t.reward << ',' << t.r_acceleration << ',' << t.r_color << ',' << t.r_depth << ',' << t.r_goal
               << ',' << t.goal_mismatch << ',' << t.r_fold;
