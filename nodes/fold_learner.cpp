@@ -673,6 +673,7 @@ class FoldLearnerNode {
           .add("reward_setting", config_.reward.setting)
           .add("policy", bt::toString(config_.task.policy))
           .add("covariance_memory", config_.covariance_memory)
+          .add("noise", config_.task.noise.setting)
           .add("initial_policy_reward", initial)
           .add("final_policy_reward", final_reward)
           .add("initial_policy_fold_quality", initial_quality)
