@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Plots of fold_benchmark: reads DIR/folds.csv, DIR/summary.json and DIR/folds/NN_final.png, writes
 DIR/ranking.png (each reward setting's reward of every fold against the fold's quality q, with Spearman's rho and its
-bootstrap interval), DIR/perspective.png (the perspective RGB-D camera against the orthographic one), DIR/folds.png (the camera's image of each fold at the end, in order of q) and DIR/tables.md;
+bootstrap interval), DIR/perspective.png (the perspective RGB-D camera against the orthographic one), DIR/folds.png (the camera's image of each fold at the end, in order of q) and DIR/tables.md (with the strategies family, per strategy too);
 from DIR/ceiling.csv (the ceiling experiment), DIR/ceiling.png (every rollout's q and the best so far, per stage of
 the search) and q_max in DIR/tables.md. Either experiment's files may be missing.
 
@@ -157,8 +157,27 @@ def folds_tables(directory, summary):
     for label, signal in ABLATION:
         value, low, high = bootstrap_spearman([signal(r) for r in folds], q, resamples=2000)
         lines.append(f'| {label} | {value:.3f} | [{low:.3f}, {high:.3f}] |\n')
+    if 'right_arc' in folds[0]:
+        lines += strategies(folds)
     if 'perspective_reward' in folds[0]:
         lines += perspective(directory, folds)
+    return lines
+
+
+def strategies(folds):
+    """tables.md lines of the strategies family: the fold reward's Spearman with q within each strategy."""
+    kinds = [('one arm (the right arm 0-30 % of its arc)', lambda r: float(r['right_arc']) < 1.0),
+             ('diagonal (the arcs ending inwards)', lambda r: float(r['inward']) > 0.0),
+             ('late release (0.8-2 s after the movement)', lambda r: float(r['hold_after']) > 0.31)]
+    lines = ['\nThe fold reward within each strategy (bootstrap interval over its folds):\n\n'
+             '| strategy | folds | q range | Spearman with q | 95 % interval |\n|---|---:|---|---:|---|\n']
+    for label, member in kinds:
+        subset = [r for r in folds if member(r)]
+        if len(subset) < 3:
+            continue
+        q = [float(r['fold_quality']) for r in subset]
+        value, low, high = bootstrap_spearman([float(r['fold_reward']) for r in subset], q, resamples=2000)
+        lines.append(f'| {label} | {len(subset)} | {min(q):.2f} to {max(q):.2f} | {value:.3f} | [{low:.3f}, {high:.3f}] |\n')
     return lines
 
 
