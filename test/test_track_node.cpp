@@ -221,7 +221,7 @@ TEST_F(Track, FollowsTheCarriedCanWithinTwoCentimetres) {
       "%.1f ms; frames relayed %ld, received by the tracker %u (dropped %ld)\n",
       latency.size(), 1e3 * median, 1e3 * p99, 1e3 * latency.back(), relayed_.load(), tracked_.frames,
       relayed_.load() - static_cast<long>(tracked_.frames));
-  EXPECT_LT(p99, 0.25) << "the goal is 50 ms (RESULTS measures it); this bound only catches a broken pipeline";
+  EXPECT_LT(p99, 0.1) << "the goal is 50 ms; this bound only catches a broken pipeline on a loaded machine";
 }
 
 TEST_F(Track, HoldsStillWhenTheCanLeavesTheViewAndFollowsItWhenItComesBack) {
