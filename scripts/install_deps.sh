@@ -13,7 +13,7 @@ PACKAGES=(
   python3-sensor-msgs python3-geometry-msgs python3-trajectory-msgs python3-visualization-msgs python3-std-srvs
   # robot model and transforms
   libtf2-ros-dev libtf2-eigen-dev libkdl-parser-dev liborocos-kdl-dev liburdf-dev liburdfdom-dev
-  ros-robot-state-publisher joint-state-publisher
+  ros-robot-state-publisher joint-state-publisher topic-tools
   # rviz, and headless snapshots of it (scripts/rviz_snapshot.sh)
   rviz xvfb xauth imagemagick
   # numerics

@@ -125,6 +125,9 @@ class Track : public ::testing::Test {
     for (const auto& status : m->status) {
       for (const auto& kv : status.values) diagnostics_[status.name + "/" + kv.key] = kv.value;
       diagnostics_[status.name + "/(message)"] = status.message;
+      for (const auto& kv : status.values) {
+        if (kv.key == "last second, medians") std::printf("%s: %s\n", status.name.c_str(), kv.value.c_str());
+      }
     }
   }
 
