@@ -138,8 +138,8 @@ class ObjectTrackerNode {
     diagnostics_ = node.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     info_ = node.subscribe(camera + "/camera_info", 1, &ObjectTrackerNode::onInfo, this);
     depth_info_ = node.subscribe(camera + "/" + depth + "/camera_info", 1, &ObjectTrackerNode::onDepthInfo, this);
-    // The newest frame only: a tracker slower than its camera drops frames (counted by the camera's sequence) rather
-    // than working through a backlog, each estimate then a queue's length older than the frame it could have had.
+    // The newest frame only: a tracker slower than its camera drops frames rather than working through a backlog,
+    // each estimate then a queue's length older than the frame it could have had.
     image_.subscribe(node, camera + "/image_raw", 1);
     depth_.subscribe(node, camera + "/" + depth + "/image_raw", 1);
     // Colour and depth of one moment: the same stamp (one camera), or within 20 ms (a Kinect's two).

@@ -123,11 +123,11 @@ class Track : public ::testing::Test {
   static void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& m) {
     const std::lock_guard<std::mutex> lock(mutex_);
     for (const auto& status : m->status) {
-      for (const auto& kv : status.values) diagnostics_[status.name + "/" + kv.key] = kv.value;
-      diagnostics_[status.name + "/(message)"] = status.message;
       for (const auto& kv : status.values) {
+        diagnostics_[status.name + "/" + kv.key] = kv.value;
         if (kv.key == "last second, medians") std::printf("%s: %s\n", status.name.c_str(), kv.value.c_str());
       }
+      diagnostics_[status.name + "/(message)"] = status.message;
     }
   }
 
