@@ -12,12 +12,20 @@
 ///   moved in its 8th digit with them masked. OPENCV_CPU_DISABLE, also read at load time, masks them.
 /// So a program that finds either unmasked executes itself again once (/proc/self/exe, the same arguments) with
 /// both set. A fold rollout costs the same (0.66 s against 0.69 s median over make demo's 208 rollouts).
+///
+/// A third choice is Eigen's: it asks the CPU for its cache sizes and blocks its matrix products by them, and the
+/// blocking sets the order in which a long product is summed. An AMD EPYC (32 KiB, 512 KiB, 32 MiB) and an Intel Xeon
+/// (48 KiB, 2 MiB, 105 MiB) gave other first policies to make demo's learning from the same seed. Eigen takes the
+/// sizes it is given at any time (Eigen::setCpuCacheSizes): a program sets those of the Intel Xeon its committed
+/// results were measured on.
 #pragma once
 
 #if defined(__x86_64__)
 #include <sys/platform/x86.h>
 #endif
 #include <unistd.h>
+
+#include <Eigen/Core>
 
 #include <cerrno>
 #include <cstdio>
@@ -62,6 +70,15 @@ inline bool libmPinned() noexcept {
 #endif
 }
 
+/// The cache sizes Eigen blocks its products by in a program: those the committed results' Intel Xeon reported.
+inline constexpr std::ptrdiff_t kEigenCaches[3] = {48 * 1024, 2 * 1024 * 1024, 105 * 1024 * 1024};
+
+/// Whether Eigen blocks its products by kEigenCaches in this process.
+inline bool eigenPinned() noexcept {
+  return Eigen::l1CacheSize() == kEigenCaches[0] && Eigen::l2CacheSize() == kEigenCaches[1] &&
+         Eigen::l3CacheSize() == kEigenCaches[2];
+}
+
 /// Whether OpenCV was told at load time to keep to its baseline kernels (OPENCV_CPU_DISABLE names openCvMask()).
 inline bool openCvPinned() {
   const std::string mask = openCvMask();
@@ -72,19 +89,25 @@ inline bool openCvPinned() {
 
 /// "pinned" when both are, else what is not (for a program's summary.json and log).
 inline std::string numericsState() {
-  if (libmPinned() && openCvPinned()) return "pinned";
+  if (libmPinned() && openCvPinned() && eigenPinned()) return "pinned";
   std::string state = "not pinned:";
-  if (!libmPinned()) state += " libm's FMA code active";
-  if (!openCvPinned()) state += std::string(libmPinned() ? "" : ",") + " OpenCV's dispatched kernels active";
+  const auto add = [&state](bool pinned, const char* what) {
+    if (!pinned) state += std::string(state.back() == ':' ? " " : ", ") + what;
+  };
+  add(libmPinned(), "libm's FMA code active");
+  add(openCvPinned(), "OpenCV's dispatched kernels active");
+  add(eigenPinned(), "Eigen blocks by this CPU's caches");
   return state;
 }
 
-/// Call first in main(), before anything computes: returns at once when both are pinned; otherwise adds the masks to
+/// Call first in main(), before anything computes: sets Eigen's cache sizes, then returns at once when libm and OpenCV
+/// are pinned; otherwise adds the masks to
 /// the environment (keeping the caller's GLIBC_TUNABLES and OPENCV_CPU_DISABLE entries) and executes the program
 /// again with the same arguments, so it does not return. It returns, with a warning on stderr, when that is not
 /// possible or did not take: under valgrind (which would not follow; set both variables for it), when exec fails,
 /// or when the re-executed process still finds a mask ignored. argv is main()'s.
 inline void pinNumerics(char** argv) {
+  Eigen::setCpuCacheSizes(kEigenCaches[0], kEigenCaches[1], kEigenCaches[2]);
   if (libmPinned() && openCvPinned()) return;
   const auto warn = [](const std::string& why) {
     std::fprintf(stderr, "%s: numerics not pinned (%s): results may differ in the last bits from other machines'\n",
