@@ -1,6 +1,7 @@
 // One seed, one result on any x86-64 machine (src/cli/pinned_numerics.hpp): a fold rollout of make demo's setting and
-// a short learning run give the digests committed below, in this process, in one that sees a CPU with nothing beyond
-// SSE3 (glibc's masks), and (on a CPU with FMA) not in one whose libm is left unpinned.
+// a short learning run give the digest committed below and the record in test/data, in this process, in one that
+// sees a CPU with nothing beyond SSE3 (glibc's masks) and with another CPU's cache sizes given to Eigen then pinned
+// over, and (on a CPU with FMA) not in one whose libm is left unpinned.
 //
 // A change that moves a fold rollout by one bit changes these: if the change is meant, the failure prints the new
 // digest, or writes the new learning record (test/data/reproducibility_learning.txt); commit it and say what moved.

@@ -87,7 +87,7 @@ inline bool openCvPinned() {
   return value != nullptr && std::strstr(value, mask.c_str()) != nullptr;
 }
 
-/// "pinned" when both are, else what is not (for a program's summary.json and log).
+/// "pinned" when libm, OpenCV and Eigen are, else what is not (for a program's summary.json and log).
 inline std::string numericsState() {
   if (libmPinned() && openCvPinned() && eigenPinned()) return "pinned";
   std::string state = "not pinned:";
@@ -101,11 +101,11 @@ inline std::string numericsState() {
 }
 
 /// Call first in main(), before anything computes: sets Eigen's cache sizes, then returns at once when libm and OpenCV
-/// are pinned; otherwise adds the masks to
-/// the environment (keeping the caller's GLIBC_TUNABLES and OPENCV_CPU_DISABLE entries) and executes the program
-/// again with the same arguments, so it does not return. It returns, with a warning on stderr, when that is not
-/// possible or did not take: under valgrind (which would not follow; set both variables for it), when exec fails,
-/// or when the re-executed process still finds a mask ignored. argv is main()'s.
+/// are pinned; otherwise adds the masks to the environment (keeping the caller's GLIBC_TUNABLES and
+/// OPENCV_CPU_DISABLE entries) and executes the program again with the same arguments, so it does not return. It
+/// returns, with a warning on stderr, when that is not possible or did not take: under valgrind (which would not
+/// follow; set both variables for it), when exec fails, or when the re-executed process still finds a mask ignored.
+/// argv is main()'s.
 inline void pinNumerics(char** argv) {
   Eigen::setCpuCacheSizes(kEigenCaches[0], kEigenCaches[1], kEigenCaches[2]);
   if (libmPinned() && openCvPinned()) return;
