@@ -4,7 +4,8 @@ DIR/summary.json, writes DIR/planar15.png, DIR/planar10.png, DIR/wam_circle.png 
 mean and 95 % interval of the mean over runs), DIR/planar10_paths.png (the arm's initial motion and the first run's
 path before and after learning, via-points; cf. Fig. 7.6a, c), DIR/wam_circle_paths.png (the tool's path before and
 after learning against the circle; cf. Fig. 7.7a), DIR/em_vs_pca.png (mean rho of 7.21 per (d, r)),
-DIR/optima_progress.png (the cost L-BFGS reaches against the rollouts it spent, beside the learners' budget) and
+DIR/optima_progress.png (the cost L-BFGS reaches against the rollouts it spent, beside the learners' budget),
+DIR/nao_distribution.png, DIR/nao_correlation.png and DIR/nao_fit.png (the NAO walks: cf. Figs. 7.4, 7.3) and
 DIR/tables.md (measured figures next to the thesis' Tables 7.3 and 7.4).
 
 Usage: plot_dr_benchmark.py DIR
@@ -325,6 +326,89 @@ def plot_em_vs_pca(directory):
     return ds, rs, grid, cells
 
 
+def read_rows(directory, name):
+    path = os.path.join(directory, name)
+    if not os.path.exists(path):
+        return None
+    with open(path) as f:
+        return list(csv.DictReader(f))
+
+
+def plot_nao(directory):
+    """nao_walking: Fig. 7.4 (the 13 strides' distribution per joint against the r = 4 fit), Fig. 7.3 (the joints'
+    correlations: the model's, the data's over walks and time, the data's within walks) and the fit's error per r."""
+    distribution = read_rows(directory, "nao_distribution.csv")
+    strides = read_rows(directory, "nao_strides.csv")
+    if distribution is None or strides is None:
+        return
+    joints = list(dict.fromkeys(row["joint"] for row in distribution))
+    fig, axes = plt.subplots(2, 6, figsize=(15, 5.2), sharex=True)
+    for k, joint in enumerate(joints):
+        ax = axes[k // 6][k % 6]
+        rows = [r for r in distribution if r["joint"] == joint]
+        phase = np.array([float(r["phase"]) for r in rows])
+        for walk in sorted({r["walk"] for r in strides}):
+            ax.plot([float(r["phase"]) for r in strides if r["walk"] == walk],
+                    [float(r[joint]) for r in strides if r["walk"] == walk], color="tab:red", lw=0.4, alpha=0.5)
+        for key, colour, label in (("data", "tab:red", "13 walks"), ("fit", "tab:blue", "DR-ProMP, r = 4")):
+            mean = np.array([float(r[key + "_mean"]) for r in rows])
+            std = np.array([float(r[key + "_std"]) for r in rows])
+            ax.fill_between(phase, mean - 2 * std, mean + 2 * std, color=colour, alpha=0.25, lw=0)
+            ax.plot(phase, mean, color=colour, lw=1.2, label=label + " (mean, 2 sd)")
+        ax.set_title("%d %s" % (k + 1, joint), fontsize=8)
+        ax.tick_params(labelsize=7)
+        if k % 6 == 0:
+            ax.set_ylabel("deg", fontsize=8)
+        if k >= 6:
+            ax.set_xlabel("normalised time", fontsize=8)
+    axes[0][0].legend(fontsize=6, loc="best")
+    fig.suptitle("NAO leg joints over one stride: 13 generated walks (red) and their DR-ProMP fit with r = 4 (blue) "
+                 "(cf. Fig. 7.4)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "nao_distribution.png"), dpi=110)
+    plt.close(fig)
+
+    correlation = read_rows(directory, "nao_correlation.csv")
+    if correlation:
+        d = max(int(r["i"]) for r in correlation)
+        fig, axes = plt.subplots(1, 3, figsize=(16, 5.6), constrained_layout=True)
+        for n, (ax, key, title) in enumerate(zip(axes, ("model", "data", "data_within_walks"),
+                                  ("the model, r = 4 (over time and walks)", "the data (over time and walks)",
+                                   "the data within walks (each walk's mean out)"))):
+            m = np.zeros((d, d))
+            for r in correlation:
+                m[int(r["i"]) - 1][int(r["j"]) - 1] = float(r[key])
+            image = ax.imshow(m, cmap="RdBu_r", vmin=-1, vmax=1)
+            ax.set_xticks(range(d))
+            ax.set_xticklabels(range(1, d + 1), fontsize=7)
+            ax.set_yticks(range(d))
+            ax.set_yticklabels(["%d %s" % (i + 1, j) for i, j in enumerate(joints)] if n == 0 else range(1, d + 1),
+                               fontsize=7)
+            for i in range(d):
+                for j in range(d):
+                    ax.text(j, i, "%.1f" % m[i][j], ha="center", va="center", fontsize=5)
+            ax.set_title(title, fontsize=9)
+        fig.colorbar(image, ax=axes, shrink=0.8, label="correlation")
+        fig.suptitle("NAO leg joints' correlations (cf. Fig. 7.3): 1-6 left, 7-12 right", fontsize=10)
+        fig.savefig(os.path.join(directory, "nao_correlation.png"), dpi=110)
+        plt.close(fig)
+
+    fit = read_rows(directory, "nao_fit.csv")
+    if fit:
+        fig, ax = plt.subplots(figsize=(6, 3.6))
+        rs = [int(r["r"]) for r in fit]
+        ax.semilogy(rs, [float(r["rms_mean_error_deg"]) for r in fit], "o-", label="mean (rms over joints and time)")
+        ax.semilogy(rs, [float(r["rms_std_error_deg"]) for r in fit], "s-", label="standard deviation")
+        ax.set_xlabel("latent dimension r")
+        ax.set_ylabel("fit's error [deg]")
+        ax.set_xticks(rs)
+        ax.legend(fontsize=8)
+        ax.set_title("DR-ProMP of 13 NAO walks: the fit's error per r", fontsize=9)
+        fig.tight_layout()
+        fig.savefig(os.path.join(directory, "nao_fit.png"), dpi=110)
+        plt.close(fig)
+
+
 def checkpoint_table(rewards, algorithm, transform):
     runs = rewards[algorithm]
     out = []
@@ -433,6 +517,7 @@ def main():
     plot_wam_circle_paths(directory, summary)
     plot_optima_progress(directory)
     em = plot_em_vs_pca(directory)
+    plot_nao(directory)
     with open(os.path.join(directory, "tables.md"), "w") as f:
         f.write(tables(directory, summary, em))
 

@@ -114,16 +114,39 @@ TEST(DrBenchmarkSmoke, QuickRunWritesEveryOutput) {
                             "\"algorithm\": \"EM DR-DMP(3)\"",
                             "\"experiment\": \"optima\"",
                             "\"optimum_reward\"",
+                            "\"experiment\": \"nao_walking\"",
+                            "\"algorithm\": \"coupling\"",
                             "\"final_reward\"",
                             "\"runs\": 2",
                             "\"seed\": 3"}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field;
   }
-  for (const char* file :
-       {"em_vs_pca.csv", "planar15.csv", "planar10.csv", "wam_circle.csv", "em_vs_pca.png", "planar15.png",
-        "planar10.png", "wam_circle.png", "optima.csv", "tables.md", "planar10_target.csv", "wam_circle_target.csv",
-        "planar10_paths.png", "wam_circle_paths.png", "optima_progress.csv", "optima_progress.png"}) {
+  for (const char* file : {"em_vs_pca.csv",       "planar15.csv",
+                           "planar10.csv",        "wam_circle.csv",
+                           "em_vs_pca.png",       "planar15.png",
+                           "planar10.png",        "wam_circle.png",
+                           "optima.csv",          "tables.md",
+                           "planar10_target.csv", "wam_circle_target.csv",
+                           "planar10_paths.png",  "wam_circle_paths.png",
+                           "optima_progress.csv", "optima_progress.png",
+                           "nao_walks.csv",       "nao_strides.csv",
+                           "nao_fit.csv",         "nao_distribution.csv",
+                           "nao_correlation.csv", "nao_distribution.png",
+                           "nao_correlation.png", "nao_fit.png"}) {
     EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
+  }
+  // The NAO walks: 13 strides of 100 samples; four synergies fit them far better than one; the hip rolls move
+  // together (the torso sways over the stance foot).
+  EXPECT_EQ(readCsv(out / "nao_strides.csv").size(), 1300u);
+  std::map<int, double> nao_error;
+  for (const CsvRow& r : readCsv(out / "nao_fit.csv"))
+    nao_error[static_cast<int>(csvNumber(r, "r"))] = csvNumber(r, "rms_mean_error_deg");
+  ASSERT_TRUE(nao_error.count(1) && nao_error.count(4));
+  EXPECT_LT(nao_error[4], 0.2 * nao_error[1]);
+  for (const CsvRow& r : readCsv(out / "nao_correlation.csv")) {
+    if (r.at("joint_i") == "LHipRoll" && r.at("joint_j") == "RHipRoll") {
+      EXPECT_GT(csvNumber(r, "data"), 0.9);
+    }
   }
   // The first run's paths: every algorithm's mean policy before and after learning, one row per sample.
   for (const auto& [experiment, header, samples] :
