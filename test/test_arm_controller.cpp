@@ -359,6 +359,43 @@ TEST(ArmController, SafetyReactions) {
   EXPECT_LT((controller.desiredPosition() - q_reset).norm(), 1e-15);
 }
 
+// A segment handed over with its start state (a reference generator's, TargetFollower's) starts exactly there,
+// whatever the controller's own desired state was, and a consistent one (constant acceleration) is followed as it
+// is; a bad start state changes nothing.
+TEST(ArmController, StartsATrajectoryFromAGivenStateWhenToldTo) {
+  ClosedLoop loop;
+  bc::ArmController controller(loop.model, noFriction(), ClosedLoop::config());
+  for (int k = 0; k < 10; ++k) loop.step(controller);
+  const double h = 0.04;
+  const Eigen::VectorXd q0 = loop.q + Eigen::VectorXd::Constant(7, 0.01), v = Eigen::VectorXd::Constant(7, 0.2),
+                        a = Eigen::VectorXd::Constant(7, -3.0);
+  bc::Waypoints w;
+  w.times = Eigen::VectorXd::Constant(1, h);
+  w.positions = q0 + h * v + (0.5 * h * h) * a;
+  w.velocities = v + h * a;
+  w.accelerations = a;
+  const Eigen::VectorXd wrong = Eigen::VectorXd::Zero(6);
+  Eigen::VectorXd nan = q0;
+  nan[2] = std::nan("");
+  EXPECT_EQ(controller.setTrajectoryFrom(w, wrong, v, a), bc::TrajectoryStatus::WrongSize);
+  EXPECT_EQ(controller.setTrajectoryFrom(w, q0, v, wrong), bc::TrajectoryStatus::WrongSize);
+  EXPECT_EQ(controller.setTrajectoryFrom(w, nan, v, a), bc::TrajectoryStatus::NotFinite);
+  loop.step(controller);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Hold);
+  ASSERT_EQ(controller.setTrajectoryFrom(w, q0, v, a), bc::TrajectoryStatus::Ok);
+  loop.step(controller);
+  EXPECT_EQ(controller.mode(), bc::ControllerMode::Track);
+  EXPECT_LT((controller.desiredPosition() - q0).norm(), 1e-12);
+  EXPECT_LT((controller.desiredVelocity() - v).norm(), 1e-12);
+  EXPECT_LT((controller.desiredAcceleration() - a).norm(), 1e-12);
+  for (int k = 1; k <= 20; ++k) {  // along the segment at its constant acceleration
+    loop.step(controller);
+    const double t = k * ClosedLoop::kStep;
+    EXPECT_LT((controller.desiredVelocity() - (v + t * a)).norm(), 1e-9);
+    EXPECT_LT((controller.desiredAcceleration() - a).norm(), 1e-6);
+  }
+}
+
 TEST(ArmController, ModesAndNoAllocation) {
   ClosedLoop loop;
   bc::ArmController controller(loop.model, noFriction(), ClosedLoop::config());

@@ -69,7 +69,8 @@ ArmController::ArmController(const kinematics::ChainModel& model, const dynamics
     throw std::invalid_argument("ArmController: stop_deceleration and min_stop_time must be finite and > 0");
   }
   ctc_.setFrictionCompensation(config.friction_compensation);
-  q_d_ = qd_d_ = qdd_d_ = error_ = applied_ = accel_sign_ = q_valid_ = Eigen::VectorXd::Zero(n);
+  q_d_ = qd_d_ = qdd_d_ = error_ = applied_ = accel_sign_ = q_valid_ = start_q_ = start_qd_ = start_qdd_ =
+      Eigen::VectorXd::Zero(n);
 }
 
 void ArmController::holdAt(double t, const Eigen::Ref<const Eigen::VectorXd>& q) noexcept {
@@ -106,13 +107,38 @@ void ArmController::setMode(ControllerMode mode) noexcept {
 
 TrajectoryStatus ArmController::setTrajectory(const Waypoints& waypoints) noexcept {
   const TrajectoryStatus status = trajectory_.load(waypoints);
-  if (status == TrajectoryStatus::Ok) trajectory_request_ = true;
+  if (status == TrajectoryStatus::Ok) {
+    trajectory_request_ = true;
+    start_given_ = false;
+  }
   return status;
 }
 
 TrajectoryStatus ArmController::setTrajectory(const Waypoints& waypoints, double offset) noexcept {
   const TrajectoryStatus status = trajectory_.load(waypoints, offset);
-  if (status == TrajectoryStatus::Ok) trajectory_request_ = true;
+  if (status == TrajectoryStatus::Ok) {
+    trajectory_request_ = true;
+    start_given_ = false;
+  }
+  return status;
+}
+
+TrajectoryStatus ArmController::setTrajectoryFrom(const Waypoints& waypoints,
+                                                  const Eigen::Ref<const Eigen::VectorXd>& q,
+                                                  const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                                  const Eigen::Ref<const Eigen::VectorXd>& qdd) noexcept {
+  if (q.size() != start_q_.size() || qd.size() != start_qd_.size() || qdd.size() != start_qdd_.size()) {
+    return TrajectoryStatus::WrongSize;
+  }
+  if (!q.allFinite() || !qd.allFinite() || !qdd.allFinite()) return TrajectoryStatus::NotFinite;
+  const TrajectoryStatus status = trajectory_.load(waypoints);
+  if (status == TrajectoryStatus::Ok) {
+    trajectory_request_ = true;
+    start_given_ = true;
+    start_q_ = q;
+    start_qd_ = qd;
+    start_qdd_ = qdd;
+  }
   return status;
 }
 
@@ -184,7 +210,12 @@ ControllerStatus ArmController::update(double now, double stamp, const Eigen::Re
   }
   if (trajectory_request_) {
     trajectory_request_ = false;
-    if (mode_ == ControllerMode::GravityCompensation) {
+    if (start_given_) {
+      start_given_ = false;
+      q_d_ = start_q_;
+      qd_d_ = start_qd_;
+      qdd_d_ = start_qdd_;
+    } else if (mode_ == ControllerMode::GravityCompensation) {
       q_d_ = q;
       qd_d_ = qd;
       qdd_d_.setZero();

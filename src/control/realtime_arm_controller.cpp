@@ -197,7 +197,11 @@ void RealtimeArmController::follow(double stamp, const Eigen::Ref<const Eigen::V
   if (stamp < next_follow_ - 1e-9 && stamp > next_follow_ - 2.0 * period) return;  // not due (a clock back: due)
   next_follow_ = stamp + period;
   if (!follower_->update(stamp, target_, q)) return;
-  (void)controller_.setTrajectory(follower_->waypoints());
+  // From the follower's reference itself (its acceleration-limited state), not from the controller's desired state:
+  // after a late or missing state the two differ, and a segment joining them within five periods asked tens of
+  // rad/s² (a velocity-limit trip on hardware:=true).
+  (void)controller_.setTrajectoryFrom(follower_->waypoints(), follower_->reference(), follower_->segmentVelocity(),
+                                      follower_->segmentAcceleration());
   const double used = follower_->targetStamp();
   if (std::isfinite(used) && !(used == used_target_stamp_)) {
     used_target_stamp_ = used;

@@ -95,7 +95,9 @@ TargetFollower::TargetFollower(const kinematics::ChainModel& model, const Target
       fk_(model),
       orientation_(config.tool_orientation) {
   const int n = model.nq();
-  for (Eigen::VectorXd* v : {&q_r_, &v_r_, &q_goal_, &q_goal_previous_, &v_goal_, &v_wanted_}) v->setZero(n);
+  for (Eigen::VectorXd* v :
+       {&q_r_, &v_r_, &q_goal_, &q_goal_previous_, &v_goal_, &v_wanted_, &v_segment_, &a_r_, &a_segment_})
+    v->setZero(n);
   const Eigen::VectorXd margin = Eigen::VectorXd::Constant(n, config_.limit_margin);
   lower_ = model.lowerLimits() + margin;
   upper_ = model.upperLimits() - margin;
@@ -281,11 +283,13 @@ bool TargetFollower::update(double t, const FollowTarget& target,
     const double stoppable = std::sqrt(2.0 * a_max_[j] * std::max(0.0, room));
     wanted = std::clamp(wanted, -stoppable, stoppable);
     const double step = a_max_[j] * dt;
-    v_r_[j] += std::clamp(wanted - v_r_[j], -step, step);
+    const double change = std::clamp(wanted - v_r_[j], -step, step);
+    a_r_[j] = dt > 0.0 ? change / dt : 0.0;
+    v_r_[j] += change;
     q_r_[j] += v_r_[j] * dt;
     if (q_r_[j] > upper_[j] || q_r_[j] < lower_[j]) {
       q_r_[j] = std::clamp(q_r_[j], lower_[j], upper_[j]);
-      v_r_[j] = 0.0;
+      v_r_[j] = a_r_[j] = 0.0;
     }
   }
   // The segment reaches the reference extrapolated kSegmentPeriods periods ahead: states that come late or after a
@@ -293,8 +297,23 @@ bool TargetFollower::update(double t, const FollowTarget& target,
   // would be acceleration spikes.
   const double h = kSegmentPeriods * config_.period;
   waypoints_.times[0] = h;
-  waypoints_.positions.col(0) = (q_r_ + v_r_ * h).cwiseMax(lower_).cwiseMin(upper_);
-  waypoints_.velocities.col(0) = v_r_;
+  // The reference's own motion, at its last acceleration (within a_max), from its state: the controller starts the
+  // segment there (ArmController::setTrajectoryFrom), so q̈_d is the reference's and nothing else. Where a position
+  // limit cuts the extrapolation, the joint goes to it at a constant velocity instead.
+  for (Eigen::Index j = 0; j < q_r_.size(); ++j) {
+    const double end = q_r_[j] + (v_r_[j] + 0.5 * a_r_[j] * h) * h;
+    if (end >= lower_[j] && end <= upper_[j]) {
+      v_segment_[j] = v_r_[j];
+      a_segment_[j] = a_r_[j];
+      waypoints_.positions(j, 0) = end;
+    } else {
+      waypoints_.positions(j, 0) = std::clamp(end, lower_[j], upper_[j]);
+      v_segment_[j] = (waypoints_.positions(j, 0) - q_r_[j]) / h;
+      a_segment_[j] = 0.0;
+    }
+    waypoints_.velocities(j, 0) = v_segment_[j] + a_segment_[j] * h;
+    waypoints_.accelerations(j, 0) = a_segment_[j];
+  }
   return true;
 }
 

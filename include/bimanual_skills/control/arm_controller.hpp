@@ -84,6 +84,13 @@ class ArmController {
   TrajectoryStatus setTrajectory(const Waypoints& waypoints) noexcept;
   /// The same with times that count from `offset` seconds after the next update's stamp (JointTrajectory::load).
   TrajectoryStatus setTrajectory(const Waypoints& waypoints, double offset) noexcept;
+  /// The same, from the desired state (q, q̇, q̈) at the next update's stamp instead of the current one: for a
+  /// reference generator that owns the desired state (TargetFollower), so that a late or missing state does not let
+  /// the controller's own extrapolation drift from it and the segment's spline close the gap with an acceleration
+  /// spike. WrongSize or NotFinite for a bad state; anything but Ok changes nothing.
+  TrajectoryStatus setTrajectoryFrom(const Waypoints& waypoints, const Eigen::Ref<const Eigen::VectorXd>& q,
+                                     const Eigen::Ref<const Eigen::VectorXd>& qd,
+                                     const Eigen::Ref<const Eigen::VectorXd>& qdd) noexcept;
 
   ControllerMode mode() const noexcept { return mode_; }
   bool started() const noexcept { return started_; }
@@ -122,10 +129,10 @@ class ArmController {
   double timeout_, stop_deceleration_, min_stop_time_;
   ControllerMode mode_ = ControllerMode::Hold;
   ControllerMode requested_mode_ = ControllerMode::Hold;
-  bool mode_request_ = false, trajectory_request_ = false;
+  bool mode_request_ = false, trajectory_request_ = false, start_given_ = false;
   bool started_ = false, was_stale_ = false;
   double last_stamp_ = 0.0, last_period_ = 0.0;
-  Eigen::VectorXd q_d_, qd_d_, qdd_d_, error_, applied_, accel_sign_, q_valid_;
+  Eigen::VectorXd q_d_, qd_d_, qdd_d_, error_, applied_, accel_sign_, q_valid_, start_q_, start_qd_, start_qdd_;
 };
 
 }  // namespace bimanual_skills::control

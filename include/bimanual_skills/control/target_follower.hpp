@@ -106,8 +106,10 @@ class TargetFollower {
   void start(double t, const Eigen::Ref<const Eigen::VectorXd>& q, const Eigen::Ref<const Eigen::VectorXd>& qd,
              bool grasp = true) noexcept;
   /// One update at time t with the latest estimate and the measured joint positions: moves the reference and
-  /// writes waypoints() (a segment from the controller's desired state to the reference extrapolated five periods
-  /// ahead, which the next update replaces). False (nothing written) when idle or for inputs of the wrong size.
+  /// writes waypoints(): the reference's motion five periods ahead at its last acceleration (at a constant velocity
+  /// to a position limit that cuts it), from the state reference(), segmentVelocity(), segmentAcceleration(), which
+  /// the controller starts it from (ArmController::setTrajectoryFrom); the next update replaces it. False (nothing
+  /// written) when idle or for inputs of the wrong size.
   bool update(double t, const FollowTarget& target, const Eigen::Ref<const Eigen::VectorXd>& q_measured) noexcept;
   /// The gripper's answer to graspRequested(): true, it holds the object; false, it did not.
   void graspDone(bool held) noexcept;
@@ -129,6 +131,10 @@ class TargetFollower {
   double offset() const noexcept { return offset_; }
   const Eigen::VectorXd& reference() const noexcept { return q_r_; }
   const Eigen::VectorXd& referenceVelocity() const noexcept { return v_r_; }
+  /// The start velocity and acceleration of the segment in waypoints(): the reference's, or a constant velocity
+  /// where a position limit cuts it.
+  const Eigen::VectorXd& segmentVelocity() const noexcept { return v_segment_; }
+  const Eigen::VectorXd& segmentAcceleration() const noexcept { return a_segment_; }
   const TargetFollowerConfig& config() const noexcept { return config_; }
 
  private:
@@ -141,7 +147,8 @@ class TargetFollower {
   kinematics::ClikData clik_;
   kinematics::ChainData fk_;
   Waypoints waypoints_;
-  Eigen::VectorXd q_r_, v_r_, q_goal_, q_goal_previous_, v_goal_, v_wanted_, lower_, upper_, v_max_, a_max_;
+  Eigen::VectorXd q_r_, v_r_, a_r_, v_segment_, a_segment_, q_goal_, q_goal_previous_, v_goal_, v_wanted_, lower_,
+      upper_, v_max_, a_max_;
   Eigen::Matrix3d orientation_;  ///< The tool's while following since start(): tool_orientation, with keep_yaw turned.
   Eigen::Vector3d goal_ = Eigen::Vector3d::Zero(), tool_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero(), last_velocity_ = Eigen::Vector3d::Zero();
