@@ -429,22 +429,49 @@ TEST(TargetFollower, AnUpdateAllocatesNothingAndBadInputHolds) {
   EXPECT_THROW(TargetFollower(model, bad), std::invalid_argument);
 }
 
-TEST(TargetFollower, RunsInTheRealtimeControllersLoopWithoutAllocatingAndReportsItsLatency) {
-  bs::sim::SimConfig config = trackScene();
-  config.object.path.away_probability = 0.0;
-  bs::sim::BimanualSimulation simulation(config);
-  const bs::kinematics::ChainModel model = simulation.armModel(0);
+/// The left arm's realtime controller, able to follow (never approaching: track_time 1000 s).
+std::unique_ptr<bs::control::RealtimeArmController> followingLeftArm(const bs::sim::SimConfig& config,
+                                                                     bs::sim::BimanualSimulation& simulation,
+                                                                     const bs::kinematics::ChainModel& model) {
   bs::control::ArmControllerConfig c;
   c.gains.kp = config.kp;
   c.gains.kv = config.kv;
   c.observer = bs::control::ObserverGains::diagonal(model.nq(), 10.0, 0.0, 100.0, 0.0, 10.0);
   c.observer.rate_hz = 1000.0;
-  bs::control::RealtimeArmController left(model, bs::dynamics::loadFrictionModel(config.arms[0].friction_file), c);
+  auto left = std::make_unique<bs::control::RealtimeArmController>(
+      model, bs::dynamics::loadFrictionModel(config.arms[0].friction_file), c);
   bs::control::TargetFollowerConfig follow;
   follow.base = simulation.basePose(0);
   follow.grasp_offset = config.object.grasp_point;
   follow.track_time = 1e3;
-  left.enableFollowing(follow);
+  left->enableFollowing(follow);
+  return left;
+}
+
+/// The scene with the can never out of view, and the left arm's realtime controller able to follow in it.
+struct LoopRig {
+  static bs::sim::SimConfig inView() {
+    bs::sim::SimConfig config = trackScene();
+    config.object.path.away_probability = 0.0;
+    return config;
+  }
+  LoopRig()
+      : config(inView()),
+        simulation(config),
+        model(simulation.armModel(0)),
+        left(followingLeftArm(config, simulation, model)) {}
+  bs::sim::SimConfig config;
+  bs::sim::BimanualSimulation simulation;
+  bs::kinematics::ChainModel model;
+  std::unique_ptr<bs::control::RealtimeArmController> left;
+};
+
+TEST(TargetFollower, RunsInTheRealtimeControllersLoopWithoutAllocatingAndReportsItsLatency) {
+  LoopRig rig;
+  const bs::sim::SimConfig& config = rig.config;
+  bs::sim::BimanualSimulation& simulation = rig.simulation;
+  const bs::kinematics::ChainModel& model = rig.model;
+  bs::control::RealtimeArmController& left = *rig.left;
   ASSERT_TRUE(left.canFollow());
   bs::control::ControllerCommand start;
   start.kind = bs::control::ControllerCommand::Kind::Follow;
@@ -527,25 +554,14 @@ TEST(TargetFollower, RunsInTheRealtimeControllersLoopWithoutAllocatingAndReports
 // limit); the segments from the controller's own extrapolated state asked 30-40 rad/s² and tripped the velocity
 // limit within 0.2 s of following.
 TEST(TargetFollower, StatesThatComeLateInBurstsLeaveTheReferenceSmoothAndTheArmWithinItsVelocityLimit) {
-  bs::sim::SimConfig config = trackScene();
-  config.object.path.away_probability = 0.0;
-  bs::sim::BimanualSimulation simulation(config);
-  const bs::kinematics::ChainModel model = simulation.armModel(0);
-  bs::control::ArmControllerConfig c;
-  c.gains.kp = config.kp;
-  c.gains.kv = config.kv;
-  c.observer = bs::control::ObserverGains::diagonal(model.nq(), 10.0, 0.0, 100.0, 0.0, 10.0);
-  c.observer.rate_hz = 1000.0;
-  bs::control::RealtimeArmController left(model, bs::dynamics::loadFrictionModel(config.arms[0].friction_file), c);
-  bs::control::TargetFollowerConfig follow;
-  follow.base = simulation.basePose(0);
-  follow.grasp_offset = config.object.grasp_point;
-  follow.track_time = 1e3;
-  left.enableFollowing(follow);
+  LoopRig rig;
+  bs::sim::BimanualSimulation& simulation = rig.simulation;
+  const bs::kinematics::ChainModel& model = rig.model;
+  bs::control::RealtimeArmController& left = *rig.left;
   bs::control::ControllerCommand start;
   start.kind = bs::control::ControllerCommand::Kind::Follow;
   left.command(start);
-  const bs::sim::ObjectPath path(config.object.path);
+  const bs::sim::ObjectPath path(rig.config.object.path);
   bs::sim::JointState state(model.nq());
   Eigen::VectorXd torque = Eigen::VectorXd::Zero(model.nq()), hold = simulation.trueState(1).q;
   std::vector<bs::sim::JointState> queue;  // states the controller has not read yet
