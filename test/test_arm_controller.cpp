@@ -344,6 +344,9 @@ TEST(ArmController, SafetyReactions) {
   const Eigen::VectorXd fast = Eigen::VectorXd::Constant(7, 10.0);
   EXPECT_EQ(controller.update(loop.t, loop.t, loop.q, fast, torque), bc::ControllerStatus::VelocityLimit);
   EXPECT_EQ(controller.mode(), bc::ControllerMode::Hold);
+  EXPECT_EQ(bc::velocityLimitText(Eigen::Vector3d(0.1, -2.5, 0.3), Eigen::Vector3d(2.0, 2.0, 0.5)),
+            "joint 2 moved at -2.500000 rad/s, over its velocity limit 2.000000 rad/s");
+  EXPECT_EQ(bc::velocityLimitText(fast, Eigen::Vector3d(2.0, 2.0, 2.0)), "");
   // Torques stay within the limits even far from the target.
   EXPECT_LE((torque.cwiseAbs() - loop.model.effortLimits()).maxCoeff(), 1e-12);
   // Time going backwards (a simulation reset: stamps and clock) restarts the controller in hold at the state it is

@@ -48,6 +48,14 @@ const char* toString(ControllerStatus status) noexcept {
   return "Unknown";
 }
 
+std::string velocityLimitText(const Eigen::VectorXd& qd, const Eigen::VectorXd& velocity_limit) {
+  if (qd.size() == 0 || qd.size() != velocity_limit.size()) return {};
+  Eigen::Index joint = 0;
+  (qd.cwiseAbs().array() / velocity_limit.array()).maxCoeff(&joint);
+  return "joint " + std::to_string(joint + 1) + " moved at " + std::to_string(qd[joint]) +
+         " rad/s, over its velocity limit " + std::to_string(velocity_limit[joint]) + " rad/s";
+}
+
 ArmController::ArmController(const kinematics::ChainModel& model, const dynamics::FrictionModel& friction,
                              ArmControllerConfig config)
     : ctc_(model, friction, config.gains),

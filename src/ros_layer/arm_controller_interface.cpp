@@ -71,17 +71,6 @@ const char* const kControllerParameterHelp =
 
 namespace {
 
-/// "VelocityLimit: joint k at v rad/s (limit l)" for the joint nearest its limit in `qd`.
-std::string velocityLimitText(const Eigen::VectorXd& qd, const Eigen::VectorXd& limit) {
-  if (qd.size() == 0 || qd.size() != limit.size()) return "VelocityLimit";
-  Eigen::Index joint = 0;
-  (qd.cwiseAbs().array() / limit.array()).maxCoeff(&joint);
-  char text[128];
-  std::snprintf(text, sizeof(text), "VelocityLimit: joint %d at %.2f rad/s (limit %.2f)", static_cast<int>(joint) + 1,
-                qd[joint], limit[joint]);
-  return text;
-}
-
 Eigen::VectorXd vector(const std::vector<double>& v) {
   return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
 }
@@ -556,7 +545,7 @@ void ArmControllerInterface::follow(const bc::ArmControllerState& s, const ros::
               : s.follow_stopped == bc::ControllerStatus::StaleState
                   ? "its states came late or stopped (StaleState); it held the arm and restarted where it was"
               : s.follow_stopped == bc::ControllerStatus::VelocityLimit
-                  ? velocityLimitText(s.velocity, settings_.config.velocity_limit)
+                  ? "VelocityLimit: " + bc::velocityLimitText(s.velocity, settings_.config.velocity_limit)
                   : bc::toString(s.follow_stopped));
   } else if (holding) {
     reason = std::string(bc::toString(s.follow_reason)) + (target_problem_.empty() ? "" : " (" + target_problem_ + ")");

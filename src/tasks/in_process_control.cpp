@@ -60,13 +60,8 @@ std::string controllerStopReason(control::ControllerStatus status, int arm, cons
     case control::ControllerStatus::Saturated:
       return {};
     case control::ControllerStatus::VelocityLimit: {
-      Eigen::Index joint = 0;
-      if (qd.size() == velocity_limit.size() && qd.size() > 0) {
-        (qd.cwiseAbs().array() / velocity_limit.array()).maxCoeff(&joint);
-        return who + " stopped the arm: joint " + std::to_string(joint + 1) + " moved at " + std::to_string(qd[joint]) +
-               " rad/s, over its velocity limit " + std::to_string(velocity_limit[joint]) + " rad/s";
-      }
-      return who + " stopped the arm: a joint moved faster than its velocity limit";
+      const std::string text = control::velocityLimitText(qd, velocity_limit);
+      return who + " stopped the arm: " + (text.empty() ? "a joint moved faster than its velocity limit" : text);
     }
     case control::ControllerStatus::InvalidState:
       return who + " refused the measured state (InvalidState)";

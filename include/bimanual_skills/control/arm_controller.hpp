@@ -12,6 +12,8 @@
 #include "bimanual_skills/dynamics/friction_model.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 
+#include <string>
+
 namespace bimanual_skills::control {
 
 enum class ControllerMode { GravityCompensation, Hold, Track };
@@ -31,6 +33,9 @@ enum class ControllerStatus {
 };
 
 const char* toString(ControllerStatus status) noexcept;
+/// What a VelocityLimit stop saw: "joint k moved at v rad/s, over its velocity limit l rad/s" for the joint nearest
+/// its limit in the measured `qd`; "" for sizes that differ or none (for logs outside the real-time path).
+std::string velocityLimitText(const Eigen::VectorXd& qd, const Eigen::VectorXd& velocity_limit);
 
 struct ArmControllerConfig {
   ComputedTorqueGains gains;       ///< Kp, Kv and torque limits of the computed-torque law.
