@@ -308,6 +308,42 @@ TEST(RealtimeArmController, GoalsSucceedOrReportTheViolatedTolerance) {
   EXPECT_GT(s.status_counts[static_cast<int>(bc::ControllerStatus::StaleState)], 0);
 }
 
+// A velocity-limit stop says whether a gap in the states (the robot without this controller's torques) came just
+// before it: the robot's fault then, the policy's otherwise.
+TEST(RealtimeArmController, AVelocityLimitStopNamesAGapInTheStatesJustBeforeIt) {
+  Loop loop;
+  bc::ArmControllerConfig config = Loop::config();
+  config.state_timeout = 0.05;
+  bc::RealtimeArmController controller(loop.model, Loop::friction(), config);
+  run(loop, controller, 50);
+  Eigen::VectorXd target = loop.q;
+  target[0] += 0.3;
+  Eigen::VectorXd torque(7);
+  // Runs a goal for 100 steps, then `gap` s without states and `after` s of states, then one state at 100 rad/s.
+  const auto stopAfter = [&](std::uint64_t id, double gap, double after) {
+    controller.command(trajectoryTo(target, 3.0, id));
+    run(loop, controller, 100);
+    loop.t += gap;
+    run(loop, controller, static_cast<int>(after / 0.001));
+    Eigen::VectorXd fast = loop.qd;
+    fast[6] = 100.0;
+    EXPECT_EQ(controller.update(loop.t, loop.t, loop.q, fast, loop.none, torque), bc::ControllerStatus::VelocityLimit);
+    const bc::ArmControllerState* s = controller.latestState();
+    EXPECT_NE(s, nullptr);
+    EXPECT_EQ(s ? s->goal_id : 0u, id);
+    EXPECT_EQ(s ? s->goal : bc::GoalState::None, bc::GoalState::Aborted);
+    EXPECT_EQ(s ? s->abort_reason : bc::ControllerStatus::Ok, bc::ControllerStatus::VelocityLimit);
+    const double abort_gap = s ? s->abort_gap : -1.0;
+    loop.t += 0.001;
+    run(loop, controller, 200);  // the arm holds again
+    return abort_gap;
+  };
+  EXPECT_EQ(stopAfter(1, 0.0, 0.1), 0.0);             // states on time: the policy's
+  EXPECT_NEAR(stopAfter(2, 0.08, 0.2), 0.081, 1e-9);  // 0.2 s after an 81 ms gap: the robot's
+  EXPECT_EQ(stopAfter(3, 0.08, 0.7), 0.0);            // long after it: the policy's again
+  EXPECT_EQ(stopAfter(4, 0.03, 0.1), 0.0);            // a gap within the state timeout: none
+}
+
 // control_msgs' timing: a trajectory runs from its own start (header.stamp), not from the cycle that takes it.
 TEST(RealtimeArmController, ATrajectoryStartsAtItsOwnStampAheadOrBehind) {
   Loop left, right;

@@ -1,6 +1,7 @@
 #include "bimanual_skills/control/realtime_arm_controller.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <utility>
@@ -71,7 +72,8 @@ RealtimeArmController::RealtimeArmController(const kinematics::ChainModel& model
       capacity_(config.trajectory_capacity),
       commands_(initialCommand(model.nq())),
       states_(ArmControllerState(model.nq())),
-      tolerances_(TrajectoryTolerances::none(model.nq())) {}
+      tolerances_(TrajectoryTolerances::none(model.nq())),
+      state_timeout_(config.state_timeout) {}
 
 void RealtimeArmController::enableFollowing(const TargetFollowerConfig& config) {
   follower_ = std::make_unique<TargetFollower>(controller_.model(), config);
@@ -137,6 +139,7 @@ void RealtimeArmController::take(const ControllerCommand& command, double stamp)
   goal_joint_ = -1;
   goal_error_ = 0.0;
   abort_reason_ = ControllerStatus::Ok;
+  abort_gap_ = 0.0;
   trajectory_start_ = stamp;
   rejection_ = std::isfinite(command.start) ? controller_.setTrajectory(command.waypoints, command.start - stamp)
                                             : controller_.setTrajectory(command.waypoints);
@@ -163,6 +166,7 @@ void RealtimeArmController::monitorGoal(double stamp, ControllerStatus status) n
     // Restarted, stale, velocity limit or a trajectory dropped at a restart: the controller holds on its own.
     goal_ = GoalState::Aborted;
     abort_reason_ = status;
+    abort_gap_ = status == ControllerStatus::VelocityLimit && stamp - gap_end_ <= kGapWindow ? gap_ : 0.0;
     return;
   }
   const ArmControllerState& s = states_.writeSlot();
@@ -239,6 +243,7 @@ void RealtimeArmController::publishState(double stamp, ControllerStatus status,
   s.goal_error_is_velocity = goal_error_is_velocity_;
   s.rejection = rejection_;
   s.abort_reason = abort_reason_;
+  s.abort_gap = abort_gap_;
   for (int k = 0; k < 5; ++k) s.status_counts[k] = counts_[k];
   s.observer_irregular_steps = controller_.observer().irregularSteps();
   s.observer_restarts = controller_.observer().restarts();
@@ -275,6 +280,10 @@ ControllerStatus RealtimeArmController::update(double now, double stamp, const E
     trajectory_start_ = std::numeric_limits<double>::quiet_NaN();
     pending_ = nullptr;
   }
+  if (stamp - last_update_stamp_ > state_timeout_ && stamp > last_update_stamp_ && std::isfinite(last_update_stamp_)) {
+    gap_ = stamp - last_update_stamp_;
+    gap_end_ = stamp;
+  }
   last_update_stamp_ = stamp;
   if (pending_ && !(pending_->kind == ControllerCommand::Kind::Trajectory && pending_->start > stamp)) {
     take(*pending_, stamp);
@@ -295,6 +304,11 @@ ControllerStatus RealtimeArmController::update(double now, double stamp, const E
                           : status;
   }
   previous_status_ = status;
+  if (status == ControllerStatus::StaleState) {  // a state older than the timeout: a gap of that age at least
+    const double age = std::isfinite(now - stamp) ? now - stamp : 0.0;
+    gap_ = stamp - gap_end_ <= kGapWindow ? std::max(gap_, age) : age;
+    gap_end_ = stamp;
+  }
   if (status == ControllerStatus::InvalidState || status == ControllerStatus::StaleState) {
     if (goal_ == GoalState::Active && status == ControllerStatus::StaleState) {
       goal_ = GoalState::Aborted;

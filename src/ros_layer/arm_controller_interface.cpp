@@ -604,6 +604,9 @@ void ArmControllerInterface::finishGoal(const bc::ArmControllerState& state) {
       result.error_code = Result::PATH_TOLERANCE_VIOLATED;
       if (state.abort_reason == bc::ControllerStatus::Ok || state.abort_reason == bc::ControllerStatus::Saturated) {
         why << "the controller restarted (its joint states started anew: a reset or a new robot clock); holding";
+      } else if (state.abort_gap > 0.0) {
+        why << "the controller stopped tracking: " << bc::toString(state.abort_reason) << " after a " << state.abort_gap
+            << " s gap in its joint states (the robot ran without its torques meanwhile); holding";
       } else {
         why << "the controller stopped tracking: " << bc::toString(state.abort_reason)
             << " (velocity limit, stale or restarted joint states); holding";

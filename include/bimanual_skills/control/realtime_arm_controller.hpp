@@ -84,7 +84,10 @@ struct ArmControllerState {
   bool goal_error_is_velocity = false;
   TrajectoryStatus rejection = TrajectoryStatus::Ok;     ///< Why a trajectory was Rejected.
   ControllerStatus abort_reason = ControllerStatus::Ok;  ///< Why a goal was Aborted.
-  long status_counts[5] = {0, 0, 0, 0, 0};               ///< Updates per ControllerStatus value.
+  /// A goal Aborted at the velocity limit within kGapWindow of a gap in the states longer than the state timeout
+  /// (the robot ran without this controller's torques meanwhile): that gap [s]; 0 for none.
+  double abort_gap = 0.0;
+  long status_counts[5] = {0, 0, 0, 0, 0};  ///< Updates per ControllerStatus value.
   long observer_irregular_steps = 0, observer_restarts = 0;
   std::uint64_t commands_taken = 0;  ///< Commands the loop took so far.
   double command_latency = 0.0;      ///< Wall time [s] from the last command's hand-over to its first torque.
@@ -113,6 +116,10 @@ struct ArmControllerState {
 /// from one reader thread.
 class RealtimeArmController {
  public:
+  /// How long after a gap in the states a velocity-limit stop is put down to it [s]: the robot's own hold or brake
+  /// over the gap, then the law catching up.
+  static constexpr double kGapWindow = 0.5;
+
   RealtimeArmController(const kinematics::ChainModel& model, const dynamics::FrictionModel& friction,
                         ArmControllerConfig config);
 
@@ -196,6 +203,9 @@ class RealtimeArmController {
   bool goal_error_is_velocity_ = false;
   TrajectoryStatus rejection_ = TrajectoryStatus::Ok;
   ControllerStatus abort_reason_ = ControllerStatus::Ok;
+  double abort_gap_ = 0.0;
+  /// The states' last gap longer than the state timeout (or a stale state), and the stamp that ended it.
+  double state_timeout_, gap_ = 0.0, gap_end_ = -std::numeric_limits<double>::infinity();
   long counts_[5] = {0, 0, 0, 0, 0};
   std::uint64_t commands_taken_ = 0;
   double command_latency_ = 0.0, command_taken_at_ = 0.0;

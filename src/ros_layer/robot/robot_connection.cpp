@@ -405,15 +405,18 @@ void RobotConnection::waitForGoal(std::size_t a, const std::string& what, const 
     const std::lock_guard<std::mutex> lock(mutex_);
     gap = states_[a]->gap;
   }
+  // A velocity-limit stop just after a gap in the controller's states: the robot held or braked without its
+  // torques meanwhile (ArmControllerState::abort_gap).
   const bool loop = result && (result->error_string.find("the control loop stopped") != std::string::npos ||
-                               result->error_string.find("StaleState") != std::string::npos);
+                               result->error_string.find("StaleState") != std::string::npos ||
+                               result->error_string.find("gap in its joint states") != std::string::npos);
   if (blame == Blame::Robot) {
     throw RobotFault{tasks::FoldOutcome::RobotFailed, why + " (before the policy's first point: the robot's)"};
   }
   if (loop || gap > kStateGap) {
     std::ostringstream robot;
-    robot << why << " (the robot's: " << (loop ? "its control loop stopped" : "its states stopped") << "; states "
-          << gap << " s apart at most)";
+    robot << why << " (the robot's: " << (loop ? "its control loop or its states stopped" : "its states stopped")
+          << "; states " << gap << " s apart at most)";
     throw RobotFault{tasks::FoldOutcome::RobotFailed, robot.str()};
   }
   throw RobotFault{tasks::FoldOutcome::ControllerFailed, why};
