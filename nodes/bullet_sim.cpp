@@ -13,6 +13,7 @@
 #include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
 #include "bimanual_skills/ros_layer/hosted_loop.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/ros_layer/queue_spinner.hpp"
 #include "bimanual_skills/sim/bimanual_simulation.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/tasks/fold_reward.hpp"
@@ -29,6 +30,7 @@
 #include <std_srvs/SetBool.h>
 #include <std_srvs/Trigger.h>
 
+#include <sched.h>
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -163,6 +165,11 @@ class BulletSimNode {
       throw std::invalid_argument(
           "~loop_priority needs a paced loop: with ~realtime_factor 0 or ~lockstep the loop never sleeps, and at "
           "SCHED_FIFO it would starve every other thread of its core (set ~loop_priority 0)");
+    }
+    if (sched_getscheduler(0) == SCHED_FIFO && (loop.realtime_factor == 0.0 || loop.lockstep)) {
+      throw std::invalid_argument(
+          "bullet_sim runs at SCHED_FIFO (sim.launch process_priority) but its loop never sleeps (~realtime_factor 0 "
+          "or ~lockstep): it would starve every other thread of its core (process_priority:=0)");
     }
     max_step_duration_ = p.number("max_step_duration", 60.0, simulation_->stepSize(), 86400.0);
     max_payload_ = p.number("max_payload", robot_file_ ? robot_file_->rated_payload : 4.0, 0.0, 1000.0);
@@ -325,9 +332,9 @@ class BulletSimNode {
 
   /// Runs the loop on the calling thread until shutdown; services and topics on other threads.
   void run() {
-    ros::AsyncSpinner topics(2);  // the controllers' topics, actions and timers, diagnostics
-    ros::AsyncSpinner services(3, &service_queue_);
-    ros::AsyncSpinner commands(1, &command_queue_);
+    bs::ros_layer::QueueSpinner topics(2);  // the controllers' topics, actions and timers, diagnostics
+    bs::ros_layer::QueueSpinner services(3, &service_queue_);
+    bs::ros_layer::QueueSpinner commands(1, &command_queue_);
     topics.start();
     services.start();
     commands.start();

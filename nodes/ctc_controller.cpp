@@ -10,6 +10,7 @@
 #include "bimanual_skills/realtime/period_recorder.hpp"
 #include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
 #include "bimanual_skills/ros_layer/hosted_loop.hpp"
+#include "bimanual_skills/ros_layer/queue_spinner.hpp"
 #include "bimanual_skills/sim/robot_file.hpp"
 #include "cli/pinned_numerics.hpp"
 #include "io/whole_file.hpp"
@@ -116,9 +117,9 @@ class CtcControllerNode {
   }
 
   void spin() {
-    ros::AsyncSpinner control(1, &state_queue_);  // the control step, alone on its thread
+    bs::ros_layer::QueueSpinner control(1, &state_queue_);  // the control step, alone on its thread
     control.start();
-    ros::AsyncSpinner others(2);  // commands, actions, services, publishers, diagnostics
+    bs::ros_layer::QueueSpinner others(2);  // commands, actions, services, publishers, diagnostics
     others.start();
     ros::waitForShutdown();
     control.stop();

@@ -169,6 +169,11 @@ class SimPublishing final : public hosting::StateSink {
     // Named for top -H and scripts/thread_cpu.py (the loop runs on the process's main thread).
     pthread_setname_np(state_thread_.native_handle(), "sim_states");
     pthread_setname_np(scene_thread_.native_handle(), "sim_scene");
+    // The scene's rendering (cameras, markers: 84 % of a core with the RGB-D camera at 30 Hz) is no part of the
+    // robot's real-time path: at the normal policy even in a process run at SCHED_FIFO (sim.launch
+    // process_priority), where it would take a core from every other process.
+    sched_param normal{};
+    (void)pthread_setschedparam(scene_thread_.native_handle(), SCHED_OTHER, &normal);
   }
 
   ~SimPublishing() override {

@@ -143,8 +143,12 @@ TEST(ScarfOnRobot, ATaskBuiltWhileTheSimulatorIsPausedConnects) {
   ASSERT_TRUE(ros::service::call("/bullet_sim/pause", pause) && pause.response.success) << pause.response.message;
   const ros::Time paused_at = ros::Time::now();
   ros::WallDuration(1.0).sleep();  // longer than the actions' status period: their last status is old
+  // The default timeout (30 s), not the other tests' 10 s: on 2 busy cores the resumed simulator, running as fast as
+  // it goes, took up to 13 s to take up a new client's subscriptions.
+  bs::ros_layer::ScarfRobotInterfaces interfaces = robot();
+  interfaces.timeout = bs::ros_layer::ScarfRobotInterfaces{}.timeout;
   try {
-    bs::ros_layer::ScarfOnRobotTask task(config.task, robot());
+    bs::ros_layer::ScarfOnRobotTask task(config.task, interfaces);
   } catch (const std::exception& e) {
     ADD_FAILURE() << e.what();
   }
