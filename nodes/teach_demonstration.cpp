@@ -12,6 +12,7 @@
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
+#include "bimanual_skills/ros_layer/queue_spinner.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 #include "cli/pinned_numerics.hpp"
 #include "node_cli.hpp"
@@ -363,7 +364,7 @@ int main(int argc, char** argv) {
   try {
     TeachNode node;
     if (!node.start()) return 1;
-    ros::AsyncSpinner spinner(2);
+    bs::ros_layer::QueueSpinner spinner(2);
     spinner.start();
     ros::waitForShutdown();
   } catch (const std::exception& e) {

@@ -42,10 +42,10 @@ br::ScarfLearningConfig shipped() {
   return br::ScarfLearningConfig::fromYamlFile(path);
 }
 
-/// The robot's interfaces with waits short enough for a test, long enough for a loaded machine.
+/// The robot's interfaces as a user has them (timeout 30 s: on 2 busy cores the simulator, running as fast as it
+/// goes, took up to 13 s to take up a new client's action subscriptions), the reset's wait short enough for a test.
 bs::ros_layer::ScarfRobotInterfaces robot() {
   bs::ros_layer::ScarfRobotInterfaces r;
-  r.timeout = 10.0;
   r.reset_timeout = 10.0;
   return r;
 }
@@ -143,12 +143,8 @@ TEST(ScarfOnRobot, ATaskBuiltWhileTheSimulatorIsPausedConnects) {
   ASSERT_TRUE(ros::service::call("/bullet_sim/pause", pause) && pause.response.success) << pause.response.message;
   const ros::Time paused_at = ros::Time::now();
   ros::WallDuration(1.0).sleep();  // longer than the actions' status period: their last status is old
-  // The default timeout (30 s), not the other tests' 10 s: on 2 busy cores the resumed simulator, running as fast as
-  // it goes, took up to 13 s to take up a new client's subscriptions.
-  bs::ros_layer::ScarfRobotInterfaces interfaces = robot();
-  interfaces.timeout = bs::ros_layer::ScarfRobotInterfaces{}.timeout;
   try {
-    bs::ros_layer::ScarfOnRobotTask task(config.task, interfaces);
+    bs::ros_layer::ScarfOnRobotTask task(config.task, robot());
   } catch (const std::exception& e) {
     ADD_FAILURE() << e.what();
   }
@@ -169,7 +165,9 @@ TEST(ScarfOnRobot, ALearningWithAKilledSimulatorStopsWithTheReason) {
   std::filesystem::remove_all(dir);
   const pid_t simulator = static_cast<pid_t>(bs::test::nodePid("/bullet_sim"));
   ASSERT_GT(simulator, 0) << "no /bullet_sim node answers getPid";
-  const bs::ros_layer::ScarfRobotInterfaces interfaces = robot();
+  // A dead simulator's faults within 10 s each.
+  bs::ros_layer::ScarfRobotInterfaces interfaces = robot();
+  interfaces.timeout = 10.0;
   const bs::tasks::ScarfTaskConfig task = config.task;
   int finished = 0, faults = 0, faults_after_kill = 0;
   bool killed = false;

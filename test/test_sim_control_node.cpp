@@ -249,20 +249,50 @@ class SimFixture : public ::testing::Test {
     return payload_.call(set) && set.response.success;
   }
 
+  /// The left controller's observer restarts and stale states so far, from its diagnostics `name` after a report
+  /// newer than this call; -1 where it reports none.
+  long disturbances(const std::string& name) {
+    const long steps = diagnosticCount(name, "control_steps");
+    if (steps < 0) return -1;
+    waitWall([&] { return diagnosticCount(name, "control_steps") != steps; }, 5.0);
+    const long restarts = diagnosticCount(name, "observer_restarts"), stale = diagnosticCount(name, "stale_states");
+    return restarts < 0 || stale < 0 ? -1 : restarts + stale;
+  }
+
   /// The payload the left controller estimates: the difference of the mean vertical force over a swing without and
-  /// with 1.5 kg (the friction model's bias cancels), against the weight. Prints and records it.
-  double payloadError(const std::string& label) {
-    const double without = meanForceWhileSwinging();
-    EXPECT_TRUE(setPayload(1.5));
-    const double with = meanForceWhileSwinging();
-    EXPECT_TRUE(setPayload(0.0));
-    const double estimate = without - with;
-    std::printf(
-        "%s: estimated payload weight %.3f N (mean vertical force %.3f N without, %.3f N with 1.5 kg; "
-        "true %.3f N): error %.2f %%\n",
-        label.c_str(), estimate, without, with, kWeight, 100.0 * (estimate - kWeight) / kWeight);
-    RecordProperty(label + "_payload_error_percent", std::to_string(100.0 * (estimate - kWeight) / kWeight));
-    return (estimate - kWeight) / kWeight;
+  /// with 1.5 kg (the friction model's bias cancels), against the weight. Prints and records it. With the
+  /// controller's diagnostics `name`, a measurement during which its observer restarted or it held a stale state (a
+  /// gap longer than 20 ms in the states it got: the machine, not what is measured) is said and made again from a
+  /// reset, up to three times.
+  double payloadError(const std::string& label, const std::string& name = "") {
+    double error = 0.0;
+    for (int attempt = 1; attempt <= 3; ++attempt) {
+      const long before = name.empty() ? -1 : disturbances(name);
+      const double without = meanForceWhileSwinging();
+      EXPECT_TRUE(setPayload(1.5));
+      const double with = meanForceWhileSwinging();
+      EXPECT_TRUE(setPayload(0.0));
+      const double estimate = without - with;
+      error = (estimate - kWeight) / kWeight;
+      std::printf(
+          "%s: estimated payload weight %.3f N (mean vertical force %.3f N without, %.3f N with 1.5 kg; "
+          "true %.3f N): error %.2f %%\n",
+          label.c_str(), estimate, without, with, kWeight, 100.0 * error);
+      const long during = before < 0 ? 0 : disturbances(name) - before;
+      if (during <= 0) break;
+      std::printf("  %ld observer restarts and stale states during it (gaps in the states the controller got)%s\n",
+                  during, attempt < 3 ? ": measuring again from the initial pose" : "");
+      // The controller held the arm where a gap left it: a reset starts the next measurement where the first began.
+      std_srvs::Trigger reset;
+      EXPECT_TRUE(reset_.call(reset) && reset.response.success);
+      {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        force_z_["left"].clear();  // the clock went back: the old timeline's stamps come again
+      }
+      waitSim(1.0);
+    }
+    RecordProperty(label + "_payload_error_percent", std::to_string(100.0 * error));
+    return error;
   }
 
   /// Pauses the simulation; `at`: the time it stopped at, from the answer (this node's clock may lag the
@@ -1002,7 +1032,7 @@ TEST_F(ExternalControllers, EstimatesAPayloadWithStatesLost) {
   dropFraction(0.1);
   waitSim(1.0);
   const long irregular_before = diagnosticCount("ctc_controller left", "observer_irregular_steps");
-  EXPECT_LT(std::abs(payloadError("external_1kHz_10pct_lost")), 0.03);
+  EXPECT_LT(std::abs(payloadError("external_1kHz_10pct_lost", "ctc_controller left")), 0.03);
   EXPECT_GT(diagnosticCount("ctc_controller left", "observer_irregular_steps"), irregular_before + 100)
       << "the relay lost no states";
   dropFraction(0.0);

@@ -189,7 +189,7 @@ RobotConnection::RobotConnection(const RobotInterfaces& robot, std::vector<std::
         }));
     arms_.push_back(std::move(arm));
   }
-  spinner_ = std::make_unique<ros::AsyncSpinner>(2, &queue_);
+  spinner_ = std::make_unique<QueueSpinner>(2, &queue_);
   spinner_->start();
   // No destructor runs for an object whose constructor throws: the spinner must stop before the states its
   // callbacks write into go.
