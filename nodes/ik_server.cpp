@@ -11,7 +11,6 @@
 #include "cli/pinned_numerics.hpp"
 
 #include "bimanual_skills/ros_layer/parameters.hpp"
-#include "bimanual_skills/ros_layer/queue_spinner.hpp"
 #include "node_cli.hpp"
 
 #include <ros/callback_queue.h>
@@ -304,7 +303,7 @@ class ArmServices {
   std::map<std::string, std::unique_ptr<bk::GlobalIkSolver>> solvers_;
   ros::NodeHandle node_;
   ros::CallbackQueue queue_;
-  bimanual_skills::ros_layer::QueueSpinner spinner_;
+  ros::AsyncSpinner spinner_;
   ros::ServiceServer ik_, fk_;
 };
 
@@ -333,8 +332,7 @@ int main(int argc, char** argv) {
   bimanual_skills::nodes::handleCommandLine(argc, argv, kUsage);
   ros::init(argc, argv, "ik_server");
   ros::NodeHandle node;
-  bimanual_skills::ros_layer::QueueSpinner global(
-      1);  // the parameter and logging callbacks; each arm's services spin on their own
+  ros::AsyncSpinner global(1);  // the parameter and logging callbacks; each arm's services spin on their own
   global.start();
   ros::NodeHandle private_node("~");
   Settings settings;

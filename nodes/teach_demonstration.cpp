@@ -12,7 +12,6 @@
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
-#include "bimanual_skills/ros_layer/queue_spinner.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 #include "cli/pinned_numerics.hpp"
 #include "node_cli.hpp"
@@ -364,7 +363,7 @@ int main(int argc, char** argv) {
   try {
     TeachNode node;
     if (!node.start()) return 1;
-    bs::ros_layer::QueueSpinner spinner(2);
+    ros::AsyncSpinner spinner(2);
     spinner.start();
     ros::waitForShutdown();
   } catch (const std::exception& e) {

@@ -1,10 +1,7 @@
 // ros_layer::ServiceCaller against servers in this process that answer, hang, fail and come back: an answer is never
 // lost, a hung call ends at its deadline and is drained before the next one to its service (which is refused as
 // Busy meanwhile), a server that restarts is found again, a missing one is said, and timeouts leak no thread.
-// ros_layer::QueueSpinner, which serves the robot's processes' queues: its threads run callbacks side by side, stop
-// when told and, on a disabled queue (roscpp's shutdown), wait instead of spinning.
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
-#include "bimanual_skills/ros_layer/queue_spinner.hpp"
 #include "cli/pinned_numerics.hpp"
 
 #include <gtest/gtest.h>
@@ -14,14 +11,10 @@
 #include <std_srvs/Trigger.h>
 
 #include <dirent.h>
-#include <time.h>
 #include <atomic>
-#include <boost/make_shared.hpp>
 #include <chrono>
 #include <condition_variable>
-#include <functional>
 #include <mutex>
-#include <thread>
 
 namespace bl = bimanual_skills::ros_layer;
 
@@ -186,104 +179,6 @@ TEST(ServiceCaller, TimeoutsLeakNoThread) {
     EXPECT_LE(threadCount(), before + 1) << "threads left behind by timed-out calls";
   }
   EXPECT_LE(threadCount(), before) << "threads left behind by the caller";
-}
-
-namespace {
-
-/// A callback that runs `f`.
-class Call : public ros::CallbackInterface {
- public:
-  explicit Call(std::function<void()> f) : f_(std::move(f)) {}
-  CallResult call() override {
-    f_();
-    return Success;
-  }
-
- private:
-  std::function<void()> f_;
-};
-
-void post(ros::CallbackQueue& queue, std::function<void()> f) {
-  queue.addCallback(boost::make_shared<Call>(std::move(f)));
-}
-
-double processSeconds() {
-  timespec t{};
-  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
-  return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
-}
-
-}  // namespace
-
-// A callback that waits for the next one: with two threads the second runs meanwhile (one thread taking all that
-// is queued would wait behind the first for ever).
-TEST(QueueSpinner, TwoThreadsRunTwoCallbacksSideBySide) {
-  ros::CallbackQueue queue;
-  std::mutex mutex;
-  std::condition_variable changed;
-  bool second_ran = false, first_saw_it = false;
-  std::atomic<int> done{0};
-  bl::QueueSpinner spinner(2, &queue);
-  spinner.start();
-  post(queue, [&] {
-    std::unique_lock<std::mutex> lock(mutex);
-    first_saw_it = changed.wait_for(lock, std::chrono::seconds(2), [&] { return second_ran; });
-    ++done;
-  });
-  post(queue, [&] {
-    {
-      const std::lock_guard<std::mutex> lock(mutex);
-      second_ran = true;
-    }
-    changed.notify_all();
-    ++done;
-  });
-  const auto start = std::chrono::steady_clock::now();
-  while (done.load() < 2 && secondsSince(start) < 5.0) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  EXPECT_EQ(done.load(), 2);
-  EXPECT_TRUE(first_saw_it) << "the second callback waited behind the first";
-}
-
-TEST(QueueSpinner, StopsWithinAWaitAndServesAgainAfterStart) {
-  ros::CallbackQueue queue;
-  std::atomic<int> calls{0};
-  bl::QueueSpinner spinner(2, &queue);
-  spinner.start();
-  post(queue, [&] { ++calls; });
-  const auto start = std::chrono::steady_clock::now();
-  while (calls.load() < 1 && secondsSince(start) < 5.0) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  ASSERT_EQ(calls.load(), 1);
-  const auto stopping = std::chrono::steady_clock::now();
-  spinner.stop();
-  EXPECT_LT(secondsSince(stopping), 0.5);
-  post(queue, [&] { ++calls; });
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  EXPECT_EQ(calls.load(), 1) << "a stopped spinner ran a callback";
-  spinner.start();
-  const auto again = std::chrono::steady_clock::now();
-  while (calls.load() < 2 && secondsSince(again) < 5.0) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  EXPECT_EQ(calls.load(), 2);
-  EXPECT_THROW(bl::QueueSpinner(0, &queue), std::invalid_argument);
-}
-
-// roscpp disables the global queue as it shuts down: ros::AsyncSpinner's threads then call it in a loop (two cores'
-// worth); these wait.
-TEST(QueueSpinner, WaitsOnADisabledQueue) {
-  ros::CallbackQueue queue;
-  bl::QueueSpinner spinner(2, &queue);
-  spinner.start();
-  queue.disable();
-  const double cpu = processSeconds();
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
-  const double used = processSeconds() - cpu;
-  std::printf("a disabled queue's two threads used %.3f s of processor time in 0.5 s\n", used);
-  EXPECT_LT(used, 0.1);
-  queue.enable();
-  std::atomic<int> calls{0};
-  post(queue, [&] { ++calls; });
-  const auto start = std::chrono::steady_clock::now();
-  while (calls.load() < 1 && secondsSince(start) < 5.0) std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  EXPECT_EQ(calls.load(), 1) << "an enabled queue again is served again";
 }
 
 int main(int argc, char** argv) {

@@ -71,10 +71,6 @@ const char* const kControllerParameterHelp =
 
 namespace {
 
-// The texts of a goal that the robot ended (endedByTheRobot reads them).
-constexpr char kLoopStopped[] = "the control loop stopped";
-constexpr char kStateGap[] = " s gap in its joint states";
-
 Eigen::VectorXd vector(const std::vector<double>& v) {
   return Eigen::Map<const Eigen::VectorXd>(v.data(), static_cast<Eigen::Index>(v.size()));
 }
@@ -279,7 +275,7 @@ void ArmControllerInterface::setDriverDiagnostics(std::vector<std::pair<std::str
 
 void ArmControllerInterface::loopStopped(const std::string& why) {
   const std::lock_guard<std::mutex> lock(mutex_);
-  loop_stopped_ = std::string(kLoopStopped) + ": " + why;
+  loop_stopped_ = "the control loop stopped: " + why;
   abortActive(loop_stopped_);
 }
 
@@ -290,7 +286,7 @@ std::string ArmControllerInterface::loopProblem() const {
   const double idle = loopIdle();
   if (idle <= settings_.loop_timeout) return "";
   std::ostringstream why;
-  why << kLoopStopped << ": no control cycle for " << idle << " s of the robot's clock (loop_timeout "
+  why << "the control loop stopped: no control cycle for " << idle << " s of the robot's clock (loop_timeout "
       << settings_.loop_timeout << " s)";
   return why.str();
 }
@@ -610,7 +606,7 @@ void ArmControllerInterface::finishGoal(const bc::ArmControllerState& state) {
         why << "the controller restarted (its joint states started anew: a reset or a new robot clock); holding";
       } else if (state.abort_gap > 0.0) {
         why << "the controller stopped tracking: " << bc::toString(state.abort_reason) << " after a " << state.abort_gap
-            << kStateGap << " (the robot ran without its torques meanwhile); holding";
+            << " s gap in its joint states (the robot ran without its torques meanwhile); holding";
       } else {
         why << "the controller stopped tracking: " << bc::toString(state.abort_reason)
             << " (velocity limit, stale or restarted joint states); holding";
@@ -781,12 +777,6 @@ void ArmControllerInterface::onDiagnostics(const ros::SteadyTimerEvent&) {
   for (const auto& [key, value] : driver_diagnostics_) add(key, value);
   array.status.push_back(status);
   diagnostics_publisher_.publish(array);
-}
-
-bool endedByTheRobot(const std::string& error_string) {
-  return error_string.find(kLoopStopped) != std::string::npos ||
-         error_string.find(bc::toString(bc::ControllerStatus::StaleState)) != std::string::npos ||
-         error_string.find(kStateGap) != std::string::npos;
 }
 
 }  // namespace bimanual_skills::ros_layer

@@ -36,13 +36,7 @@ void QueueSpinner::serve() {
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
       continue;
     }
-    // One thread takes all that is queued with callAvailable (and the others wait behind its slowest callback):
-    // with more threads each takes one callback at a time, as ros::AsyncSpinner's do.
-    if (count_ == 1) {
-      queue_->callAvailable(wait);
-    } else {
-      queue_->callOne(wait);
-    }
+    queue_->callAvailable(wait);
   }
 }
 

@@ -170,9 +170,4 @@ class ArmControllerInterface {
   ros::SteadyTimer publish_timer_, diagnostics_timer_;
 };
 
-/// Whether a trajectory goal's error_string, as ArmControllerInterface writes it, says the robot ended the goal: its
-/// control loop stopped, its states came stale, or a gap in its states came just before a velocity-limit stop. A
-/// learner runs such a rollout again and never learns from it.
-bool endedByTheRobot(const std::string& error_string);
-
 }  // namespace bimanual_skills::ros_layer

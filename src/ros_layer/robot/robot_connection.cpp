@@ -3,7 +3,6 @@
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/SimStep.h"
 #include "bimanual_skills/realtime/clock.hpp"
-#include "bimanual_skills/ros_layer/arm_controller_interface.hpp"
 #include "bimanual_skills/ros_layer/trajectory_messages.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 
@@ -190,7 +189,7 @@ RobotConnection::RobotConnection(const RobotInterfaces& robot, std::vector<std::
         }));
     arms_.push_back(std::move(arm));
   }
-  spinner_ = std::make_unique<QueueSpinner>(2, &queue_);
+  spinner_ = std::make_unique<ros::AsyncSpinner>(2, &queue_);
   spinner_->start();
   // No destructor runs for an object whose constructor throws: the spinner must stop before the states its
   // callbacks write into go.
@@ -408,7 +407,9 @@ void RobotConnection::waitForGoal(std::size_t a, const std::string& what, const 
   }
   // A velocity-limit stop just after a gap in the controller's states: the robot held or braked without its
   // torques meanwhile (ArmControllerState::abort_gap).
-  const bool loop = result && endedByTheRobot(result->error_string);
+  const bool loop = result && (result->error_string.find("the control loop stopped") != std::string::npos ||
+                               result->error_string.find("StaleState") != std::string::npos ||
+                               result->error_string.find("gap in its joint states") != std::string::npos);
   if (blame == Blame::Robot) {
     throw RobotFault{tasks::FoldOutcome::RobotFailed, why + " (before the policy's first point: the robot's)"};
   }

@@ -295,7 +295,7 @@ TopicWorkerDirectory::TopicWorkerDirectory(WorkerSelection selection) : selectio
   if (selection_.task.empty()) throw std::invalid_argument("dispatch: no task named for the rollout workers");
   node_ = std::make_unique<ros::NodeHandle>();
   node_->setCallbackQueue(&queue_);
-  spinner_ = std::make_unique<QueueSpinner>(1, &queue_);
+  spinner_ = std::make_unique<ros::AsyncSpinner>(1, &queue_);
   spinner_->start();
   for (const std::string& name : selection_.names) watch(name);
 }

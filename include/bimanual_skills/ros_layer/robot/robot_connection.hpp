@@ -13,7 +13,6 @@
 #include "bimanual_skills/FollowJointTrajectoryAction.h"
 #include "bimanual_skills/JointTrajectoryControllerState.h"
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
-#include "bimanual_skills/ros_layer/queue_spinner.hpp"
 #include "bimanual_skills/ros_layer/rgbd_reader.hpp"
 #include "bimanual_skills/tasks/cloth_fold.hpp"
 
@@ -251,7 +250,7 @@ class RobotConnection {
   ros::CallbackQueue queue_;
   std::unique_ptr<ros::NodeHandle> node_;
   std::unique_ptr<ServiceCaller> caller_;
-  std::unique_ptr<QueueSpinner> spinner_;
+  std::unique_ptr<ros::AsyncSpinner> spinner_;
   std::vector<std::unique_ptr<Arm>> arms_;
   std::vector<std::unique_ptr<ArmState>> states_;
   ros::Subscriber image_sub_, depth_sub_, info_sub_, depth_info_sub_, cloth_sub_;

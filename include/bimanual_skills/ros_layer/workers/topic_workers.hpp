@@ -11,7 +11,6 @@
 #pragma once
 
 #include "bimanual_skills/rollout/dispatcher.hpp"
-#include "bimanual_skills/ros_layer/queue_spinner.hpp"
 
 #include <bimanual_skills/RolloutShareState.h>
 
@@ -63,7 +62,7 @@ class TopicWorkerDirectory : public rollout::WorkerDirectory {
   WorkerSelection selection_;
   ros::CallbackQueue queue_;
   std::unique_ptr<ros::NodeHandle> node_;
-  std::unique_ptr<QueueSpinner> spinner_;
+  std::unique_ptr<ros::AsyncSpinner> spinner_;
   std::mutex mutex_;
   std::map<std::string, ros::Subscriber> state_;
   std::map<std::string, ros::WallTime> last_state_;
