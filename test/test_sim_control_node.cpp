@@ -279,9 +279,11 @@ class SimFixture : public ::testing::Test {
           "true %.3f N): error %.2f %%\n",
           label.c_str(), estimate, without, with, kWeight, 100.0 * error);
       const long during = before < 0 ? 0 : disturbances(name) - before;
-      if (during <= 0) break;
-      std::printf("  %ld observer restarts and stale states during it (gaps in the states the controller got)%s\n",
-                  during, attempt < 3 ? ": measuring again from the initial pose" : "");
+      if (before >= 0) {
+        std::printf("  %ld observer restarts and stale states during it (gaps in the states the controller got)%s\n",
+                    during, during > 0 && attempt < 3 ? ": measuring again from the initial pose" : "");
+      }
+      if (during <= 0 || attempt == 3) break;
       // The controller held the arm where a gap left it: a reset starts the next measurement where the first began.
       std_srvs::Trigger reset;
       EXPECT_TRUE(reset_.call(reset) && reset.response.success);
