@@ -174,6 +174,10 @@ TEST(ScarfTask, AfterItLetsGoTheArmRisesAndLeavesTheCamerasViewAndTheScarfIsTheS
   EXPECT_THROW(bt::ScarfTask{bad}, std::invalid_argument);
   bad.clear_time = 4.0;
   EXPECT_THROW(bt::ScarfTask{bad}, std::invalid_argument);
+  bad.clear_time = 0.003;  // its leave's first waypoint would come before the release
+  EXPECT_THROW(bt::ScarfTask{bad}, std::invalid_argument);
+  bad.clear_time = bt::ScarfTaskConfig::kMinClearTime;
+  EXPECT_NO_THROW(bt::ScarfTask{bad});
   bad = config;
   bad.clear_posture = Eigen::VectorXd::Zero(6);
   EXPECT_THROW(bt::ScarfTask{bad}, std::invalid_argument);

@@ -45,10 +45,12 @@ void ScarfTaskConfig::validate() const {
       !std::isfinite(torque_weight) || !(failure_cost > 0.0) || !std::isfinite(failure_cost)) {
     throw std::invalid_argument("scarf task: finite acceleration_weight, torque_weight >= 0 and failure_cost > 0");
   }
-  if (!clear_posture.allFinite() || !std::isfinite(clear_time) || clear_time < 0.0 || clear_time > settle ||
-      (clear_posture.size() > 0) != (clear_time > 0.0)) {
+  // A move shorter than kMinClearTime would put the leave's first waypoint before the release (a period's rounding).
+  const bool no_move = clear_posture.size() == 0 && clear_time == 0.0;
+  const bool move = clear_posture.size() > 0 && clear_time >= kMinClearTime && clear_time <= settle;
+  if (!clear_posture.allFinite() || !(no_move || move)) {
     throw std::invalid_argument(
-        "scarf task: clear_posture (finite joints) and a clear_time in (0, settle] go together (neither: the arm "
+        "scarf task: clear_posture (finite joints) and a clear_time in [0.1 s, settle] go together (neither: the arm "
         "stays where it lets go)");
   }
   for (const Eigen::Vector3d& w : demo_waypoints) {

@@ -41,12 +41,13 @@ struct ScarfTaskConfig {
   double hold_before = 1.0, hold_after = 0.3, settle = 2.0;
   bool release = true;
   /// A camera that sees the arm (a robot's): from the release on, while the scarf settles, the tool rises 0.15 m,
-  /// then the arm goes to `clear_posture` (its joints, within its limits), in `clear_time` [s] (≤ settle; a quarter
-  /// of it the lift, at rest between), so that the image at the end of `settle` shows the scarf, not the arm. The
-  /// motion before the release is the same with it as without; both backends run it on the same timeline
+  /// then the arm goes to `clear_posture` (its joints, within its limits), in `clear_time` [s] (0.1 s to settle; a
+  /// quarter of it the lift, at rest between), so that the image at the end of `settle` shows the scarf, not the arm.
+  /// The motion before the release is the same with it as without; both backends run it on the same timeline
   /// (ScarfPlan). Empty (and clear_time 0): the arm stays where it lets go.
   Eigen::VectorXd clear_posture;
   double clear_time = 0.0;
+  static constexpr double kMinClearTime = 0.1;  ///< The shortest clear_time [s] with a posture.
   /// The demonstration: the tool's positions [m, world] after its start with the start's orientation, each solved by
   /// global IK closest to the one before, reached in equal times (minimum jerk in joint space). Deliberately not
   /// achieving the task.
