@@ -142,6 +142,23 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_EQ(ablation.algorithms, std::vector<std::string>{"IDR-DMP_CMU"});
   EXPECT_EQ(ablation.runs, table.runs);
   EXPECT_DOUBLE_EQ(ablation.initial_stddev, table.initial_stddev);
+  // The reward's check where learning ends perturbs policies learned as in Table 7.5, its first algorithm run for run.
+  const br::FoldLearningConfig check = br::FoldLearningConfig::fromYamlFile(kSource + "/config/fold_reward_check.yaml");
+  EXPECT_EQ(check.algorithms,
+            (std::vector<std::string>{table.algorithms[0], table.algorithms[3], table.algorithms[4]}));
+  EXPECT_EQ(check.seed, table.seed);
+  EXPECT_EQ(check.runs, table.runs);
+  EXPECT_EQ(check.updates, table.updates);
+  EXPECT_EQ(check.rollouts, table.rollouts);
+  EXPECT_EQ(check.reuse, table.reuse);
+  EXPECT_EQ(check.repetitions, 0);
+  EXPECT_DOUBLE_EQ(check.covariance_memory, table.covariance_memory);
+  EXPECT_DOUBLE_EQ(check.initial_stddev, table.initial_stddev);
+  EXPECT_DOUBLE_EQ(check.goal_stddev, table.goal_stddev);
+  EXPECT_DOUBLE_EQ(check.epsilon, table.epsilon);
+  EXPECT_EQ(check.reward.setting, table.reward.setting);
+  EXPECT_DOUBLE_EQ(check.task.demo_reach, table.task.demo_reach);
+  EXPECT_EQ(check.task.policy, table.task.policy);
 
   const std::string dir = freshDirectory("files");
   std::filesystem::create_directories(dir);
