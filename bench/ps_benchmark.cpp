@@ -1,8 +1,8 @@
 // The thesis' policy-search experiments (Ch. 6: Figs. 6.5–6.7, 6.10–6.12, 6.14) and the classic PI2 via-point task,
 // as one seeded program.
 //
-//   ps_benchmark --experiment multimodal2d|bottles|circle|pi2viapoint|all --runs R --seed S --out DIR [--quick]
-//                [--worker-namespace NS | --workers A,B,...] [--worker-timeout S]
+//   ps_benchmark --experiment multimodal2d|multimodal_scale|bottles|circle|pi2viapoint|all --runs R --seed S
+//                --out DIR [--quick] [--worker-namespace NS | --workers A,B,...] [--worker-timeout S]
 //
 // Writes DIR/<experiment>.csv (one row per run and update, appended as each run ends), DIR/summary.json, then runs
 // scripts/plot_ps_benchmark.py for the learning-curve PNGs (mean ± 2 std over runs) and DIR/tables.md.
@@ -157,6 +157,7 @@ struct Curve {
   std::vector<double> policy_reward;
   std::vector<double> rollout_reward;
   std::vector<Eigen::VectorXd> means;
+  double final_stddev = 0.0;  ///< √(trace Σ / n) of the last policy: how much it still explores.
   double seconds = 0.0;
 };
 
@@ -194,6 +195,7 @@ Curve learn(const Protocol& protocol, const Algorithm& algorithm, const Reward& 
     curve.means.push_back(mean);
   }
   curve.seconds = bimanual_skills::realtime::secondsSince(start);
+  curve.final_stddev = std::sqrt(covariance.trace() / static_cast<double>(covariance.rows()));
   return curve;
 }
 
@@ -332,7 +334,7 @@ std::string workerTaskConfig(const Options& options, const std::string& name, co
 void multimodal2d(const Options& options, const WorkerOptions& worker_options, std::vector<Summary>& out) {
   // Three optima around the initial mean (their centroid is the origin, the worst point).
   const bt::MultimodalReward reward;
-  const std::vector<Eigen::Vector2d>& psi = reward.optima;
+  const std::vector<Eigen::VectorXd>& psi = reward.optima;
   double best = -1e300;
   for (const auto& p : psi) best = std::max(best, reward(p));
   const double threshold = best - 0.5;
@@ -353,7 +355,7 @@ void multimodal2d(const Options& options, const WorkerOptions& worker_options, s
           break;
         }
         std::vector<double> d;
-        for (const auto& p : psi) d.push_back((c.means[u].head<2>() - p).norm());
+        for (const auto& p : psi) d.push_back((c.means[u] - p).norm());
         std::sort(d.begin(), d.end());
         between = (d[0] > 0.5 && d[1] < 1.5 * d[0]) ? between + 1 : 0;
         longest = std::max(longest, between);
@@ -370,6 +372,58 @@ void multimodal2d(const Options& options, const WorkerOptions& worker_options, s
     out.push_back(s);
   }
   if (workers) workers->report("multimodal2d");
+}
+
+// ---- multimodal_scale: DREPS at scale, (6.16) in 20, 50 and 100 dimensions (Sec. 6.1.3, Appendix B.5) ----
+
+void multimodalScale(const Options& options, const WorkerOptions& worker_options, std::vector<Summary>& out) {
+  for (const int d : {20, 50, 100}) {
+    const bt::MultimodalReward reward = bt::MultimodalReward::inDimension(d);
+    const double best = reward(reward.optima.front()), threshold = best - 0.5;
+    // As multimodal2d: from N(0, I), 100 rollouts per update reusing up to 400; longer, the space being larger.
+    const Protocol protocol = makeProtocol(options, 20, 3, 100, 8, 100, Eigen::VectorXd::Zero(d), 1.0);
+    const std::string experiment = "multimodal" + std::to_string(d);
+    const std::unique_ptr<WorkerRollouts> workers =
+        onWorkers(worker_options, "multimodal",
+                  worker_options.selected() ? workerTaskConfig(options, experiment,
+                                                               "# ps_benchmark " + experiment +
+                                                                   ": reward (6.16)\n"
+                                                                   "dimension: " +
+                                                                   std::to_string(d) + "\n")
+                                            : "");
+    Writer writer(options, experiment);
+    for (const Algorithm& algorithm : repsFamily(0.5, 400, false)) {
+      int reached = 0, at_optimum = 0;
+      double updates_to_threshold = 0.0, nearest_sum = 0.0, stddev_sum = 0.0;
+      const auto each = [&](const Curve& c) {
+        for (std::size_t u = 0; u < c.policy_reward.size(); ++u) {
+          if (c.policy_reward[u] >= threshold) {
+            reached += 1;
+            updates_to_threshold += static_cast<double>(u);
+            break;
+          }
+        }
+        // At an optimum: the final mean within 0.5 of one (the optima are 3.6–4 apart).
+        double nearest = 1e300;
+        for (const Eigen::VectorXd& p : reward.optima) nearest = std::min(nearest, (c.means.back() - p).norm());
+        at_optimum += nearest < 0.5 ? 1 : 0;
+        nearest_sum += nearest;
+        stddev_sum += c.final_stddev;
+      };
+      const std::vector<Curve> curves =
+          runAll(options, experiment, protocol, algorithm, reward, writer, each, workers.get());
+      Summary s = summarise(experiment, algorithm.name, protocol, curves);
+      s.extra = {{"dimension", d},
+                 {"runs_reaching_threshold", reached},
+                 {"runs_ending_at_an_optimum", at_optimum},
+                 {"mean_final_distance_to_nearest_optimum", nearest_sum / protocol.runs},
+                 {"mean_final_stddev", stddev_sum / protocol.runs},
+                 {"reward_threshold", threshold},
+                 {"mean_updates_to_threshold", reached > 0 ? updates_to_threshold / reached : -1.0}};
+      out.push_back(s);
+    }
+    if (workers) workers->report(experiment);
+  }
 }
 
 // ---- bottles: the planar bottle-avoidance task (Figs. 6.8–6.12, rewards 6.17 and 6.18) ----
@@ -522,10 +576,11 @@ int main(int argc, char** argv) {
   bimanual_skills::bench::ExperimentProgram program;
   program.name = "ps_benchmark";
   program.description =
-      "The thesis' policy-search experiments (Ch. 6: REPS, nDREPS and DREPS on the multimodal reward (6.16), the\n"
-      "bottle task (6.17, 6.18) and the WAM circle) and PI2/PI2-CMA on the via-point task. Writes\n"
-      "DIR/<experiment>.csv as runs end, DIR/summary.json, learning-curve PNGs and DIR/tables.md.";
-  program.experiments = {"multimodal2d", "bottles", "circle", "pi2viapoint", "all"};
+      "The thesis' policy-search experiments (Ch. 6: REPS, nDREPS and DREPS on the multimodal reward (6.16), in 2-D\n"
+      "and in 20, 50 and 100 dimensions, the bottle task (6.17, 6.18) and the WAM circle) and PI2/PI2-CMA on the\n"
+      "via-point task. Writes DIR/<experiment>.csv as runs end, DIR/summary.json, learning-curve PNGs and\n"
+      "DIR/tables.md.";
+  program.experiments = {"multimodal2d", "multimodal_scale", "bottles", "circle", "pi2viapoint", "all"};
   program.with_runs = true;
   WorkerOptions workers;
   program.extra = [&workers](bimanual_skills::cli::CommandLine& line) {
@@ -563,6 +618,7 @@ int main(int argc, char** argv) {
     std::vector<Summary> rows;
     const auto wants = [&](const char* name) { return options.experiment == "all" || options.experiment == name; };
     if (wants("multimodal2d")) multimodal2d(options, workers, rows);
+    if (wants("multimodal_scale")) multimodalScale(options, workers, rows);
     if (wants("bottles")) bottles(options, workers, rows);
     if (wants("circle")) circle(options, workers, rows);
     if (wants("pi2viapoint")) pi2viapoint(options, workers, rows);

@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Learning curves and markdown tables for ps_benchmark output: reads DIR/*.csv and DIR/summary.json, writes
 DIR/<experiment>.png (reward of the mean policy per update, mean ± 2 std over runs, per algorithm) and DIR/tables.md
-(measured figures next to the thesis' Sec. 6.1.3 numbers).
+(measured figures next to the thesis' Sec. 6.1.3 numbers; for DREPS at scale, the final rewards' t-intervals and
+DREPS against REPS per dimension, Welch on the final reward and Fisher's exact test on the runs reaching the
+threshold, Holm over the six).
 
 Usage: plot_ps_benchmark.py DIR
 """
@@ -14,15 +16,20 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from plot_common import output_directory, read_summary  # noqa: E402
+from plot_common import holm, mean_ci, output_directory, read_summary  # noqa: E402
+from scipy import stats  # noqa: E402
 
 TITLES = {
     "multimodal2d": "Multimodal 2-D reward (6.16), 100 rollouts/update (cf. Fig. 6.7)",
+    "multimodal20": "Reward (6.16) in 20 dimensions, 100 rollouts/update (Appendix B.5)",
+    "multimodal50": "Reward (6.16) in 50 dimensions, 100 rollouts/update (Appendix B.5)",
+    "multimodal100": "Reward (6.16) in 100 dimensions, 100 rollouts/update (Appendix B.5)",
     "bottles617": "Bottle avoidance, reward (6.17), 50 rollouts/update (cf. Fig. 6.10)",
     "bottles": "Bottle avoidance, reward (6.18), 50 rollouts/update (cf. Fig. 6.12)",
     "circle": "Circle with a 7-DoF WAM DMP, 50 rollouts/update (cf. Fig. 6.14)",
     "pi2viapoint": "1-D DMP via-point task, 10 rollouts/update",
 }
+SCALE = ("multimodal20", "multimodal50", "multimodal100")
 # Thesis Sec. 6.1.3, bottle task with (6.18): satisfactory runs of 50 and mean reward of the others.
 THESIS_BOTTLES = {"REPS": (35, -4.12), "DREPS": (47, -2.80)}
 
@@ -61,7 +68,48 @@ def plot(directory, experiment):
     plt.close(fig)
 
 
-def tables(summary):
+def scale_table(directory, by):
+    """DREPS at scale: per dimension and algorithm the final reward's t-interval and the runs reaching the threshold;
+    DREPS against REPS per dimension (Welch on the final reward, Fisher's exact test on the runs reaching it), Holm
+    over the six tests."""
+    rows = [r for e in SCALE for r in by.get(e, [])]
+    if not rows:
+        return []
+    lines = ["### multimodal_scale\n", "| dimension | algorithm | runs | runs reaching threshold | mean updates to "
+             "threshold | runs ending at an optimum | final distance to the nearest optimum | final exploration "
+             "(√(tr Σ / d)) | final reward (mean ± 95 % t) |", "|---:|---|---:|---:|---:|---:|---:|---:|---:|"]
+    finals, tests = {}, []
+    for r in rows:
+        runs = curves(os.path.join(directory, r["experiment"] + ".csv"))[r["algorithm"]]
+        values = [run[max(run)] for run in runs.values()]
+        finals[(r["experiment"], r["algorithm"])] = (values, r)
+        m, h = mean_ci(values)
+        lines.append("| %d | %s | %d | %d | %.1f | %d | %.3f | %.4f | %.3f ± %.3f |" % (
+            r["dimension"], r["algorithm"], r["runs"], r["runs_reaching_threshold"], r["mean_updates_to_threshold"],
+            r["runs_ending_at_an_optimum"], r["mean_final_distance_to_nearest_optimum"], r["mean_final_stddev"], m,
+            h))
+    for e in SCALE:
+        if (e, "REPS") not in finals or (e, "DREPS") not in finals:
+            continue
+        (reps, rr), (dreps, dr) = finals[(e, "REPS")], finals[(e, "DREPS")]
+        welch = stats.ttest_ind(dreps, reps, equal_var=False).pvalue if len(reps) > 1 and len(dreps) > 1 else 1.0
+        welch = 1.0 if math.isnan(welch) else welch
+        table = [[dr["runs_reaching_threshold"], dr["runs"] - dr["runs_reaching_threshold"]],
+                 [rr["runs_reaching_threshold"], rr["runs"] - rr["runs_reaching_threshold"]]]
+        fisher = stats.fisher_exact(table).pvalue
+        tests.append((dr["dimension"], sum(dreps) / len(dreps) - sum(reps) / len(reps), welch,
+                      dr["runs_reaching_threshold"] - rr["runs_reaching_threshold"], fisher))
+    adjusted = holm([t[2] for t in tests] + [t[4] for t in tests])
+    lines += ["", "DREPS against REPS (two-sided; Holm over the %d tests):\n" % (2 * len(tests)),
+              "| dimension | final reward: difference, p, Holm p | runs reaching threshold: difference, Fisher p, "
+              "Holm p |", "|---:|---:|---:|"]
+    for i, (dimension, difference, welch, reached, fisher) in enumerate(tests):
+        lines.append("| %d | %+.3f, %.3g, %.3g | %+d, %.3g, %.3g |" % (
+            dimension, difference, welch, adjusted[i], reached, fisher, adjusted[len(tests) + i]))
+    return lines + [""]
+
+
+def tables(summary, directory):
     rows = summary["results"]
     lines = ["ps_benchmark, seed %d%s\n" % (summary["seed"], " (quick)" if summary["quick"] else "")]
     by = defaultdict(list)
@@ -75,6 +123,7 @@ def tables(summary):
                 r["algorithm"], r["runs"], r["plateau_runs"], r["runs_reaching_threshold"],
                 r["mean_updates_to_threshold"], r["final_reward_mean"], r["final_reward_std"]))
         lines.append("")
+    lines += scale_table(directory, by)
     if "bottles617" in by:
         lines += ["### bottles617\n", "| algorithm | runs | runs knocking no bottle | mean updates until the mean "
                   "policy knocks none | final reward (mean ± std) |", "|---|---:|---:|---:|---:|"]
@@ -108,10 +157,10 @@ def tables(summary):
 def main():
     directory = output_directory(__doc__)
     summary = read_summary(directory)
-    for experiment in ("multimodal2d", "bottles617", "bottles", "circle", "pi2viapoint"):
+    for experiment in ("multimodal2d",) + SCALE + ("bottles617", "bottles", "circle", "pi2viapoint"):
         plot(directory, experiment)
     with open(os.path.join(directory, "tables.md"), "w") as f:
-        f.write(tables(summary))
+        f.write(tables(summary, directory))
 
 
 if __name__ == "__main__":

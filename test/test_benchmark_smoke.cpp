@@ -66,16 +66,18 @@ TEST(PsBenchmarkSmoke, QuickRunWritesEveryOutput) {
   const std::string summary = readTextFile(out / "summary.json");
   for (const char* field : {"\"algorithm\": \"REPS\"", "\"algorithm\": \"DREPS\"", "\"algorithm\": \"nDREPS\"",
                             "\"algorithm\": \"PI2-CMA\"", "\"runs\": 2", "\"satisfactory_runs\"",
-                            "\"mean_unsatisfactory_reward\"", "\"plateau_runs\"", "\"seed\": 3"}) {
+                            "\"mean_unsatisfactory_reward\"", "\"plateau_runs\"", "\"seed\": 3", "\"dimension\": 100",
+                            "\"runs_ending_at_an_optimum\"", "\"mean_final_stddev\""}) {
     EXPECT_NE(summary.find(field), std::string::npos) << field;
   }
-  for (const char* experiment : {"multimodal2d", "bottles617", "bottles", "circle", "pi2viapoint"}) {
+  for (const char* experiment : {"multimodal2d", "multimodal20", "multimodal50", "multimodal100", "bottles617",
+                                 "bottles", "circle", "pi2viapoint"}) {
     for (const char* extension : {".csv", ".png"}) {
       const fs::path file = out / (std::string(experiment) + extension);
       EXPECT_TRUE(fs::exists(file) && fs::file_size(file) > 0) << file;
     }
   }
-  EXPECT_TRUE(fs::exists(out / "tables.md"));
+  EXPECT_NE(readTextFile(out / "tables.md").find("### multimodal_scale"), std::string::npos);
   fs::remove_all(out);
 }
 

@@ -204,6 +204,36 @@ TEST(DualReps, LeavesThePlateauBetweenOptimaThatHoldsReps) {
   EXPECT_LT(reps_near, dreps_near);
 }
 
+TEST(MultimodalReward, InDimensionKeepsTheDistancesOfThe2dProblem) {
+  EXPECT_EQ(bt::MultimodalReward::inDimension(2).optima, threeOptima.optima);
+  for (const int d : {20, 100}) {
+    const bt::MultimodalReward reward = bt::MultimodalReward::inDimension(d);
+    ASSERT_EQ(reward.dimension(), d);
+    EXPECT_LT(reward.centroid().norm(), 1e-12);
+    for (std::size_t i = 0; i < 3; ++i) {
+      EXPECT_NEAR(reward.optima[i].norm(), threeOptima.optima[i].norm(), 1e-12);
+      EXPECT_NEAR(reward(reward.optima[i]), threeOptima(threeOptima.optima[i]), 1e-12);
+      for (std::size_t j = 0; j < 3; ++j) {
+        EXPECT_NEAR((reward.optima[i] - reward.optima[j]).norm(),
+                    (threeOptima.optima[i] - threeOptima.optima[j]).norm(), 1e-12);
+      }
+    }
+    // Each optimum is a local maximum: a step of 0.1 along any coordinate lowers the reward.
+    for (int k = 0; k < d; ++k) {
+      for (const double step : {-0.1, 0.1}) {
+        Eigen::VectorXd moved = reward.optima[0];
+        moved[k] += step;
+        EXPECT_LT(reward(moved), reward(reward.optima[0]));
+      }
+    }
+    // The origin, their centroid, is the worst of the optima's span: below the optima and below a point between two.
+    EXPECT_LT(reward(Eigen::VectorXd::Zero(d)), reward(0.5 * (reward.optima[0] + reward.optima[1])));
+  }
+  EXPECT_THROW(bt::MultimodalReward::inDimension(3), std::invalid_argument);
+  EXPECT_THROW(bt::MultimodalReward::inDimension(0), std::invalid_argument);
+  EXPECT_THROW(bt::MultimodalReward::inDimension(20)(Eigen::VectorXd::Zero(2)), std::invalid_argument);
+}
+
 TEST(DualReps, TheSameSeedGivesTheSameLearningCurve) {
   // Clustering (k-means from its deterministic start), dual, repair and reuse: nothing depends on anything but the
   // samples, so two learners fed from equally seeded generators agree bit for bit.

@@ -524,6 +524,23 @@ TEST(TaskRegistry, ThePolicySearchTasksGiveTheBenchmarksRewards) {
   EXPECT_EQ(m.reward, bt::MultimodalReward()(point));
   EXPECT_DOUBLE_EQ(m.terms[0], (Eigen::Vector2d(2.0, 1.0) - point).norm());
   EXPECT_FALSE(multimodal->run(Eigen::VectorXd::Zero(3), 4).ok) << "a 3-D point";
+  // In d dimensions from its file (ps_benchmark multimodal_scale on workers): the same reward as in the process.
+  const std::string scale = testing::TempDir() + "/multimodal20.yaml";
+  std::ofstream(scale) << "dimension: 20\n";
+  const std::unique_ptr<br::RolloutTask> multimodal20 = br::makeRolloutTask("multimodal", scale);
+  const bt::MultimodalReward reward20 = bt::MultimodalReward::inDimension(20);
+  const Eigen::VectorXd point20 = Eigen::VectorXd::LinSpaced(20, -1.0, 1.0);
+  const br::RolloutResult m20 = multimodal20->run(point20, 4);
+  ASSERT_TRUE(m20.ok) << m20.reason;
+  EXPECT_EQ(m20.reward, reward20(point20));
+  double nearest = 1e300;
+  for (const Eigen::VectorXd& p : reward20.optima) nearest = std::min(nearest, (p - point20).norm());
+  EXPECT_DOUBLE_EQ(m20.terms[0], nearest);
+  EXPECT_FALSE(multimodal20->run(point, 4).ok) << "a 2-D point";
+  for (const char* bad : {"dimension: 3\n", "dimension: 0\n", "dimensions: 20\n"}) {
+    std::ofstream(scale) << bad;
+    EXPECT_THROW(br::makeRolloutTask("multimodal", scale), std::invalid_argument) << bad;
+  }
 
   const std::string config = std::string(BIMANUAL_SKILLS_SOURCE_DIR) + "/config/circle_task.yaml";
   const std::unique_ptr<br::RolloutTask> circle = br::makeRolloutTask("circle", config);

@@ -116,13 +116,21 @@ std::unique_ptr<RolloutTask> makeViaPoint() {
       });
 }
 
-std::unique_ptr<RolloutTask> makeMultimodal() {
-  const tasks::MultimodalReward reward;
+std::unique_ptr<RolloutTask> makeMultimodal(const std::string& config) {
+  int dimension = 2;
+  if (!config.empty()) {
+    const std::string where = "multimodal task '" + config + "'";
+    const YAML::Node root = io::loadYamlFile(config, where);
+    io::checkKeys(root, where, {"dimension"});
+    if (root["dimension"]) dimension = io::readInt(root, "dimension", where);
+    if (dimension < 2 || dimension % 2 != 0) io::fail(where + ": 'dimension' must be even and >= 2");
+  }
+  const tasks::MultimodalReward reward = tasks::MultimodalReward::inDimension(dimension);
   return std::make_unique<PolicySearchTask>(
-      std::vector<std::string>{"nearest_optimum_distance"}, Eigen::VectorXd::Zero(2),
+      std::vector<std::string>{"nearest_optimum_distance"}, Eigen::VectorXd::Zero(dimension),
       [reward](const Eigen::VectorXd& theta, std::uint32_t, Eigen::VectorXd& terms) {
         terms[0] = (reward.optima.front() - theta).norm();
-        for (const Eigen::Vector2d& p : reward.optima) terms[0] = std::min(terms[0], (p - theta).norm());
+        for (const Eigen::VectorXd& p : reward.optima) terms[0] = std::min(terms[0], (p - theta).norm());
         return reward(theta);
       });
 }
@@ -250,7 +258,9 @@ const std::vector<RolloutTaskInfo>& rolloutTasks() {
       {"viapoint", "none",
        "Stulp's 1-D DMP through a via-point (ps_benchmark pi2viapoint; terms: the step costs PI2 learns from, then "
        "the via-point's error; reward: minus the summed step costs)"},
-      {"multimodal", "none", "the 2-D reward with three optima of thesis eq. 6.16 (ps_benchmark multimodal2d)"}};
+      {"multimodal", "optional YAML with dimension (2, even)",
+       "the reward with three optima of thesis eq. 6.16, in 2-D or d dimensions (ps_benchmark multimodal2d, "
+       "multimodal_scale)"}};
   return tasks;
 }
 
@@ -262,7 +272,7 @@ std::unique_ptr<RolloutTask> makeRolloutTask(const std::string& name, const std:
   if (name == "circle") return makeCircle(config);
   if (name == "viapoint") return makeViaPoint();
   if (name == "planar_viapoint") return makePlanarViaPoint(config);
-  if (name == "multimodal") return makeMultimodal();
+  if (name == "multimodal") return makeMultimodal(config);
   std::string known;
   for (const RolloutTaskInfo& t : rolloutTasks()) known += (known.empty() ? "" : ", ") + t.name;
   throw std::invalid_argument("unknown rollout task '" + name + "' (known: " + known + ")");

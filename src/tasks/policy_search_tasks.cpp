@@ -15,16 +15,31 @@ double minimumJerk(double s) noexcept {
   return 10 * std::pow(s, 3) - 15 * std::pow(s, 4) + 6 * std::pow(s, 5);
 }
 
-Eigen::Vector2d MultimodalReward::centroid() const {
-  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
-  for (const Eigen::Vector2d& p : optima) sum += p;
+MultimodalReward MultimodalReward::inDimension(int d) {
+  if (d < 2 || d % 2 != 0) {
+    throw std::invalid_argument("multimodal reward: the dimension must be even and >= 2 (got " + std::to_string(d) +
+                                ")");
+  }
+  MultimodalReward out;
+  const double scale = std::sqrt(2.0 / d);
+  for (Eigen::VectorXd& p : out.optima) p = (scale * p).replicate(d / 2, 1).eval();
+  return out;
+}
+
+Eigen::VectorXd MultimodalReward::centroid() const {
+  Eigen::VectorXd sum = Eigen::VectorXd::Zero(dimension());
+  for (const Eigen::VectorXd& p : optima) sum += p;
   return sum / static_cast<double>(optima.size());
 }
 
 double MultimodalReward::operator()(const Eigen::VectorXd& theta) const {
-  const Eigen::Vector2d t = theta.head<2>();
+  if (theta.size() < dimension()) {
+    throw std::invalid_argument("multimodal reward: a point of " + std::to_string(theta.size()) +
+                                " entries for optima of " + std::to_string(dimension()));
+  }
+  const auto t = theta.head(dimension());
   double r = 10.0 * (centroid() - t).norm();
-  for (const auto& p : optima) r -= 5.0 * (p - t).norm();
+  for (const Eigen::VectorXd& p : optima) r -= 5.0 * (p - t).norm();
   return r;
 }
 

@@ -17,12 +17,21 @@ namespace bimanual_skills::tasks {
 /// Minimum-jerk profile 10 s³ − 15 s⁴ + 6 s⁵ from 0 to 1 over s ∈ [0, 1].
 double minimumJerk(double s) noexcept;
 
-/// (6.16): r(θ) = 10 ‖c − θ‖ − Σ_i 5 ‖ψ_i − θ‖ over the first two entries of θ, with optima ψ_i at (2, 1), (−2, 1)
-/// and (0, −2) around their centroid c, the origin, which is the worst point.
+/// (6.16): r(θ) = 10 ‖c − θ‖ − Σ_i 5 ‖ψ_i − θ‖ over the first d entries of θ (d the optima's dimension), with optima
+/// ψ_i around their centroid c, the origin, which is the worst point: in 2-D (2, 1), (−2, 1) and (0, −2).
 struct MultimodalReward {
-  std::vector<Eigen::Vector2d> optima = {{2.0, 1.0}, {-2.0, 1.0}, {0.0, -2.0}};
+  std::vector<Eigen::VectorXd> optima = {(Eigen::VectorXd(2) << 2.0, 1.0).finished(),
+                                         (Eigen::VectorXd(2) << -2.0, 1.0).finished(),
+                                         (Eigen::VectorXd(2) << 0.0, -2.0).finished()};
 
-  Eigen::Vector2d centroid() const;
+  /// The same problem in d dimensions (DREPS at scale, thesis Sec. 6.1.3 and Appendix B.5, which give no more): each
+  /// 2-D optimum repeated over the d/2 coordinate pairs and scaled by √(2/d), so that the optima's distances to each
+  /// other and to the centroid are the 2-D ones; d = 2 gives the 2-D reward. \throws std::invalid_argument unless d
+  /// is even and ≥ 2.
+  static MultimodalReward inDimension(int d);
+  int dimension() const { return static_cast<int>(optima.front().size()); }
+  Eigen::VectorXd centroid() const;
+  /// \throws std::invalid_argument for a θ with fewer entries than the optima.
   double operator()(const Eigen::VectorXd& theta) const;
 };
 
