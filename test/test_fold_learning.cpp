@@ -147,7 +147,7 @@ TEST(FoldLearning, LearningFiles) {
   EXPECT_EQ(check.algorithms,
             (std::vector<std::string>{table.algorithms[0], table.algorithms[3], table.algorithms[4]}));
   EXPECT_EQ(check.seed, table.seed);
-  EXPECT_EQ(check.runs, table.runs);
+  EXPECT_EQ(check.runs, 5);
   EXPECT_EQ(check.updates, table.updates);
   EXPECT_EQ(check.rollouts, table.rollouts);
   EXPECT_EQ(check.reuse, table.reuse);
