@@ -2,6 +2,7 @@
 // learning files, and a small learning run that is the same on one or two threads and resumes from its directory.
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "bimanual_skills/rollout/scarf_learning.hpp"
 
 #include "testing/program_output.hpp"
 
@@ -16,9 +17,12 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <random>
 #include <thread>
+#include <tuple>
+#include <utility>
 
 namespace br = bimanual_skills::rollout;
 namespace bt = bimanual_skills::tasks;
@@ -115,6 +119,58 @@ TEST(FoldLearning, PeersUpdateTowardsTheirBestRollouts) {
       EXPECT_LT((run.final.mean - best.weights).norm(), (run.final.mean - worst.weights).norm());
     }
   }
+}
+
+TEST(FoldLearning, TheFoldAndTheScarfReadTheSharedLearningKeysAlike) {
+  const std::string dir = freshDirectory("shared_keys");
+  std::filesystem::create_directories(dir);
+  std::ifstream shipped(kSource + "/config/scarf_learning.yaml");
+  std::string scarf((std::istreambuf_iterator<char>(shipped)), std::istreambuf_iterator<char>());
+  scarf = scarf.substr(0, scarf.find("\nlearning:") + 1);
+  for (const std::string name : {"scarf_sim.yaml", "scarf_start.yaml"}) {
+    scarf.replace(scarf.find(name), name.size(), kSource + "/config/" + name);
+  }
+  const std::string fold = "sim: " + kSource + "/config/sim.yaml\n";
+  const auto write = [&](const std::string& head, const std::string& learning) {
+    std::ofstream(dir + "/file.yaml") << head << "learning: " << learning << "\n";
+    return dir + "/file.yaml";
+  };
+  const std::string good =
+      "{algorithms: [PI2-CMA], runs: 2, updates: 3, rollouts: 6, reuse: 6, epsilon: 0.4, eta: 60, initial_stddev: "
+      "1.5, covariance_memory: 0.5, seed: 4294967295, jobs: 1, robot_retries: 2, robot_fault_limit: 4}";
+  const br::FoldLearningConfig f = br::FoldLearningConfig::fromYamlFile(write(fold, good));
+  const br::DmpLearningConfig s = br::ScarfLearningConfig::fromYamlFile(write(scarf, good)).learning;
+  EXPECT_EQ(f.algorithms, s.algorithms);
+  EXPECT_EQ(std::tie(f.runs, f.updates, f.rollouts, f.reuse, f.jobs, f.robot_retries, f.robot_fault_limit, f.seed),
+            std::tie(s.runs, s.updates, s.rollouts, s.reuse, s.jobs, s.robot_retries, s.robot_fault_limit, s.seed));
+  EXPECT_EQ(f.seed, 4294967295u);
+  EXPECT_EQ(std::tie(f.epsilon, f.eta, f.initial_stddev, f.covariance_memory),
+            std::tie(s.epsilon, s.eta, s.initial_stddev, s.covariance_memory));
+  for (const auto& [learning, key] :
+       std::vector<std::pair<std::string, std::string>>{{"{seed: -1}", "'seed'"},
+                                                        {"{seed: 1.5}", "'seed'"},
+                                                        {"{seed: 4294967296}", "'seed'"},
+                                                        {"{algorithms: PI2-CMA}", "'algorithms'"},
+                                                        {"{algorithms: [[a]]}", "'algorithms'"},
+                                                        {"{runs: 2.5}", "'runs'"},
+                                                        {"{rollout: 6}", "'rollout'"}}) {
+    for (const bool is_scarf : {false, true}) {
+      std::string message = "no error";
+      try {
+        if (is_scarf) {
+          br::ScarfLearningConfig::fromYamlFile(write(scarf, learning));
+        } else {
+          br::FoldLearningConfig::fromYamlFile(write(fold, learning));
+        }
+      } catch (const std::invalid_argument& e) {
+        message = e.what();
+      }
+      EXPECT_NE(message.find(key), std::string::npos) << (is_scarf ? "scarf " : "fold ") << learning << ": " << message;
+    }
+  }
+  // Each learner's own keys stay its own.
+  EXPECT_THROW(br::FoldLearningConfig::fromYamlFile(write(fold, "{dual_kernels: 2}")), std::invalid_argument);
+  EXPECT_THROW(br::ScarfLearningConfig::fromYamlFile(write(scarf, "{goal_stddev: 0.1}")), std::invalid_argument);
 }
 
 TEST(FoldLearning, LearningFiles) {

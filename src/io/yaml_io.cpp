@@ -31,12 +31,16 @@ std::string resolvePath(const std::string& file, const std::string& relative) {
 }
 
 void checkKeys(const YAML::Node& node, const std::string& where, std::initializer_list<const char*> allowed) {
+  checkKeys(node, where, std::vector<std::string>(allowed.begin(), allowed.end()));
+}
+
+void checkKeys(const YAML::Node& node, const std::string& where, const std::vector<std::string>& allowed) {
   if (!node.IsMap()) return;
   for (const auto& entry : node) {
     const std::string key = entry.first.as<std::string>();
-    if (std::none_of(allowed.begin(), allowed.end(), [&](const char* a) { return key == a; })) {
+    if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
       std::string names;
-      for (const char* a : allowed) names += (names.empty() ? "" : ", ") + std::string(a);
+      for (const std::string& a : allowed) names += (names.empty() ? "" : ", ") + a;
       fail(where + ": unknown entry '" + key + "' (expected one of: " + names + ")");
     }
   }

@@ -13,6 +13,7 @@
 #include <functional>
 #include <initializer_list>
 #include <string>
+#include <vector>
 
 namespace bimanual_skills::io {
 
@@ -27,6 +28,7 @@ YAML::Node loadYamlFile(const std::string& path, const std::string& where);
 
 /// Fails on any key of the map `node` that is not in `allowed` (catches misspelt entries).
 void checkKeys(const YAML::Node& node, const std::string& where, std::initializer_list<const char*> allowed);
+void checkKeys(const YAML::Node& node, const std::string& where, const std::vector<std::string>& allowed);
 
 /// `relative` as written in the file `file`: unchanged when absolute, else relative to the file's directory.
 std::string resolvePath(const std::string& file, const std::string& relative);

@@ -8,6 +8,7 @@
 #include "dmp_search.hpp"
 #include "io/csv_records.hpp"
 #include "io/yaml_io.hpp"
+#include "learning_section.hpp"
 #include "run_directory.hpp"
 
 #include <algorithm>
@@ -133,33 +134,9 @@ FoldLearningConfig FoldLearningConfig::fromYamlFile(const std::string& path) {
   }
   if (const YAML::Node learning = root["learning"]) {
     const std::string at = where + " learning";
-    io::checkKeys(
-        learning, at,
-        {"algorithms", "runs", "updates", "rollouts", "reuse", "epsilon", "eta", "initial_stddev", "goal_stddev",
-         "covariance_memory", "repetitions", "seed", "jobs", "robot_retries", "robot_fault_limit"});
-    if (const YAML::Node algorithms = learning["algorithms"]) {
-      if (!algorithms.IsSequence()) io::fail(at + ": 'algorithms' must be a list of names");
-      c.algorithms.clear();
-      for (const YAML::Node& a : algorithms) c.algorithms.push_back(a.as<std::string>());
-    }
-    if (learning["runs"]) c.runs = io::readInt(learning, "runs", at);
-    if (learning["updates"]) c.updates = io::readInt(learning, "updates", at);
-    if (learning["rollouts"]) c.rollouts = io::readInt(learning, "rollouts", at);
-    if (learning["reuse"]) c.reuse = io::readInt(learning, "reuse", at);
-    c.epsilon = io::readDouble(learning, "epsilon", at, c.epsilon);
-    c.eta = io::readDouble(learning, "eta", at, c.eta);
-    c.initial_stddev = io::readDouble(learning, "initial_stddev", at, c.initial_stddev);
+    readSharedLearning(learning, at, c, {"goal_stddev", "repetitions"});
     c.goal_stddev = io::readDouble(learning, "goal_stddev", at, c.goal_stddev);
-    c.covariance_memory = io::readDouble(learning, "covariance_memory", at, c.covariance_memory);
     if (learning["repetitions"]) c.repetitions = io::readInt(learning, "repetitions", at);
-    if (learning["seed"]) {
-      const int seed = io::readInt(learning, "seed", at);
-      if (seed < 0) io::fail(at + ": 'seed' must be >= 0");
-      c.seed = static_cast<std::uint32_t>(seed);
-    }
-    if (learning["jobs"]) c.jobs = io::readInt(learning, "jobs", at);
-    if (learning["robot_retries"]) c.robot_retries = io::readInt(learning, "robot_retries", at);
-    if (learning["robot_fault_limit"]) c.robot_fault_limit = io::readInt(learning, "robot_fault_limit", at);
   }
   io::withContext(where, [&] { c.validate(); });
   return c;

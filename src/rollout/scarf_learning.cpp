@@ -4,6 +4,7 @@
 #include "io/csv_records.hpp"
 #include "io/digest.hpp"
 #include "io/yaml_io.hpp"
+#include "learning_section.hpp"
 
 #include <algorithm>
 #include <sstream>
@@ -95,36 +96,11 @@ ScarfLearningConfig ScarfLearningConfig::fromYamlFile(const std::string& path) {
   }
   if (const YAML::Node learning = root["learning"]) {
     const std::string at = where + " learning";
-    io::checkKeys(
-        learning, at,
-        {"algorithms", "runs", "updates", "rollouts", "reuse", "epsilon", "eta", "initial_stddev", "covariance_memory",
-         "dual_kernels", "diagonal_covariance", "h", "robot_retries", "robot_fault_limit", "seed", "jobs"});
     DmpLearningConfig& l = c.learning;
-    if (const YAML::Node algorithms = learning["algorithms"]) {
-      l.algorithms.clear();
-      for (const YAML::Node& a : algorithms) l.algorithms.push_back(a.as<std::string>());
-    }
-    if (learning["runs"]) l.runs = io::readInt(learning, "runs", at);
-    if (learning["updates"]) l.updates = io::readInt(learning, "updates", at);
-    if (learning["rollouts"]) l.rollouts = io::readInt(learning, "rollouts", at);
-    if (learning["reuse"]) l.reuse = io::readInt(learning, "reuse", at);
-    l.epsilon = io::readDouble(learning, "epsilon", at, l.epsilon);
-    l.eta = io::readDouble(learning, "eta", at, l.eta);
-    l.initial_stddev = io::readDouble(learning, "initial_stddev", at, l.initial_stddev);
-    l.covariance_memory = io::readDouble(learning, "covariance_memory", at, l.covariance_memory);
+    readSharedLearning(learning, at, l, {"dual_kernels", "diagonal_covariance", "h"});
     if (learning["dual_kernels"]) l.dual_kernels = io::readInt(learning, "dual_kernels", at);
     if (learning["diagonal_covariance"]) l.diagonal_covariance = io::readBool(learning, "diagonal_covariance", at);
     l.h = io::readDouble(learning, "h", at, l.h);
-    if (learning["robot_retries"]) l.robot_retries = io::readInt(learning, "robot_retries", at);
-    if (learning["robot_fault_limit"]) l.robot_fault_limit = io::readInt(learning, "robot_fault_limit", at);
-    if (learning["seed"]) {
-      const double seed = io::readDouble(learning, "seed", at);
-      if (seed < 0 || seed > 4294967295.0 || seed != static_cast<double>(static_cast<std::uint32_t>(seed))) {
-        io::fail(at + ": 'seed' must be an integer in [0, 2^32)");
-      }
-      c.learning.seed = static_cast<std::uint32_t>(seed);
-    }
-    if (learning["jobs"]) l.jobs = io::readInt(learning, "jobs", at);
   }
   io::withContext(where, [&] {
     c.task.validate();
