@@ -224,22 +224,14 @@ struct DmpLearner::Impl {
     settings.dual_kernels = config.dual_kernels;
     settings.diagonal_covariance = config.diagonal_covariance;
     DmpSearch search(variant, model.forcing(variant.matrices), model.demonstration, model.step, settings);
-    std::seed_seq sequence{config.seed, static_cast<std::uint32_t>(algorithm_index), static_cast<std::uint32_t>(run)};
-    std::mt19937 rng(sequence);
     DmpRunResult result;
-    result.algorithm = algorithm;
-    result.run = run;
     result.best.result.reward = -kInfinity;
-    searchEpochs<DmpRolloutRecord>(
-        search, algorithm, run, config.updates, config.rollouts, rng,
+    searchRun<DmpRolloutRecord>(
+        search, algorithm, algorithm_index, run, config.seed, config.updates, config.rollouts, result,
         [this](std::vector<DmpRolloutRecord>& batch) { evaluate(batch); },
         [](const DmpRolloutRecord& rec) { return rec.result.reward; },
+        [](const DmpRolloutRecord& rec) { return rec.result.ok; },
         [&](int epoch, int latent_dims, const std::vector<DmpRolloutRecord>& batch) {
-          for (const DmpRolloutRecord& rec : batch) {
-            if (rec.result.ok && rec.result.reward > result.best.result.reward) result.best = rec;
-            if (rec.kind == RolloutKind::Policy && epoch == 0) result.initial_policy = rec;
-            if (rec.kind == RolloutKind::Policy && epoch == config.updates) result.final_policy = rec;
-          }
           result.epochs.push_back(epochStats(algorithm, run, epoch, latent_dims, batch));
           if (observer.epoch) observer.epoch(result.epochs.back());
           writeEpochs(done, result);

@@ -13,6 +13,7 @@
 
 #include <Eigen/Core>
 
+#include <cstdint>
 #include <functional>
 #include <random>
 #include <string>
@@ -93,6 +94,30 @@ void searchEpochs(DmpSearch& search, const std::string& algorithm, int run, int 
     }
     search.update(samples, rewards);
   }
+}
+
+/// One learning run, the loop every learner shares: the run-th run of its algorithm-index-th algorithm draws from
+/// the generator seeded by (seed, algorithm_index, run) and runs searchEpochs; `result` (a run result with the fields
+/// algorithm, run, best, initial_policy and final_policy, best's reward set below any) keeps the best rollout that
+/// ok(record) accepts and the noise-free policies of the first and last epoch; epoch_done(epoch, latent_dims, batch)
+/// then takes each epoch (its statistics, the learner's files).
+template <typename Record, typename RunResult, typename Evaluate, typename Reward, typename Ok, typename EpochDone>
+void searchRun(DmpSearch& search, const std::string& algorithm, int algorithm_index, int run, std::uint32_t seed,
+               int updates, int rollouts, RunResult& result, Evaluate evaluate, Reward reward, Ok ok,
+               EpochDone epoch_done) {
+  std::seed_seq sequence{seed, static_cast<std::uint32_t>(algorithm_index), static_cast<std::uint32_t>(run)};
+  std::mt19937 rng(sequence);
+  result.algorithm = algorithm;
+  result.run = run;
+  searchEpochs<Record>(search, algorithm, run, updates, rollouts, rng, evaluate, reward,
+                       [&](int epoch, int latent_dims, const std::vector<Record>& batch) {
+                         for (const Record& rec : batch) {
+                           if (ok(rec) && reward(rec) > reward(result.best)) result.best = rec;
+                           if (rec.kind == RolloutKind::Policy && epoch == 0) result.initial_policy = rec;
+                           if (rec.kind == RolloutKind::Policy && epoch == updates) result.final_policy = rec;
+                         }
+                         epoch_done(epoch, latent_dims, batch);
+                       });
 }
 
 }  // namespace bimanual_skills::rollout

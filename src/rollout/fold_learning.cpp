@@ -338,24 +338,14 @@ struct FoldLearner::Impl {
     // Per goal weight the forcing α_z β_z goal_stddev that moves the goal by goal_stddev.
     settings.goal_stddev = parameters.dmp.alpha_z * parameters.dmp.beta_z * config.goal_stddev;
     DmpSearch search(variant, parameters, task.demonstrationTrajectory(), task.demonstrationStep(), settings);
-    std::seed_seq sequence{config.seed, static_cast<std::uint32_t>(algorithm_index), static_cast<std::uint32_t>(run)};
-    std::mt19937 rng(sequence);
     FoldRunResult result;
-    result.algorithm = algorithm;
-    result.run = run;
     result.best.terms.reward = -kInfinity;
-    searchEpochs<FoldRolloutRecord>(
-        search, algorithm, run, config.updates, config.rollouts, rng,
+    searchRun<FoldRolloutRecord>(
+        search, algorithm, algorithm_index, run, config.seed, config.updates, config.rollouts, result,
         [this](std::vector<FoldRolloutRecord>& batch) { evaluate(batch); },
         [](const FoldRolloutRecord& rec) { return rec.terms.reward; },
+        [](const FoldRolloutRecord& rec) { return rec.terms.outcome == tasks::FoldOutcome::Ok; },
         [&](int epoch, int latent_dims, const std::vector<FoldRolloutRecord>& batch) {
-          for (const FoldRolloutRecord& rec : batch) {
-            if (rec.terms.outcome == tasks::FoldOutcome::Ok && rec.terms.reward > result.best.terms.reward) {
-              result.best = rec;
-            }
-            if (rec.kind == RolloutKind::Policy && epoch == 0) result.initial_policy = rec;
-            if (rec.kind == RolloutKind::Policy && epoch == config.updates) result.final_policy = rec;
-          }
           result.epochs.push_back(epochStats(algorithm, run, epoch, latent_dims, batch));
           if (observer.epoch) observer.epoch(result.epochs.back());
           writeEpochs(done, result);
