@@ -4,13 +4,15 @@
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bullet_arm.hpp"
 #include "bullet_conversions.hpp"
-#include "static_bodies.hpp"
+#include "scene_bodies.hpp"
 
 #include <BulletDynamics/Featherstone/btMultiBodyConstraintSolver.h>
 
+#include <algorithm>
 #include <cmath>
 #include <optional>
 #include <stdexcept>
+#include <string>
 
 namespace bimanual_skills::sim {
 namespace {
@@ -59,7 +61,7 @@ struct ArmsWorld {
       table = std::make_unique<btRigidBody>(info);
       world->addRigidBody(table.get());
     }
-    obstacles = std::make_unique<StaticBodies>(*world, config.obstacles);
+    obstacles = std::make_unique<SceneBodies>(*world, config.obstacles);
     if (config.has_object && config.object.body.collides) {
       // Kinematic: the path (or the gripper) moves it, contacts do not; Bullet takes its velocity from the motion
       // state's change over a step.
@@ -102,7 +104,7 @@ struct ArmsWorld {
   std::unique_ptr<btMultiBodyDynamicsWorld> world;
   std::unique_ptr<btBoxShape> table_shape;
   std::unique_ptr<btRigidBody> table;
-  std::unique_ptr<StaticBodies> obstacles;
+  std::unique_ptr<SceneBodies> obstacles;
   std::unique_ptr<btCollisionShape> object_shape;
   btDefaultMotionState object_motion;
   std::unique_ptr<btRigidBody> object;
@@ -521,6 +523,27 @@ SimStatus BimanualSimulation::release(int arm) noexcept {
 
 bool BimanualSimulation::hasObject() const noexcept {
   return impl_->object_path.has_value();
+}
+
+Eigen::Isometry3d BimanualSimulation::obstaclePose(int k) const {
+  const std::vector<Obstacle>& obstacles = impl_->config.obstacles;
+  if (k < 0 || k >= static_cast<int>(obstacles.size())) {
+    throw std::out_of_range("simulation: no obstacle " + std::to_string(k) + " (the scene has " +
+                            std::to_string(obstacles.size()) + ")");
+  }
+  return impl_->bullet->obstacles->pose(static_cast<std::size_t>(k));
+}
+
+int BimanualSimulation::knockedOver(double tilt) const noexcept {
+  const std::vector<Obstacle>& obstacles = impl_->config.obstacles;
+  int count = 0;
+  for (std::size_t k = 0; k < obstacles.size(); ++k) {
+    if (!(obstacles[k].mass > 0.0)) continue;
+    const Eigen::Vector3d start = obstacles[k].pose.linear().col(2);
+    const Eigen::Vector3d now = impl_->bullet->obstacles->pose(k).linear().col(2);
+    count += std::acos(std::clamp(start.dot(now), -1.0, 1.0)) > tilt ? 1 : 0;
+  }
+  return count;
 }
 
 const Eigen::Isometry3d& BimanualSimulation::objectPose() const noexcept {

@@ -2,7 +2,7 @@
 
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bullet_conversions.hpp"
-#include "static_bodies.hpp"
+#include "scene_bodies.hpp"
 
 #include <BulletSoftBody/btSoftBodyHelpers.h>
 #include <BulletSoftBody/btSoftBodyInternals.h>
@@ -178,7 +178,7 @@ struct Cloth::Impl {
   std::unique_ptr<ClothWorld> world;
   std::unique_ptr<btBoxShape> table_shape;
   std::unique_ptr<btRigidBody> table_body;
-  std::unique_ptr<StaticBodies> obstacle_bodies;
+  std::unique_ptr<SceneBodies> obstacle_bodies;
   std::unique_ptr<btSphereShape> gripper_shape;
   std::vector<std::unique_ptr<btRigidBody>> grippers;
   std::unique_ptr<btSoftBody> soft;
@@ -469,7 +469,7 @@ void Cloth::Impl::build() {
     table_body = std::make_unique<btRigidBody>(table_info);
     world->addRigidBody(table_body.get());
   }
-  obstacle_bodies = std::make_unique<StaticBodies>(*world, obstacles);
+  obstacle_bodies = std::make_unique<SceneBodies>(*world, obstacles);
 
   // Grippers: heavy bodies without gravity, in a collision group that collides with nothing, parked above the
   // cloth's centre until the owner moves them; always built there, so a rebuilt cloth starts as a new one does.

@@ -1,7 +1,7 @@
 #include "bimanual_skills/sim/obstacle.hpp"
 
 #include "bullet_conversions.hpp"
-#include "static_bodies.hpp"
+#include "scene_bodies.hpp"
 
 #include <cmath>
 #include <stdexcept>
@@ -40,6 +40,8 @@ void Obstacle::validate(const std::string& where) const {
     throw std::invalid_argument(at + ": 'colour' must be RGB in [0, 1]");
   }
   if (!(friction >= 0.0 && friction <= 100.0)) throw std::invalid_argument(at + ": 'friction' must lie in [0, 100]");
+  if (!(mass >= 0.0 && mass <= 1000.0)) throw std::invalid_argument(at + ": 'mass' must lie in [0, 1000] kg");
+  if (mass > 0.0 && !collides) throw std::invalid_argument(at + ": a free obstacle (mass > 0) must collide");
 }
 
 std::unique_ptr<btCollisionShape> obstacleShape(const Obstacle& obstacle) {
@@ -54,22 +56,32 @@ std::unique_ptr<btCollisionShape> obstacleShape(const Obstacle& obstacle) {
   return std::make_unique<btBoxShape>(toBullet(Eigen::Vector3d(0.5 * obstacle.size)));
 }
 
-StaticBodies::StaticBodies(btDynamicsWorld& world, const std::vector<Obstacle>& obstacles) : world_(world) {
+SceneBodies::SceneBodies(btDynamicsWorld& world, const std::vector<Obstacle>& obstacles) : world_(world) {
   for (const Obstacle& obstacle : obstacles) {
+    poses_.push_back(obstacle.pose);
+    free_body_.push_back(-1);
     if (!obstacle.collides) continue;
     std::unique_ptr<btCollisionShape> shape = obstacleShape(obstacle);
-    btRigidBody::btRigidBodyConstructionInfo info(0.0, nullptr, shape.get());
+    btVector3 inertia(0.0, 0.0, 0.0);
+    if (obstacle.mass > 0.0) shape->calculateLocalInertia(obstacle.mass, inertia);
+    btRigidBody::btRigidBodyConstructionInfo info(obstacle.mass, nullptr, shape.get(), inertia);
     info.m_startWorldTransform = toBulletTransform(obstacle.pose);
     info.m_friction = obstacle.friction;
     auto body = std::make_unique<btRigidBody>(info);
     world_.addRigidBody(body.get());
+    if (obstacle.mass > 0.0) free_body_.back() = static_cast<int>(bodies_.size());
     shapes_.push_back(std::move(shape));
     bodies_.push_back(std::move(body));
   }
 }
 
-StaticBodies::~StaticBodies() {
+SceneBodies::~SceneBodies() {
   for (const auto& body : bodies_) world_.removeRigidBody(body.get());
+}
+
+Eigen::Isometry3d SceneBodies::pose(std::size_t k) const noexcept {
+  const int body = free_body_[k];
+  return body < 0 ? poses_[k] : toEigen(bodies_[static_cast<std::size_t>(body)]->getWorldTransform());
 }
 
 }  // namespace bimanual_skills::sim

@@ -92,9 +92,10 @@ std::vector<Obstacle> readObstacles(const YAML::Node& node, const std::string& p
   for (std::size_t k = 0; k < list.size(); ++k) {
     const YAML::Node item = list[k];
     const std::string here = at + " obstacle " + std::to_string(k + 1);
-    io::checkKeys(item, here, {"name", "shape", "xyz", "rpy", "size", "colour", "friction", "collides"});
+    io::checkKeys(item, here, {"name", "shape", "xyz", "rpy", "size", "colour", "friction", "collides", "mass"});
     Obstacle o = readBody(item, here);
     o.pose = io::readPose(item, here);
+    o.mass = io::readDouble(item, "mass", here, o.mass);
     io::withContext(at, [&] { o.validate("the scene"); });
     for (const Obstacle& other : obstacles) {
       if (other.name == o.name) io::fail(here + ": the name '" + o.name + "' is taken by another obstacle");
@@ -193,6 +194,9 @@ void SimConfig::validate() const {
   }
   if (has_cloth) {
     cloth.validate(where.c_str());
+    for (const Obstacle& o : obstacles) {
+      if (o.mass > 0.0) fail(where + ": the free obstacle '" + o.name + "' and the cloth are not simulated together");
+    }
     const double ratio = cloth.step / step;
     if (std::abs(ratio - std::round(ratio)) > 1e-9 * ratio || std::round(ratio) < 1.0) {
       fail(where + ": the cloth 'step' (" + std::to_string(cloth.step) + " s) must be a whole multiple of 'step' (" +

@@ -123,6 +123,14 @@ class BimanualSimulation final : public RobotInterface {
   /// The cloth's wrench on the arm's tool currently applied [force; torque about the tool origin], world frame.
   const Vector6d& clothWrench(int arm) const noexcept;
 
+  // ---- The scene's obstacles (SimConfig::obstacles) ----
+  /// Obstacle k of the scene (SimConfig::obstacles' order) now: where contacts have moved a free one (mass > 0),
+  /// where it stands for the others. \throws std::out_of_range for k outside the list.
+  Eigen::Isometry3d obstaclePose(int k) const;
+  /// How many free obstacles are knocked over: their z axis tilted more than `tilt` [rad] from where it pointed at
+  /// the reset (a bottle of radius r and length h tips past atan(2r / h); 45° by default).
+  int knockedOver(double tilt = 0.7853981633974483) const noexcept;
+
   // ---- The moving object (SimConfig::object) ----
   bool hasObject() const noexcept;
   /// Its pose in the world now: upright on its path, resting where it was let go, or in the gripper that holds it.
@@ -136,7 +144,7 @@ class BimanualSimulation final : public RobotInterface {
 
   // ---- Reset and determinism ----
   /// Sets every arm to the given state (within the joint limits), the cloth to its flat rest state, the object to
-  /// its path's start (held by nobody), time to 0,
+  /// its path's start (held by nobody), free obstacles to their poses, time to 0,
   /// clears torque commands and external wrenches (payloads stay), and rebuilds the Bullet worlds so the future is
   /// exactly that of a new simulation in this state. Allowed after a divergence.
   /// InvalidArgument (nothing changed) for wrong sizes, non-finite values or positions outside the limits.

@@ -1,7 +1,8 @@
 /// \file
-/// Static rigid shapes of a scene besides the table, such as the mannequin a scarf goes around (thesis Sec. 4.3.1):
-/// the arms and the cloth collide with them, markers and cameras show them in their colours. A simulation file lists
-/// them (`obstacles:`, or the name of a file that does; config/scenes/mannequin.yaml).
+/// Rigid shapes of a scene besides the table, such as the mannequin a scarf goes around (thesis Sec. 4.3.1): the arms
+/// and the cloth collide with them, markers and cameras show them in their colours. Static, or free (a mass): a free
+/// one stands at its pose from every reset and the arms can knock it over (the bottles of thesis Sec. 6.2, Fig. 6.8).
+/// A simulation file lists them (`obstacles:`, or the name of a file that does; config/scenes/mannequin.yaml).
 #pragma once
 
 #include <Eigen/Core>
@@ -23,6 +24,7 @@ struct Obstacle {
   Eigen::Vector3d colour = Eigen::Vector3d::Constant(0.8);  ///< RGB in [0, 1].
   double friction = 0.5;                                    ///< Bullet friction coefficient, ≥ 0.
   bool collides = true;  ///< false: seen, not felt (a mark painted on another shape).
+  double mass = 0.0;     ///< 0: static; > 0 [kg]: free (uniform density; not in a scene with a cloth).
 
   /// \throws std::invalid_argument naming `where`, the obstacle and the entry out of range.
   void validate(const std::string& where) const;
