@@ -323,13 +323,56 @@ void foldsExperiment(const Options& options, const br::FoldLearningConfig& confi
   }
 }
 
-/// A learning directory's final noise-free policies whose parameters are the task's whole policy (Ω = I: the
-/// standard DMP, PI2-CMA, CMA-ES): from its rollout_parameters.csv, the last epoch's `policy` rollout of each run.
+/// A learning directory's final noise-free policies with as many latent weights as the task's whole policy (the
+/// standard DMP's, PI2-CMA's and CMA-ES's, whose coordination is the demonstration's PCA fit, a rotation): from its
+/// rollout_parameters.csv the last epoch's `policy` rollout of each run, from its coordination.csv the run's final
+/// coordination matrices Ω, with which the weights run.
 struct LearnedPolicy {
   std::string algorithm;
   int run = 0, epoch = -1;
   Eigen::VectorXd theta;
+  std::vector<Eigen::MatrixXd> coordination;
 };
+
+/// DIR/coordination.csv: (algorithm, run) → its final Ω's (rows of `dofs` values each, matrix by matrix).
+std::map<std::pair<std::string, int>, std::vector<Eigen::MatrixXd>> finalCoordination(const std::string& dir,
+                                                                                      int dofs) {
+  const std::string path = dir + "/coordination.csv";
+  std::ifstream in(path);
+  if (!in) throw std::invalid_argument("cannot read " + path + " (--from: a fold_learner output directory)");
+  std::map<std::pair<std::string, int>, std::vector<std::vector<Eigen::VectorXd>>> rows;
+  std::string line;
+  for (int n = 1; std::getline(in, line); ++n) {
+    if (n == 1 || line.empty()) continue;
+    const std::string where = path + " line " + std::to_string(n);
+    const std::vector<std::string> f = bs::io::splitCsv(line);
+    if (f.size() < 5) throw std::invalid_argument(where + ": too few fields");
+    const int matrix = bs::io::parseInteger(f[2], where), row = bs::io::parseInteger(f[3], where);
+    std::vector<std::vector<Eigen::VectorXd>>& matrices = rows[{f[0], bs::io::parseInteger(f[1], where)}];
+    if (matrix < 0 || matrix > static_cast<int>(matrices.size()) || row < 0 || row >= dofs) {
+      throw std::invalid_argument(where + ": matrix or row out of order");
+    }
+    if (matrix == static_cast<int>(matrices.size())) matrices.emplace_back();
+    std::vector<Eigen::VectorXd>& m = matrices[static_cast<std::size_t>(matrix)];
+    if (row != static_cast<int>(m.size())) throw std::invalid_argument(where + ": rows out of order");
+    Eigen::VectorXd values(static_cast<Eigen::Index>(f.size() - 4));
+    for (std::size_t i = 4; i < f.size(); ++i)
+      values[static_cast<Eigen::Index>(i - 4)] = bs::io::parseNumber(f[i], where);
+    if (!m.empty() && values.size() != m.front().size())
+      throw std::invalid_argument(where + ": a row of another width");
+    m.push_back(values);
+  }
+  std::map<std::pair<std::string, int>, std::vector<Eigen::MatrixXd>> out;
+  for (const auto& [key, matrices] : rows) {
+    for (const std::vector<Eigen::VectorXd>& m : matrices) {
+      if (static_cast<int>(m.size()) != dofs) throw std::invalid_argument(path + ": a matrix without all its rows");
+      Eigen::MatrixXd omega(dofs, m.front().size());
+      for (int i = 0; i < dofs; ++i) omega.row(i) = m[static_cast<std::size_t>(i)].transpose();
+      out[key].push_back(omega);
+    }
+  }
+  return out;
+}
 
 std::vector<LearnedPolicy> finalPolicies(const std::string& dir, int parameters) {
   const std::string path = dir + "/rollout_parameters.csv";
@@ -353,8 +396,17 @@ std::vector<LearnedPolicy> finalPolicies(const std::string& dir, int parameters)
     LearnedPolicy& slot = last[{p.algorithm, p.run}];
     if (p.epoch > slot.epoch) slot = p;
   }
+  const auto coordination = finalCoordination(dir, bt::ClothFoldTask::kDofs);
   std::vector<LearnedPolicy> out;
-  for (const auto& entry : last) out.push_back(entry.second);
+  for (const auto& [key, policy] : last) {
+    const auto omega = coordination.find(key);
+    if (omega == coordination.end()) {
+      throw std::invalid_argument(dir + "/coordination.csv has no coordination of " + key.first + " run " +
+                                  std::to_string(key.second));
+    }
+    out.push_back(policy);
+    out.back().coordination = omega->second;
+  }
   if (out.empty()) {
     throw std::invalid_argument(path + " holds no noise-free policy of " + std::to_string(parameters) +
                                 " parameters (the standard DMP's, PI2-CMA's or CMA-ES's runs)");
@@ -398,8 +450,6 @@ void learnedExperiment(const Options& options, const br::FoldLearningConfig& con
               policies.size(), from.c_str(), perturbations, options.seed);
   std::ofstream csv(options.out + "/learned.csv");
   csv << "algorithm,run,epoch,perturbation,scale,seed,outcome,fold_quality,reward,r_fold,fold_mismatch\n";
-  const std::vector<Eigen::MatrixXd> identity{
-      Eigen::MatrixXd::Identity(bt::ClothFoldTask::kDofs, bt::ClothFoldTask::kDofs)};
   bs::bench::parallelRuns(
       static_cast<int>(folds.size()), options.jobs,
       [&](int i) {
@@ -412,7 +462,7 @@ void learnedExperiment(const Options& options, const br::FoldLearningConfig& con
           theta[j] += f.scale * sigma * normal(rng);
         }
         br::FoldRolloutTask task(config.task, config.reward);
-        f.rollout = task.task().run(identity, theta, f.seed);
+        f.rollout = task.task().run(f.policy->coordination, theta, f.seed);
         f.terms = task.score(f.rollout, f.seed);
       },
       [&](int i) {

@@ -3,7 +3,8 @@
 DIR/ranking.png (each reward setting's reward of every fold against the fold's quality q, with Spearman's rho and its
 bootstrap interval), DIR/perspective.png (the perspective RGB-D camera against the orthographic one), DIR/folds.png (the camera's image of each fold at the end, in order of q) and DIR/tables.md (with the strategies family, per strategy too);
 from DIR/ceiling.csv (the ceiling experiment), DIR/ceiling.png (every rollout's q and the best so far, per stage of
-the search) and q_max in DIR/tables.md. Either experiment's files may be missing.
+the search) and q_max in DIR/tables.md; from DIR/learned.csv (the learned experiment), DIR/learned.png and its
+Spearman's rho with intervals over the folds and over the policies. Any experiment's files may be missing.
 
 Usage: plot_fold_benchmark.py DIR
 """
@@ -125,6 +126,77 @@ def ceiling(directory):
     return [f'\nq_max = {best[-1]:.3f}: the best of {len(rows)} rollouts of a search on q itself (ceiling.png).\n']
 
 
+def cluster_bootstrap_spearman(groups, resamples=10000, seed=1):
+    """Spearman's rho over the (reward, q) pairs of all groups, with a percentile bootstrap 95 % interval that
+    resamples whole groups (the folds of one learned policy are not independent of each other)."""
+    rng = random.Random(seed)
+    keys = sorted(groups)
+    values = []
+    for _ in range(resamples):
+        pairs = [pair for _ in keys for pair in groups[keys[rng.randrange(len(keys))]]]
+        values.append(stats.spearmanr([p[0] for p in pairs], [p[1] for p in pairs])[0])
+    values = sorted(v for v in values if not math.isnan(v))
+    pairs = [pair for k in keys for pair in groups[k]]
+    return (stats.spearmanr([p[0] for p in pairs], [p[1] for p in pairs])[0], values[int(0.025 * (len(values) - 1))],
+            values[int(0.975 * (len(values) - 1))])
+
+
+def learned(directory, summary):
+    """learned.png: the reward of every perturbed learned policy against its q (learned.csv), the policies as learned
+    marked; tables.md: Spearman's rho over the folds (fold_benchmark's bootstrap over folds) and with the interval
+    of a bootstrap over the policies, and within each policy."""
+    with open(os.path.join(directory, 'learned.csv')) as f:
+        rows = [r for r in csv.DictReader(f) if r['outcome'] == 'Ok']
+    if not rows:
+        return []
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    for k, algorithm in enumerate(sorted({r['algorithm'] for r in rows})):
+        mine = [r for r in rows if r['algorithm'] == algorithm]
+        ax.plot([float(r['fold_quality']) for r in mine], [float(r['reward']) for r in mine], '.', color=f'C{k}',
+                alpha=0.6, label=algorithm)
+        learned_ones = [r for r in mine if r['perturbation'] == '0']
+        ax.plot([float(r['fold_quality']) for r in learned_ones], [float(r['reward']) for r in learned_ones], 'o',
+                mfc='none', color=f'C{k}', ms=8)
+    ax.axvline(0.8, color='grey', ls='--', lw=1)
+    ranked = {(r['signal'], r['q_at_least']): r for r in summary.get('results', [])
+              if r.get('experiment') == 'learned_ranking'}
+    high = ranked.get(('fold reward', 0.8))
+    title = 'Learned policies perturbed (circles: as learned)'
+    if high:
+        title += f"\nfold reward, q >= 0.8: rho {high['spearman']:.3f} [{high['spearman_low']:.3f}, " \
+                 f"{high['spearman_high']:.3f}] over {high['folds']} folds"
+    ax.set_title(title, fontsize=10)
+    ax.set_xlabel('fold quality q')
+    ax.set_ylabel('fold reward R')
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, 'learned.png'), dpi=110)
+    plt.close(fig)
+    lines = ['\n### learned: the reward where learning ends\n\n',
+             '| folds | policies | q range | Spearman (bootstrap over folds) | bootstrap over policies | '
+             'within a policy: mean rho, policies with rho > 0 |\n', '|---|---:|---|---:|---:|---:|\n']
+    for q_low in (0.0, 0.8):
+        chosen = [r for r in rows if float(r['fold_quality']) >= q_low]
+        groups = {}
+        for r in chosen:
+            groups.setdefault((r['algorithm'], r['run']), []).append((float(r['reward']), float(r['fold_quality'])))
+        if len(chosen) < 3 or len(groups) < 2:
+            continue
+        rho, low, high_ = cluster_bootstrap_spearman(groups)
+        within = [stats.spearmanr([p[0] for p in g], [p[1] for p in g])[0] for g in groups.values() if len(g) >= 3]
+        within = [w for w in within if not math.isnan(w)]
+        folds_row = ranked.get(('fold reward', q_low))
+        by_folds = (f"{folds_row['spearman']:.3f} [{folds_row['spearman_low']:.3f}, {folds_row['spearman_high']:.3f}]"
+                    if folds_row else '–')
+        q = [float(r['fold_quality']) for r in chosen]
+        lines.append(f"| q >= {q_low:.1f}: {len(chosen)} | {len(groups)} | {min(q):.3f}–{max(q):.3f} | {by_folds} | "
+                     f"{rho:.3f} [{low:.3f}, {high_:.3f}] | "
+                     f"{(sum(within) / len(within)) if within else float('nan'):.3f}, "
+                     f"{sum(w > 0 for w in within)} of {len(within)} |\n")
+    return lines
+
+
 def main():
     directory = output_directory(__doc__)
     summary = read_summary(directory)
@@ -133,6 +205,8 @@ def main():
         lines += folds_tables(directory, summary)
     if os.path.exists(os.path.join(directory, 'ceiling.csv')):
         lines += ceiling(directory)
+    if os.path.exists(os.path.join(directory, 'learned.csv')):
+        lines += learned(directory, summary)
     with open(os.path.join(directory, 'tables.md'), 'w') as f:
         f.write(''.join(lines))
 
