@@ -444,6 +444,19 @@ TEST(FoldBenchmarkSmoke, QuickRunWritesEveryOutputTheSameOnAnyNumberOfJobs) {
       csv << '\n';
     }
   }
+  // Without the runs' coordination (fold_learner's coordination.csv) the policies cannot be run: refused.
+  EXPECT_NE(runQuietly(std::string(FOLD_BENCHMARK) + " --experiment learned --seed 2 --quick --from " +
+                       learning.string() + " --out " + two.string()),
+            0);
+  {
+    std::ofstream csv(learning / "coordination.csv");
+    csv << "algorithm,run,matrix,row,values...\n";
+    for (int i = 0; i < 12; ++i) {
+      csv << "\"DR-DMP0(12)\",0,0," << i;
+      for (int j = 0; j < 12; ++j) csv << ',' << (i == j ? 1 : 0);
+      csv << '\n';
+    }
+  }
   ASSERT_EQ(runQuietly(std::string(FOLD_BENCHMARK) + " --experiment learned --seed 2 --quick --from " +
                        learning.string() + " --out " + two.string()),
             0);
