@@ -540,8 +540,9 @@ int BimanualSimulation::knockedOver(double tilt) const noexcept {
   for (std::size_t k = 0; k < obstacles.size(); ++k) {
     if (!(obstacles[k].mass > 0.0)) continue;
     const Eigen::Vector3d start = obstacles[k].pose.linear().col(2);
-    const Eigen::Vector3d now = impl_->bullet->obstacles->pose(k).linear().col(2);
-    count += std::acos(std::clamp(start.dot(now), -1.0, 1.0)) > tilt ? 1 : 0;
+    const Eigen::Isometry3d now = impl_->bullet->obstacles->pose(k);
+    const bool fell_off = now.translation().z() < obstacles[k].pose.translation().z() - kFallenDrop;
+    count += fell_off || std::acos(std::clamp(start.dot(now.linear().col(2)), -1.0, 1.0)) > tilt ? 1 : 0;
   }
   return count;
 }

@@ -128,8 +128,10 @@ class BimanualSimulation final : public RobotInterface {
   /// where it stands for the others. \throws std::out_of_range for k outside the list.
   Eigen::Isometry3d obstaclePose(int k) const;
   /// How many free obstacles are knocked over: their z axis tilted more than `tilt` [rad] from where it pointed at
-  /// the reset (a bottle of radius r and length h tips past atan(2r / h); 45° by default).
+  /// the reset (a bottle of radius r and length h tips past atan(2r / h); 45° by default), or their centre more than
+  /// kFallenDrop below where it was (pushed off the table, whichever way up it falls).
   int knockedOver(double tilt = 0.7853981633974483) const noexcept;
+  static constexpr double kFallenDrop = 0.1;  ///< [m]
 
   // ---- The moving object (SimConfig::object) ----
   bool hasObject() const noexcept;
