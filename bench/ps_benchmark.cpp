@@ -1,8 +1,9 @@
 // The thesis' policy-search experiments (Ch. 6: Figs. 6.5–6.7, 6.10–6.12, 6.14) and the classic PI2 via-point task,
 // as one seeded program.
 //
-//   ps_benchmark --experiment multimodal2d|multimodal_scale|bottles|circle|pi2viapoint|all --runs R --seed S
-//                --out DIR [--quick] [--worker-namespace NS | --workers A,B,...] [--worker-timeout S]
+//   ps_benchmark --experiment multimodal2d|multimodal_scale|bottles|wam_bottles|wam_bottles617|circle|pi2viapoint|all
+//                --runs R --seed S --out DIR [--quick] [--jobs N] [--worker-namespace NS | --workers A,B,...]
+//                [--worker-timeout S]
 //
 // Writes DIR/<experiment>.csv (one row per run and update, appended as each run ends), DIR/summary.json, then runs
 // scripts/plot_ps_benchmark.py for the learning-curve PNGs (mean ± 2 std over runs) and DIR/tables.md.
@@ -18,6 +19,7 @@
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
+#include "bimanual_skills/tasks/wam_bottles.hpp"
 #include "cli/package_share.hpp"
 #include "cli/pinned_numerics.hpp"
 #include "experiment_cli.hpp"
@@ -60,12 +62,15 @@ struct WorkerOptions {
   bool selected() const { return !space.empty() || !names.empty(); }
 };
 
-/// An experiment's rollouts on rollout workers: the registry task `task` (configured by the file `config`) gives
-/// each sample's reward and, for PI2, its step costs (the task's terms but the last).
-class WorkerRollouts {
+/// An experiment's rollouts in batches: on rollout workers, as the registry task `task` (configured by the file
+/// `config`), or on threads of this process (the same task, one per thread). Each sample's reward and, for PI2, its
+/// step costs (the task's terms but the last). A rollout that failed (the WAM's controller stopped it) counts with
+/// the task's failure reward.
+class BatchRollouts {
  public:
-  WorkerRollouts(const WorkerOptions& options, const std::string& task, const std::string& config)
-      : terms_(br::makeRolloutTask(task, config)->termNames().size()) {
+  /// On the workers of `options`.
+  BatchRollouts(const WorkerOptions& options, const std::string& task, const std::string& config)
+      : where_("workers"), terms_(br::makeRolloutTask(task, config)->termNames().size()) {
     bimanual_skills::ros_layer::WorkerSelection selection;
     selection.task = task;
     selection.config = config;
@@ -81,14 +86,18 @@ class WorkerRollouts {
       std::fflush(stdout);
     };
     dispatch.batch = [this](const br::DispatchStats& s) {
-      ++batches_;
-      rollouts_ += s.rollouts;
       redispatched_ += s.redispatched;
-      seconds_ += s.seconds;
       workers_ = std::max(workers_, s.workers);
     };
-    dispatcher_ = std::make_unique<br::Dispatcher>(
+    evaluator_ = std::make_unique<br::Dispatcher>(
         std::make_unique<bimanual_skills::ros_layer::TopicWorkerDirectory>(selection), terms_, dispatch);
+  }
+  /// On `threads` threads here.
+  BatchRollouts(const std::string& task, const std::string& config, int threads)
+      : where_("threads"), terms_(br::makeRolloutTask(task, config)->termNames().size()) {
+    evaluator_ =
+        std::make_unique<br::ParallelEvaluator>([task, config] { return br::makeRolloutTask(task, config); }, threads);
+    workers_ = static_cast<std::size_t>(threads);
   }
 
   /// The rewards of the rows of `samples`, and their step costs when `costs` is given.
@@ -97,26 +106,40 @@ class WorkerRollouts {
     for (Eigen::Index k = 0; k < samples.rows(); ++k) {
       batch[static_cast<std::size_t>(k)] = {samples.row(k).transpose(), static_cast<std::uint32_t>(k)};
     }
-    const std::vector<br::RolloutResult> results = dispatcher_->evaluate(batch);
+    const auto start = std::chrono::steady_clock::now();
+    const std::vector<br::RolloutResult> results = evaluator_->evaluate(batch);
+    seconds_ += bimanual_skills::realtime::secondsSince(start);
+    ++batches_;
+    rollouts_ += results.size();
     if (costs != nullptr) costs->resize(samples.rows(), static_cast<Eigen::Index>(terms_) - 1);
     for (Eigen::Index k = 0; k < samples.rows(); ++k) {
       const br::RolloutResult& r = results[static_cast<std::size_t>(k)];
-      if (!r.ok) throw std::runtime_error("a rollout failed on the workers: " + r.reason);
+      if (!r.ok) {
+        ++failed_;
+        if (failures_.size() < 3) failures_.push_back(r.outcome + ": " + r.reason);
+      }
       rewards[k] = r.reward;
       if (costs != nullptr) costs->row(k) = r.terms.head(costs->cols()).transpose();
     }
   }
 
+  std::size_t failed() const { return failed_; }
+  std::size_t rollouts() const { return rollouts_; }
+
   void report(const std::string& experiment) const {
-    std::printf("  %s on workers: %zu rollouts in %zu batches on up to %zu workers, %zu re-dispatched, %.2f s\n",
-                experiment.c_str(), rollouts_, batches_, workers_, redispatched_, seconds_);
+    std::printf("  %s on %s: %zu rollouts in %zu batches on up to %zu %s, %zu re-dispatched, %zu failed, %.2f s\n",
+                experiment.c_str(), where_.c_str(), rollouts_, batches_, workers_, where_.c_str(), redispatched_,
+                failed_, seconds_);
+    for (const std::string& f : failures_) std::printf("    e.g. %s\n", f.c_str());
     std::fflush(stdout);
   }
 
  private:
+  std::string where_;
   std::size_t terms_;
-  std::unique_ptr<br::Dispatcher> dispatcher_;
-  std::size_t batches_ = 0, rollouts_ = 0, redispatched_ = 0, workers_ = 0;
+  std::unique_ptr<br::Evaluator> evaluator_;
+  std::size_t batches_ = 0, rollouts_ = 0, redispatched_ = 0, workers_ = 0, failed_ = 0;
+  std::vector<std::string> failures_;
   double seconds_ = 0.0;
 };
 
@@ -163,7 +186,7 @@ struct Curve {
 
 /// Rollouts of every update of one run, here or on `workers`; per-step costs only when `step_costs` is given (PI2).
 Curve learn(const Protocol& protocol, const Algorithm& algorithm, const Reward& reward, std::mt19937& rng,
-            WorkerRollouts* workers, const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& step_costs) {
+            BatchRollouts* workers, const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& step_costs) {
   Curve curve;
   Eigen::VectorXd mean = protocol.mean;
   Eigen::MatrixXd covariance = protocol.covariance;
@@ -297,7 +320,7 @@ void progress(const std::string& experiment, const std::string& algorithm, int r
 /// prints progress; `each` sees every finished curve.
 std::vector<Curve> runAll(const Options& options, const std::string& experiment, const Protocol& protocol,
                           const Algorithm& algorithm, const Reward& reward, Writer& writer,
-                          const std::function<void(const Curve&)>& each, WorkerRollouts* workers,
+                          const std::function<void(const Curve&)>& each, BatchRollouts* workers,
                           const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& step_costs = {}) {
   std::vector<Curve> curves;
   for (int run = 0; run < protocol.runs; ++run) {
@@ -312,9 +335,9 @@ std::vector<Curve> runAll(const Options& options, const std::string& experiment,
 
 /// The rollouts of an experiment on the selected workers (the registry's `task`, configured by `config`), or null
 /// when none is selected (the rollouts run here).
-std::unique_ptr<WorkerRollouts> onWorkers(const WorkerOptions& workers, const std::string& task,
-                                          const std::string& config = "") {
-  return workers.selected() ? std::make_unique<WorkerRollouts>(workers, task, config) : nullptr;
+std::unique_ptr<BatchRollouts> onWorkers(const WorkerOptions& workers, const std::string& task,
+                                         const std::string& config = "") {
+  return workers.selected() ? std::make_unique<BatchRollouts>(workers, task, config) : nullptr;
 }
 
 /// Writes a task configuration for the workers to DIR/worker_tasks/NAME.yaml (an absolute path, which workers on
@@ -339,7 +362,7 @@ void multimodal2d(const Options& options, const WorkerOptions& worker_options, s
   for (const auto& p : psi) best = std::max(best, reward(p));
   const double threshold = best - 0.5;
   const Protocol protocol = makeProtocol(options, 50, 3, 40, 8, 100, Eigen::VectorXd::Zero(2), 1.0);
-  const std::unique_ptr<WorkerRollouts> workers = onWorkers(worker_options, "multimodal");
+  const std::unique_ptr<BatchRollouts> workers = onWorkers(worker_options, "multimodal");
   Writer writer(options, "multimodal2d");
   for (const Algorithm& algorithm : repsFamily(0.5, 400, true)) {
     int plateau_runs = 0, reached = 0;
@@ -383,7 +406,7 @@ void multimodalScale(const Options& options, const WorkerOptions& worker_options
     // As multimodal2d: from N(0, I), 100 rollouts per update reusing up to 400; longer, the space being larger.
     const Protocol protocol = makeProtocol(options, 20, 3, 100, 8, 100, Eigen::VectorXd::Zero(d), 1.0);
     const std::string experiment = "multimodal" + std::to_string(d);
-    const std::unique_ptr<WorkerRollouts> workers =
+    const std::unique_ptr<BatchRollouts> workers =
         onWorkers(worker_options, "multimodal",
                   worker_options.selected() ? workerTaskConfig(options, experiment,
                                                                "# ps_benchmark " + experiment +
@@ -437,7 +460,7 @@ void bottles(const Options& options, const WorkerOptions& worker_options, std::v
     bt::BottleTask world;
     world.crossing_term = crossing_term;
     const std::string experiment = crossing_term ? "bottles" : "bottles617";
-    const std::unique_ptr<WorkerRollouts> workers =
+    const std::unique_ptr<BatchRollouts> workers =
         onWorkers(worker_options, "bottles",
                   worker_options.selected() && !crossing_term
                       ? workerTaskConfig(options, "bottles617",
@@ -487,6 +510,92 @@ void bottles(const Options& options, const WorkerOptions& worker_options, std::v
   }
 }
 
+// ---- wam_bottles: the bottle task on the simulated WAM (Sec. 6.2, Figs. 6.10–6.12) ----
+
+/// The bottle task of Figs. 6.8–6.12 on the simulated WAM (tasks/wam_bottles.hpp, config/bottles_wam.yaml): the
+/// planar experiment's DMP, prior and algorithms (REPS and DREPS, ε = 0.5, reuse 200, Σ₀ = 60² I), each rollout a
+/// simulated arm among free bottles, on --jobs threads or the workers. The budget is smaller than the thesis' 50
+/// runs × 100 updates (one rollout is ~0.16 s of one core): 20 runs × 20 updates × 50 rollouts with (6.18), 20 × 12
+/// × 50 with (6.17). Writes
+/// DIR/<experiment>_paths.csv: every run's final mean policy as the arm ran it (the tool along and to the left of the
+/// line [m]) for the picture of Fig. 6.11.
+void wamBottles(const Options& options, const WorkerOptions& worker_options, bool crossing_term,
+                std::vector<Summary>& out) {
+  const std::string experiment = crossing_term ? "wam_bottles" : "wam_bottles617";
+  bt::WamBottleConfig config =
+      bt::WamBottleConfig::fromYamlFile(bimanual_skills::cli::packageFile("config/bottles_wam.yaml"));
+  config.sim_config = std::filesystem::absolute(config.sim_config).string();
+  config.crossing_term = crossing_term;
+  const std::string task_file = workerTaskConfig(options, experiment, config.toYaml());
+  bt::WamBottleTask policy_task(bt::WamBottleConfig::fromYamlFile(task_file));
+  // (6.17) asks how soon the mean policy knocks no bottle (the planar task: 9–11 updates); (6.18) where it ends.
+  Protocol protocol =
+      makeProtocol(options, 20, 2, crossing_term ? 20 : 12, 2, 50, policy_task.initialParameters(), 60.0);
+  if (options.quick) protocol.rollouts = 10;
+  std::unique_ptr<BatchRollouts> rollouts = onWorkers(worker_options, "wam_bottles", task_file);
+  if (!rollouts) rollouts = std::make_unique<BatchRollouts>("wam_bottles", task_file, options.jobs);
+  std::printf("  %s: %d runs x %d updates x %d rollouts, reward (%s), task file %s\n", experiment.c_str(),
+              protocol.runs, protocol.updates, protocol.rollouts, crossing_term ? "6.18" : "6.17", task_file.c_str());
+  const Reward reward = [&](const Eigen::VectorXd& theta) { return policy_task.run(theta, 0).reward; };
+  Writer writer(options, experiment);
+  std::ofstream paths(options.out + "/" + experiment + "_paths.csv");
+  paths << "experiment,algorithm,run,outcome,reward,bottles_down,crossed,satisfactory,sample,time,along,left\n";
+  const double length = policy_task.lineLength();
+  for (const Algorithm& algorithm : repsFamily(0.5, 200, false)) {
+    int satisfactory_runs = 0, clear_runs = 0, run = 0;
+    double unsatisfactory_sum = 0.0, updates_to_clear = 0.0;
+    const std::size_t failed_before = rollouts->failed(), rollouts_before = rollouts->rollouts();
+    const auto each = [&](const Curve& c) {
+      // Clear: the mean policy knocks no bottle down (reward > −1 under 6.17); the first update where it is.
+      const bool clear = !crossing_term && c.policy_reward.back() > -1.0;
+      for (std::size_t u = 0; clear && u < c.policy_reward.size(); ++u) {
+        if (c.policy_reward[u] > -1.0) {
+          updates_to_clear += static_cast<double>(u);
+          break;
+        }
+      }
+      clear_runs += clear ? 1 : 0;
+      const bt::WamBottleRollout r = policy_task.run(c.means.back(), 0);
+      if (r.satisfactory) {
+        ++satisfactory_runs;
+      } else {
+        unsatisfactory_sum += r.reward;
+      }
+      for (Eigen::Index i = 0; i < r.tool_path.cols(); ++i) {
+        const Eigen::Vector2d p = policy_task.toLine(r.tool_path.col(i)) * length;
+        paths << experiment << ',' << algorithm.name << ',' << run << ',' << bt::toString(r.outcome) << ',' << r.reward
+              << ',' << r.down << ',' << (r.crossed ? 1 : 0) << ',' << (r.satisfactory ? 1 : 0) << ',' << i << ','
+              << r.path_times[i] << ',' << p.x() << ',' << p.y() << '\n';
+      }
+      paths.flush();
+      ++run;
+    };
+    const std::vector<Curve> curves =
+        runAll(options, experiment, protocol, algorithm, reward, writer, each, rollouts.get());
+    Summary s = summarise(experiment, algorithm.name, protocol, curves);
+    const double failed = static_cast<double>(rollouts->failed() - failed_before);
+    s.extra = {{"failed_rollout_share", failed / static_cast<double>(rollouts->rollouts() - rollouts_before)}};
+    // Where the bottles stand in the paths' frame [m], for the picture.
+    for (int b = 0; b < 2; ++b) {
+      const Eigen::Vector2d at = policy_task.bottleOnLine(b) * length;
+      s.extra.push_back({"bottle_" + std::to_string(b + 1) + "_along", at.x()});
+      s.extra.push_back({"bottle_" + std::to_string(b + 1) + "_left", at.y()});
+    }
+    s.extra.push_back({"bottle_radius", policy_task.bottleRadius()});
+    s.extra.push_back({"line_length", length});
+    if (crossing_term) {
+      const int unsatisfactory = protocol.runs - satisfactory_runs;
+      s.extra.push_back({"satisfactory_runs", satisfactory_runs});
+      s.extra.push_back({"mean_unsatisfactory_reward", unsatisfactory > 0 ? unsatisfactory_sum / unsatisfactory : 0.0});
+    } else {
+      s.extra.push_back({"runs_knocking_no_bottle", clear_runs});
+      s.extra.push_back({"mean_updates_to_knock_no_bottle", clear_runs > 0 ? updates_to_clear / clear_runs : -1.0});
+    }
+    out.push_back(s);
+  }
+  rollouts->report(experiment);
+}
+
 // ---- circle: a unimodal 7-DoF task with the WAM's kinematics (Fig. 6.14) ----
 
 void circle(const Options& options, const WorkerOptions& worker_options, std::vector<Summary>& out) {
@@ -496,7 +605,7 @@ void circle(const Options& options, const WorkerOptions& worker_options, std::ve
   const Reward reward = [&](const Eigen::VectorXd& theta) { return task.reward(theta); };
   const Protocol protocol = makeProtocol(options, 20, 2, 50, 5, 50, task.policy().parameters(), 2.0);
   // The workers' task: this circle (its demonstration drawn with --seed), as config/circle_task.yaml describes it.
-  const std::unique_ptr<WorkerRollouts> workers = onWorkers(
+  const std::unique_ptr<BatchRollouts> workers = onWorkers(
       worker_options, "circle",
       worker_options.selected()
           ? workerTaskConfig(options, "circle",
@@ -537,7 +646,7 @@ void pi2viapoint(const Options& options, const WorkerOptions& worker_options, st
          }});
   }
   algorithms.push_back(repsFamily(0.5, 40, false).front());
-  const std::unique_ptr<WorkerRollouts> workers = onWorkers(worker_options, "viapoint");
+  const std::unique_ptr<BatchRollouts> workers = onWorkers(worker_options, "viapoint");
   Writer writer(options, "pi2viapoint");
   for (const Algorithm& algorithm : algorithms) {
     double via_error = 0.0;
@@ -577,11 +686,15 @@ int main(int argc, char** argv) {
   program.name = "ps_benchmark";
   program.description =
       "The thesis' policy-search experiments (Ch. 6: REPS, nDREPS and DREPS on the multimodal reward (6.16), in 2-D\n"
-      "and in 20, 50 and 100 dimensions, the bottle task (6.17, 6.18) and the WAM circle) and PI2/PI2-CMA on the\n"
-      "via-point task. Writes DIR/<experiment>.csv as runs end, DIR/summary.json, learning-curve PNGs and\n"
+      "and in 20, 50 and 100 dimensions, the bottle task (6.17, 6.18), planar and on the simulated WAM\n"
+      "(wam_bottles617, wam_bottles: not in all; --jobs threads run the rollouts), and the WAM circle) and\n"
+      "PI2/PI2-CMA on the via-point task. Writes DIR/<experiment>.csv as runs end, DIR/summary.json, learning-curve "
+      "PNGs and\n"
       "DIR/tables.md.";
-  program.experiments = {"multimodal2d", "multimodal_scale", "bottles", "circle", "pi2viapoint", "all"};
+  program.experiments = {"multimodal2d",   "multimodal_scale", "bottles",     "wam_bottles",
+                         "wam_bottles617", "circle",           "pi2viapoint", "all"};
   program.with_runs = true;
+  program.with_jobs = true;
   WorkerOptions workers;
   program.extra = [&workers](bimanual_skills::cli::CommandLine& line) {
     line.option("--worker-namespace", "NS",
@@ -620,6 +733,9 @@ int main(int argc, char** argv) {
     if (wants("multimodal2d")) multimodal2d(options, workers, rows);
     if (wants("multimodal_scale")) multimodalScale(options, workers, rows);
     if (wants("bottles")) bottles(options, workers, rows);
+    // The simulated robot (seconds per update) is not part of `all`.
+    if (options.experiment == "wam_bottles617") wamBottles(options, workers, false, rows);
+    if (options.experiment == "wam_bottles") wamBottles(options, workers, true, rows);
     if (wants("circle")) circle(options, workers, rows);
     if (wants("pi2viapoint")) pi2viapoint(options, workers, rows);
     writeSummary(options, rows);

@@ -26,6 +26,8 @@ TITLES = {
     "multimodal100": "Reward (6.16) in 100 dimensions, 100 rollouts/update (Appendix B.5)",
     "bottles617": "Bottle avoidance, reward (6.17), 50 rollouts/update (cf. Fig. 6.10)",
     "bottles": "Bottle avoidance, reward (6.18), 50 rollouts/update (cf. Fig. 6.12)",
+    "wam_bottles617": "Bottles on the simulated WAM, reward (6.17) (cf. Fig. 6.10)",
+    "wam_bottles": "Bottles on the simulated WAM, reward (6.18) (cf. Fig. 6.12)",
     "circle": "Circle with a 7-DoF WAM DMP, 50 rollouts/update (cf. Fig. 6.14)",
     "pi2viapoint": "1-D DMP via-point task, 10 rollouts/update",
 }
@@ -109,6 +111,82 @@ def scale_table(directory, by):
     return lines + [""]
 
 
+def wam_paths(directory, experiment, rows):
+    """Fig. 6.11 on the WAM: every run's final mean policy as the arm ran it, coloured as the thesis does (reward
+    < -4: not crossing; (-3, -2): one bottle down; > -1: between them, none down), the bottles drawn to scale."""
+    path = os.path.join(directory, experiment + "_paths.csv")
+    if not os.path.exists(path) or not rows:
+        return
+    runs = defaultdict(lambda: {"along": [], "left": []})
+    rewards = {}
+    with open(path) as f:
+        for row in csv.DictReader(f):
+            key = (row["algorithm"], int(row["run"]))
+            runs[key]["along"].append(float(row["along"]))
+            runs[key]["left"].append(float(row["left"]))
+            rewards[key] = float(row["reward"])
+    algorithms = [r["algorithm"] for r in rows]
+    fig, axes = plt.subplots(len(algorithms), 1, figsize=(7, 2.9 * len(algorithms)), squeeze=False)
+    for ax, r in zip(axes[:, 0], rows):
+        for b in (1, 2):
+            ax.add_patch(plt.Circle((r["bottle_%d_along" % b], r["bottle_%d_left" % b]), r["bottle_radius"],
+                                    color="black"))
+        counts = defaultdict(int)
+        for (algorithm, _), p in sorted(runs.items()):
+            if algorithm != r["algorithm"]:
+                continue
+            reward = rewards[(algorithm, _)]
+            colour = "tab:blue" if reward > -1 else ("tab:red" if reward < -4 else "m")
+            counts[colour] += 1
+            ax.plot(p["along"], p["left"], color=colour, lw=1, alpha=0.8)
+        ax.plot([0, r["line_length"]], [0, 0], "k--", lw=0.6)
+        ax.set_aspect("equal")
+        ax.set_ylim(-0.25, 0.25)
+        ax.set_xlabel("along the line [m]")
+        ax.set_ylabel("to its left [m]")
+        ax.set_title("%s: %d blue (> -1), %d magenta, %d red (< -4) of %d" % (
+            r["algorithm"], counts["tab:blue"], counts["m"], counts["tab:red"], r["runs"]), fontsize=9)
+        ax.grid(alpha=0.3)
+    fig.suptitle("Final mean policies on the simulated WAM (cf. Fig. 6.11), " + experiment, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, experiment + "_paths.png"), dpi=110)
+    plt.close(fig)
+
+
+def wam_table(directory, experiment, rows):
+    """The WAM bottle task: per algorithm the satisfactory runs (6.18) or the runs knocking none (6.17), the final
+    reward's t-interval; DREPS against REPS by Fisher's exact test on the counts and Welch on the final reward, Holm
+    over the two."""
+    if not rows:
+        return []
+    count = "satisfactory_runs" if experiment == "wam_bottles" else "runs_knocking_no_bottle"
+    lines = ["### %s\n" % experiment,
+             "| algorithm | runs × updates × rollouts | %s | %s | failed rollouts | final reward (mean ± 95 %% t) | "
+             "s per update |" % (count.replace("_", " "), "mean reward of the others" if experiment == "wam_bottles"
+                                 else "mean updates until the mean policy knocks none"),
+             "|---|---:|---:|---:|---:|---:|---:|"]
+    finals = {}
+    for r in rows:
+        runs = curves(os.path.join(directory, experiment + ".csv"))[r["algorithm"]]
+        finals[r["algorithm"]] = ([run[max(run)] for run in runs.values()], r)
+        m, h = mean_ci(finals[r["algorithm"]][0])
+        other = r["mean_unsatisfactory_reward"] if experiment == "wam_bottles" else r["mean_updates_to_knock_no_bottle"]
+        lines.append("| %s | %d × %d × %d | %d | %.2f | %.1f %% | %.3f ± %.3f | %.2f |" % (
+            r["algorithm"], r["runs"], r["updates"], r["rollouts_per_update"], r[count], other,
+            100 * r["failed_rollout_share"], m, h, r["seconds_per_update"]))
+    if "REPS" in finals and "DREPS" in finals:
+        (reps, rr), (dreps, dr) = finals["REPS"], finals["DREPS"]
+        welch = stats.ttest_ind(dreps, reps, equal_var=False).pvalue if len(reps) > 1 and len(dreps) > 1 else 1.0
+        welch = 1.0 if math.isnan(welch) else welch
+        fisher = stats.fisher_exact([[dr[count], dr["runs"] - dr[count]], [rr[count], rr["runs"] - rr[count]]]).pvalue
+        adjusted = holm([fisher, welch])
+        lines += ["", "DREPS against REPS (two-sided; Holm over the 2 tests): %s %+d, Fisher p %.3g, Holm p %.3g; "
+                  "final reward %+.3f, Welch p %.3g, Holm p %.3g" % (
+                      count.replace("_", " "), dr[count] - rr[count], fisher, adjusted[0],
+                      sum(dreps) / len(dreps) - sum(reps) / len(reps), welch, adjusted[1])]
+    return lines + [""]
+
+
 def tables(summary, directory):
     rows = summary["results"]
     lines = ["ps_benchmark, seed %d%s\n" % (summary["seed"], " (quick)" if summary["quick"] else "")]
@@ -142,6 +220,8 @@ def tables(summary, directory):
                 thesis[0] if thesis[0] is not None else "–", thesis[1] if thesis[1] is not None else "–",
                 r["seconds_per_update"]))
         lines.append("")
+    for experiment in ("wam_bottles617", "wam_bottles"):
+        lines += wam_table(directory, experiment, by.get(experiment, []))
     for experiment, extra in (("circle", "initial_reward"), ("pi2viapoint", "mean_final_via_point_error")):
         if experiment in by:
             lines += ["### %s\n" % experiment, "| algorithm | runs | updates | final reward (mean ± std) | %s |"
@@ -157,8 +237,14 @@ def tables(summary, directory):
 def main():
     directory = output_directory(__doc__)
     summary = read_summary(directory)
-    for experiment in ("multimodal2d",) + SCALE + ("bottles617", "bottles", "circle", "pi2viapoint"):
+    for experiment in ("multimodal2d",) + SCALE + ("bottles617", "bottles", "wam_bottles617", "wam_bottles", "circle",
+                                                   "pi2viapoint"):
         plot(directory, experiment)
+    by = defaultdict(list)
+    for r in summary["results"]:
+        by[r["experiment"]].append(r)
+    for experiment in ("wam_bottles617", "wam_bottles"):
+        wam_paths(directory, experiment, by.get(experiment, []))
     with open(os.path.join(directory, "tables.md"), "w") as f:
         f.write(tables(summary, directory))
 

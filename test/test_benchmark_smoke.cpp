@@ -81,6 +81,27 @@ TEST(PsBenchmarkSmoke, QuickRunWritesEveryOutput) {
   fs::remove_all(out);
 }
 
+TEST(PsBenchmarkSmoke, TheWamBottleTaskLearnsOnThreadsAndWritesItsPaths) {
+  const fs::path out = fs::temp_directory_path() / "bimanual_skills_ps_benchmark_wam_bottles";
+  fs::remove_all(out);
+  ASSERT_EQ(runQuietly(std::string(PS_BENCHMARK) +
+                       " --experiment wam_bottles --runs 1 --seed 3 --jobs 2 --quick --out " + out.string()),
+            0);
+  const std::string summary = readTextFile(out / "summary.json");
+  for (const char* field : {"\"experiment\": \"wam_bottles\"", "\"algorithm\": \"DREPS\"", "\"satisfactory_runs\"",
+                            "\"failed_rollout_share\""}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field;
+  }
+  for (const char* file : {"wam_bottles.csv", "wam_bottles_paths.csv", "wam_bottles.png", "wam_bottles_paths.png"}) {
+    EXPECT_TRUE(fs::exists(out / file) && fs::file_size(out / file) > 0) << file;
+  }
+  // One path per algorithm and run, its samples from the line's start to beyond its goal.
+  const std::string paths = readTextFile(out / "wam_bottles_paths.csv");
+  EXPECT_NE(paths.find("wam_bottles,REPS,0,Ok,"), std::string::npos);
+  EXPECT_NE(paths.find("wam_bottles,DREPS,0,Ok,"), std::string::npos);
+  fs::remove_all(out);
+}
+
 TEST(PsBenchmarkSmoke, BadArgumentsAreRejected) {
   const std::string program = PS_BENCHMARK;
   EXPECT_EQ(runQuietly(program + " --experiment nope --runs 2 --seed 1 --out /tmp/x"), 2);

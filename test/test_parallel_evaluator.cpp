@@ -9,6 +9,7 @@
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/tasks/dr_tasks.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
+#include "bimanual_skills/tasks/wam_bottles.hpp"
 
 #include <gtest/gtest.h>
 #include <Eigen/Geometry>
@@ -477,10 +478,10 @@ TEST(TaskRegistry, BuildsTheTasksByNameAndRefusesUnknownOnes) {
     br::makeRolloutTask("juggle", "");
     FAIL() << "expected an error";
   } catch (const std::invalid_argument& e) {
-    EXPECT_NE(
-        std::string(e.what()).find("unknown rollout task 'juggle' (known: fold, scarf, quadratic, bottles, circle, "
-                                   "planar_viapoint, viapoint, multimodal)"),
-        std::string::npos)
+    EXPECT_NE(std::string(e.what()).find(
+                  "unknown rollout task 'juggle' (known: fold, scarf, quadratic, bottles, wam_bottles, "
+                  "circle, planar_viapoint, viapoint, multimodal)"),
+              std::string::npos)
         << e.what();
   }
   EXPECT_THROW(br::makeRolloutTask("fold", ""), std::invalid_argument);
@@ -550,6 +551,27 @@ TEST(TaskRegistry, ThePolicySearchTasksGiveTheBenchmarksRewards) {
   const Eigen::VectorXd c = circle->initialParameters();
   EXPECT_EQ(c, reference.policy().parameters());
   EXPECT_EQ(circle->run(c, 0).reward, reference.reward(c));
+}
+
+TEST(TaskRegistry, TheWamBottleTaskGivesTheTasksRolloutAndItsToolPath) {
+  const std::string config = std::string(BIMANUAL_SKILLS_SOURCE_DIR) + "/config/bottles_wam.yaml";
+  const std::unique_ptr<br::RolloutTask> task = br::makeRolloutTask("wam_bottles", config);
+  bt::WamBottleTask reference(bt::WamBottleConfig::fromYamlFile(config));
+  const Eigen::VectorXd theta = task->initialParameters();
+  EXPECT_EQ(theta, reference.initialParameters());
+  const br::RolloutResult r = task->run(theta, 4);
+  const bt::WamBottleRollout expected = reference.run(theta, 4);
+  ASSERT_TRUE(r.ok) << r.reason;
+  EXPECT_EQ(r.reward, expected.reward);
+  ASSERT_EQ(task->termNames().size(), static_cast<std::size_t>(r.terms.size()));
+  EXPECT_EQ(task->termNames()[1], "bottles_down");
+  EXPECT_EQ(r.terms[1], 2.0) << "the straight line knocks both over";
+  EXPECT_EQ(r.terms[3], 0.0) << "and does not cross between them";
+  EXPECT_EQ(r.trajectory, expected.tool_path);
+  const br::RolloutResult bad = task->run(Eigen::VectorXd::Constant(theta.size(), NAN), 4);
+  EXPECT_FALSE(bad.ok);
+  EXPECT_EQ(bad.outcome, "InvalidPolicy");
+  EXPECT_THROW(br::makeRolloutTask("wam_bottles", ""), std::invalid_argument);
 }
 
 TEST(TaskRegistry, PlanarViaPointRunsTheFittedDrDmpWithSeededExploration) {

@@ -131,6 +131,16 @@ TEST(WamBottles, BadPoliciesAndFilesAreRefusedByName) {
   EXPECT_EQ(absurd.reward, task.config().failure_reward);
   EXPECT_FALSE(absurd.reason.empty());
 
+  // The file the workers get reads back as the same configuration.
+  const std::string copy = testing::TempDir() + "/bottles_copy.yaml";
+  std::ofstream(copy) << config().toYaml();
+  const bt::WamBottleConfig back = bt::WamBottleConfig::fromYamlFile(copy);
+  EXPECT_EQ(back.sim_config, config().sim_config);
+  EXPECT_EQ(back.start, config().start);
+  EXPECT_EQ(back.duration, config().duration);
+  EXPECT_NEAR(back.tilt, config().tilt, 1e-15);
+  EXPECT_EQ(back.crossing_term, config().crossing_term);
+
   bt::WamBottleConfig c = config();
   c.goal.z() += 0.1;
   EXPECT_THROW(c.validate(), std::invalid_argument);

@@ -5,6 +5,7 @@
 #include "bimanual_skills/rollout/scarf_learning.hpp"
 #include "bimanual_skills/tasks/dr_tasks.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
+#include "bimanual_skills/tasks/wam_bottles.hpp"
 #include "io/yaml_io.hpp"
 
 #include <algorithm>
@@ -76,6 +77,41 @@ std::unique_ptr<RolloutTask> makeBottles(const std::string& config) {
         terms[0] = satisfactory ? 1.0 : 0.0;
         return reward;
       });
+}
+
+/// The bottle task on the simulated WAM: terms satisfactory, down, length, crossed, max_tracking_error; the
+/// trajectory is the measured tool path (3 × samples, world).
+class WamBottlesTask : public RolloutTask {
+ public:
+  explicit WamBottlesTask(const tasks::WamBottleConfig& config) : task_(config) {}
+  std::vector<std::string> termNames() const override {
+    return {"satisfactory", "bottles_down", "length", "crossed", "max_tracking_error"};
+  }
+  Eigen::VectorXd initialParameters() const override { return task_.initialParameters(); }
+  RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override {
+    const tasks::WamBottleRollout r = task_.run(parameters, seed);
+    RolloutResult result;
+    result.reward = r.reward;
+    result.terms = (Eigen::VectorXd(5) << (r.satisfactory ? 1.0 : 0.0), static_cast<double>(r.down), r.length,
+                    (r.crossed ? 1.0 : 0.0), r.max_tracking_error)
+                       .finished();
+    result.ok = r.outcome == tasks::FoldOutcome::Ok;
+    result.outcome = tasks::toString(r.outcome);
+    result.reason = r.reason;
+    result.wall_seconds = r.wall_seconds;
+    result.trajectory = r.tool_path;
+    return result;
+  }
+
+ private:
+  tasks::WamBottleTask task_;
+};
+
+std::unique_ptr<RolloutTask> makeWamBottles(const std::string& config) {
+  if (config.empty()) {
+    throw std::invalid_argument("task 'wam_bottles' needs a configuration (config/bottles_wam.yaml)");
+  }
+  return std::make_unique<WamBottlesTask>(tasks::WamBottleConfig::fromYamlFile(config));
 }
 
 std::unique_ptr<RolloutTask> makeCircle(const std::string& config) {
@@ -251,6 +287,9 @@ const std::vector<RolloutTaskInfo>& rolloutTasks() {
        "-|theta|^2/n plus seeded noise, no simulation: measures the dispatch's own cost"},
       {"bottles", "optional YAML with crossing_term (true: reward 6.18; false: 6.17)",
        "the planar path between two bottles of thesis Figs. 6.8-6.12 (a DMP of 20 weights)"},
+      {"wam_bottles", "the task file (config/bottles_wam.yaml)",
+       "the bottle task on the simulated WAM, thesis Sec. 6.2: its tool between two free bottles (a DMP of 20 "
+       "weights; terms satisfactory, bottles_down, length, crossed, max_tracking_error; trajectory: the tool path)"},
       {"circle", "YAML with urdf, base, tip and the demonstration's seed (config/circle_task.yaml)",
        "the WAM tool traces a circle, thesis Fig. 6.14 (a 7-DoF DMP)"},
       {"planar_viapoint", "optional YAML with dofs (10), seed (1), kernels (5), matrices (1), exploration (0.316)",
@@ -269,6 +308,7 @@ std::unique_ptr<RolloutTask> makeRolloutTask(const std::string& name, const std:
   if (name == "scarf") return makeScarf(config);
   if (name == "quadratic") return makeQuadratic(config);
   if (name == "bottles") return makeBottles(config);
+  if (name == "wam_bottles") return makeWamBottles(config);
   if (name == "circle") return makeCircle(config);
   if (name == "viapoint") return makeViaPoint();
   if (name == "planar_viapoint") return makePlanarViaPoint(config);

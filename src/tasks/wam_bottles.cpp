@@ -74,6 +74,21 @@ WamBottleConfig WamBottleConfig::fromYamlFile(const std::string& path) {
   return c;
 }
 
+std::string WamBottleConfig::toYaml() const {
+  YAML::Emitter out;
+  out << YAML::BeginMap << YAML::Key << "sim_config" << YAML::Value << sim_config << YAML::Key << "arm" << YAML::Value
+      << arm;
+  io::writeVector(out, "start", start);
+  io::writeVector(out, "goal", goal);
+  out << YAML::Key << "duration" << YAML::Value << duration << YAML::Key << "hold_before" << YAML::Value << hold_before
+      << YAML::Key << "settle" << YAML::Value << settle << YAML::Key << "crossing_term" << YAML::Value << crossing_term
+      << YAML::Key << "tilt_deg" << YAML::Value << tilt * 180.0 / M_PI << YAML::Key << "max_ik_error" << YAML::Value
+      << max_ik_error << YAML::Key << "max_tracking_error" << YAML::Value << max_tracking_error << YAML::Key
+      << "velocity_limit" << YAML::Value << velocity_limit << YAML::Key << "failure_reward" << YAML::Value
+      << failure_reward << YAML::Key << "path_rate" << YAML::Value << path_rate << YAML::EndMap;
+  return std::string(out.c_str()) + "\n";
+}
+
 struct WamBottleTask::Impl {
   WamBottleConfig config;
   sim::SimConfig sim_config;
@@ -192,6 +207,10 @@ Eigen::Vector2d WamBottleTask::bottleOnLine(int k) const {
 
 double WamBottleTask::lineLength() const noexcept {
   return impl_->length;
+}
+
+double WamBottleTask::bottleRadius() const noexcept {
+  return impl_->sim_config.obstacles[static_cast<std::size_t>(impl_->bottles[0])].size.x();
 }
 
 Eigen::Vector2d WamBottleTask::toLine(const Eigen::Vector3d& world) const {

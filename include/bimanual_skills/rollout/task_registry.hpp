@@ -26,6 +26,8 @@ struct RolloutTaskInfo {
 /// - "bottles", "circle", "viapoint", "multimodal": the policy-search tasks of Ch. 6 (tasks/policy_search_tasks.hpp),
 ///   θ the DMP's weights (the 2-D point of reward 6.16 for "multimodal"); deterministic, so the seed is not used.
 ///   The via-point task's terms are its step costs (what PI2 learns from), then the via-point's error.
+/// - "wam_bottles": tasks::WamBottleTask, the bottle task on the simulated WAM (config/bottles_wam.yaml); the
+///   rollout's seed is the simulation's sensor noise, the trajectory the measured tool path.
 /// - "planar_viapoint": Table 7.3's planar arm with a DR-DMP, exploration drawn from the rollout's seed.
 const std::vector<RolloutTaskInfo>& rolloutTasks();
 

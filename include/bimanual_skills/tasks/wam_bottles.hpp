@@ -34,10 +34,10 @@ struct WamBottleConfig {
   /// The line's ends [m, world]: the same height, which the tool keeps.
   Eigen::Vector3d start = Eigen::Vector3d(0.55, -0.65, 0.32);
   Eigen::Vector3d goal = Eigen::Vector3d(0.55, -0.05, 0.32);
-  double duration = 3.0;     ///< Of the motion [s].
+  double duration = 4.0;     ///< Of the motion [s].
   double hold_before = 0.1;  ///< The arm holds its start before the motion [s].
   /// After `duration` the DMP converges on to the goal while a pushed bottle falls or stands up again [s].
-  double settle = 0.6;
+  double settle = 0.5;
   bool crossing_term = true;         ///< (6.18); false: (6.17).
   double tilt = 0.7853981633974483;  ///< A bottle tilted beyond this is down [rad] (45°).
   double max_ik_error = 0.05;        ///< The planned tool farther than this from the DMP's path: IkFailed [m].
@@ -53,6 +53,8 @@ struct WamBottleConfig {
   /// `duration`, `hold_before`, `settle`, `crossing_term`, `tilt_deg`, `max_ik_error`, `max_tracking_error`,
   /// `velocity_limit`, `failure_reward`, `path_rate`. \throws std::invalid_argument naming the file and entry.
   static WamBottleConfig fromYamlFile(const std::string& path);
+  /// Every entry as fromYamlFile() reads it (sim_config as it is: absolute for a file read anywhere).
+  std::string toYaml() const;
 };
 
 struct WamBottleRollout {
@@ -92,6 +94,8 @@ class WamBottleTask {
   /// Where bottle k stands on the line: along it (0 start, 1 goal) and to its left [line lengths].
   Eigen::Vector2d bottleOnLine(int k) const;
   double lineLength() const noexcept;
+  /// The bottles' radius [m] (the first one's).
+  double bottleRadius() const noexcept;
   /// A world point in the line's units (x along, y to the left, in line lengths) and back.
   Eigen::Vector2d toLine(const Eigen::Vector3d& world) const;
   Eigen::Vector3d fromLine(const Eigen::Vector2d& line) const;
