@@ -17,6 +17,7 @@
 #include "bimanual_skills/vision/raw_rgbd_sensor.hpp"
 #include "scene_markers.hpp"
 
+#include <geometry_msgs/PoseArray.h>
 #include <nav_msgs/Odometry.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
@@ -136,6 +137,10 @@ class SimPublishing final : public hosting::StateSink {
     }
     frame.object = simulation.hasObject() ? simulation.objectPose() : Eigen::Isometry3d::Identity();
     frame.joints = initial.position;
+    for (std::size_t k = 0; k < simulation.config().obstacles.size(); ++k) {
+      frame.obstacles.push_back(simulation.obstaclePose(static_cast<int>(k)));
+      free_obstacles_ = free_obstacles_ || simulation.config().obstacles[k].mass > 0.0;
+    }
     frames_ = std::make_unique<realtime::TripleBuffer<ClothFrame>>(frame);
     sem_init(&state_signal_, 0, 0);
     sem_init(&scene_signal_, 0, 0);
@@ -144,6 +149,7 @@ class SimPublishing final : public hosting::StateSink {
     markers_ = private_node.advertise<visualization_msgs::MarkerArray>("markers", 1, true);
     cloth_ = private_node.advertise<sensor_msgs::PointCloud2>("cloth", 1, true);
     if (simulation.hasObject()) object_ = private_node.advertise<nav_msgs::Odometry>("object_truth", 10);
+    if (free_obstacles_) obstacle_poses_ = private_node.advertise<geometry_msgs::PoseArray>("obstacle_poses", 10);
     std::vector<geometry_msgs::TransformStamped> frames;
     if (renderer_) {
       camera_ = ros_layer::RgbdPublisher(node, false);
@@ -204,7 +210,7 @@ class SimPublishing final : public hosting::StateSink {
     }
     snapshots_->publish();
     sem_post(&state_signal_);
-    if ((simulation_.hasCloth() || rgbd_ || raw_rgbd_ || simulation_.hasObject()) &&
+    if ((simulation_.hasCloth() || rgbd_ || raw_rgbd_ || simulation_.hasObject() || free_obstacles_) &&
         (forced || t >= next_marker_ || t < last_marker_)) {
       ClothFrame& frame = frames_->writeSlot();
       frame.time = t;
@@ -214,6 +220,9 @@ class SimPublishing final : public hosting::StateSink {
         frame.object = simulation_.objectPose();
         frame.object_velocity = simulation_.objectVelocity();
         frame.object_holder = simulation_.objectHolder();
+      }
+      for (std::size_t k = 0; free_obstacles_ && k < frame.obstacles.size(); ++k) {
+        frame.obstacles[k] = simulation_.obstaclePose(static_cast<int>(k));
       }
       frame.image = forced;
       frames_->publish();
@@ -242,6 +251,7 @@ class SimPublishing final : public hosting::StateSink {
     Eigen::VectorXd joints;                                    ///< Every arm's joint positions, in joint-name order.
     Eigen::Vector3d object_velocity = Eigen::Vector3d::Zero();
     int object_holder = -1;
+    std::vector<Eigen::Isometry3d> obstacles;  ///< Every obstacle's pose now (the free ones move), the file's order.
   };
 
   /// Waits for the loop's signal, at most `seconds` (< 1; so that a stopping node is seen).
@@ -385,8 +395,11 @@ class SimPublishing final : public hosting::StateSink {
       if (simulation_.config().has_table)
         markers.markers.push_back(tableMarker(simulation_.config().table, ros::Time()));
       for (std::size_t k = 0; k < simulation_.config().obstacles.size(); ++k) {
-        markers.markers.push_back(obstacleMarker(simulation_.config().obstacles[k], static_cast<int>(k), ros::Time()));
+        sim::Obstacle obstacle = simulation_.config().obstacles[k];
+        obstacle.pose = frame->obstacles[k];
+        markers.markers.push_back(obstacleMarker(obstacle, static_cast<int>(k), ros::Time()));
       }
+      if (free_obstacles_) obstacle_poses_.publish(obstaclePoses(*frame));
       if (simulation_.hasCloth()) markers.markers.push_back(clothMarker(frame->vertices, triangles_, ros::Time()));
       if (simulation_.hasObject()) {
         sim::Obstacle body = simulation_.config().object.body;
@@ -450,6 +463,24 @@ class SimPublishing final : public hosting::StateSink {
     raw_depth_info_.publish(ros_layer::cameraInfo(raw_rgbd_->depthCalibration(), depth));
   }
 
+  /// Every obstacle's pose (world frame, the scene file's order; the free ones where contacts moved them).
+  static geometry_msgs::PoseArray obstaclePoses(const ClothFrame& frame) {
+    geometry_msgs::PoseArray poses;
+    poses.header.stamp = ros::Time(frame.time);
+    poses.header.frame_id = "world";
+    for (const Eigen::Isometry3d& pose : frame.obstacles) {
+      geometry_msgs::Pose p;
+      p.position = toPoint(pose.translation());
+      const Eigen::Quaterniond q(pose.linear());
+      p.orientation.w = q.w();
+      p.orientation.x = q.x();
+      p.orientation.y = q.y();
+      p.orientation.z = q.z();
+      poses.poses.push_back(p);
+    }
+    return poses;
+  }
+
   /// The object's true pose and velocity (world frame; child frame: its name).
   nav_msgs::Odometry objectTruth(const ClothFrame& frame) const {
     nav_msgs::Odometry truth;
@@ -510,7 +541,8 @@ class SimPublishing final : public hosting::StateSink {
   std::mt19937 state_jitter_{7}, image_jitter_{8};  ///< The transport's jitter (state thread, scene thread).
   ros::Publisher raw_colour_, raw_colour_info_, raw_depth_, raw_depth_info_;
   tf2_ros::StaticTransformBroadcaster camera_frame_;
-  ros::Publisher joint_states_, clock_, markers_, cloth_, object_;
+  ros::Publisher joint_states_, clock_, markers_, cloth_, object_, obstacle_poses_;
+  bool free_obstacles_ = false;  ///< The scene has obstacles with a mass: their poses go out with the markers.
   ros_layer::RgbdPublisher camera_, rgbd_camera_;
   sem_t state_signal_{}, scene_signal_{};
   std::atomic<bool> running_{true};
