@@ -79,6 +79,32 @@ TEST(PsBenchmarkWorkers, TheCurvesOnWorkersAreThoseOfThisProcessDespiteADeadWork
   fs::remove_all(out);
 }
 
+// The simulated WAM's bottle task learns through ROS: its rollouts (each a Bullet simulation of the arm among free
+// bottles) on the worker left alive give the learning curves and the final policies' paths of the run on this
+// process's threads.
+TEST(PsBenchmarkWorkers, TheWamBottleTaskLearnsOnTheWorkersAsHere) {
+  std::string space = "/ps_workers";
+  ros::param::get("~worker_namespace", space);
+  const fs::path out = fs::temp_directory_path() / ("ps_benchmark_wam_workers_" + std::to_string(::getpid()));
+  fs::remove_all(out);
+  const std::string common = std::string(PS_BENCHMARK) + " --experiment wam_bottles --runs 1 --quick --seed 4 --out ";
+  ASSERT_EQ(std::system((common + (out / "here").string() + " --jobs 2 > " + out.string() + "_here.log 2>&1").c_str()),
+            0);
+  const std::string log = out.string() + "_workers.log";
+  ASSERT_EQ(std::system((common + (out / "workers").string() + " --worker-namespace " + space +
+                         " --worker-timeout 30 > " + log + " 2>&1")
+                            .c_str()),
+            0)
+      << "see " << log;
+  EXPECT_TRUE(contains(lines(log), "wam_bottles on workers: 40 rollouts in 4 batches")) << log;
+  for (const char* file : {"wam_bottles.csv", "wam_bottles_paths.csv"}) {
+    const std::vector<std::string> here = lines((out / "here" / file).string());
+    EXPECT_GT(here.size(), 2u) << file;
+    EXPECT_EQ(here, lines((out / "workers" / file).string())) << file;
+  }
+  fs::remove_all(out);
+}
+
 int main(int argc, char** argv) {
   bimanual_skills::cli::pinNumerics(argv);
   testing::InitGoogleTest(&argc, argv);
