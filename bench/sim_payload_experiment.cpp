@@ -6,7 +6,12 @@
 //   steady-state error: mean estimate over the motion away from the start and the reversal, t ∈ [1, 4.5] ∪ [7, 9.5];
 //   transient peaks: largest error around the reversal of joint 1 (t ∈ [4.5, 7]) and the stop (t ∈ [10, 11]);
 //   at rest: mean estimate over t ∈ [11, 12], where the joints stick (static friction holds part of the load).
+// Figs. 4.3 and 4.4: our observer's estimates against the simulation's truth, per joint for the 1 kg load
+// (payload_joints.csv: τ_ext = −(RNEA with the load − RNEA without) at the true state and acceleration) and as the
+// full wrench for 0.5 kg (payload_wrench.csv: the point mass's force m (g − a_tool) at the tool origin, a_tool by
+// central differences of the true tool positions, and no moment).
 #include "bimanual_skills/control/disturbance_observer.hpp"
+#include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "sim_experiments.hpp"
 
@@ -18,6 +23,7 @@
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
+#include <vector>
 
 namespace bimanual_skills::bench::sim_experiments {
 namespace {
@@ -108,6 +114,11 @@ void payload(const ExperimentOptions& options, Rows& rows) {
   std::ofstream summary_csv(options.out + "/payload_summary.csv");
   summary_csv << "observer,load_kg,true_weight_n,steady_estimate_n,steady_error_n,steady_error_pct,reversal_peak_n,"
                  "stop_peak_n,transient_peak_n,rest_error_n,rest_error_pct\n";
+  std::ofstream joints_csv(options.out + "/payload_joints.csv");
+  joints_csv << "load_kg,t,joint,estimated_nm,true_nm\n";
+  std::ofstream wrench_csv(options.out + "/payload_wrench.csv");
+  wrench_csv << "load_kg,t,fx_est,fy_est,fz_est,mx_est,my_est,mz_est,fx_true,fy_true,fz_true,mx_true,my_true,"
+                "mz_true\n";
   const double loads[] = {0.0, 0.5, 1.0, 1.5, 2.0};
   for (const double load : loads) {
     sim::BimanualSimulation simulation(config);
@@ -135,6 +146,16 @@ void payload(const ExperimentOptions& options, Rows& rows) {
     const int steps = static_cast<int>(std::lround(kRunEnd / kControlPeriod));
     const double weight = load * kGravity;
     Estimate ours, theirs;
+    // The truth of Figs. 4.3 (1 kg) and 4.4 (0.5 kg).
+    const dynamics::Payload carried{load, Eigen::Vector3d::Zero()};
+    const kinematics::ChainModel& plant = simulation.armModel(0);  // the simulation's own rigid bodies
+    dynamics::DynamicsData dynamics_data(plant);
+    kinematics::ChainData true_kinematics(plant);
+    Eigen::VectorXd with_load(7), without_load(7);
+    std::vector<Eigen::Vector3d> tool_positions;
+    std::vector<Eigen::Matrix<double, 6, 1>> estimated_wrenches;
+    double torque_squares[7] = {0, 0, 0, 0, 0, 0, 0};
+    int torque_samples = 0;
     for (int k = 0; k < steps; ++k) {
       const double t = k * kControlPeriod;
       payloadTrajectory(t, q, qd, qdd);
@@ -166,11 +187,84 @@ void payload(const ExperimentOptions& options, Rows& rows) {
       ours.add(t, ours_weight - weight);
       theirs.add(t, kdl_weight - weight);
       csv << load << ',' << t << ',' << weight << ',' << ours_weight << ',' << kdl_weight << '\n';
+      const sim::ArmState& truth = simulation.trueState(0);
+      if (load == 1.0 && k > 0) {
+        // The load's torques at the true state and the acceleration of the last step.
+        const Eigen::VectorXd& accel = simulation.lastAcceleration(0);
+        if (dynamics::inverseDynamics(plant, dynamics_data, truth.q, truth.qd, accel, with_load, carried) !=
+                dynamics::DynamicsStatus::Success ||
+            dynamics::inverseDynamics(plant, dynamics_data, truth.q, truth.qd, accel, without_load) !=
+                dynamics::DynamicsStatus::Success) {
+          throw std::runtime_error("payload: the true load's torques failed");
+        }
+        for (int j = 0; j < 7; ++j) {
+          const double true_torque = without_load[j] - with_load[j];
+          joints_csv << load << ',' << t << ',' << j + 1 << ',' << observer.externalTorque()[j] << ',' << true_torque
+                     << '\n';
+          if (t >= 1.0 && t < kMotionEnd) {
+            torque_squares[j] += std::pow(observer.externalTorque()[j] - true_torque, 2);
+            if (j == 0) ++torque_samples;
+          }
+        }
+      }
+      if (load == 0.5) {
+        if (kinematics::forwardKinematics(plant, true_kinematics, truth.q) != kinematics::KinematicsStatus::Success) {
+          throw std::runtime_error("payload: the true tool pose failed");
+        }
+        tool_positions.push_back(true_kinematics.tipPose().translation());
+        estimated_wrenches.push_back(observer.wrench());
+      }
       for (int s = 0; s < substeps; ++s) {
         if (simulation.step() != sim::SimStatus::Ok) throw std::runtime_error("payload: simulation diverged");
       }
     }
     csv.flush();
+    if (load == 1.0) {
+      for (int j = 0; j < 7; ++j) {
+        const double rms = std::sqrt(torque_squares[j] / std::max(1, torque_samples));
+        rows.push_back(JsonRow()
+                           .add("experiment", "payload_joints")
+                           .add("load_kg", load)
+                           .add("joint", j + 1)
+                           .add("rms_error_nm", rms));
+        std::printf("sim_benchmark: payload 1 kg, joint %d: external torque rms error %.3f N m over t in [1, 10) s\n",
+                    j + 1, rms);
+      }
+      joints_csv.flush();
+    }
+    if (load == 0.5) {
+      // The force of the point mass on the tool, m (g − a), a by central differences; no moment at its origin.
+      double squares[6] = {0, 0, 0, 0, 0, 0};
+      int samples = 0;
+      for (std::size_t i = 1; i + 1 < tool_positions.size(); ++i) {
+        const Eigen::Vector3d a = (tool_positions[i + 1] - 2.0 * tool_positions[i] + tool_positions[i - 1]) /
+                                  (kControlPeriod * kControlPeriod);
+        Eigen::Matrix<double, 6, 1> truth = Eigen::Matrix<double, 6, 1>::Zero();
+        truth.head<3>() = load * (plant.gravity() - a);
+        const Eigen::Matrix<double, 6, 1>& e = estimated_wrenches[i];
+        const double t = static_cast<double>(i) * kControlPeriod;
+        wrench_csv << load << ',' << t;
+        for (int c = 0; c < 6; ++c) wrench_csv << ',' << e[c];
+        for (int c = 0; c < 6; ++c) wrench_csv << ',' << truth[c];
+        wrench_csv << '\n';
+        if (t >= 1.0 && t < kMotionEnd) {
+          for (int c = 0; c < 6; ++c) squares[c] += std::pow(e[c] - truth[c], 2);
+          ++samples;
+        }
+      }
+      const char* names[6] = {"fx", "fy", "fz", "mx", "my", "mz"};
+      for (int c = 0; c < 6; ++c) {
+        const double rms = std::sqrt(squares[c] / std::max(1, samples));
+        rows.push_back(JsonRow()
+                           .add("experiment", "payload_wrench")
+                           .add("load_kg", load)
+                           .add("component", names[c])
+                           .add("rms_error", rms));
+        std::printf("sim_benchmark: payload 0.5 kg, wrench %s: rms error %.3f %s over t in [1, 10) s\n", names[c], rms,
+                    c < 3 ? "N" : "N m");
+      }
+      wrench_csv.flush();
+    }
     // Percentages of the true weight; for the empty tool, of the smallest load's weight (0.5 kg).
     const double reference = load > 0.0 ? weight : loads[1] * kGravity;
     for (const auto& [name, e] : {std::pair<const char*, const Estimate&>{"ours", ours}, {"kdl", theirs}}) {

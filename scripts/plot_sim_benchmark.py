@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Plots and markdown tables for sim_benchmark's Chapter 4 experiments: reads DIR/friction_*.csv and DIR/payload*.csv
 (whichever exist), writes DIR/friction_table41.png (Table 4.1 per joint and the tracking RMS), DIR/friction_example.png
-(cf. Fig. 4.6), DIR/payload.png (cf. Fig. 4.2) and DIR/tables.md (measured figures beside the thesis').
+(cf. Fig. 4.6), DIR/payload.png (cf. Fig. 4.2), DIR/payload_joints.png (Fig. 4.3: per joint, our observer's external
+torques against the truth, 1 kg), DIR/payload_wrench.png (Fig. 4.4: the estimated wrench against the truth, 0.5 kg)
+and DIR/tables.md (measured figures beside the thesis').
 
 Usage: plot_sim_benchmark.py DIR
 """
@@ -153,11 +155,66 @@ def payload(directory, md):
         md.append("")
 
 
+def observer_truth(directory, md):
+    """Figs. 4.3 and 4.4: our observer's per-joint external torques (1 kg) and wrench (0.5 kg) against the
+    simulation's truth, with the rms error over the motion (t in [1, 10) s)."""
+    path = os.path.join(directory, "payload_joints.csv")
+    if os.path.exists(path):
+        joints = defaultdict(lambda: defaultdict(list))
+        for r in rows(path):
+            j = joints[int(r["joint"])]
+            for key in ("t", "estimated_nm", "true_nm"):
+                j[key].append(float(r[key]))
+        fig, axes = plt.subplots(7, 1, figsize=(8, 12), sharex=True)
+        md += ["## Fig. 4.3: external torques per joint, 1 kg\n", "| joint | rms error [N m] | mean true [N m] |",
+               "|---:|---:|---:|"]
+        for ax, (joint, j) in zip(axes, sorted(joints.items())):
+            ax.plot(j["t"], j["estimated_nm"], lw=0.7, label="estimated (4.15)")
+            ax.plot(j["t"], j["true_nm"], lw=1.0, color="k", ls="--", label="true")
+            ax.set_ylabel("joint %d [N m]" % joint, fontsize=8)
+            ax.grid(alpha=0.3)
+            motion = [(e - t) ** 2 for tt, e, t in zip(j["t"], j["estimated_nm"], j["true_nm"]) if 1.0 <= tt < 10.0]
+            true = [t for tt, t in zip(j["t"], j["true_nm"]) if 1.0 <= tt < 10.0]
+            md.append("| %d | %.3f | %+.3f |" % (joint, (sum(motion) / len(motion)) ** 0.5, sum(true) / len(true)))
+        md.append("")
+        axes[0].legend(fontsize=8, loc="upper right")
+        axes[0].set_title("External torques for a 1 kg load (cf. Fig. 4.3)", fontsize=10)
+        axes[-1].set_xlabel("t [s]  (joint 1 reverses at 5 s, the motion stops at 10 s)")
+        fig.tight_layout()
+        fig.savefig(os.path.join(directory, "payload_joints.png"), dpi=110)
+        plt.close(fig)
+    path = os.path.join(directory, "payload_wrench.csv")
+    if os.path.exists(path):
+        data = defaultdict(list)
+        for r in rows(path):
+            for key, value in r.items():
+                data[key].append(float(value))
+        fig, axes = plt.subplots(6, 1, figsize=(8, 10), sharex=True)
+        md += ["## Fig. 4.4: the estimated wrench, 0.5 kg\n", "| component | rms error | mean true |", "|---|---:|---:|"]
+        for ax, c in zip(axes, ("fx", "fy", "fz", "mx", "my", "mz")):
+            ax.plot(data["t"], data[c + "_est"], lw=0.7, label="estimated")
+            ax.plot(data["t"], data[c + "_true"], lw=1.0, color="k", ls="--", label="true")
+            unit = "N" if c[0] == "f" else "N m"
+            ax.set_ylabel("%s [%s]" % (c, unit), fontsize=8)
+            ax.grid(alpha=0.3)
+            pairs = [(e, t) for tt, e, t in zip(data["t"], data[c + "_est"], data[c + "_true"]) if 1.0 <= tt < 10.0]
+            md.append("| %s [%s] | %.3f | %+.3f |" % (c, unit, (sum((e - t) ** 2 for e, t in pairs) / len(pairs)) ** 0.5,
+                                                   sum(t for _, t in pairs) / len(pairs)))
+        md.append("")
+        axes[0].legend(fontsize=8, loc="upper right")
+        axes[0].set_title("Wrench on the tool for a 0.5 kg load, base frame (cf. Fig. 4.4)", fontsize=10)
+        axes[-1].set_xlabel("t [s]")
+        fig.tight_layout()
+        fig.savefig(os.path.join(directory, "payload_wrench.png"), dpi=110)
+        plt.close(fig)
+
+
 def main():
     directory = output_directory(__doc__)
     md = []
     friction(directory, md)
     payload(directory, md)
+    observer_truth(directory, md)
     with open(os.path.join(directory, "tables.md"), "w") as f:
         f.write("\n".join(md) + "\n")
     return 0
