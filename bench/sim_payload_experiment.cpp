@@ -10,9 +10,13 @@
 // (payload_joints.csv: τ_ext = −(RNEA with the load − RNEA without) at the true state and acceleration) and as the
 // full wrench for 0.5 kg (payload_wrench.csv: the point mass's force m (g − a_tool) at the tool origin, a_tool by
 // central differences of the true tool positions, and no moment).
+// The observer on a learned dynamics model (thesis Sec. 2.3.1): locally weighted regression of n = u − M(q) q̈_d on
+// [q; q̇], trained on two unloaded runs of the same trajectory (the arm's own logs), estimates the loads beside the
+// rigid-body observer in the same runs ("ours_learned").
 #include "bimanual_skills/control/disturbance_observer.hpp"
 #include "bimanual_skills/dynamics/rigid_body_dynamics.hpp"
 #include "bimanual_skills/kinematics/chain_kinematics.hpp"
+#include "bimanual_skills/learning/locally_weighted_regression.hpp"
 #include "sim_experiments.hpp"
 
 #include <kdl/chainexternalwrenchestimator.hpp>
@@ -22,6 +26,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <memory>
 #include <stdexcept>
 #include <vector>
 
@@ -88,6 +93,52 @@ control::ObserverGains observerGains() {
   return gains;
 }
 
+/// The learned n(q, q̇) = C q̇ + G + F_f: two unloaded runs of the payload trajectory tracked with the analytic
+/// model, every control period's n = u − M(q) q̈_d at the measured state learned (thesis Sec. 2.3.1).
+std::unique_ptr<learning::LocallyWeightedRegression> learnDynamics(const sim::SimConfig& config,
+                                                                   const dynamics::FrictionModel& friction) {
+  learning::LwrParameters parameters;
+  parameters.width =
+      (Eigen::VectorXd(14) << Eigen::VectorXd::Constant(7, 0.1), Eigen::VectorXd::Constant(7, 0.15)).finished();
+  parameters.max_fields = 2000;
+  auto lwr = std::make_unique<learning::LocallyWeightedRegression>(14, 7, parameters);
+  for (int pass = 0; pass < 2; ++pass) {
+    sim::SimConfig run = config;
+    run.seed = config.seed + 100u + static_cast<std::uint32_t>(pass);  // other sensor noise than the test runs
+    sim::BimanualSimulation simulation(run);
+    const kinematics::ChainModel model = controllerModel(simulation);
+    const kinematics::ChainModel inertial = model.withGravity(Eigen::Vector3d::Zero());
+    dynamics::DynamicsData data(inertial);
+    control::ComputedTorqueController controller(model, friction, lowGains(config));
+    Eigen::VectorXd q(7), qd(7), qdd(7), u(7), inertia(7), x(14);
+    sim::JointState state(7);
+    payloadTrajectory(0.0, q, qd, qdd);
+    if (simulation.reset({{q, Eigen::VectorXd::Zero(7)}}) != sim::SimStatus::Ok) {
+      throw std::runtime_error("payload: start outside the limits");
+    }
+    const int substeps = static_cast<int>(std::lround(kControlPeriod / simulation.stepSize()));
+    for (int k = 0; k < static_cast<int>(std::lround(kRunEnd / kControlPeriod)); ++k) {
+      payloadTrajectory(k * kControlPeriod, q, qd, qdd);
+      if (simulation.readJointState(0, state) != sim::RobotStatus::Ok ||
+          controller.update(state.position, state.velocity, q, qd, qdd, u) == control::ControlStatus::InvalidInput ||
+          simulation.writeJointTorques(0, u) != sim::RobotStatus::Ok ||
+          dynamics::inverseDynamics(inertial, data, state.position, Eigen::VectorXd::Zero(7), qdd, inertia) !=
+              dynamics::DynamicsStatus::Success) {
+        throw std::runtime_error("payload: the learning run failed");
+      }
+      x << state.position, state.velocity;
+      if (lwr->update(x, u - inertia) != learning::LwrStatus::Success) {
+        throw std::runtime_error("payload: the learned model rejected a sample");
+      }
+      for (int s = 0; s < substeps; ++s) {
+        if (simulation.step() != sim::SimStatus::Ok) throw std::runtime_error("payload: simulation diverged");
+      }
+    }
+  }
+  std::printf("sim_benchmark: payload: learned dynamics from 2 unloaded runs, %d receptive fields\n", lwr->fields());
+  return lwr;
+}
+
 KDL::Chain kdlChain(const sim::SimConfig& config) {
   KDL::Tree tree;
   KDL::Chain chain;
@@ -109,8 +160,9 @@ void payload(const ExperimentOptions& options, Rows& rows) {
   const dynamics::FrictionModel friction = advancedFriction(options);
   const sim::SimConfig config = oneArmConfig(options);
   const KDL::Chain chain = kdlChain(config);  // must outlive the estimators: KDL's solvers keep a reference
+  const std::unique_ptr<learning::LocallyWeightedRegression> learned = learnDynamics(config, friction);
   std::ofstream csv(options.out + "/payload.csv");
-  csv << "load_kg,t,true_weight_n,ours_n,kdl_n\n";
+  csv << "load_kg,t,true_weight_n,ours_n,kdl_n,ours_learned_n\n";
   std::ofstream summary_csv(options.out + "/payload_summary.csv");
   summary_csv << "observer,load_kg,true_weight_n,steady_estimate_n,steady_error_n,steady_error_pct,reversal_peak_n,"
                  "stop_peak_n,transient_peak_n,rest_error_n,rest_error_pct\n";
@@ -128,6 +180,8 @@ void payload(const ExperimentOptions& options, Rows& rows) {
     const kinematics::ChainModel model = controllerModel(simulation);
     control::ComputedTorqueController controller(model, friction, lowGains(config));
     control::DisturbanceObserver observer(model, friction, observerGains());
+    control::DisturbanceObserver learned_observer(model, friction, observerGains());
+    learned_observer.setLearnedModel(control::LearnedDynamics(*learned));
     const Eigen::Vector3d gravity = model.gravity();
     const Eigen::Vector3d up = -gravity.normalized();  // the base frame's vertical
     KDL::ChainExternalWrenchEstimator kdl(chain, KDL::Vector(gravity.x(), gravity.y(), gravity.z()),
@@ -145,7 +199,7 @@ void payload(const ExperimentOptions& options, Rows& rows) {
     const int substeps = static_cast<int>(std::lround(kControlPeriod / simulation.stepSize()));
     const int steps = static_cast<int>(std::lround(kRunEnd / kControlPeriod));
     const double weight = load * kGravity;
-    Estimate ours, theirs;
+    Estimate ours, theirs, ours_learned;
     // The truth of Figs. 4.3 (1 kg) and 4.4 (0.5 kg).
     const dynamics::Payload carried{load, Eigen::Vector3d::Zero()};
     const kinematics::ChainModel& plant = simulation.armModel(0);  // the simulation's own rigid bodies
@@ -166,7 +220,9 @@ void payload(const ExperimentOptions& options, Rows& rows) {
         throw std::runtime_error("payload: control failed");
       }
       if (k == 0) observer.reset(state.position, state.velocity);
-      if (observer.update(state.position, state.velocity, u, sign) != control::ObserverStatus::Success) {
+      if (k == 0) learned_observer.reset(state.position, state.velocity);
+      if (observer.update(state.position, state.velocity, u, sign) != control::ObserverStatus::Success ||
+          learned_observer.update(state.position, state.velocity, u, sign) != control::ObserverStatus::Success) {
         throw std::runtime_error("payload: observer update failed");
       }
       // KDL's momentum observer models neither friction nor rotor inertia: it is given u − F̂_f − J_m q̈_d.
@@ -184,9 +240,12 @@ void payload(const ExperimentOptions& options, Rows& rows) {
       const Eigen::Vector3d kdl_force(kdl_wrench.force.x(), kdl_wrench.force.y(), kdl_wrench.force.z());
       const double ours_weight = -up.dot(observer.wrench().head<3>());
       const double kdl_weight = -up.dot(kinematics.tipPose().linear() * kdl_force);
+      const double learned_weight = -up.dot(learned_observer.wrench().head<3>());
       ours.add(t, ours_weight - weight);
       theirs.add(t, kdl_weight - weight);
-      csv << load << ',' << t << ',' << weight << ',' << ours_weight << ',' << kdl_weight << '\n';
+      ours_learned.add(t, learned_weight - weight);
+      csv << load << ',' << t << ',' << weight << ',' << ours_weight << ',' << kdl_weight << ',' << learned_weight
+          << '\n';
       const sim::ArmState& truth = simulation.trueState(0);
       if (load == 1.0 && k > 0) {
         // The load's torques at the true state and the acceleration of the last step.
@@ -267,7 +326,8 @@ void payload(const ExperimentOptions& options, Rows& rows) {
     }
     // Percentages of the true weight; for the empty tool, of the smallest load's weight (0.5 kg).
     const double reference = load > 0.0 ? weight : loads[1] * kGravity;
-    for (const auto& [name, e] : {std::pair<const char*, const Estimate&>{"ours", ours}, {"kdl", theirs}}) {
+    for (const auto& [name, e] :
+         {std::pair<const char*, const Estimate&>{"ours", ours}, {"kdl", theirs}, {"ours_learned", ours_learned}}) {
       const double steady = e.steady_sum / e.steady_samples, rest = e.rest_sum / e.rest_samples;
       const double transient = std::max(e.reversal_peak, e.stop_peak);
       summary_csv << name << ',' << load << ',' << weight << ',' << weight + steady << ',' << steady << ','

@@ -118,12 +118,15 @@ def payload(directory, md):
     series = defaultdict(lambda: defaultdict(list))
     for r in rows(path):
         s = series[float(r["load_kg"])]
-        for key in ("t", "true_weight_n", "ours_n", "kdl_n"):
-            s[key].append(float(r[key]))
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4.6), sharey=True)
+        for key in ("t", "true_weight_n", "ours_n", "kdl_n", "ours_learned_n"):
+            if key in r:
+                s[key].append(float(r[key]))
+    panels = [("ours_n", "our observer (4.15)"), ("kdl_n", "KDL ChainExternalWrenchEstimator")]
+    if all(s["ours_learned_n"] for s in series.values()):
+        panels.append(("ours_learned_n", "our observer on the learned dynamics"))
+    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.6), sharey=True)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for ax, key, title in [(axes[0], "ours_n", "our observer (4.15)"),
-                           (axes[1], "kdl_n", "KDL ChainExternalWrenchEstimator")]:
+    for ax, (key, title) in zip(axes, panels):
         for i, (load, s) in enumerate(sorted(series.items())):
             c = colours[i % len(colours)]
             ax.plot(s["t"], s[key], color=c, lw=1.0, label="%.1f kg" % load)
