@@ -112,19 +112,21 @@ def scale_table(directory, by):
 
 
 def wam_paths(directory, experiment, rows):
-    """Fig. 6.11 on the WAM: every run's final mean policy as the arm ran it, coloured as the thesis does (reward
-    < -4: not crossing; (-3, -2): one bottle down; > -1: between them, none down), the bottles drawn to scale."""
+    """Fig. 6.11 on the WAM: every run's final mean policy as the arm ran it, coloured by what it did (blue: between
+    the bottles, none down; magenta: crossing, one down; orange: crossing, both down; red: not crossing), the
+    bottles drawn to scale where they stood."""
     path = os.path.join(directory, experiment + "_paths.csv")
     if not os.path.exists(path) or not rows:
         return
     runs = defaultdict(lambda: {"along": [], "left": []})
-    rewards = {}
+    kinds = {}
     with open(path) as f:
         for row in csv.DictReader(f):
             key = (row["algorithm"], int(row["run"]))
             runs[key]["along"].append(float(row["along"]))
             runs[key]["left"].append(float(row["left"]))
-            rewards[key] = float(row["reward"])
+            kinds[key] = ("failed" if row["outcome"] != "Ok" else "not crossing" if row["crossed"] != "1" else
+                          {"0": "none down", "1": "one down"}.get(row["bottles_down"], "both down"))
     algorithms = [r["algorithm"] for r in rows]
     fig, axes = plt.subplots(len(algorithms), 1, figsize=(7, 2.9 * len(algorithms)), squeeze=False)
     for ax, r in zip(axes[:, 0], rows):
@@ -132,20 +134,21 @@ def wam_paths(directory, experiment, rows):
             ax.add_patch(plt.Circle((r["bottle_%d_along" % b], r["bottle_%d_left" % b]), r["bottle_radius"],
                                     color="black"))
         counts = defaultdict(int)
-        for (algorithm, _), p in sorted(runs.items()):
+        colours = {"none down": "tab:blue", "one down": "m", "both down": "tab:orange", "not crossing": "tab:red",
+                   "failed": "0.5"}
+        for (algorithm, run), p in sorted(runs.items()):
             if algorithm != r["algorithm"]:
                 continue
-            reward = rewards[(algorithm, _)]
-            colour = "tab:blue" if reward > -1 else ("tab:red" if reward < -4 else "m")
-            counts[colour] += 1
-            ax.plot(p["along"], p["left"], color=colour, lw=1, alpha=0.8)
+            kind = kinds[(algorithm, run)]
+            counts[kind] += 1
+            ax.plot(p["along"], p["left"], color=colours[kind], lw=1, alpha=0.8)
         ax.plot([0, r["line_length"]], [0, 0], "k--", lw=0.6)
         ax.set_aspect("equal")
         ax.set_ylim(-0.25, 0.25)
         ax.set_xlabel("along the line [m]")
         ax.set_ylabel("to its left [m]")
-        ax.set_title("%s: %d blue (> -1), %d magenta, %d red (< -4) of %d" % (
-            r["algorithm"], counts["tab:blue"], counts["m"], counts["tab:red"], r["runs"]), fontsize=9)
+        ax.set_title("%s, %d runs: %s" % (r["algorithm"], r["runs"], ", ".join(
+            "%d %s (%s)" % (counts[k], k, colours[k].replace("tab:", "")) for k in colours if counts[k])), fontsize=9)
         ax.grid(alpha=0.3)
     fig.suptitle("Final mean policies on the simulated WAM (cf. Fig. 6.11), " + experiment, fontsize=10)
     fig.tight_layout()
