@@ -236,17 +236,8 @@ Algorithm repsAlgorithm(const std::string& name, const bl::DualRepsParameters& p
 /// The three algorithms of the thesis' comparisons (Sec. 6.1.3): REPS, nDREPS (3 repulsive clusters, no attractive)
 /// and DREPS (1 attractive, up to 4 repulsive chosen by the 2-cluster split), ξ = 5, χ = 2ε.
 std::vector<Algorithm> repsFamily(double epsilon, int reuse, bool with_ndreps) {
-  bl::DualRepsParameters reps;
-  reps.reps.epsilon = epsilon;
-  reps.reps.reuse = reuse;
-  reps.clusters = 0;
-  bl::DualRepsParameters dreps = reps;
-  dreps.clusters = 5;
-  dreps.max_attractive = 1;
-  dreps.max_repulsive = 4;
-  dreps.split_repulsive = true;
-  dreps.xi = 5.0;
-  dreps.chi = 2.0 * epsilon;
+  const bl::DualRepsParameters dreps = bl::thesisDreps(epsilon, reuse);
+  const bl::DualRepsParameters reps = bl::thesisReps(epsilon, reuse);
   std::vector<Algorithm> out = {repsAlgorithm("REPS", reps)};
   if (with_ndreps) {
     bl::DualRepsParameters ndreps = dreps;

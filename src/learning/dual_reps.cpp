@@ -70,6 +70,25 @@ void clusterPass(const Eigen::MatrixXd& centred, const Eigen::VectorXd& score, c
 
 }  // namespace
 
+DualRepsParameters thesisReps(double epsilon, int reuse) {
+  DualRepsParameters p;
+  p.reps.epsilon = epsilon;
+  p.reps.reuse = reuse;
+  p.clusters = 0;
+  return p;
+}
+
+DualRepsParameters thesisDreps(double epsilon, int reuse) {
+  DualRepsParameters p = thesisReps(epsilon, reuse);
+  p.clusters = 5;
+  p.max_attractive = 1;
+  p.max_repulsive = 4;
+  p.split_repulsive = true;
+  p.xi = 5.0;
+  p.chi = 2.0 * epsilon;
+  return p;
+}
+
 void DualRepsParameters::validate() const {
   reps.validate();
   if (clusters < 0 || max_repulsive < 0 || max_attractive < 0 || !(xi >= 0.0) || !(chi > 0.0) ||

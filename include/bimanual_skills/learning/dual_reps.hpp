@@ -33,6 +33,12 @@ struct DualRepsParameters {
   void validate() const;
 };
 
+/// The settings of the thesis' comparisons (Sec. 6.1.3) with its ε and reuse: REPS (no clusters, every update the
+/// REPS update) and DREPS (c = 5: one attractive cluster, up to 4 repulsive ones chosen by the 2-cluster split,
+/// ξ = 5, χ = 2ε).
+DualRepsParameters thesisReps(double epsilon, int reuse);
+DualRepsParameters thesisDreps(double epsilon, int reuse);
+
 /// A cluster Gaussian g_i = N(μ_i, Σ_i) of Alg. 6.1 and its multiplier after the update.
 struct DualRepsCluster {
   Eigen::VectorXd mean;
