@@ -71,10 +71,13 @@ DrDmpVariant parseDrDmpVariant(const std::string& name, int dofs, double eta) {
   } else if (name == "PI2-CMA" || name == "CMA-ES") {
     v.latent_dims = dofs;
     v.search = name == "PI2-CMA" ? PolicySearch::Pi2Cma : PolicySearch::CmaEs;
+  } else if (name == "REPS" || name == "DREPS") {
+    v.latent_dims = dofs;
+    v.search = name == "REPS" ? PolicySearch::StandardReps : PolicySearch::Dreps;
   } else {
-    throw std::invalid_argument(
-        "unknown algorithm '" + name +
-        "' (DR-DMP0(r), DR-DMP_CMU(r), DR-DMP_MCMU(Ns,r), IDR-DMP_CMU, IDR-DMP_MCMU(Ns), PI2-CMA, CMA-ES)");
+    throw std::invalid_argument("unknown algorithm '" + name +
+                                "' (DR-DMP0(r), DR-DMP_CMU(r), DR-DMP_MCMU(Ns,r), IDR-DMP_CMU, IDR-DMP_MCMU(Ns), "
+                                "PI2-CMA, CMA-ES, REPS, DREPS)");
   }
   if (v.latent_dims < 1 || v.latent_dims > dofs || v.matrices < 1 || v.matrices > 20) {
     throw std::invalid_argument("algorithm '" + name + "': r must be in [1, " + std::to_string(dofs) +

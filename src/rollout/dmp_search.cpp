@@ -51,6 +51,10 @@ DmpSearch::DmpSearch(const DrDmpVariant& variant, const primitives::DrDmpParamet
     peer_.covariance = Eigen::MatrixXd::Identity(size, size) * (settings.initial_stddev * settings.initial_stddev);
   }
   adaptation_ = learning::CovarianceAdaptation::start(peer_.covariance);
+  if (variant.search == PolicySearch::StandardReps)
+    dual_reps_.emplace(learning::thesisReps(settings.epsilon, settings.reuse));
+  if (variant.search == PolicySearch::Dreps)
+    dual_reps_.emplace(learning::thesisDreps(settings.epsilon, settings.reuse));
 }
 
 const learning::CoordinatedPolicy& DmpSearch::policy() const noexcept {
@@ -92,6 +96,11 @@ void DmpSearch::update(const Eigen::MatrixXd& samples, const Eigen::VectorXd& re
   } else if (variant_.search == PolicySearch::Pi2Cma) {
     peer_ = pi2CmaStep(peer_, samples, rewards, grid_.basis() * phi_, settings_.covariance_memory, settings_.h,
                        settings_.diagonal_covariance);
+  } else if (dual_reps_) {
+    const learning::DualRepsUpdate u = dual_reps_->update(peer_.mean, peer_.covariance, samples, rewards);
+    peer_.mean = u.policy.mean;
+    peer_.covariance =
+        (1.0 - settings_.covariance_memory) * u.policy.covariance + settings_.covariance_memory * peer_.covariance;
   } else {
     peer_.mean = learning::cmaEsStep(peer_.mean, adaptation_, samples, rewards);
     peer_.covariance = adaptation_.covariance();

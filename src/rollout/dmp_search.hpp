@@ -1,12 +1,13 @@
 /// \file
 /// One run's policy search over a DR-DMP fitted to a demonstration (module-private to rollout), shared by the fold's
 /// and the generic DMP learner: the fit by the variant's PCA, the searched distribution (REPS' with its coordination
-/// updates, or the peers' PI2-CMA and CMA-ES on the fitted coordination, PI2-CMA optionally on a second layer of
-/// Gaussians), each epoch's draws and the update from their rewards.
+/// updates, or the peers' PI2-CMA, CMA-ES, REPS and DREPS on the fitted coordination, PI2-CMA optionally on a second
+/// layer of Gaussians), each epoch's draws and the update from their rewards.
 #pragma once
 
 #include "bimanual_skills/learning/coordinated_reps.hpp"
 #include "bimanual_skills/learning/covariance_adaptation.hpp"
+#include "bimanual_skills/learning/dual_reps.hpp"
 #include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/primitives/dr_dmp.hpp"
 #include "bimanual_skills/rollout/dmp_learning.hpp"
@@ -15,6 +16,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -60,6 +62,7 @@ class DmpSearch {
   learning::CoordinatedReps learner_;
   learning::CoordinatedPolicy peer_;
   learning::CovarianceAdaptation adaptation_;
+  std::optional<learning::DualReps> dual_reps_;  ///< REPS and DREPS.
   learning::GaussianSampler sampler_;
 };
 

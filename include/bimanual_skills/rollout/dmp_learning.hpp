@@ -41,6 +41,11 @@ enum class PolicySearch {
   Pi2Cma,  ///< PI2-CMA (learning/pi2.hpp, h = 10) on the weights, the reward as a terminal cost, the covariance
            ///< memory λ as REPS'; no reuse.
   CmaEs,   ///< CMA-ES (Hansen 2006): the best half by log-rank weights, CovarianceAdaptation; no reuse.
+  /// "REPS": learning::DualReps without clusters (the REPS update of the thesis' Ch. 6 comparisons and ps_benchmark,
+  /// learning::thesisReps) on the weights, reusing earlier rollouts; the covariance memory λ as above.
+  StandardReps,
+  /// "DREPS": Dual REPS (thesis Ch. 6, Alg. 6.2) with the thesis' settings (learning::thesisDreps) on the weights.
+  Dreps,
 };
 
 /// A DR-DMP variant of Tables 7.1–7.2, by the thesis' name, or a peer on the standard DMP.
@@ -55,7 +60,7 @@ struct DrDmpVariant {
 
 /// "DR-DMP0(r)" (fixed PCA coordination; r = d is the standard DMP), "DR-DMP_CMU(r)", "DR-DMP_MCMU(Ns,r)",
 /// "IDR-DMP_CMU" and "IDR-DMP_MCMU(Ns)" (r = d, reduced by η) for `dofs` DoF; and the peers "PI2-CMA" and "CMA-ES"
-/// on the standard DMP's weights (r = d, fixed coordination).
+/// on the standard DMP's weights (r = d, fixed coordination), and "REPS" and "DREPS" there (PolicySearch).
 /// \throws std::invalid_argument for another name or r outside [1, dofs], N_s < 1.
 DrDmpVariant parseDrDmpVariant(const std::string& name, int dofs, double eta);
 
