@@ -92,15 +92,18 @@ Eigen::MatrixXd DmpRollout::stepBasis() const {
   return basis;
 }
 
-DmpRollout BottleTask::initialPolicy() {
-  const double dt = 0.01;
+Eigen::MatrixXd BottleTask::demonstration() {
   const int samples = 101;
   Eigen::MatrixXd line(samples, 2);
   for (int i = 0; i < samples; ++i) {
     line(i, 0) = minimumJerk(static_cast<double>(i) / (samples - 1));
     line(i, 1) = 0.0;
   }
-  return DmpRollout::fit(line, dt, 10);
+  return line;
+}
+
+DmpRollout BottleTask::initialPolicy() {
+  return DmpRollout::fit(demonstration(), kDemonstrationStep, 10);
 }
 
 namespace {

@@ -101,6 +101,7 @@ struct WamBottleTask::Impl {
   Eigen::Matrix3d orientation;  ///< Of the tool in the world, kept along the line.
   std::unique_ptr<kinematics::ChainModel> model;
   std::vector<sim::ArmState> start;
+  std::vector<std::vector<std::string>> joint_names;
   control::ComputedTorqueGains gains;
   std::vector<dynamics::FrictionModel> friction;
   std::vector<control::ArmControllerConfig> controller_configs;
@@ -151,6 +152,7 @@ WamBottleTask::WamBottleTask(const WamBottleConfig& config) : impl_(std::make_un
     const sim::ArmConfig& arm = m.sim_config.arms[static_cast<std::size_t>(a)];
     if (arm.start.size() == 0) fail("arm '" + arm.name + "' has no start posture");
     m.start.push_back({arm.start, Eigen::VectorXd::Zero(arm.start.size())});
+    m.joint_names.push_back(simulation.armModel(a).jointNames());
   }
   kinematics::ChainData fk(*m.model);
   Eigen::VectorXd& q = m.start[static_cast<std::size_t>(m.arm)].q;
@@ -198,6 +200,28 @@ Eigen::VectorXd WamBottleTask::initialParameters() const {
   return impl_->policy.parameters();
 }
 
+int WamBottleTask::kernels() const noexcept {
+  return impl_->policy.dmp.parameters().kernels;
+}
+
+int WamBottleTask::arm() const noexcept {
+  return impl_->arm;
+}
+
+const std::vector<std::vector<std::string>>& WamBottleTask::jointNames() const noexcept {
+  return impl_->joint_names;
+}
+
+std::vector<Eigen::VectorXd> WamBottleTask::starts() const {
+  std::vector<Eigen::VectorXd> out;
+  for (const sim::ArmState& s : impl_->start) out.push_back(s.q);
+  return out;
+}
+
+const sim::SimConfig& WamBottleTask::simConfig() const noexcept {
+  return impl_->sim_config;
+}
+
 Eigen::Vector2d WamBottleTask::bottleOnLine(int k) const {
   if (k < 0 || k > 1) throw std::out_of_range("WAM bottle task: bottle " + std::to_string(k) + " of 2");
   const Impl& m = *impl_;
@@ -221,36 +245,73 @@ Eigen::Vector3d WamBottleTask::fromLine(const Eigen::Vector2d& line) const {
   return impl_->fromLine(line);
 }
 
+namespace {
+
+WamBottleRollout failedRollout(FoldOutcome outcome, const std::string& reason, double reward,
+                               std::chrono::steady_clock::time_point wall_start) {
+  WamBottleRollout out;
+  out.outcome = outcome;
+  out.reason = reason;
+  out.reward = reward;
+  out.wall_seconds = realtime::secondsSince(wall_start);
+  return out;
+}
+
+}  // namespace
+
 WamBottleRollout WamBottleTask::run(const Eigen::VectorXd& theta, std::uint32_t seed) {
+  Impl& m = *impl_;
+  const auto wall_start = std::chrono::steady_clock::now();
+  const int kernels = m.policy.dmp.parameters().kernels;
+  if (theta.size() != 2 * kernels || !theta.allFinite()) {
+    return failedRollout(FoldOutcome::InvalidPolicy,
+                         "the policy needs " + std::to_string(2 * kernels) + " finite weights, got " +
+                             std::to_string(theta.size()) + (theta.allFinite() ? "" : " with NaN/Inf"),
+                         m.config.failure_reward, wall_start);
+  }
+  // The DMP at the simulation's step over the motion and on while the arm settles (it converges to the goal).
+  const double dt = m.sim_config.step;
+  Eigen::MatrixXd w(2, kernels);
+  for (int d = 0; d < 2; ++d) w.row(d) = theta.segment(d * kernels, kernels).transpose();
+  const primitives::Dmp dmp = m.policy.dmp.withDuration(m.config.duration).withWeights(w);
+  const int move = static_cast<int>(std::lround((m.config.duration + m.config.settle) / dt));
+  Eigen::Matrix2Xd path(2, move + 1);
+  primitives::DmpState state = dmp.initialState();
+  path.col(0) = state.y;
+  for (int k = 1; k <= move; ++k) {
+    if (dmp.step(state, dt) != primitives::DmpStatus::Success) {
+      return failedRollout(FoldOutcome::InvalidPolicy, "the DMP step failed at " + std::to_string(k * dt) + " s",
+                           m.config.failure_reward, wall_start);
+    }
+    path.col(k) = state.y;
+  }
+  WamBottleRollout out = runPath(path, seed);
+  out.wall_seconds = realtime::secondsSince(wall_start);
+  return out;
+}
+
+WamBottleRollout WamBottleTask::runPath(const Eigen::Matrix2Xd& path, std::uint32_t seed) {
   Impl& m = *impl_;
   WamBottleRollout out;
   const auto wall_start = std::chrono::steady_clock::now();
   const auto failed = [&](FoldOutcome outcome, const std::string& reason) {
-    out.outcome = outcome;
-    out.reason = reason;
-    out.reward = m.config.failure_reward;
-    out.wall_seconds = realtime::secondsSince(wall_start);
-    return out;
+    return failedRollout(outcome, reason, m.config.failure_reward, wall_start);
   };
-  const int kernels = m.policy.dmp.parameters().kernels;
-  if (theta.size() != 2 * kernels || !theta.allFinite()) {
-    return failed(FoldOutcome::InvalidPolicy, "the policy needs " + std::to_string(2 * kernels) +
-                                                  " finite weights, got " + std::to_string(theta.size()) +
-                                                  (theta.allFinite() ? "" : " with NaN/Inf"));
+  if (path.cols() < 2 || !path.allFinite()) {
+    return failed(FoldOutcome::InvalidPolicy, "the path needs at least two finite points");
+  }
+  if ((path.col(0) - Eigen::Vector2d::Zero()).norm() > 1e-6) {
+    return failed(FoldOutcome::InvalidPolicy, "the path must start at the line's start (0, 0)");
   }
 
-  // The plan: the DMP at the simulation's step over the motion and on while the arm settles (it converges to the
-  // goal), each period's tool pose solved by one CLIK step from the last; the references' velocities and
-  // accelerations are the differences of the solutions.
+  // The plan: each period's tool pose on the path solved by one CLIK step from the last; the references' velocities
+  // and accelerations are the differences of the solutions.
   sim::SimConfig sim_config = m.sim_config;
   sim_config.seed = seed;
   sim::BimanualSimulation simulation(sim_config);
   const double dt = simulation.stepSize();
-  Eigen::MatrixXd w(2, kernels);
-  for (int d = 0; d < 2; ++d) w.row(d) = theta.segment(d * kernels, kernels).transpose();
-  const primitives::Dmp dmp = m.policy.dmp.withDuration(m.config.duration).withWeights(w);
   const int hold = static_cast<int>(std::lround(m.config.hold_before / dt));
-  const int move = static_cast<int>(std::lround((m.config.duration + m.config.settle) / dt));
+  const int move = static_cast<int>(path.cols()) - 1;
   const int periods = hold + move + 1;
   const int n = m.joints;
   Eigen::MatrixXd position(n, periods), velocity = Eigen::MatrixXd::Zero(n, periods),
@@ -261,15 +322,11 @@ WamBottleRollout WamBottleTask::run(const Eigen::VectorXd& theta, std::uint32_t 
   kinematics::ChainData fk(*m.model);
   Eigen::VectorXd q = m.start[static_cast<std::size_t>(m.arm)].q;
   position.leftCols(hold + 1).colwise() = q;
-  primitives::DmpState state = dmp.initialState();
   Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
   target.linear() = m.orientation;
-  planned.col(0) = m.fromLine(state.y);
+  planned.col(0) = m.fromLine(path.col(0));
   for (int k = 1; k <= move; ++k) {
-    if (dmp.step(state, dt) != primitives::DmpStatus::Success) {
-      return failed(FoldOutcome::InvalidPolicy, "the DMP step failed at " + std::to_string(k * dt) + " s");
-    }
-    planned.col(k) = m.fromLine(state.y);
+    planned.col(k) = m.fromLine(path.col(k));
     target.translation() = planned.col(k);
     const Eigen::Isometry3d in_base = m.base.inverse() * target;
     if (kinematics::step(*m.model, clik, clik_data, q, in_base) != kinematics::IkStatus::StepComputed) {
@@ -305,6 +362,7 @@ WamBottleRollout WamBottleTask::run(const Eigen::VectorXd& theta, std::uint32_t 
   const control::Waypoints waypoints = plannedWaypoints(position, velocity, acceleration, 0, dt);
   const int path_every = std::max(1, static_cast<int>(std::lround(1.0 / (m.config.path_rate * dt))));
   std::vector<Eigen::Vector3d> tool;
+  std::vector<Eigen::VectorXd> joints;
   std::vector<double> times;
   sim::JointState measured(n);
   Eigen::VectorXd torque(n);
@@ -312,6 +370,9 @@ WamBottleRollout WamBottleTask::run(const Eigen::VectorXd& theta, std::uint32_t 
     const double now = simulation.time();
     if (k >= hold && (k - hold) % path_every == 0) {
       tool.push_back(simulation.toolPose(m.arm).translation());
+      simulation.readJointState(m.arm, measured);
+      joints.push_back(measured.position);
+      for (const int b : m.bottles) out.bottle_path.push_back(simulation.obstaclePose(b));
       times.push_back(now - hold * dt);
     }
     for (int a = 0; a < simulation.armCount(); ++a) {
@@ -340,8 +401,10 @@ WamBottleRollout WamBottleTask::run(const Eigen::VectorXd& theta, std::uint32_t 
 
   out.tool_path.resize(3, static_cast<Eigen::Index>(tool.size()));
   out.path_times.resize(static_cast<Eigen::Index>(times.size()));
+  out.joint_path.resize(n, static_cast<Eigen::Index>(joints.size()));
   for (std::size_t i = 0; i < tool.size(); ++i) {
     out.tool_path.col(static_cast<Eigen::Index>(i)) = tool[i];
+    out.joint_path.col(static_cast<Eigen::Index>(i)) = joints[i];
     out.path_times[static_cast<Eigen::Index>(i)] = times[i];
   }
   out.planned_path = planned;

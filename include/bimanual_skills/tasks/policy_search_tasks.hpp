@@ -63,6 +63,9 @@ struct BottleTask {
   /// The initial policy: a DMP with 10 kernels per DoF fitted to the straight line (minimum-jerk timing, 1 s at
   /// 100 Hz).
   static DmpRollout initialPolicy();
+  /// What initialPolicy() is fitted to: the straight line's minimum-jerk path, 101 samples × (x, y) over 1 s.
+  static Eigen::MatrixXd demonstration();
+  static constexpr double kDemonstrationStep = 0.01;  ///< [s] between its samples.
 
   /// (6.18), or (6.17) without the crossing term, of a planar path (rows = samples): −2 per bottle knocked down,
   /// −0.15 × length, −4 unless the path passes the bottles on opposite sides. `satisfactory`: between the bottles,

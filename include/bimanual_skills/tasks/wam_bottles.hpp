@@ -24,6 +24,7 @@
 #include <array>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace bimanual_skills::tasks {
 
@@ -72,6 +73,9 @@ struct WamBottleRollout {
   Eigen::Matrix3Xd tool_path;       ///< The measured tool (world), from the motion's start to the rollout's end.
   Eigen::Matrix3Xd planned_path;    ///< The DMP's path there (world).
   Eigen::VectorXd path_times;       ///< [s] from the motion's start.
+  Eigen::MatrixXd joint_path;       ///< The moving arm's measured joints at the path's samples (joints × samples).
+  /// Where the bottles were at the path's samples (2 per sample, bottle_path[2 i + k] bottle k's at sample i).
+  std::vector<Eigen::Isometry3d> bottle_path;
   std::array<Eigen::Isometry3d, 2> bottles;  ///< Where the bottles ended.
   double simulated_seconds = 0.0, wall_seconds = 0.0;
 };
@@ -91,6 +95,14 @@ class WamBottleTask {
   const WamBottleConfig& config() const noexcept;
   /// The DMP's weights fitted to the straight line (x's 10 kernels, then y's).
   Eigen::VectorXd initialParameters() const;
+  /// Kernels per DoF of the DMP (10).
+  int kernels() const noexcept;
+  /// The index of the moving arm, every arm's joint names and start posture (the moving arm's at the line's start).
+  int arm() const noexcept;
+  const std::vector<std::vector<std::string>>& jointNames() const noexcept;
+  std::vector<Eigen::VectorXd> starts() const;
+  /// The simulation the rollouts run in (the file's, its obstacles at their start).
+  const sim::SimConfig& simConfig() const noexcept;
   /// Where bottle k stands on the line: along it (0 start, 1 goal) and to its left [line lengths].
   Eigen::Vector2d bottleOnLine(int k) const;
   double lineLength() const noexcept;
@@ -101,6 +113,10 @@ class WamBottleTask {
   Eigen::Vector3d fromLine(const Eigen::Vector2d& line) const;
   /// The rollout of the DMP with weights θ; a wrong size or a non-finite θ is an InvalidPolicy rollout.
   WamBottleRollout run(const Eigen::VectorXd& theta, std::uint32_t seed);
+  /// The rollout of a tool path in the line's units (2 × samples at the simulation's step from the motion's start,
+  /// starting at (0, 0); the arm holds its start for hold_before first), as run() runs its DMP's path: the human-guided
+  /// runs' references. A path of fewer than two finite points or starting elsewhere is an InvalidPolicy rollout.
+  WamBottleRollout runPath(const Eigen::Matrix2Xd& path, std::uint32_t seed);
 
  private:
   struct Impl;
