@@ -1,9 +1,10 @@
 /// \file
-/// What the learner nodes (fold_learner, scarf_learner) share besides the library: rollout workers chosen by their
-/// parameters, and file names made of algorithm names.
+/// What the learner nodes (fold_learner, scarf_learner, bottles_learner) share besides the library: rollout workers
+/// chosen by their parameters, the learning section's parameters, and file names made of algorithm names.
 #pragma once
 
 #include "bimanual_skills/rollout/dispatcher.hpp"
+#include "bimanual_skills/rollout/dmp_learning.hpp"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/ros_layer/robot/robot_connection.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
@@ -11,6 +12,8 @@
 #include <ros/ros.h>
 
 #include <cctype>
+#include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -24,6 +27,19 @@ inline std::string fileName(std::string text) {
     if (!std::isalnum(static_cast<unsigned char>(c)) && c != '-' && c != '_') c = '_';
   }
   return text;
+}
+
+/// ~jobs, ~runs, ~updates, ~rollouts, ~seed (an integer in [0, 2^32)) and ~algorithms over the config file's
+/// learning section. \throws std::invalid_argument for a value out of range.
+inline void readLearningParameters(ros_layer::ParameterReader& parameters, rollout::DmpLearningConfig& learning) {
+  learning.jobs = parameters.integer("jobs", learning.jobs, 0, 256);
+  learning.runs = parameters.integer("runs", learning.runs, 1, 1000);
+  learning.updates = parameters.integer("updates", learning.updates, 0, 10000);
+  learning.rollouts = parameters.integer("rollouts", learning.rollouts, 2, 10000);
+  const double seed = parameters.number("seed", learning.seed, 0.0, 4294967295.0);
+  if (seed != std::floor(seed)) throw std::invalid_argument("~seed must be an integer in [0, 2^32)");
+  learning.seed = static_cast<std::uint32_t>(seed);
+  learning.algorithms = parameters.texts("algorithms", learning.algorithms);
 }
 
 /// A dispatcher to the rollout workers of ~worker_namespace or ~workers (with ~worker_timeout and ~share), running

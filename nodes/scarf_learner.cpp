@@ -113,12 +113,7 @@ class ScarfLearnerNode {
     replay_best_ = parameters_.boolean("replay_best", false);
     config_ = br::ScarfLearningConfig::fromYamlFile(config_path_);
     br::DmpLearningConfig& l = config_.learning;
-    l.jobs = parameters_.integer("jobs", l.jobs, 0, 256);
-    l.runs = parameters_.integer("runs", l.runs, 1, 1000);
-    l.updates = parameters_.integer("updates", l.updates, 0, 10000);
-    l.rollouts = parameters_.integer("rollouts", l.rollouts, 2, 10000);
-    l.seed = static_cast<std::uint32_t>(parameters_.number("seed", l.seed, 0.0, 4294967295.0));
-    l.algorithms = parameters_.texts("algorithms", l.algorithms);
+    bs::nodes::readLearningParameters(parameters_, l);
     const bool reweighted = parameters_.has("torque_weight");
     config_.task.torque_weight = parameters_.number("torque_weight", config_.task.torque_weight, 0.0, 1e6);
     task_ = std::make_unique<br::ScarfRolloutTask>(config_.task);
@@ -275,24 +270,7 @@ class ScarfLearnerNode {
     }
   }
 
-  void publishPaths() {
-    visualization_msgs::MarkerArray array;
-    double best = -std::numeric_limits<double>::infinity(), worst = std::numeric_limits<double>::infinity();
-    for (const auto& [reward, path] : paths_) {
-      best = std::max(best, reward);
-      worst = std::min(worst, reward);
-    }
-    for (std::size_t k = 0; k < paths_.size(); ++k) {
-      visualization_msgs::Marker m =
-          bs::nodes::pathMarker("tool_paths", static_cast<int>(k), paths_[k].second, 0.004, ros::Time());
-      const double good = best > worst ? (paths_[k].first - worst) / (best - worst) : 1.0;
-      m.color.r = static_cast<float>(1.0 - good);
-      m.color.g = static_cast<float>(good);
-      m.color.a = 0.8f;
-      array.markers.push_back(m);
-    }
-    path_publisher_.publish(array);
-  }
+  void publishPaths() { path_publisher_.publish(bs::nodes::rankedPathMarkers(paths_, 0.004, 0.8f, ros::Time())); }
 
   void onEpoch(const br::DmpEpochStats& s) {
     const br::DmpLearningConfig& l = config_.learning;

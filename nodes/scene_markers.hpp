@@ -8,10 +8,15 @@
 
 #include <ros/time.h>
 #include <visualization_msgs/Marker.h>
+#include <visualization_msgs/MarkerArray.h>
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <algorithm>
+#include <limits>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace bimanual_skills::nodes {
 
@@ -120,6 +125,27 @@ inline visualization_msgs::Marker pathMarker(const std::string& ns, int id, cons
   m.points.reserve(static_cast<std::size_t>(path.cols()));
   for (Eigen::Index k = 0; k < path.cols(); ++k) m.points.push_back(toPoint(path.col(k)));
   return m;
+}
+
+/// Rollouts' paths (reward, 3 × N points) as lines of `width` metres in namespace "tool_paths", coloured by their
+/// rewards from red (the worst) to green (the best).
+inline visualization_msgs::MarkerArray rankedPathMarkers(const std::vector<std::pair<double, Eigen::Matrix3Xd>>& paths,
+                                                         double width, float alpha, const ros::Time& stamp) {
+  visualization_msgs::MarkerArray array;
+  double best = -std::numeric_limits<double>::infinity(), worst = std::numeric_limits<double>::infinity();
+  for (const auto& [reward, path] : paths) {
+    best = std::max(best, reward);
+    worst = std::min(worst, reward);
+  }
+  for (std::size_t k = 0; k < paths.size(); ++k) {
+    visualization_msgs::Marker m = pathMarker("tool_paths", static_cast<int>(k), paths[k].second, width, stamp);
+    const double good = best > worst ? (paths[k].first - worst) / (best - worst) : 1.0;
+    m.color.r = static_cast<float>(1.0 - good);
+    m.color.g = static_cast<float>(good);
+    m.color.a = alpha;
+    array.markers.push_back(m);
+  }
+  return array;
 }
 
 }  // namespace bimanual_skills::nodes

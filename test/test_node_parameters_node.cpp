@@ -49,7 +49,7 @@ TEST(NodeParameters, OutOfRangeAndMistypedValuesStopTheNodeWithTheReason) {
   const std::vector<std::pair<std::string, std::string>> cases = {
       {sim + " __name:=sim_a _realtime_factor:=-1", "parameter /sim_a/realtime_factor = -1 is out of range [0, 1000]"},
       {sim + " __name:=sim_b _lockstep:=maybe", "parameter /sim_b/lockstep must be true or false"},
-      {sim + " __name:=sim_c _max_payload:=1e9", "parameter /sim_c/max_payload = 1e+09 is out of range [0, 1000]"},
+      {sim + " __name:=sim_c _max_payload:=1e9", "parameter /sim_c/max_payload = 1000000000 is out of range [0, 1000]"},
       {sim + " __name:=sim_d", "unknown arm 'middle'"},
       {sim + " __name:=sim_f _loop_priority:=50 _realtime_factor:=0", "~loop_priority needs a paced loop"},
       {ctc + " __name:=ctc_a", "parameter /left/ctc_a/kp has 2 entries; it needs 7"},

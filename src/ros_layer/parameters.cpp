@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iomanip>
 #include <sstream>
 #include <stdexcept>
 
@@ -24,7 +25,7 @@ double toNumber(XmlRpc::XmlRpcValue& v) {
 
 std::string range(double min, double max) {
   std::ostringstream s;
-  s << "[" << min << ", " << max << "]";
+  s << std::setprecision(12) << "[" << min << ", " << max << "]";
   return s.str();
 }
 
@@ -57,7 +58,7 @@ double ParameterReader::number(const std::string& key, double fallback, double m
   const double x = toNumber(v);
   if (!std::isfinite(x) || x < min || x > max) {
     std::ostringstream s;
-    s << "= " << x << " is out of range " << range(min, max);
+    s << std::setprecision(12) << "= " << x << " is out of range " << range(min, max);
     refuse(key, s.str());
   }
   return x;
