@@ -1,7 +1,8 @@
 // The thesis' policy-search experiments (Ch. 6: Figs. 6.5–6.7, 6.10–6.12, 6.14) and the classic PI2 via-point task,
 // as one seeded program.
 //
-//   ps_benchmark --experiment multimodal2d|multimodal_scale|bottles|wam_bottles|wam_bottles617|circle|pi2viapoint|all
+//   ps_benchmark --experiment multimodal2d|multimodal_scale|bottles|wam_bottles|wam_bottles617|wam_guided|circle|
+//                             pi2viapoint|all
 //                --runs R --seed S --out DIR [--quick] [--jobs N] [--worker-namespace NS | --workers A,B,...]
 //                [--worker-timeout S]
 //
@@ -14,10 +15,12 @@
 #include "bimanual_skills/learning/dual_reps.hpp"
 #include "bimanual_skills/learning/gaussian.hpp"
 #include "bimanual_skills/learning/pi2.hpp"
+#include "bimanual_skills/parallel/parallel_for.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/dispatcher.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
+#include "bimanual_skills/tasks/human_guidance.hpp"
 #include "bimanual_skills/tasks/policy_search_tasks.hpp"
 #include "bimanual_skills/tasks/wam_bottles.hpp"
 #include "cli/package_share.hpp"
@@ -35,6 +38,8 @@
 #include <functional>
 #include <iostream>
 #include <memory>
+#include <mutex>
+#include <numeric>
 #include <optional>
 #include <random>
 #include <sstream>
@@ -587,6 +592,144 @@ void wamBottles(const Options& options, const WorkerOptions& worker_options, boo
   rollouts->report(experiment);
 }
 
+// ---- wam_guided: human-guided learning of the bottle task on the simulated WAM (Sec. 6.2, Figs. 6.9, 6.13) ----
+
+/// Sets of guided runs (tasks/human_guidance.hpp): in each, 20 scripted people (seeded) guide the WAM's tool between
+/// the bottles; the runs' measured paths are split at the take and the release, time-aligned by gradient descent,
+/// averaged with weights exp(10 (R − max R)/(max R − min R)), and the task's DMP fitted to the average is run on the
+/// arm: the policy a user gets from 20 guided runs, set against REPS' and DREPS' final policies of wam_bottles
+/// (scripts/guided_comparison.py). Sets run on --jobs threads (the same results for any count). Writes
+/// DIR/wam_guided_runs.csv (every guided run's measured tool path, its parts), DIR/wam_guided_aligned.csv (the aligned
+/// parts and the weighted average), DIR/wam_guided_paths.csv (each set's learned policy as the arm ran it, the
+/// columns of wam_bottles_paths.csv).
+void wamGuided(const Options& options, std::vector<Summary>& out) {
+  const std::string experiment = "wam_guided";
+  bt::WamBottleConfig config =
+      bt::WamBottleConfig::fromYamlFile(bimanual_skills::cli::packageFile("config/bottles_wam.yaml"));
+  config.sim_config = std::filesystem::absolute(config.sim_config).string();
+  bt::GuidedLearningConfig guided;
+  guided.guidance.line_speed = 1.0 / config.duration;
+  if (options.quick) guided.runs = 4;
+  const int sets = options.runs > 0 ? options.runs : (options.quick ? 2 : 20);
+  const int threads = std::min(bimanual_skills::parallel::threadCount(options.jobs), sets);
+  std::printf(
+      "  %s: %d sets x %d guided runs, reward (6.18), %d threads; set k's people have seeds %u + %d k + "
+      "0..%d\n",
+      experiment.c_str(), sets, guided.runs, threads, options.seed * 1000u, guided.runs, guided.runs - 1);
+  std::fflush(stdout);
+  std::vector<std::unique_ptr<bt::WamBottleTask>> tasks;
+  for (int t = 0; t < threads; ++t) tasks.push_back(std::make_unique<bt::WamBottleTask>(config));
+  std::vector<bt::GuidedLearning> results(static_cast<std::size_t>(sets));
+  std::vector<double> seconds(static_cast<std::size_t>(sets));
+  std::mutex progress;
+  int done = 0;
+  bimanual_skills::parallel::parallelFor(static_cast<std::size_t>(sets), threads, [&](int worker, std::size_t k) {
+    const auto start = std::chrono::steady_clock::now();
+    const std::uint32_t seed =
+        options.seed * 1000u + static_cast<std::uint32_t>(guided.runs) * static_cast<std::uint32_t>(k);
+    results[k] = bt::learnFromGuidance(*tasks[static_cast<std::size_t>(worker)], guided, seed);
+    seconds[k] = bimanual_skills::realtime::secondsSince(start);
+    const std::lock_guard<std::mutex> lock(progress);
+    const bt::GuidedLearning& r = results[k];
+    std::printf(
+        "  %s: set %zu (%d/%d done): %d of %d guided runs ran, %d satisfactory; learned policy reward %.3f%s "
+        "(%.1f s)\n",
+        experiment.c_str(), k, ++done, sets, r.ok_runs, guided.runs, r.satisfactory_runs, r.policy.reward,
+        r.policy.satisfactory ? ", satisfactory" : "", seconds[k]);
+    std::fflush(stdout);
+  });
+  const bt::WamBottleTask& task = *tasks.front();
+  const double length = task.lineLength();
+  std::ofstream runs_csv(options.out + "/" + experiment + "_runs.csv");
+  runs_csv << "set,run,seed,outcome,reward,bottles_down,crossed,satisfactory,part,sample,time,along,left\n";
+  std::ofstream aligned_csv(options.out + "/" + experiment + "_aligned.csv");
+  aligned_csv << "set,part,run,weight,sample,time,along,left\n";
+  std::ofstream paths(options.out + "/" + experiment + "_paths.csv");
+  paths << "experiment,algorithm,run,outcome,reward,bottles_down,crossed,satisfactory,sample,time,along,left\n";
+  int satisfactory = 0, ok_runs = 0, satisfactory_runs = 0;
+  double unsatisfactory_sum = 0.0, guided_reward = 0.0, cost_before = 0.0, cost_after = 0.0;
+  Eigen::VectorXd rewards(sets);
+  for (int k = 0; k < sets; ++k) {
+    const bt::GuidedLearning& r = results[static_cast<std::size_t>(k)];
+    int ok_index = 0;
+    for (std::size_t j = 0; j < r.runs.size(); ++j) {
+      const bt::GuidedRun& g = r.runs[j];
+      const bt::WamBottleRollout& o = g.rollout;
+      if (o.outcome != bt::FoldOutcome::Ok) {
+        runs_csv << k << ',' << j << ',' << g.seed << ',' << bt::toString(o.outcome) << ',' << o.reward
+                 << ",0,0,0,-1,0,0,0,0\n";
+        continue;
+      }
+      guided_reward += o.reward;
+      double t0 = 0.0;
+      for (int p = 0; p < 3; ++p) {
+        for (Eigen::Index i = 0; i < g.parts[p].rows(); ++i) {
+          runs_csv << k << ',' << j << ',' << g.seed << ",Ok," << o.reward << ',' << o.down << ','
+                   << (o.crossed ? 1 : 0) << ',' << (o.satisfactory ? 1 : 0) << ',' << p << ',' << i << ','
+                   << t0 + g.seconds[p] * static_cast<double>(i) / static_cast<double>(g.parts[p].rows() - 1) << ','
+                   << g.parts[p](i, 0) * length << ',' << g.parts[p](i, 1) * length << '\n';
+        }
+        t0 += g.seconds[p];
+        const Eigen::MatrixXd& a = r.alignment[p].aligned[static_cast<std::size_t>(ok_index)];
+        for (Eigen::Index i = 0; i < a.rows(); ++i) {
+          aligned_csv << k << ',' << p << ',' << j << ',' << r.weights[ok_index] << ',' << i << ",0,"
+                      << a(i, 0) * length << ',' << a(i, 1) * length << '\n';
+        }
+      }
+      ++ok_index;
+    }
+    for (Eigen::Index i = 0; i < r.average.rows(); ++i) {
+      aligned_csv << k << ",-1,-1,1," << i << ',' << r.average_times[i] << ',' << r.average(i, 0) * length << ','
+                  << r.average(i, 1) * length << '\n';
+    }
+    const bt::WamBottleRollout& o = r.policy;
+    for (Eigen::Index i = 0; i < o.tool_path.cols(); ++i) {
+      const Eigen::Vector2d p = task.toLine(o.tool_path.col(i)) * length;
+      paths << experiment << ",Guided," << k << ',' << bt::toString(o.outcome) << ',' << o.reward << ',' << o.down
+            << ',' << (o.crossed ? 1 : 0) << ',' << (o.satisfactory ? 1 : 0) << ',' << i << ',' << o.path_times[i]
+            << ',' << p.x() << ',' << p.y() << '\n';
+    }
+    rewards[k] = o.reward;
+    satisfactory += o.satisfactory ? 1 : 0;
+    if (!o.satisfactory) unsatisfactory_sum += o.reward;
+    ok_runs += r.ok_runs;
+    satisfactory_runs += r.satisfactory_runs;
+    cost_before += r.alignment[1].cost_before / sets;
+    cost_after += r.alignment[1].cost_after / sets;
+  }
+  Summary s;
+  s.experiment = experiment;
+  s.algorithm = "Guided";
+  s.runs = sets;
+  s.updates = 0;
+  s.rollouts = guided.runs;
+  s.final_reward_mean = rewards.mean();
+  s.final_reward_std = sets > 1 ? std::sqrt((rewards.array() - rewards.mean()).square().sum() / (sets - 1)) : 0.0;
+  s.seconds_per_update = std::accumulate(seconds.begin(), seconds.end(), 0.0) / sets;
+  const int unsatisfactory = sets - satisfactory;
+  s.extra = {{"satisfactory_runs", satisfactory},
+             {"mean_unsatisfactory_reward", unsatisfactory > 0 ? unsatisfactory_sum / unsatisfactory : 0.0},
+             {"guided_runs", sets * guided.runs},
+             {"guided_runs_ran", ok_runs},
+             {"guided_runs_satisfactory", satisfactory_runs},
+             {"guided_mean_reward", ok_runs > 0 ? guided_reward / ok_runs : 0.0},
+             {"guided_alignment_cost_before", cost_before},
+             {"guided_alignment_cost_after", cost_after},
+             {"line_length", length},
+             {"bottle_radius", task.bottleRadius()}};
+  for (int b = 0; b < 2; ++b) {
+    const Eigen::Vector2d at = task.bottleOnLine(b) * length;
+    s.extra.push_back({"bottle_" + std::to_string(b + 1) + "_along", at.x()});
+    s.extra.push_back({"bottle_" + std::to_string(b + 1) + "_left", at.y()});
+  }
+  std::printf(
+      "  %s: learned policies satisfactory in %d of %d sets, reward %.3f +- %.3f (std); guided runs: %d of %d "
+      "ran, %d satisfactory\n",
+      experiment.c_str(), satisfactory, sets, s.final_reward_mean, s.final_reward_std, ok_runs, sets * guided.runs,
+      satisfactory_runs);
+  out.push_back(s);
+}
+
 // ---- circle: a unimodal 7-DoF task with the WAM's kinematics (Fig. 6.14) ----
 
 void circle(const Options& options, const WorkerOptions& worker_options, std::vector<Summary>& out) {
@@ -678,12 +821,13 @@ int main(int argc, char** argv) {
   program.description =
       "The thesis' policy-search experiments (Ch. 6: REPS, nDREPS and DREPS on the multimodal reward (6.16), in 2-D\n"
       "and in 20, 50 and 100 dimensions, the bottle task (6.17, 6.18), planar and on the simulated WAM\n"
-      "(wam_bottles617, wam_bottles: not in all; --jobs threads run the rollouts), and the WAM circle) and\n"
+      "(wam_bottles617, wam_bottles: not in all; --jobs threads run the rollouts), learnt from 20 human-guided runs\n"
+      "(wam_guided: not in all; --runs sets, --jobs threads), and the WAM circle) and\n"
       "PI2/PI2-CMA on the via-point task. Writes DIR/<experiment>.csv as runs end, DIR/summary.json, learning-curve "
       "PNGs and\n"
       "DIR/tables.md.";
-  program.experiments = {"multimodal2d",   "multimodal_scale", "bottles",     "wam_bottles",
-                         "wam_bottles617", "circle",           "pi2viapoint", "all"};
+  program.experiments = {"multimodal2d", "multimodal_scale", "bottles",     "wam_bottles", "wam_bottles617",
+                         "wam_guided",   "circle",           "pi2viapoint", "all"};
   program.with_runs = true;
   program.with_jobs = true;
   WorkerOptions workers;
@@ -727,6 +871,7 @@ int main(int argc, char** argv) {
     // The simulated robot (seconds per update) is not part of `all`.
     if (options.experiment == "wam_bottles617") wamBottles(options, workers, false, rows);
     if (options.experiment == "wam_bottles") wamBottles(options, workers, true, rows);
+    if (options.experiment == "wam_guided") wamGuided(options, rows);
     if (wants("circle")) circle(options, workers, rows);
     if (wants("pi2viapoint")) pi2viapoint(options, workers, rows);
     writeSummary(options, rows);

@@ -5,6 +5,10 @@ DIR/<experiment>.png (reward of the mean policy per update, mean ± 2 std over r
 DREPS against REPS per dimension, Welch on the final reward and Fisher's exact test on the runs reaching the
 threshold, Holm over the six).
 
+For wam_guided: DIR/wam_guided_alignment.png (Fig. 6.9 for the first set: the guided runs in their own time with
+the take and the release, their aligned parts, the reward-weighted average) and DIR/wam_guided_paths.png (every
+set's learned policy as the arm ran it); scripts/guided_comparison.py sets them against REPS and DREPS.
+
 Usage: plot_ps_benchmark.py DIR
 """
 import csv
@@ -16,7 +20,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from plot_common import holm, mean_ci, output_directory, read_summary  # noqa: E402
+from plot_common import holm, mean_ci, output_directory, read_summary, t975  # noqa: E402
 from scipy import stats  # noqa: E402
 
 TITLES = {
@@ -28,6 +32,7 @@ TITLES = {
     "bottles": "Bottle avoidance, reward (6.18), 50 rollouts/update (cf. Fig. 6.12)",
     "wam_bottles617": "Bottles on the simulated WAM, reward (6.17) (cf. Fig. 6.10)",
     "wam_bottles": "Bottles on the simulated WAM, reward (6.18) (cf. Fig. 6.12)",
+    "wam_guided": "Bottles on the simulated WAM from 20 human-guided runs (cf. Fig. 6.13)",
     "circle": "Circle with a 7-DoF WAM DMP, 50 rollouts/update (cf. Fig. 6.14)",
     "pi2viapoint": "1-D DMP via-point task, 10 rollouts/update",
 }
@@ -147,13 +152,94 @@ def wam_paths(directory, experiment, rows):
         ax.set_ylim(-0.25, 0.25)
         ax.set_xlabel("along the line [m]")
         ax.set_ylabel("to its left [m]")
-        ax.set_title("%s, %d runs: %s" % (r["algorithm"], r["runs"], ", ".join(
+        ax.set_title("%s, %d %s: %s" % (r["algorithm"], r["runs"], "sets" if experiment == "wam_guided" else "runs", ", ".join(
             "%d %s (%s)" % (counts[k], k, colours[k].replace("tab:", "")) for k in colours if counts[k])), fontsize=9)
         ax.grid(alpha=0.3)
-    fig.suptitle("Final mean policies on the simulated WAM (cf. Fig. 6.11), " + experiment, fontsize=10)
+    fig.suptitle(("Each set's learned policy on the simulated WAM (cf. Fig. 6.13), " if experiment == "wam_guided" else
+                  "Final mean policies on the simulated WAM (cf. Fig. 6.11), ") + experiment, fontsize=10)
     fig.tight_layout()
     fig.savefig(os.path.join(directory, experiment + "_paths.png"), dpi=110)
     plt.close(fig)
+
+
+def guided_alignment(directory, set_index=0):
+    """Fig. 6.9 for one set of guided runs: the measured tool's offset from the line against time, each run in its own
+    time with the take and the release in red (top); the three parts aligned by gradient descent, in green, on a
+    common phase (middle); the reward-weighted average against its time, and its weights' spread (bottom)."""
+    runs_path = os.path.join(directory, "wam_guided_runs.csv")
+    aligned_path = os.path.join(directory, "wam_guided_aligned.csv")
+    if not (os.path.exists(runs_path) and os.path.exists(aligned_path)):
+        return
+    runs = defaultdict(lambda: {"time": [], "left": [], "part": []})
+    with open(runs_path) as f:
+        for row in csv.DictReader(f):
+            if int(row["set"]) != set_index or row["outcome"] != "Ok":
+                continue
+            r = runs[int(row["run"])]
+            r["time"].append(float(row["time"]))
+            r["left"].append(float(row["left"]))
+            r["part"].append(int(row["part"]))
+    aligned = defaultdict(lambda: defaultdict(list))
+    weights, average = {}, {"time": [], "left": []}
+    with open(aligned_path) as f:
+        for row in csv.DictReader(f):
+            if int(row["set"]) != set_index:
+                continue
+            if int(row["part"]) < 0:
+                average["time"].append(float(row["time"]))
+                average["left"].append(float(row["left"]))
+            else:
+                aligned[int(row["run"])][int(row["part"])].append(float(row["left"]))
+                weights[int(row["run"])] = float(row["weight"])
+    if not runs:
+        return
+    fig, axes = plt.subplots(3, 1, figsize=(7, 7.5))
+    for run, r in sorted(runs.items()):
+        axes[0].plot(r["time"], r["left"], color="tab:blue", lw=0.8, alpha=0.7)
+        for part in (1, 2):
+            i = r["part"].index(part)
+            axes[0].plot(r["time"][i], r["left"][i], "o", color="tab:red", ms=3)
+    axes[0].set_title("set %d: %d guided runs, measured tool (take and release in red)" % (set_index, len(runs)),
+                      fontsize=9)
+    for run, parts in sorted(aligned.items()):
+        phase, left = [], []
+        for part in sorted(parts):
+            n = len(parts[part])
+            phase += [part + i / (n - 1) for i in range(n)]
+            left += parts[part]
+        axes[1].plot(phase, left, color="tab:green", lw=0.6 + 6 * weights[run], alpha=0.7)
+    axes[1].set_xlabel("aligned phase (0-1 before the take, 1-2 guided, 2-3 after the release)")
+    axes[1].set_title("aligned by gradient descent (line width: the run's weight)", fontsize=9)
+    axes[2].plot(average["time"], average["left"], "k", lw=2)
+    axes[2].set_title("reward-weighted average (h = 10; largest weight %.2f)" % max(weights.values()), fontsize=9)
+    for ax in axes:
+        ax.set_ylabel("to the line's left [m]")
+        ax.grid(alpha=0.3)
+    axes[0].set_xlabel("time from the motion's start [s]")
+    axes[2].set_xlabel("time [s]")
+    fig.suptitle("Time alignment of guided runs on the simulated WAM (cf. Fig. 6.9)", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(os.path.join(directory, "wam_guided_alignment.png"), dpi=110)
+    plt.close(fig)
+
+
+def guided_table(rows):
+    """Human-guided learning: the learned policies (one per set of guided runs) and the guided runs themselves."""
+    lines = []
+    for r in rows:
+        finals_mean, finals_std = r["final_reward_mean"], r["final_reward_std"]
+        h = t975(r["runs"] - 1) * finals_std / math.sqrt(r["runs"]) if r["runs"] > 1 else float("nan")
+        lines += ["### wam_guided\n",
+                  "| sets × guided runs | learned policies satisfactory | mean reward of the others | learned policy "
+                  "reward (mean ± 95 % t) | guided runs satisfactory | guided runs' mean reward | alignment: spread "
+                  "of the guided parts before → after | s per set |",
+                  "|---|---:|---:|---:|---:|---:|---:|---:|",
+                  "| %d × %d | %d of %d | %.2f | %.3f ± %.3f | %d of %d | %.3f | %.2e → %.2e | %.1f |" % (
+                      r["runs"], r["rollouts_per_update"], r["satisfactory_runs"], r["runs"],
+                      r["mean_unsatisfactory_reward"], finals_mean, h, r["guided_runs_satisfactory"],
+                      r["guided_runs_ran"], r["guided_mean_reward"], r["guided_alignment_cost_before"],
+                      r["guided_alignment_cost_after"], r["seconds_per_update"]), ""]
+    return lines
 
 
 def wam_table(directory, experiment, rows):
@@ -225,6 +311,7 @@ def tables(summary, directory):
         lines.append("")
     for experiment in ("wam_bottles617", "wam_bottles"):
         lines += wam_table(directory, experiment, by.get(experiment, []))
+    lines += guided_table(by.get("wam_guided", []))
     for experiment, extra in (("circle", "initial_reward"), ("pi2viapoint", "mean_final_via_point_error")):
         if experiment in by:
             lines += ["### %s\n" % experiment, "| algorithm | runs | updates | final reward (mean ± std) | %s |"
@@ -246,8 +333,9 @@ def main():
     by = defaultdict(list)
     for r in summary["results"]:
         by[r["experiment"]].append(r)
-    for experiment in ("wam_bottles617", "wam_bottles"):
+    for experiment in ("wam_bottles617", "wam_bottles", "wam_guided"):
         wam_paths(directory, experiment, by.get(experiment, []))
+    guided_alignment(directory)
     with open(os.path.join(directory, "tables.md"), "w") as f:
         f.write(tables(summary, directory))
 

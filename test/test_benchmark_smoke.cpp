@@ -102,6 +102,40 @@ TEST(PsBenchmarkSmoke, TheWamBottleTaskLearnsOnThreadsAndWritesItsPaths) {
   fs::remove_all(out);
 }
 
+TEST(PsBenchmarkSmoke, GuidedLearningWritesItsFiguresTheSameOnOneThreadOrTwo) {
+  const fs::path one = fs::temp_directory_path() / "bimanual_skills_ps_benchmark_guided1";
+  const fs::path two = fs::temp_directory_path() / "bimanual_skills_ps_benchmark_guided2";
+  fs::remove_all(one);
+  fs::remove_all(two);
+  const std::string command = std::string(PS_BENCHMARK) + " --experiment wam_guided --seed 3 --quick";
+  ASSERT_EQ(runQuietly(command + " --jobs 1 --out " + one.string()), 0);
+  ASSERT_EQ(runQuietly(command + " --jobs 2 --out " + two.string()), 0);
+  const std::string summary = readTextFile(one / "summary.json");
+  for (const char* field : {"\"experiment\": \"wam_guided\"", "\"algorithm\": \"Guided\"", "\"satisfactory_runs\"",
+                            "\"guided_runs_satisfactory\"", "\"guided_alignment_cost_after\""}) {
+    EXPECT_NE(summary.find(field), std::string::npos) << field;
+  }
+  for (const char* file : {"wam_guided_runs.csv", "wam_guided_aligned.csv", "wam_guided_paths.csv",
+                           "wam_guided_paths.png", "wam_guided_alignment.png", "tables.md"}) {
+    EXPECT_TRUE(fs::exists(one / file) && fs::file_size(one / file) > 0) << file;
+  }
+  for (const char* file : {"wam_guided_runs.csv", "wam_guided_aligned.csv", "wam_guided_paths.csv"}) {
+    EXPECT_EQ(readTextFile(one / file), readTextFile(two / file)) << file;
+  }
+  EXPECT_NE(readTextFile(one / "wam_guided_paths.csv").find("wam_guided,Guided,1,Ok,"), std::string::npos);
+  // The comparison with REPS' and DREPS' counts: a table and Holm-corrected tests; bad counts are refused.
+  const std::string compare = std::string("/usr/bin/python3 ") + GUIDED_COMPARISON + " " + one.string();
+  ASSERT_EQ(runQuietly(compare + " --counts REPS=1/20,DREPS=5/20"), 0);
+  const std::string table = readTextFile(one / "guided_comparison.md");
+  EXPECT_NE(table.find("| REPS | 1 of 20 |"), std::string::npos) << table;
+  EXPECT_NE(table.find("DREPS: satisfactory"), std::string::npos) << table;
+  EXPECT_NE(table.find("Holm p"), std::string::npos) << table;
+  EXPECT_NE(runQuietly(compare + " --counts REPS=21/20"), 0);
+  EXPECT_NE(runQuietly(compare + " --counts nonsense"), 0);
+  fs::remove_all(one);
+  fs::remove_all(two);
+}
+
 TEST(PsBenchmarkSmoke, BadArgumentsAreRejected) {
   const std::string program = PS_BENCHMARK;
   EXPECT_EQ(runQuietly(program + " --experiment nope --runs 2 --seed 1 --out /tmp/x"), 2);
