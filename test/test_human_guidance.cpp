@@ -4,6 +4,7 @@
 // guided learning on the simulated WAM gives an average starting and ending where the line does and a DMP that keeps
 // its sides of the bottles; bad configs are refused by name.
 #include "bimanual_skills/tasks/human_guidance.hpp"
+#include "testing/no_alloc_guard.hpp"
 
 #include <gtest/gtest.h>
 
@@ -61,6 +62,49 @@ TEST(ScriptedPerson, TheHandsSLeavesTheFirstBottleOnItsLeft) {
   for (const bt::HandPoint& h : p.cameraPoints()) worst = std::max(worst, (h.point - p.intended(h.time)).norm());
   EXPECT_GT(worst, 0.002 / 0.6);
   EXPECT_LT(worst, 0.04 / 0.6);
+}
+
+TEST(GuidanceFollower, FollowsTheRaisedHandGoesBackToTheLineAndArrivesWithoutAllocating) {
+  bt::GuidanceConfig g;
+  bt::GuidanceFollower f(g);
+  const double dt = 1e-3;
+  // Never raised: along the line, y = 0, arriving at rest on the goal within 3 s of its target (to 1e-6).
+  int k = 0;
+  {
+    bimanual_skills::testing::NoAllocGuard guard;
+    while (f.step(dt, false, Eigen::Vector2d::Zero()) != bt::GuidanceFollower::Phase::Arrived && k < 10000) ++k;
+  }
+  EXPECT_GT(k * dt, 1.0 / g.line_speed);
+  EXPECT_LT(k * dt, 1.0 / g.line_speed + 3.0);
+  EXPECT_EQ(f.position(), Eigen::Vector2d(1.0, 0.0));
+  EXPECT_EQ(f.velocity(), Eigen::Vector2d::Zero());
+  // Raised: the reference converges on the hand (critically damped: within 1 % after 7 lags), NaN points ignored.
+  f.reset();
+  for (int k = 0; k < 400; ++k) f.step(dt, false, Eigen::Vector2d::Zero());
+  EXPECT_EQ(f.phase(), bt::GuidanceFollower::Phase::Line);
+  const Eigen::Vector2d hand(0.2, -0.1);
+  for (int k = 0; k < 7 * 150; ++k) f.step(dt, true, k % 10 == 0 ? Eigen::Vector2d(NAN, 0.0) : hand);
+  EXPECT_EQ(f.phase(), bt::GuidanceFollower::Phase::Guided);
+  EXPECT_LT((f.position() - hand).norm(), 0.01 * hand.norm());
+  // Lowered: back to the line at the reference's x; a hand raised again is not followed.
+  f.step(dt, false, hand);
+  EXPECT_EQ(f.phase(), bt::GuidanceFollower::Phase::Back);
+  EXPECT_NEAR(f.target().x(), hand.x(), 5e-3);
+  EXPECT_EQ(f.target().y(), 0.0);
+  for (int k = 0; k < 2000; ++k) f.step(dt, true, Eigen::Vector2d(0.5, 0.3));
+  EXPECT_EQ(f.target().y(), 0.0);
+  EXPECT_LT(std::abs(f.position().y()), 1e-3);
+  // The speed cap holds for a far hand.
+  f.reset();
+  double fastest = 0.0;
+  for (int k = 0; k < 2000; ++k) {
+    f.step(dt, true, Eigen::Vector2d(1.0, 1.0));
+    fastest = std::max(fastest, f.velocity().norm());
+  }
+  EXPECT_LE(fastest, g.max_speed + 1e-12);
+  EXPECT_GT(fastest, 0.99 * g.max_speed);
+  g.lag = 0.0;
+  EXPECT_THROW(bt::GuidanceFollower{g}, std::invalid_argument);
 }
 
 TEST(GuidedReference, RunsFromStartToGoalFollowingTheHandBetweenTakeAndRelease) {

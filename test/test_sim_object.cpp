@@ -204,6 +204,45 @@ TEST(SimulatedObject, FollowsItsPathIsHeldByAClosingGripperNearItAndRestsWhereLe
   EXPECT_TRUE(holding.objectPose().translation().isApprox(near.object.path.centre));
 }
 
+TEST(SimulatedObject, APersonCarriesItToTheHandWithinItsBoundsUntilReset) {
+  bs::sim::SimConfig config = bs::sim::SimConfig::fromYamlFile(configFile("track_sim.yaml"));
+  bs::sim::BimanualSimulation simulation(config);
+  for (int i = 0; i < 100; ++i) ASSERT_EQ(simulation.step(), bs::sim::SimStatus::Ok);
+  const Eigen::Vector3d start = simulation.objectPose().translation();
+  const Eigen::Vector3d hand = start + Eigen::Vector3d(0.1, -0.15, 0.05);
+  EXPECT_EQ(simulation.carryObject(Eigen::Vector3d(NAN, 0.0, 0.0)), bs::sim::SimStatus::InvalidArgument);
+  EXPECT_EQ(simulation.carryObject(Eigen::Vector3d(0.0, 1e6, 0.0)), bs::sim::SimStatus::InvalidArgument);
+  {
+    bimanual_skills::testing::NoAllocGuard guard;
+    ASSERT_EQ(simulation.carryObject(hand), bs::sim::SimStatus::Ok);
+  }
+  double fastest = 0.0, hardest = 0.0;
+  Eigen::Vector3d before = simulation.objectVelocity();
+  for (int i = 0; i < 3000; ++i) {
+    ASSERT_EQ(simulation.step(), bs::sim::SimStatus::Ok);
+    const Eigen::Vector3d v = simulation.objectVelocity();
+    fastest = std::max(fastest, v.norm());
+    hardest = std::max(hardest, (v - before).norm() / config.step);
+    before = v;
+  }
+  // Off its path, at the hand, within the path's bounds.
+  EXPECT_LT((simulation.objectPose().translation() - hand).norm(), 1e-3);
+  EXPECT_GT(
+      (simulation.objectPose().translation() - ObjectPath(config.object.path).at(simulation.time()).position).norm(),
+      0.01);
+  EXPECT_LE(fastest, config.object.path.max_speed + 1e-9);
+  EXPECT_LE(hardest, config.object.path.max_acceleration + 1e-6);
+  // A reset puts it back on its path.
+  std::vector<bs::sim::ArmState> state;
+  for (int a = 0; a < simulation.armCount(); ++a) state.push_back(simulation.trueState(a));
+  ASSERT_EQ(simulation.reset(state), bs::sim::SimStatus::Ok);
+  for (int i = 0; i < 100; ++i) ASSERT_EQ(simulation.step(), bs::sim::SimStatus::Ok);
+  EXPECT_TRUE(simulation.objectPose().translation().isApprox(
+      ObjectPath(config.object.path).at(simulation.time()).position, 1e-12));
+  bs::sim::SimConfig without = bs::sim::SimConfig::fromYamlFile(configFile("bottles_sim.yaml"));
+  EXPECT_EQ(bs::sim::BimanualSimulation(without).carryObject(hand), bs::sim::SimStatus::NoCloth);
+}
+
 TEST(SimulatedObject, TheArmsFeelItWhenItCollides) {
   // The object driven through the resting left tool pushes it away; one that does not collide passes through.
   bs::sim::SimConfig config = bs::sim::SimConfig::fromYamlFile(configFile("track_sim.yaml"));

@@ -151,6 +151,9 @@ struct BimanualSimulation::Impl {
   std::optional<ObjectPath> object_path;
   int object_holder = -1;       ///< The arm holding the object, −1 for none.
   bool object_resting = false;  ///< Let go: it rests at object_pose until reset.
+  bool object_carried = false;  ///< A person carries it toward object_target (carryObject) until reset.
+  Eigen::Vector3d object_target = Eigen::Vector3d::Zero();
+  double object_placed = 0.0;  ///< The time object_pose was placed for.
   Eigen::Isometry3d object_pose = Eigen::Isometry3d::Identity(), object_in_tool = Eigen::Isometry3d::Identity();
   Eigen::Vector3d object_velocity = Eigen::Vector3d::Zero();
   long step_index = 0;
@@ -214,13 +217,29 @@ struct BimanualSimulation::Impl {
       object_pose = pose;
     } else if (object_resting) {
       object_velocity.setZero();
+    } else if (object_carried) {
+      // Critically damped toward the hand, within the path's speed and acceleration bounds.
+      const double dt = t - object_placed;
+      if (dt > 0.0) {
+        const double omega = 1.0 / kCarryTimeConstant;
+        const Eigen::Vector3d p = object_pose.translation();
+        Eigen::Vector3d a = omega * omega * (object_target - p) - 2.0 * omega * object_velocity;
+        const double max_a = config.object.path.max_acceleration, max_v = config.object.path.max_speed;
+        if (a.norm() > max_a) a *= max_a / a.norm();
+        object_velocity += a * dt;
+        if (object_velocity.norm() > max_v) object_velocity *= max_v / object_velocity.norm();
+        object_pose.setIdentity();
+        object_pose.translation() = p + object_velocity * dt;
+      }
     } else {
       const ObjectPathSample sample = object_path->at(t);
       object_pose.setIdentity();
       object_pose.translation() = sample.position;
       object_velocity = sample.velocity;
     }
+    object_placed = t;
   }
+  static constexpr double kCarryTimeConstant = 0.1;  ///< [s] of the carried object's follower.
 
   void rebuildBullet() {
     bullet.reset();
@@ -521,6 +540,18 @@ SimStatus BimanualSimulation::release(int arm) noexcept {
   return m.cloth->release(arm);
 }
 
+SimStatus BimanualSimulation::carryObject(const Eigen::Vector3d& target) noexcept {
+  Impl& m = *impl_;
+  if (!m.object_path) return SimStatus::NoCloth;
+  if (!target.allFinite() || target.cwiseAbs().maxCoeff() > kMaxCarryDistance) return SimStatus::InvalidArgument;
+  if (!m.object_carried) {
+    m.object_carried = true;
+    m.object_resting = false;
+  }
+  m.object_target = target;
+  return SimStatus::Ok;
+}
+
 bool BimanualSimulation::hasObject() const noexcept {
   return impl_->object_path.has_value();
 }
@@ -594,6 +625,7 @@ SimStatus BimanualSimulation::reset(const std::vector<ArmState>& state) {
   m.time = 0.0;
   m.object_holder = -1;
   m.object_resting = false;
+  m.object_carried = false;
   m.rebuildBullet();
   if (m.cloth) m.cloth->reset();
   m.arms_diverged = false;

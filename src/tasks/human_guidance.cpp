@@ -94,50 +94,82 @@ void GuidanceConfig::validate() const {
   positive("max_seconds", max_seconds, 600.0);
 }
 
+GuidanceFollower::GuidanceFollower(const GuidanceConfig& config) : config_(config) {
+  config.validate();
+}
+
+void GuidanceFollower::reset() noexcept {
+  phase_ = Phase::Line;
+  x_.setZero();
+  v_.setZero();
+  target_.setZero();
+  line_x_ = 0.0;
+}
+
+GuidanceFollower::Phase GuidanceFollower::step(double dt, bool raised, const Eigen::Vector2d& hand) noexcept {
+  if (!(dt > 0.0) || phase_ == Phase::Arrived) return phase_;
+  if (phase_ == Phase::Line && raised && hand.allFinite()) {
+    phase_ = Phase::Guided;
+  } else if (phase_ == Phase::Guided && !raised) {
+    phase_ = Phase::Back;
+    line_x_ = std::clamp(x_.x(), 0.0, 1.0);
+  } else if (phase_ != Phase::Guided) {
+    line_x_ = std::min(line_x_ + config_.line_speed * dt, 1.0);
+  }
+  if (phase_ == Phase::Guided) {
+    if (hand.allFinite()) target_ = hand;  // a bad point: keep the last one
+  } else {
+    target_ = {line_x_, 0.0};
+  }
+  const double omega = 1.0 / config_.lag;
+  v_ += (omega * omega * (target_ - x_) - 2.0 * omega * v_) * dt;
+  const double speed = v_.norm();
+  if (speed > config_.max_speed) v_ *= config_.max_speed / speed;
+  x_ += v_ * dt;
+  const double tolerance = 1e-6;
+  if (phase_ != Phase::Guided && line_x_ >= 1.0 && (x_ - target_).norm() < tolerance &&
+      v_.norm() < tolerance / config_.lag) {
+    phase_ = Phase::Arrived;
+    x_ = target_;
+    v_.setZero();
+  }
+  return phase_;
+}
+
 GuidedReference guidedReference(const ScriptedPerson& person, const GuidanceConfig& config, double step) {
   config.validate();
   if (!(step > 0.0 && step <= 0.1)) fail("the step " + std::to_string(step) + " s is not in (0, 0.1]");
   const std::vector<HandPoint>& points = person.cameraPoints();
-  const double omega = 1.0 / config.lag, tolerance = 1e-6;
   const long limit = std::lround(config.max_seconds / step);
+  GuidanceFollower follower(config);
   GuidedReference out;
   std::vector<Eigen::Vector2d> path{Eigen::Vector2d::Zero()};
-  Eigen::Vector2d x = Eigen::Vector2d::Zero(), v = Eigen::Vector2d::Zero(), target = Eigen::Vector2d::Zero();
-  enum class Phase { Line, Guided, Back } phase = Phase::Line;
-  double phase_start = 0.0, back_from = 0.0;
-  for (long k = 1;; ++k) {
+  double take_time = -1.0;
+  for (long k = 1; follower.phase() != GuidanceFollower::Phase::Arrived; ++k) {
     if (k > limit) fail("the reference did not reach the goal within " + std::to_string(config.max_seconds) + " s");
     const double t = static_cast<double>(k) * step;
-    if (phase == Phase::Line) {
-      target = {std::min(config.line_speed * t, person.take()), 0.0};
-      if (config.line_speed * t >= person.take()) {
-        phase = Phase::Guided;
-        phase_start = t;
-        out.take = static_cast<int>(k);
-      }
-    } else if (phase == Phase::Guided) {
-      const double since = t - phase_start;
+    // The person raises the hand once the robot's line target passes the take, for the guided seconds.
+    if (take_time < 0.0 && follower.phase() == GuidanceFollower::Phase::Line &&
+        follower.target().x() + config.line_speed * step >= person.take()) {
+      take_time = t;
+    }
+    const double since = take_time < 0.0 ? -1.0 : t - take_time;
+    const bool raised = since >= 0.0 && since < person.guidedSeconds();
+    Eigen::Vector2d hand = Eigen::Vector2d::Zero();
+    if (raised) {
       const auto latest = std::upper_bound(points.begin(), points.end(), since,
                                            [](double s, const HandPoint& p) { return s < p.time; });
-      target = std::prev(latest)->point;
-      if (since >= person.guidedSeconds()) {
-        phase = Phase::Back;
-        phase_start = t;
-        back_from = x.x();
-        out.release = static_cast<int>(k);
-      }
+      hand = std::prev(latest)->point;
     }
-    if (phase == Phase::Back) target = {std::min(back_from + config.line_speed * (t - phase_start), 1.0), 0.0};
-    const Eigen::Vector2d a = omega * omega * (target - x) - 2.0 * omega * v;
-    v += a * step;
-    if (v.norm() > config.max_speed) v *= config.max_speed / v.norm();
-    x += v * step;
-    path.push_back(x);
-    if (phase == Phase::Back && target.x() >= 1.0 && (x - target).norm() < tolerance &&
-        v.norm() < tolerance / config.lag) {
-      path.back() = target;
-      break;
+    const GuidanceFollower::Phase before = follower.phase();
+    const GuidanceFollower::Phase now = follower.step(step, raised, hand);
+    if (before == GuidanceFollower::Phase::Line && now == GuidanceFollower::Phase::Guided) {
+      out.take = static_cast<int>(k);
     }
+    if (before == GuidanceFollower::Phase::Guided && now == GuidanceFollower::Phase::Back) {
+      out.release = static_cast<int>(k);
+    }
+    path.push_back(follower.position());
   }
   out.path.resize(2, static_cast<Eigen::Index>(path.size()));
   for (std::size_t i = 0; i < path.size(); ++i) out.path.col(static_cast<Eigen::Index>(i)) = path[i];
@@ -162,58 +194,49 @@ Eigen::Index sampleAt(const Eigen::VectorXd& times, double seconds) {
 
 }  // namespace
 
-GuidedLearning learnFromGuidance(WamBottleTask& task, const GuidedLearningConfig& config, std::uint32_t seed) {
-  config.validate();
-  const double step = task.simConfig().step;
-  GuidedLearning out;
-  out.runs.reserve(static_cast<std::size_t>(config.runs));
-  std::array<std::vector<Eigen::MatrixXd>, 3> parts;
-  std::vector<double> rewards;
-  std::array<std::vector<double>, 3> seconds;
-  for (int r = 0; r < config.runs; ++r) {
-    const std::uint32_t s = seed + static_cast<std::uint32_t>(r);
-    GuidedRun run{s, ScriptedPerson(config.person, task.lineLength(), s), {}, {}, {}, {}};
-    run.reference = guidedReference(run.person, config.guidance, step);
-    run.rollout = task.runPath(run.reference.path, s);
-    if (run.rollout.outcome == FoldOutcome::Ok) {
-      ++out.ok_runs;
-      out.satisfactory_runs += run.rollout.satisfactory ? 1 : 0;
-      const Eigen::VectorXd& times = run.rollout.path_times;
-      const double end = static_cast<double>(run.reference.path.cols() - 1) * step;
-      const std::array<Eigen::Index, 4> at = {0, sampleAt(times, run.reference.take * step),
-                                              sampleAt(times, run.reference.release * step), sampleAt(times, end)};
-      for (int p = 0; p < 3; ++p) {
-        const Eigen::Index rows = at[p + 1] - at[p] + 1;
-        if (rows < 2) fail("guided run " + std::to_string(s) + ": part " + std::to_string(p + 1) + " is empty");
-        run.parts[p].resize(rows, 2);
-        for (Eigen::Index i = 0; i < rows; ++i) {
-          run.parts[p].row(i) = task.toLine(run.rollout.tool_path.col(at[p] + i)).transpose();
-        }
-        run.seconds[p] = times[at[p + 1]] - times[at[p]];
-        parts[p].push_back(run.parts[p]);
-        seconds[p].push_back(run.seconds[p]);
-      }
-      rewards.push_back(run.rollout.reward);
+std::array<Eigen::MatrixXd, 3> splitGuidedPath(const WamBottleTask& task, const Eigen::Matrix3Xd& tool,
+                                               const Eigen::VectorXd& times, double take, double release, double end,
+                                               std::array<double, 3>& seconds) {
+  if (tool.cols() != times.size() || tool.cols() < 2) fail("a guided path needs as many times as samples, >= 2");
+  const std::array<Eigen::Index, 4> at = {0, sampleAt(times, take), sampleAt(times, release), sampleAt(times, end)};
+  std::array<Eigen::MatrixXd, 3> parts;
+  for (int p = 0; p < 3; ++p) {
+    const Eigen::Index rows = at[p + 1] - at[p] + 1;
+    if (rows < 2) {
+      fail("part " + std::to_string(p + 1) + " of a guided path (take " + std::to_string(take) + " s, release " +
+           std::to_string(release) + " s, end " + std::to_string(end) + " s) has fewer than two samples");
     }
-    out.runs.push_back(std::move(run));
+    parts[p].resize(rows, 2);
+    for (Eigen::Index i = 0; i < rows; ++i) parts[p].row(i) = task.toLine(tool.col(at[p] + i)).transpose();
+    seconds[p] = times[at[p + 1]] - times[at[p]];
   }
-  if (out.ok_runs < 2) {
-    fail("only " + std::to_string(out.ok_runs) + " of " + std::to_string(config.runs) +
-         " guided runs ran on the arm: nothing to average");
-  }
-  out.weights = learning::rewardWeights(Eigen::Map<const Eigen::VectorXd>(rewards.data(), out.ok_runs), config.h);
+  return parts;
+}
+
+GuidedAverage averageGuidedRuns(const std::vector<std::array<Eigen::MatrixXd, 3>>& parts,
+                                const std::vector<std::array<double, 3>>& seconds, const std::vector<double>& rewards,
+                                const GuidedLearningConfig& config, int kernels) {
+  config.validate();
+  const std::size_t runs = parts.size();
+  if (runs < 2) fail("only " + std::to_string(runs) + " guided runs to average: at least two are needed");
+  if (seconds.size() != runs || rewards.size() != runs) fail("parts, durations and rewards of different counts");
+  GuidedAverage out;
+  out.weights = learning::rewardWeights(
+      Eigen::Map<const Eigen::VectorXd>(rewards.data(), static_cast<Eigen::Index>(runs)), config.h);
   const int n = config.alignment.samples;
   out.average.resize(3 * n - 2, 2);
   out.average_times.resize(3 * n - 2);
   double start = 0.0;
   Eigen::Index row = 0;
   for (int p = 0; p < 3; ++p) {
-    out.alignment[p] = learning::alignCurves(parts[p], config.alignment);
+    std::vector<Eigen::MatrixXd> curves;
+    for (const std::array<Eigen::MatrixXd, 3>& r : parts) curves.push_back(r[p]);
+    out.alignment[p] = learning::alignCurves(curves, config.alignment);
     Eigen::MatrixXd mean = Eigen::MatrixXd::Zero(n, 2);
     double duration = 0.0;
-    for (int k = 0; k < out.ok_runs; ++k) {
-      mean += out.weights[k] * out.alignment[p].aligned[static_cast<std::size_t>(k)];
-      duration += out.weights[k] * seconds[p][static_cast<std::size_t>(k)];
+    for (std::size_t k = 0; k < runs; ++k) {
+      mean += out.weights[static_cast<Eigen::Index>(k)] * out.alignment[p].aligned[k];
+      duration += out.weights[static_cast<Eigen::Index>(k)] * seconds[k][p];
     }
     for (int i = p == 0 ? 0 : 1; i < n; ++i, ++row) {
       out.average.row(row) = mean.row(i);
@@ -221,7 +244,7 @@ GuidedLearning learnFromGuidance(WamBottleTask& task, const GuidedLearningConfig
     }
     start += duration;
   }
-  // The task's DMP (10 kernels per DoF over its demonstration's 101 samples) fitted to the average in its own time.
+  // The task's DMP over its demonstration's 101 samples, fitted to the average in its own time.
   const Eigen::MatrixXd demonstration = BottleTask::demonstration();
   Eigen::MatrixXd resampled(demonstration.rows(), 2);
   for (Eigen::Index i = 0; i < resampled.rows(); ++i) {
@@ -234,7 +257,40 @@ GuidedLearning learnFromGuidance(WamBottleTask& task, const GuidedLearningConfig
         std::clamp((t - out.average_times[j]) / (out.average_times[j + 1] - out.average_times[j]), 0.0, 1.0);
     resampled.row(i) = (1.0 - f) * out.average.row(j) + f * out.average.row(j + 1);
   }
-  out.theta = DmpRollout::fit(resampled, BottleTask::kDemonstrationStep, task.kernels()).parameters();
+  out.theta = DmpRollout::fit(resampled, BottleTask::kDemonstrationStep, kernels).parameters();
+  return out;
+}
+
+GuidedLearning learnFromGuidance(WamBottleTask& task, const GuidedLearningConfig& config, std::uint32_t seed) {
+  config.validate();
+  const double step = task.simConfig().step;
+  GuidedLearning out;
+  out.runs.reserve(static_cast<std::size_t>(config.runs));
+  std::vector<std::array<Eigen::MatrixXd, 3>> parts;
+  std::vector<std::array<double, 3>> seconds;
+  std::vector<double> rewards;
+  for (int r = 0; r < config.runs; ++r) {
+    const std::uint32_t s = seed + static_cast<std::uint32_t>(r);
+    GuidedRun run{s, ScriptedPerson(config.person, task.lineLength(), s), {}, {}, {}, {}};
+    run.reference = guidedReference(run.person, config.guidance, step);
+    run.rollout = task.runPath(run.reference.path, s);
+    if (run.rollout.outcome == FoldOutcome::Ok) {
+      ++out.ok_runs;
+      out.satisfactory_runs += run.rollout.satisfactory ? 1 : 0;
+      run.parts = splitGuidedPath(task, run.rollout.tool_path, run.rollout.path_times, run.reference.take * step,
+                                  run.reference.release * step,
+                                  static_cast<double>(run.reference.path.cols() - 1) * step, run.seconds);
+      parts.push_back(run.parts);
+      seconds.push_back(run.seconds);
+      rewards.push_back(run.rollout.reward);
+    }
+    out.runs.push_back(std::move(run));
+  }
+  if (out.ok_runs < 2) {
+    fail("only " + std::to_string(out.ok_runs) + " of " + std::to_string(config.runs) +
+         " guided runs ran on the arm: nothing to average");
+  }
+  static_cast<GuidedAverage&>(out) = averageGuidedRuns(parts, seconds, rewards, config, task.kernels());
   out.policy = task.run(out.theta, 0);
   return out;
 }

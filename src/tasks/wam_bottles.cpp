@@ -290,6 +290,32 @@ WamBottleRollout WamBottleTask::run(const Eigen::VectorXd& theta, std::uint32_t 
   return out;
 }
 
+void WamBottleTask::score(WamBottleRollout& out, int down) const {
+  const Impl& m = *impl_;
+  out.length = 0.0;
+  out.max_height_error = 0.0;
+  for (Eigen::Index i = 0; i < out.tool_path.cols(); ++i) {
+    out.max_height_error = std::max(out.max_height_error, std::abs(out.tool_path(2, i) - m.config.start.z()));
+    if (i > 0) out.length += (out.tool_path.col(i) - out.tool_path.col(i - 1)).norm();
+  }
+  for (int b = 0; b < 2; ++b) {
+    const Eigen::Vector2d bottle = bottleOnLine(b);
+    double side = 0.0;
+    for (Eigen::Index i = 0; i < out.tool_path.cols(); ++i) {
+      const Eigen::Vector2d p = m.toLine(out.tool_path.col(i));
+      if (p.x() >= bottle.x()) {
+        side = (p.y() - bottle.y()) * m.length;
+        break;
+      }
+    }
+    out.sides[static_cast<std::size_t>(b)] = side;
+  }
+  out.down = down;
+  out.crossed = out.sides[0] * out.sides[1] < 0.0;
+  out.satisfactory = out.crossed && out.down == 0;
+  out.reward = -2.0 * out.down - 0.15 * out.length - (m.config.crossing_term && !out.crossed ? 4.0 : 0.0);
+}
+
 WamBottleRollout WamBottleTask::runPath(const Eigen::Matrix2Xd& path, std::uint32_t seed) {
   Impl& m = *impl_;
   WamBottleRollout out;
@@ -408,28 +434,10 @@ WamBottleRollout WamBottleTask::runPath(const Eigen::Matrix2Xd& path, std::uint3
     out.path_times[static_cast<Eigen::Index>(i)] = times[i];
   }
   out.planned_path = planned;
-  // (6.17), (6.18) from the measured tool.
-  for (Eigen::Index i = 0; i < out.tool_path.cols(); ++i) {
-    out.max_height_error = std::max(out.max_height_error, std::abs(out.tool_path(2, i) - m.config.start.z()));
-    if (i > 0) out.length += (out.tool_path.col(i) - out.tool_path.col(i - 1)).norm();
-  }
   for (int b = 0; b < 2; ++b) {
-    const Eigen::Vector2d bottle = bottleOnLine(b);
-    double side = 0.0;
-    for (Eigen::Index i = 0; i < out.tool_path.cols(); ++i) {
-      const Eigen::Vector2d p = m.toLine(out.tool_path.col(i));
-      if (p.x() >= bottle.x()) {
-        side = (p.y() - bottle.y()) * m.length;
-        break;
-      }
-    }
-    out.sides[static_cast<std::size_t>(b)] = side;
     out.bottles[static_cast<std::size_t>(b)] = simulation.obstaclePose(m.bottles[static_cast<std::size_t>(b)]);
   }
-  out.down = simulation.knockedOver(m.config.tilt);
-  out.crossed = out.sides[0] * out.sides[1] < 0.0;
-  out.satisfactory = out.crossed && out.down == 0;
-  out.reward = -2.0 * out.down - 0.15 * out.length - (m.config.crossing_term && !out.crossed ? 4.0 : 0.0);
+  score(out, simulation.knockedOver(m.config.tilt));
   out.simulated_seconds = simulation.time();
   out.wall_seconds = realtime::secondsSince(wall_start);
   return out;

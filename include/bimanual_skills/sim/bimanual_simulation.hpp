@@ -143,6 +143,13 @@ class BimanualSimulation final : public RobotInterface {
   int objectHolder() const noexcept;
   /// The path it follows while nobody holds it. \throws std::logic_error without an object.
   const ObjectPath& objectPath() const;
+  /// A person carries it from now on (the hand of the thesis' human guidance, Sec. 6.2, that the camera sees): it
+  /// moves toward `target` (world [m], the latest one given) critically damped with a 0.1 s time constant, within
+  /// its path's max_speed and max_acceleration, instead of along its path, until reset(); a gripper that grasps it
+  /// still takes it. Real-time safe. InvalidArgument for a non-finite target or one farther than kMaxCarryDistance
+  /// from the world's origin on an axis, NoCloth without an object.
+  SimStatus carryObject(const Eigen::Vector3d& target) noexcept;
+  static constexpr double kMaxCarryDistance = 10.0;  ///< [m]
 
   // ---- Reset and determinism ----
   /// Sets every arm to the given state (within the joint limits), the cloth to its flat rest state, the object to

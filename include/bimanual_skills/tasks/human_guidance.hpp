@@ -81,6 +81,35 @@ struct GuidanceConfig {
   void validate() const;
 };
 
+/// The robot's side of the guidance, one step at a time (offline in guidedReference(), online where a camera sees a
+/// hand): a target moves along the line at line_speed; while the hand is raised (the gesture) the target is the
+/// hand's latest point; once it is lowered the target goes back to the line at the reference's x and on along it to
+/// the goal (one guidance per run: a hand raised again is not followed). The reference follows its target as a
+/// critically damped second-order system of time constant `lag`, its speed capped at max_speed. Real-time safe.
+class GuidanceFollower {
+ public:
+  enum class Phase { Line, Guided, Back, Arrived };
+
+  /// \throws std::invalid_argument for a bad config.
+  explicit GuidanceFollower(const GuidanceConfig& config);
+  /// Back to the line's start at rest.
+  void reset() noexcept;
+  /// Advances by dt [s] (> 0): `raised` whether the hand is up, `hand` its latest point (line units; read only
+  /// while following it). Arrived: at rest on the goal (the reference is the goal from then on), guided or not.
+  Phase step(double dt, bool raised, const Eigen::Vector2d& hand) noexcept;
+
+  Phase phase() const noexcept { return phase_; }
+  const Eigen::Vector2d& position() const noexcept { return x_; }  ///< The reference [line lengths].
+  const Eigen::Vector2d& velocity() const noexcept { return v_; }  ///< [line lengths/s]
+  const Eigen::Vector2d& target() const noexcept { return target_; }
+
+ private:
+  GuidanceConfig config_;
+  Phase phase_ = Phase::Line;
+  Eigen::Vector2d x_ = Eigen::Vector2d::Zero(), v_ = Eigen::Vector2d::Zero(), target_ = Eigen::Vector2d::Zero();
+  double line_x_ = 0.0;
+};
+
 /// The robot's reference at the simulation's step from the motion's start, starting at (0, 0) and ending at rest at
 /// the goal (1, 0); `take` and `release` the samples where the hand took and let go.
 struct GuidedReference {
@@ -88,12 +117,10 @@ struct GuidedReference {
   int take = 0, release = 0;
 };
 
-/// The reference: a target moves along the line at line_speed until it reaches the person's take; then the target is
-/// the camera's latest hand point (held between points; the camera is registered to the line); after the last
-/// point the target goes back to the line at the reference's x and on along it at line_speed to the goal. The
-/// reference follows its target as a critically damped second-order system of time constant `lag`, its speed
-/// capped at max_speed. \throws std::invalid_argument for bad configs, a step that is not positive, or a reference
-/// that does not reach the goal within max_seconds.
+/// The reference of a GuidanceFollower guided by the person: the hand goes up when the follower's line target reaches
+/// the person's take and stays up for its guided seconds, the camera's latest point (held between points; the camera
+/// registered to the line) the hand. \throws std::invalid_argument for bad configs, a step that is not positive, or
+/// a reference that does not reach the goal within max_seconds.
 GuidedReference guidedReference(const ScriptedPerson& person, const GuidanceConfig& config, double step);
 
 struct GuidedLearningConfig {
@@ -117,14 +144,33 @@ struct GuidedRun {
   std::array<double, 3> seconds{};       ///< Each part's duration.
 };
 
-struct GuidedLearning {
+/// A measured tool path (world, with its times [s] from the motion's start) split at the take and the release [s]
+/// and the motion's end into its three parts in the line's units (each part's first sample the previous part's last;
+/// `seconds` gets each part's duration). \throws std::invalid_argument when a part has fewer than two samples or the
+/// sizes differ.
+std::array<Eigen::MatrixXd, 3> splitGuidedPath(const WamBottleTask& task, const Eigen::Matrix3Xd& tool,
+                                               const Eigen::VectorXd& times, double take, double release, double end,
+                                               std::array<double, 3>& seconds);
+
+/// What guided runs teach: their parts aligned, the reward-weighted average and the DMP fitted to it.
+struct GuidedAverage {
+  std::array<learning::TimeAlignment, 3> alignment;  ///< Of each part over the runs.
+  Eigen::VectorXd weights;                           ///< Of the runs, in their order.
+  Eigen::MatrixXd average;        ///< The reward-weighted average path (rows: the three parts' samples, x, y).
+  Eigen::VectorXd average_times;  ///< [s] of its rows (each part its weighted mean duration).
+  Eigen::VectorXd theta;          ///< The task's DMP fitted to the average: the learned policy.
+};
+
+/// Aligns each part over the runs (learning::alignCurves), averages them with learning::rewardWeights(rewards, h) in
+/// their weighted mean durations, and fits the task's DMP (`kernels` per DoF over BottleTask::demonstration()'s 101
+/// samples) to the average. \throws std::invalid_argument for fewer than two runs, sizes that differ or a bad config.
+GuidedAverage averageGuidedRuns(const std::vector<std::array<Eigen::MatrixXd, 3>>& parts,
+                                const std::vector<std::array<double, 3>>& seconds, const std::vector<double>& rewards,
+                                const GuidedLearningConfig& config, int kernels);
+
+struct GuidedLearning : GuidedAverage {
   std::vector<GuidedRun> runs;
-  std::array<learning::TimeAlignment, 3> alignment;  ///< Of each part over the runs that ran (outcome Ok).
-  Eigen::VectorXd weights;                           ///< Of those runs, in their order.
-  Eigen::MatrixXd average;                 ///< The reward-weighted average path (rows: the three parts' samples, x, y).
-  Eigen::VectorXd average_times;           ///< [s] of its rows (each part its weighted mean duration).
-  Eigen::VectorXd theta;                   ///< The task's DMP fitted to the average: the learned policy.
-  WamBottleRollout policy;                 ///< That DMP run on the arm (seed 0, as the REPS study's final policies).
+  WamBottleRollout policy;                 ///< theta run on the arm (seed 0, as the REPS study's final policies).
   int ok_runs = 0, satisfactory_runs = 0;  ///< Of the guided runs.
 };
 

@@ -117,6 +117,10 @@ class WamBottleTask {
   /// starting at (0, 0); the arm holds its start for hold_before first), as run() runs its DMP's path: the human-guided
   /// runs' references. A path of fewer than two finite points or starting elsewhere is an InvalidPolicy rollout.
   WamBottleRollout runPath(const Eigen::Matrix2Xd& path, std::uint32_t seed);
+  /// (6.17) or (6.18) of a measured tool path (out.tool_path, world) with `down` bottles knocked over: sets out's
+  /// length, max_height_error, sides, down, crossed, satisfactory and reward, as run() does for its rollouts (a run
+  /// recorded elsewhere, e.g. guided over ROS, is scored the same way).
+  void score(WamBottleRollout& out, int down) const;
 
  private:
   struct Impl;
