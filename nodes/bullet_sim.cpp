@@ -24,6 +24,7 @@
 #include "testing/allocation_counter.hpp"
 
 #include <diagnostic_msgs/DiagnosticArray.h>
+#include <geometry_msgs/PointStamped.h>
 #include <ros/callback_queue.h>
 #include <ros/package.h>
 #include <ros/ros.h>
@@ -116,7 +117,9 @@ const std::string kUsage =
     "  with rgbd/camera_info, rgbd/depth/camera_info (frame rgbd_camera_optical_frame), /diagnostics (loop period, "
     "real-time factor, allocations per cycle);\n"
     "  subscribes ARM/effort_command (bimanual_skills/JointEffortCommand; in lockstep each applies to the state\n"
-    "  its stamp answers) for external controllers.\n"
+    "  its stamp answers) for external controllers, and, when the scene has a moving object, ~carry_object\n"
+    "  (geometry_msgs/PointStamped, frame world or empty): a person carries the object there from then on (the hand\n"
+    "  of human guidance, guide_person), instead of its path, until ~reset.\n"
     "  Each hosted controller serves ARM/command (trajectory_msgs/JointTrajectory), ARM/follow_joint_trajectory\n"
     "  (bimanual_skills/FollowJointTrajectory action), ARM/set_mode and publishes ARM/state, ARM/estimated_wrench,\n"
     "  ARM/estimated_external_torque (sensor_msgs/JointState, effort: the observer's joint torques), ARM/tool_paths.\n"
@@ -297,6 +300,13 @@ class BulletSimNode {
           ros::VoidPtr(), &command_queue_);
       options.transport_hints = ros::TransportHints().tcpNoDelay();
       subscribers_.push_back(node.subscribe(options));
+    }
+    if (simulation_->hasObject()) {
+      // A scene command, not a control one: on the services' queue, handed to the loop between two cycles.
+      ros::SubscribeOptions carry = ros::SubscribeOptions::create<geometry_msgs::PointStamped>(
+          "carry_object", 1, [this](const geometry_msgs::PointStamped::ConstPtr& message) { onCarry(*message); },
+          ros::VoidPtr(), &service_queue_);
+      subscribers_.push_back(private_node.subscribe(carry));
     }
     diagnostics_publisher_ = node.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     // Clients that assume a world (the learner) compare it with theirs before they use the simulator's services.
@@ -540,6 +550,25 @@ class BulletSimNode {
     response.success = r.success;
     response.message = r.message;
     return true;
+  }
+
+  void onCarry(const geometry_msgs::PointStamped& message) {
+    if (!message.header.frame_id.empty() && message.header.frame_id != "world") {
+      ROS_WARN_THROTTLE(5.0, "bullet_sim: ~carry_object in frame '%s' ignored: it takes points in world",
+                        message.header.frame_id.c_str());
+      return;
+    }
+    const Eigen::Vector3d p(message.point.x, message.point.y, message.point.z);
+    const auto r = loop_->call(
+        [this, p] {
+          const sim::SimStatus status = simulation_->carryObject(p);
+          return bs::hosting::LoopOutcome{status == sim::SimStatus::Ok, sim::toString(status), robot_->time()};
+        },
+        0.5);
+    if (!r.success) {
+      ROS_WARN_THROTTLE(5.0, "bullet_sim: ~carry_object (%g, %g, %g) not taken: %s", p.x(), p.y(), p.z(),
+                        r.message.c_str());
+    }
   }
 
   bool onGrasp(bimanual_skills::ClothGrasp::Request& request, bimanual_skills::ClothGrasp::Response& response) {

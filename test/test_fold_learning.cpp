@@ -419,6 +419,14 @@ TEST(FoldLearning, SameOnAnyThreadsAndResumes) {
   EXPECT_EQ(resumed.runs[0].final_policy.terms.reward, serial.runs[0].final_policy.terms.reward);
   EXPECT_EQ(bimanual_skills::testing::readTextFile(resumed_dir + "/epochs.csv"),
             bimanual_skills::testing::readTextFile(serial_dir + "/epochs.csv"));
+  // The first and the final coordination matrices, one row per DMP DoF and matrix, the same after the resume.
+  for (const char* name : {"/coordination.csv", "/initial_coordination.csv"}) {
+    const std::string serial_text = bimanual_skills::testing::readTextFile(serial_dir + name);
+    EXPECT_EQ(std::count(serial_text.begin(), serial_text.end(), '\n'),
+              1 + static_cast<long>(serial.runs[0].final.coordination.size()) * bt::ClothFoldTask::kDofs)
+        << name;
+    EXPECT_EQ(bimanual_skills::testing::readTextFile(resumed_dir + name), serial_text) << name;
+  }
 
   // Another reward in the same directory is refused at once (its first epoch's rollouts would otherwise be reused
   // with the rewards of the first), and so is another seed.

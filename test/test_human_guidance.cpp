@@ -3,6 +3,7 @@
 // starts and ends on the line's ends within its speed limit and follows the hand between take and release; a short
 // guided learning on the simulated WAM gives an average starting and ending where the line does and a DMP that keeps
 // its sides of the bottles; bad configs are refused by name.
+#include "bimanual_skills/sim/robot_file.hpp"
 #include "bimanual_skills/tasks/human_guidance.hpp"
 #include "testing/no_alloc_guard.hpp"
 
@@ -185,4 +186,16 @@ TEST(GuidedLearning, AShortSetOnTheArmAveragesIntoADmpThatKeepsItsSides) {
   EXPECT_TRUE(l.policy.crossed);
   // The alignment brought each guided part's curves closer together.
   EXPECT_LE(l.alignment[1].cost_after, l.alignment[1].cost_before);
+}
+
+TEST(GuidedLearning, TheGuidedRobotFileStartsTheArmAtTheTasksStartPosture) {
+  // guided.launch's robot file (config/robots/wam_guided.yaml) starts the right arm where WamBottleTask does.
+  bt::WamBottleTask task(config());
+  const bimanual_skills::sim::RobotFile robot = bimanual_skills::sim::RobotFile::fromYamlFile(
+      std::string(BIMANUAL_SKILLS_SOURCE_DIR) + "/config/robots/wam_guided.yaml");
+  const bimanual_skills::sim::RobotArm* arm = robot.arm("right");
+  ASSERT_NE(arm, nullptr);
+  const Eigen::VectorXd q = task.starts()[static_cast<std::size_t>(task.arm())];
+  ASSERT_EQ(arm->start.size(), q.size());
+  EXPECT_LT((arm->start - q).cwiseAbs().maxCoeff(), 1e-5) << "task's start: " << q.transpose();
 }

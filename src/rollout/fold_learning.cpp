@@ -309,19 +309,30 @@ struct FoldLearner::Impl {
     }
   }
 
+  /// coordination.csv: every run's final coordination matrices; initial_coordination.csv: its first policy's (the
+  /// demonstration's PCA for the IDR learners), so that what learning changed in them can be told from what the
+  /// demonstration put there.
   void writeCoordination(const std::vector<FoldRunResult>& runs) const {
-    std::ofstream csv(dir + "/coordination.csv");
-    csv << "algorithm,run,matrix,row,values...\n";
-    for (const FoldRunResult& run : runs) {
-      for (std::size_t s = 0; s < run.final.coordination.size(); ++s) {
-        const Eigen::MatrixXd& omega = run.final.coordination[s];
-        for (Eigen::Index i = 0; i < omega.rows(); ++i) {
-          csv << io::quotedField(run.algorithm) << ',' << run.run << ',' << s << ',' << i;
-          for (Eigen::Index j = 0; j < omega.cols(); ++j) csv << ',' << io::exactNumber(omega(i, j));
-          csv << '\n';
+    const auto write = [&](const std::string& name, const auto& matrices_of) {
+      std::ofstream csv(dir + "/" + name);
+      csv << "algorithm,run,matrix,row,values...\n";
+      for (const FoldRunResult& run : runs) {
+        const std::vector<Eigen::MatrixXd>& matrices = matrices_of(run);
+        for (std::size_t s = 0; s < matrices.size(); ++s) {
+          const Eigen::MatrixXd& omega = matrices[s];
+          for (Eigen::Index i = 0; i < omega.rows(); ++i) {
+            csv << io::quotedField(run.algorithm) << ',' << run.run << ',' << s << ',' << i;
+            for (Eigen::Index j = 0; j < omega.cols(); ++j) csv << ',' << io::exactNumber(omega(i, j));
+            csv << '\n';
+          }
         }
       }
-    }
+    };
+    write("coordination.csv",
+          [](const FoldRunResult& run) -> const std::vector<Eigen::MatrixXd>& { return run.final.coordination; });
+    write("initial_coordination.csv", [](const FoldRunResult& run) -> const std::vector<Eigen::MatrixXd>& {
+      return run.initial_policy.coordination;
+    });
   }
 
   FoldRunResult learnRun(const std::string& algorithm, int algorithm_index, int run,

@@ -1,0 +1,102 @@
+// rostest (test/guided.test): guided.launch with the scripted person over 2 runs. Checks bottles_guidance's phases
+// in order in each run, that the right tool followed the raised hand between the bottles (runs.csv), every record's
+// columns, and the policy learned from the runs (guided_policy.csv with the DMP's 20 weights, summary.json).
+#include <ros/ros.h>
+#include <std_msgs/String.h>
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <iterator>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace {
+
+std::string text(const std::string& path) {
+  std::ifstream in(path);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+std::vector<std::vector<std::string>> rows(const std::string& path) {
+  std::vector<std::vector<std::string>> out;
+  std::istringstream in(text(path));
+  std::string line;
+  std::getline(in, line);  // header
+  while (std::getline(in, line)) {
+    std::vector<std::string> fields;
+    std::istringstream f(line);
+    std::string field;
+    while (std::getline(f, field, ',')) fields.push_back(field);
+    out.push_back(fields);
+  }
+  return out;
+}
+
+bool waitFor(const std::function<bool()>& done, double seconds) {
+  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(seconds);
+  while (ros::ok() && ros::WallTime::now() < deadline && !done()) {
+    ros::spinOnce();
+    ros::WallDuration(0.05).sleep();
+  }
+  return done();
+}
+
+}  // namespace
+
+TEST(GuidedNode, TheScriptedPersonGuidesTheArmBetweenTheBottlesAndAPolicyIsLearned) {
+  ros::NodeHandle node;
+  std::vector<std::string> phases;
+  const auto sub =
+      node.subscribe<std_msgs::String>("/bottles_guidance/phase", 20, [&](const std_msgs::StringConstPtr& m) {
+        if (phases.empty() || phases.back() != m->data) phases.push_back(m->data);
+      });
+  std::string out;
+  ASSERT_TRUE(waitFor([&] { return ros::param::get("/bottles_guidance/out", out); }, 30.0));
+  ASSERT_TRUE(waitFor([&] { return std::filesystem::exists(out + "/summary.json"); }, 220.0))
+      << "no summary in " << out << "; phases seen: " << phases.size();
+  for (const int run : {0, 1}) {
+    const std::string prefix = "run " + std::to_string(run) + ": ";
+    std::vector<std::string> seen;
+    for (const std::string& p : phases) {
+      if (p.rfind(prefix, 0) == 0) seen.push_back(p.substr(prefix.size()));
+    }
+    const std::vector<std::string> expected = {"approach", "line", "guided", "back", "arrived"};
+    EXPECT_EQ(seen, expected) << "run " << run;
+  }
+  const auto runs = rows(out + "/runs.csv");
+  ASSERT_EQ(runs.size(), 2u);
+  for (const auto& r : runs) {
+    ASSERT_EQ(r.size(), 12u);
+    EXPECT_EQ(r[1], "Ok") << "run " << r[0];
+    const double take = std::atof(r[2].c_str()), release = std::atof(r[3].c_str()), end = std::atof(r[4].c_str());
+    EXPECT_GT(take, 0.0);
+    EXPECT_GT(release, take + 1.5) << "the hand guided for less than 1.5 s";
+    EXPECT_GT(end, release);
+    // The first bottle passed on the line's right, the second on its left: the S the person draws.
+    EXPECT_LT(std::atof(r[6].c_str()), -0.03) << "run " << r[0];
+    EXPECT_GT(std::atof(r[7].c_str()), 0.03) << "run " << r[0];
+    EXPECT_EQ(r[8], "1");
+    const auto record = rows(out + "/run_" + r[0] + ".csv");
+    ASSERT_GT(record.size(), 300u);
+    for (const auto& row : record) ASSERT_EQ(row.size(), 11u);
+  }
+  const auto weights = rows(out + "/guided_policy.csv");
+  EXPECT_EQ(weights.size(), 20u);
+  const std::string summary = text(out + "/summary.json");
+  for (const char* key : {"\"guided_runs\": 2", "\"policy_reward\"", "\"policy_crossed\""}) {
+    EXPECT_NE(summary.find(key), std::string::npos) << key << " in " << summary;
+  }
+}
+
+int main(int argc, char** argv) {
+  testing::InitGoogleTest(&argc, argv);
+  ros::init(argc, argv, "test_guided");
+  ros::NodeHandle keep;
+  return RUN_ALL_TESTS();
+}
