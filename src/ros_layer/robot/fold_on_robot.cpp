@@ -277,11 +277,6 @@ void FoldOnRobotTask::moveToStart() {
     connection_->waitForGoal(a, "move to the start", ends_by, RobotConnection::Blame::Robot);
 }
 
-std::string FoldOnRobotTask::recover() noexcept {
-  return connection_->recover(above_start_, velocityLimits(), kRecoveryTimeout, "the arms retracted above their start",
-                              "the arms not retracted");
-}
-
 ros::Time FoldOnRobotTask::fold(const tasks::FoldPlan& plan) {
   // One goal per arm over the hold, the movement and the hold up to the release, both starting at the same time;
   // the grippers open at the planned release, as in the in-process task (the scene is sensitive to when: a fold
@@ -442,12 +437,8 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     terms.outcome = outcome;
     terms.reward = reward_.config().failure_reward;
     terms.r_acceleration = reward_.config().acceleration_weight * acceleration_cost;
-    reason = why;
-    connection_->cancelGoals();
-    reconnect_ = reconnect_ || outcome == tasks::FoldOutcome::RobotFailed;
-    if (!moved) return;
-    connection_->resumeAfterFailure();  // the recovery needs the clock
-    reason += "; recovery: " + recover();
+    reason = why + connection_->endFailedRollout(outcome, moved, above_start_, velocityLimits(), kRecoveryTimeout,
+                                                 "the arms retracted above their start", "the arms not retracted");
   };
   try {
     if (!rollout::decodeCoordinatedPolicy(parameters, tasks::ClothFoldTask::kDofs, task_.policyBasisSize(),
@@ -459,14 +450,7 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
     const tasks::FoldPlan plan = task_.plan(coordination, weights);
     acceleration_cost = plan.acceleration_cost;
     if (plan.outcome != tasks::FoldOutcome::Ok) throw RobotFault{plan.outcome, plan.reason};
-    // A simulator left paused (a learner stopped while it stood still) goes on first: paused, it publishes no
-    // states, its actions no status (a reconnect could not connect), and every rollout would fail.
-    connection_->settle();  // nothing of the last rollout still under way
-    if (!robot_.pause_service.empty()) connection_->pause(false);
-    if (reconnect_) {
-      connection_->connectArms();
-      reconnect_ = false;
-    }
+    connection_->beginRollout();
     if (robot_.clear_view) {  // a person lays the cloth flat with the arms out of the way, and the camera sees it so
       moved = true;
       moveClear("move out of the camera's view before the reset");
@@ -517,29 +501,15 @@ rollout::RolloutResult FoldOnRobotTask::run(const Eigen::VectorXd& parameters, s
   }
   connection_->resumeAfterFailure();  // a failure while the simulator stood still: it goes on
   // The measured tool paths at kPathRate of the robot's clock.
-  connection_->record(false);
-  const RobotConnection::Recorded recorded = connection_->recorded();
-  last_tracking_error_ = recorded.max_error;
+  RobotConnection::MeasuredPaths measured =
+      connection_->measuredPaths(kPathRate, {&task_.armModel(0), &task_.armModel(1)},
+                                 {task_.basePose(0), task_.basePose(1)}, record_start_.toSec());
+  last_tracking_error_ = measured.max_error;
+  if (measured.times.size() > 0) paths = measured.tools;
   {
     const std::lock_guard<std::mutex> lock(mutex_);
-    const std::vector<std::size_t> samples = recorded.every(kPathRate);
-    recording_.path_times.resize(static_cast<Eigen::Index>(samples.size()));
-    for (std::size_t k = 0; k < samples.size(); ++k) {
-      recording_.path_times[static_cast<Eigen::Index>(k)] = recorded.times[0][samples[k]] - record_start_.toSec();
-    }
-    for (int a = 0; a < 2 && !samples.empty(); ++a) {
-      const std::vector<Eigen::VectorXd>& positions = recorded.positions[static_cast<std::size_t>(a)];
-      kinematics::ChainData data(task_.armModel(a));
-      Eigen::Matrix3Xd path(3, static_cast<Eigen::Index>(samples.size()));
-      Eigen::MatrixXd joints(positions.front().size(), path.cols());
-      for (std::size_t k = 0; k < samples.size(); ++k) {
-        (void)kinematics::forwardKinematics(task_.armModel(a), data, positions[samples[k]]);
-        path.col(static_cast<Eigen::Index>(k)) = task_.basePose(a) * data.tipPose().translation();
-        joints.col(static_cast<Eigen::Index>(k)) = positions[samples[k]];
-      }
-      paths.push_back(path);
-      recording_.joint_path.push_back(joints);
-    }
+    recording_.path_times = std::move(measured.times);
+    if (!paths.empty()) recording_.joint_path = std::move(measured.joints);
     recording_frames_ = false;
     recording_.outcome = terms.outcome;
     recording_.reason = reason;

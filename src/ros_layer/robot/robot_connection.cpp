@@ -2,6 +2,7 @@
 
 #include "bimanual_skills/ClothGrasp.h"
 #include "bimanual_skills/SimStep.h"
+#include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/ros_layer/trajectory_messages.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
@@ -688,6 +689,58 @@ RobotConnection::Recorded RobotConnection::recorded() {
     out.times.push_back(arm->times);
     out.positions.push_back(arm->positions);
     out.max_error = std::max(out.max_error, arm->max_error);
+  }
+  return out;
+}
+
+void RobotConnection::beginRollout() {
+  settle();
+  if (!robot_.pause_service.empty()) pause(false);
+  if (reconnect_) {
+    connectArms();
+    reconnect_ = false;
+  }
+}
+
+std::string RobotConnection::endFailedRollout(tasks::FoldOutcome outcome, bool moved,
+                                              const std::vector<Eigen::VectorXd>& targets,
+                                              const std::vector<Eigen::VectorXd>& limits, double timeout,
+                                              const std::string& at_targets,
+                                              const std::string& not_at_targets) noexcept {
+  cancelGoals();
+  reconnect_ = reconnect_ || outcome == tasks::FoldOutcome::RobotFailed;
+  resumeAfterFailure();  // the recovery needs the clock
+  if (!moved) return "";
+  return "; recovery: " + recover(targets, limits, timeout, at_targets, not_at_targets);
+}
+
+RobotConnection::MeasuredPaths RobotConnection::measuredPaths(double rate,
+                                                              const std::vector<const kinematics::ChainModel*>& models,
+                                                              const std::vector<Eigen::Isometry3d>& bases,
+                                                              double origin) {
+  record(false);
+  const Recorded states = recorded();
+  MeasuredPaths out;
+  out.max_error = states.max_error;
+  const std::vector<std::size_t> samples = states.every(rate);
+  const auto count = static_cast<Eigen::Index>(samples.size());
+  out.times.resize(count);
+  for (Eigen::Index k = 0; k < count; ++k) {
+    out.times[k] = states.times.front()[samples[static_cast<std::size_t>(k)]] - origin;
+  }
+  for (std::size_t a = 0; a < states.positions.size(); ++a) {
+    const kinematics::ChainModel& model = *models[a];
+    kinematics::ChainData data(model);
+    Eigen::MatrixXd joints(model.nq(), count);
+    Eigen::Matrix3Xd tool(3, count);
+    for (Eigen::Index k = 0; k < count; ++k) {
+      const Eigen::VectorXd& q = states.positions[a][samples[static_cast<std::size_t>(k)]];
+      (void)kinematics::forwardKinematics(model, data, q);
+      joints.col(k) = q;
+      tool.col(k) = bases[a] * data.tipPose().translation();
+    }
+    out.joints.push_back(std::move(joints));
+    out.tools.push_back(std::move(tool));
   }
   return out;
 }

@@ -1,6 +1,5 @@
 #include "bimanual_skills/ros_layer/robot/scarf_on_robot.hpp"
 
-#include "bimanual_skills/kinematics/chain_kinematics.hpp"
 #include "bimanual_skills/realtime/clock.hpp"
 #include "bimanual_skills/rollout/coordinated_parameters.hpp"
 #include "bimanual_skills/rollout/scarf_learning.hpp"
@@ -251,11 +250,6 @@ void ScarfOnRobotTask::runPlan(const tasks::ScarfPlan& plan) {
   last_.simulated_seconds = plan.end * plan.dt;
 }
 
-std::string ScarfOnRobotTask::recover() noexcept {
-  return connection_->recover({task_.startPosition()}, {task_.armModel().velocityLimits()}, kRecoveryTimeout,
-                              "the arm back at its start", "the arm not back at its start");
-}
-
 rollout::RolloutResult ScarfOnRobotTask::run(const Eigen::VectorXd& parameters, std::uint32_t /*seed*/) {
   const auto wall_start = std::chrono::steady_clock::now();
   const tasks::ScarfTaskConfig& c = task_.config();
@@ -275,14 +269,7 @@ rollout::RolloutResult ScarfOnRobotTask::run(const Eigen::VectorXd& parameters, 
     const tasks::ScarfPlan plan = task_.plan(coordination, weights);
     last_.acceleration = plan.acceleration_cost;
     if (plan.outcome != tasks::FoldOutcome::Ok) throw RobotFault{plan.outcome, plan.reason};
-    // A simulator left paused (a learner stopped while it stood still) goes on first: paused, its actions publish no
-    // status and a reconnect could not connect.
-    connection_->settle();  // nothing of the last rollout still under way
-    if (!robot_.pause_service.empty()) connection_->pause(false);
-    if (reconnect_) {
-      connection_->connectArms();
-      reconnect_ = false;
-    }
+    connection_->beginRollout();
     if (robot_.move_before_reset) moveToStart();
     (void)connection_->reset();
     moved = true;
@@ -296,30 +283,18 @@ rollout::RolloutResult ScarfOnRobotTask::run(const Eigen::VectorXd& parameters, 
     last_.reason = std::string("the ROS layer failed: ") + e.what();
   }
   if (last_.outcome != tasks::FoldOutcome::Ok) {
-    connection_->cancelGoals();
-    reconnect_ = reconnect_ || last_.outcome == tasks::FoldOutcome::RobotFailed;
-    connection_->resumeAfterFailure();  // the recovery needs the clock
-    if (moved) last_.reason += "; recovery: " + recover();
+    last_.reason += connection_->endFailedRollout(last_.outcome, moved, {task_.startPosition()},
+                                                  {task_.armModel().velocityLimits()}, kRecoveryTimeout,
+                                                  "the arm back at its start", "the arm not back at its start");
   }
   connection_->resumeAfterFailure();
   // The measured joint and tool paths.
-  connection_->record(false);
-  const RobotConnection::Recorded recorded = connection_->recorded();
-  last_.max_tracking_error = recorded.max_error;
-  const std::vector<std::size_t> samples = recorded.every(kPathRate);
-  const auto count = static_cast<Eigen::Index>(samples.size());
-  last_.path_times.resize(count);
-  last_.joint_path.resize(task_.dofs(), count);
-  last_.tool_path.resize(3, count);
-  kinematics::ChainData data(task_.armModel());
-  for (std::size_t k = 0; k < samples.size(); ++k) {
-    const auto i = static_cast<Eigen::Index>(k);
-    const Eigen::VectorXd& q = recorded.positions.front()[samples[k]];
-    last_.path_times[i] = recorded.times.front()[samples[k]] - origin_;
-    last_.joint_path.col(i) = q;
-    (void)kinematics::forwardKinematics(task_.armModel(), data, q);
-    last_.tool_path.col(i) = task_.basePose() * data.tipPose().translation();
-  }
+  RobotConnection::MeasuredPaths measured =
+      connection_->measuredPaths(kPathRate, {&task_.armModel()}, {task_.basePose()}, origin_);
+  last_.max_tracking_error = measured.max_error;
+  last_.path_times = std::move(measured.times);
+  last_.joint_path = std::move(measured.joints.front());
+  last_.tool_path = std::move(measured.tools.front());
   tasks::scoreScarfRollout(c, last_);
   last_.wall_seconds = realtime::secondsSince(wall_start);
   return rollout::ScarfRolloutTask::resultOf(last_);

@@ -105,9 +105,6 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   /// Arm a's configuration near `q` (within 0.5 rad per joint) with the tool `height` [m] higher, by global IK
   /// seeded at q, into `out`; false (out untouched) when there is none.
   bool raised(int a, const Eigen::VectorXd& q, double height, Eigen::VectorXd& out) const;
-  /// After a failed rollout that moved the robot: opens the grippers and lifts the arms to above their start, each
-  /// step bounded (kRecoveryTimeout); says what it did.
-  std::string recover() noexcept;
   /// Runs the fold and opens the grippers; returns the time they opened at (as planned).
   ros::Time fold(const tasks::FoldPlan& plan);
   /// The camera's colour and depth images (and the cloth's cloud, if the robot has one and `with_cloth`) stamped at
@@ -150,7 +147,6 @@ class FoldOnRobotTask : public rollout::RolloutTask, public rollout::RecordedFol
   double next_image_ = 0.0, next_cloth_ = 0.0;
   tasks::FoldRollout recording_;
   double last_tracking_error_ = 0.0, last_robot_seconds_ = 0.0, last_move_seconds_ = 0.0;
-  bool reconnect_ = false;  ///< The last rollout failed on the robot: new action clients before the next.
   /// Last: it goes first, its spinner with it, before anything its handlers write into.
   std::unique_ptr<RobotConnection> connection_;
 };

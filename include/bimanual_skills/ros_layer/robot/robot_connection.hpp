@@ -12,6 +12,7 @@
 
 #include "bimanual_skills/FollowJointTrajectoryAction.h"
 #include "bimanual_skills/JointTrajectoryControllerState.h"
+#include "bimanual_skills/kinematics/chain_model.hpp"
 #include "bimanual_skills/ros_layer/bounded_call.hpp"
 #include "bimanual_skills/ros_layer/rgbd_reader.hpp"
 #include "bimanual_skills/tasks/cloth_fold.hpp"
@@ -207,6 +208,29 @@ class RobotConnection {
   /// Starts (clearing what was recorded) or stops recording the arms' states.
   void record(bool on);
   Recorded recorded();
+
+  /// The frame every task's rollout shares. Before one: nothing of the last rollout still under way (settle()), a
+  /// simulator left paused going on (a learner stopped while it stood still: paused, it publishes no states and its
+  /// actions no status, so a reconnect could not connect), and new action clients when the last rollout failed on
+  /// the robot. Throws RobotFault.
+  void beginRollout();
+  /// After a rollout that failed with `outcome`: cancels the goals, has the next rollout connect anew when the
+  /// failure was the robot's, resumes a simulator this object paused, and when the robot had moved (`moved`)
+  /// recovers as recover() does. Returns "; recovery: " and how it went, or "" when the robot had not moved.
+  std::string endFailedRollout(tasks::FoldOutcome outcome, bool moved, const std::vector<Eigen::VectorXd>& targets,
+                               const std::vector<Eigen::VectorXd>& limits, double timeout,
+                               const std::string& at_targets, const std::string& not_at_targets) noexcept;
+  /// The arms' states recorded since record(true), thinned to about `rate` per second (Recorded::every): their times
+  /// from `origin` [s of the robot's clock], and per arm its joints (one column per sample) and its tool's positions
+  /// in the world (forward kinematics of `models[a]` placed at `bases[a]`). Stops the recording.
+  struct MeasuredPaths {
+    Eigen::VectorXd times;
+    std::vector<Eigen::MatrixXd> joints;
+    std::vector<Eigen::Matrix3Xd> tools;
+    double max_error = 0.0;  ///< Recorded::max_error
+  };
+  MeasuredPaths measuredPaths(double rate, const std::vector<const kinematics::ChainModel*>& models,
+                              const std::vector<Eigen::Isometry3d>& bases, double origin);
   /// The camera's colour, depth and CameraInfo of one moment (within 20 ms), and the cloth's cloud if
   /// `with_cloth` and the robot has one, stamped at `after` or later and not ahead of this process' clock.
   Frame frame(const ros::Time& after, bool with_cloth);
@@ -267,6 +291,7 @@ class RobotConnection {
   tf2_ros::Buffer tf_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   std::atomic<bool> paused_{false};  ///< Whether this object paused the simulator (and must resume it).
+  bool reconnect_ = false;           ///< The last rollout failed on the robot: new action clients before the next.
   double paused_at_ = 0.0;           ///< The simulator's time when it last paused [s].
 };
 

@@ -74,13 +74,10 @@ class ScarfOnRobotTask : public rollout::RolloutTask, public rollout::RecordedSc
   void moveToStart();
   /// Runs the plan from the reset scene; fills last_'s measures.
   void runPlan(const tasks::ScarfPlan& plan);
-  /// After a failure once the arm moved: the tool opens, the arm goes back to its start; says how it went.
-  std::string recover() noexcept;
 
   tasks::ScarfTask task_;
   ScarfRobotInterfaces robot_;
   tasks::ScarfRollout last_;
-  bool reconnect_ = false;
   double origin_ = 0.0;  ///< The robot's time of the last rollout's start (its goal's stamp) [s].
   std::mutex mutex_;     ///< Guards the torque window and its sums (written by the connection's spinner).
   double torque_from_ = 0.0, torque_to_ = -1.0;  ///< The motion's window of the robot's clock [s].
