@@ -3,6 +3,7 @@
 // arm's hosted controller follows it (follow mode, its target this node's ~target), and after the runs
 // tasks::averageGuidedRuns aligns them and fits the DMP.
 #include "bimanual_skills/FollowerState.h"
+#include "bimanual_skills/GuidancePhase.h"
 #include "bimanual_skills/SetControlMode.h"
 #include "bimanual_skills/TrackedObject.h"
 #include "bimanual_skills/ros_layer/parameters.hpp"
@@ -15,7 +16,6 @@
 #include <geometry_msgs/PoseArray.h>
 #include <ros/package.h>
 #include <ros/ros.h>
-#include <std_msgs/String.h>
 #include <std_srvs/Trigger.h>
 #include <trajectory_msgs/JointTrajectory.h>
 #include <visualization_msgs/MarkerArray.h>
@@ -23,11 +23,14 @@
 #include <Eigen/Geometry>
 
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -56,6 +59,8 @@ const char* kUsage =
     "                   before each run (ARM/command), then ARM/set_mode follow (default 3)\n"
     "  ~approach        [s] the tool then holds at the line's start before the run (default 1)\n"
     "  ~settle          [s] recorded after the reference arrives, while a pushed bottle falls (default 0.5)\n"
+    "  ~seed            the learned DMP's run on the simulated WAM and summary.json's seed, an integer in\n"
+    "                   [0, 2^32) (default 1; guided.launch passes its seed:=, the scripted person's)\n"
     "  ~max_run         [s] a run whose reference has not arrived by then ends as failed (default 30)\n"
     "  ~hand_max_age    [s] a hand estimate older than this (robot clock) counts as lowered (default 0.3)\n"
     "  ~lag, ~max_speed the follower's time constant [s] (0.15) and speed cap [line lengths/s] (0.6)\n"
@@ -65,11 +70,15 @@ const char* kUsage =
     "  ~reset_service   std_srvs/Trigger run between runs (default /bullet_sim/reset; \"\": none)\n"
     "\n"
     "Topics: ~target (bimanual_skills/TrackedObject: the reference for the controller's follow/target_topic),\n"
-    "  ~phase (std_msgs/String: \"run K: approach|line|guided|back|arrived\", latched), ~markers (MarkerArray: the\n"
-    "  line, the reference, the hand, this run's tool path).\n"
-    "Writes into ~out: run_K.csv (time, phase, reference, hand, tool), runs.csv (a row per run as it ends: take,\n"
-    "release, bottles down, sides, length, reward), and after the last run guided_policy.csv (the learned DMP's\n"
-    "20 weights) and summary.json.\n";
+    "  ~phase (bimanual_skills/GuidancePhase, latched: the run, approach|line|guided|back|arrived, done after the\n"
+    "  last run, the outcome of a run that ended), ~markers (MarkerArray: the line, the reference, the hand, this\n"
+    "  run's tool path).\n"
+    "Writes into ~out: run_K.csv (time, phase, reference, hand, tool), runs.csv (a row per run as it ends: outcome,\n"
+    "take, release, bottles down, sides, length, reward), and after the last run guided_policy.csv (the learned\n"
+    "DMP's 20 weights) and summary.json. Outcomes: Ok; HandLost (the hand's estimate went stale or the tracker lost\n"
+    "it while guiding: the tool went back to the line, but the person did not let go); NotGuided (never taken or\n"
+    "never let go); Failed (not arrived within ~max_run). Only Ok runs are learned from. Exits 1 when the runs give\n"
+    "nothing to learn (fewer than 2 Ok runs, or an alignment that fails), with the reason.\n";
 
 enum class Stage { MoveToStart, Approach, Run, Settle, Done };
 
@@ -103,6 +112,9 @@ class Guidance {
     approach_ = p.number("approach", 1.0, 0.0, 600.0);
     settle_ = p.number("settle", 0.5, 0.0, 60.0);
     max_run_ = p.number("max_run", 30.0, 1.0, 600.0);
+    const double seed = p.number("seed", 1.0, 0.0, 4294967295.0);
+    if (seed != std::floor(seed)) throw std::invalid_argument("~seed must be an integer in [0, 2^32)");
+    seed_ = static_cast<std::uint32_t>(seed);
     hand_max_age_ = p.number("hand_max_age", 0.3, 1e-3, 10.0);
     guidance_.line_speed = 1.0 / config.duration;
     guidance_.lag = p.number("lag", guidance_.lag, 1e-3, 10.0);
@@ -120,7 +132,7 @@ class Guidance {
     target_ = private_node.advertise<bimanual_skills::TrackedObject>("target", 10);
     command_ = node.advertise<trajectory_msgs::JointTrajectory>("/" + config.arm + "/command", 1);
     set_mode_ = node.serviceClient<bimanual_skills::SetControlMode>("/" + config.arm + "/set_mode");
-    phase_ = private_node.advertise<std_msgs::String>("phase", 1, true);
+    phase_ = private_node.advertise<bimanual_skills::GuidancePhase>("phase", 1, true);
     markers_ = private_node.advertise<visualization_msgs::MarkerArray>("markers", 1);
     hand_ = node.subscribe(hand_topic, 10, &Guidance::onHand, this);
     tool_ = node.subscribe(tool_topic, 10, &Guidance::onTool, this);
@@ -134,11 +146,13 @@ class Guidance {
   }
 
   bool done() const { return stage_ == Stage::Done; }
+  /// Whether a policy was learned after the last run.
+  bool learned() const { return learned_; }
 
  private:
   struct Row {
     double time;
-    std::string phase;
+    const char* phase;  ///< phaseName()'s
     Eigen::Vector2d reference;
     Eigen::Vector3d hand;
     bool raised;
@@ -165,14 +179,19 @@ class Guidance {
     }
   }
 
-  void publishPhase() {
-    std_msgs::String s;
-    s.data = "run " + std::to_string(run_) + ": " + phaseName(stage_, follower_->phase());
-    if (s.data != last_phase_) {
-      phase_.publish(s);
-      ROS_INFO("bottles_guidance: %s", s.data.c_str());
-      last_phase_ = s.data;
-    }
+  void publishPhase(const ros::Time& now, const std::string& outcome = "") {
+    const char* name = stage_ == Stage::Done ? "done" : phaseName(stage_, follower_->phase());
+    if (std::strcmp(name, last_phase_) == 0 && run_ == last_run_) return;
+    bimanual_skills::GuidancePhase m;
+    m.header.stamp = now;
+    m.run = static_cast<std::uint32_t>(run_);
+    m.runs = static_cast<std::uint32_t>(runs_);
+    m.phase = name;
+    m.outcome = outcome;
+    phase_.publish(m);
+    ROS_INFO("bottles_guidance: run %d: %s", run_, name);
+    last_phase_ = name;
+    last_run_ = run_;
   }
 
   void publishTarget(const Eigen::Vector2d& line, const Eigen::Vector2d& velocity, const ros::Time& now) {
@@ -238,7 +257,7 @@ class Guidance {
         stage_start_ = t;
       }
       publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
-      publishPhase();
+      publishPhase(now);
       return;
     }
     if (stage_ == Stage::Approach) {
@@ -250,12 +269,21 @@ class Guidance {
         rows_.clear();
         take_ = release_ = -1.0;
       }
-      publishPhase();
+      publishPhase(now);
       return;
     }
-    const bool raised = hand_tracking_ && t - hand_stamp_ <= hand_max_age_ && hand_position_.z() > gesture_height_;
+    const bool fresh = hand_tracking_ && t - hand_stamp_ <= hand_max_age_;
+    const bool raised = fresh && hand_position_.z() > gesture_height_;
     if (usable && stage_ == Stage::Run) {
       const bt::GuidanceFollower::Phase before = follower_->phase();
+      // A hand lost while it guides lets go of the arm (safe), but the person did not: not a guided run to learn.
+      if (before == bt::GuidanceFollower::Phase::Guided && !fresh && !hand_lost_) {
+        hand_lost_ = true;
+        ROS_WARN(
+            "bottles_guidance: run %d: the hand's estimate is %s while it guides: the tool goes back to the line; "
+            "the run is recorded as HandLost and not learned from",
+            run_, hand_tracking_ ? "stale" : "lost by the tracker");
+      }
       const bt::GuidanceFollower::Phase phase = follower_->step(dt, raised, task_->toLine(hand_position_));
       if (before == bt::GuidanceFollower::Phase::Line && phase == bt::GuidanceFollower::Phase::Guided) {
         take_ = t - stage_start_;
@@ -267,15 +295,15 @@ class Guidance {
         end_ = t - stage_start_;
         stage_ = Stage::Settle;
       } else if (t - stage_start_ > max_run_) {
-        finishRun("not arrived within ~max_run");
+        finishRun("not arrived within ~max_run", now);
         return;
       }
     }
     publishTarget(follower_->position(), follower_->velocity(), now);
     rows_.push_back({t - stage_start_, phaseName(stage_, follower_->phase()), follower_->position(), hand_position_,
                      raised, tool_position_});
-    if (stage_ == Stage::Settle && t - stage_start_ >= end_ + settle_) finishRun("");
-    publishPhase();
+    if (stage_ == Stage::Settle && t - stage_start_ >= end_ + settle_) finishRun("", now);
+    publishPhase(now);
     if (rows_.size() % 10 == 0) publishMarkers(now);
   }
 
@@ -306,7 +334,7 @@ class Guidance {
     markers_.publish(a);
   }
 
-  void finishRun(const std::string& failure) {
+  void finishRun(const std::string& failure, const ros::Time& now) {
     const std::string name = out_ + "/run_" + std::to_string(run_) + ".csv";
     {
       std::ofstream csv(name);
@@ -325,8 +353,14 @@ class Guidance {
       score.path_times[static_cast<Eigen::Index>(i)] = rows_[i].time;
     }
     task_->score(score, down_);
-    std::string outcome = failure.empty() ? "Ok" : "Failed";
-    if (failure.empty() && (take_ < 0.0 || release_ < 0.0)) outcome = "NotGuided";
+    std::string outcome = "Ok";
+    if (!failure.empty()) {
+      outcome = "Failed";
+    } else if (hand_lost_) {
+      outcome = "HandLost";
+    } else if (take_ < 0.0 || release_ < 0.0) {
+      outcome = "NotGuided";
+    }
     runs_csv_ << run_ << ',' << outcome << ',' << take_ << ',' << release_ << ',' << end_ << ',' << score.down << ','
               << score.sides[0] << ',' << score.sides[1] << ',' << (score.crossed ? 1 : 0) << ','
               << (score.satisfactory ? 1 : 0) << ',' << score.length << ',' << score.reward << '\n';
@@ -348,9 +382,13 @@ class Guidance {
     }
     ++run_;
     if (run_ >= runs_) {
-      learn();
+      try {
+        learned_ = learn();
+      } catch (const std::exception& e) {
+        ROS_ERROR("bottles_guidance: nothing learned from the %zu guided runs: %s", parts_.size(), e.what());
+      }
       stage_ = Stage::Done;
-      publishPhase();
+      publishPhase(now, outcome);
       return;
     }
     bimanual_skills::SetControlMode hold;
@@ -367,13 +405,17 @@ class Guidance {
     stage_ = Stage::MoveToStart;
     stage_start_ = last_tick_;
     follower_->reset();
+    hand_lost_ = false;
+    publishPhase(now, outcome);
   }
 
-  void learn() {
+  /// After the last run: the aligned, reward-weighted average's DMP, run and recorded. Throws with the reason the
+  /// runs give no policy.
+  bool learn() {
     if (parts_.size() < 2) {
-      ROS_ERROR("bottles_guidance: %zu of %d runs were guided and recorded: nothing to learn from", parts_.size(),
+      ROS_ERROR("bottles_guidance: %zu of %d runs were guided and recorded (Ok): nothing to learn from", parts_.size(),
                 runs_);
-      return;
+      return false;
     }
     bt::GuidedLearningConfig config;
     config.guidance = guidance_;
@@ -381,7 +423,7 @@ class Guidance {
     std::ofstream policy(out_ + "/guided_policy.csv");
     policy << "weight\n";
     for (Eigen::Index i = 0; i < average.theta.size(); ++i) policy << average.theta[i] << '\n';
-    const bt::WamBottleRollout run = task_->run(average.theta, 0);
+    const bt::WamBottleRollout run = task_->run(average.theta, seed_);
     bs::io::JsonRow row;
     row.add("guided_runs", static_cast<int>(parts_.size()))
         .add("guided_runs_satisfactory", satisfactory_)
@@ -392,12 +434,13 @@ class Guidance {
         .add("alignment_cost_before", average.alignment[1].cost_before)
         .add("alignment_cost_after", average.alignment[1].cost_after);
     bs::io::writeSummaryJson(out_ + "/summary.json",
-                             {"bottles_guidance", "guided", 0u, false, bs::cli::numericsState()}, {row});
+                             {"bottles_guidance", "guided", seed_, false, bs::cli::numericsState()}, {row});
     ROS_INFO(
         "bottles_guidance: learned from %zu guided runs (%d satisfactory): the DMP of their aligned, "
         "reward-weighted average, run on the simulated WAM: reward %.3f, %d bottles down, %s%s; %s/guided_policy.csv",
         parts_.size(), satisfactory_, run.reward, run.down, run.crossed ? "crossed" : "not crossed",
         run.satisfactory ? " (satisfactory)" : "", out_.c_str());
+    return true;
   }
 
   std::unique_ptr<bt::WamBottleTask> task_;
@@ -418,7 +461,10 @@ class Guidance {
   std::vector<std::array<double, 3>> seconds_;
   std::vector<double> rewards_;
   std::ofstream runs_csv_;
-  std::string last_phase_;
+  const char* last_phase_ = "";
+  int last_run_ = -1;
+  std::uint32_t seed_ = 1;
+  bool hand_lost_ = false, learned_ = false;
   ros::Publisher target_, phase_, markers_, command_;
   ros::Subscriber hand_, tool_, obstacles_;
   ros::ServiceClient reset_, set_mode_;
@@ -439,6 +485,7 @@ int main(int argc, char** argv) {
       ros::spinOnce();
       wait.sleep();
     }
+    if (guidance.done() && !guidance.learned()) return 1;
   } catch (const std::exception& e) {
     ROS_FATAL("bottles_guidance: %s", e.what());
     return 1;

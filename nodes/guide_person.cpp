@@ -1,6 +1,7 @@
 // guide_person: the person of human-guided learning (thesis Sec. 6.2): moves the simulation's hand (the scene's
 // moving object, bullet_sim ~carry_object) that the camera sees and bottles_guidance follows. A thin shell: in
 // scripted mode tasks::ScriptedPerson (seeded) says where the hand goes; in marker mode an rviz interactive marker.
+#include "bimanual_skills/GuidancePhase.h"
 #include "bimanual_skills/TrackedObject.h"
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/tasks/human_guidance.hpp"
@@ -11,7 +12,6 @@
 #include <interactive_markers/interactive_marker_server.h>
 #include <ros/package.h>
 #include <ros/ros.h>
-#include <std_msgs/String.h>
 
 #include <cmath>
 #include <memory>
@@ -44,8 +44,9 @@ const char* kUsage =
     "  ~guidance        the guidance node (default /bottles_guidance): its ~phase and ~target are watched\n"
     "  ~carry_topic     where the hand goes (default /bullet_sim/carry_object)\n"
     "\n"
-    "Topics: publishes ~carry_topic (geometry_msgs/PointStamped, world); subscribes GUIDANCE/phase,\n"
-    "  GUIDANCE/target; marker mode serves the interactive marker ~hand (rviz: InteractiveMarkers, ~update).\n";
+    "Topics: publishes ~carry_topic (geometry_msgs/PointStamped, world); subscribes GUIDANCE/phase\n"
+    "  (bimanual_skills/GuidancePhase), GUIDANCE/target; marker mode serves the interactive marker ~hand (rviz:\n"
+    "  InteractiveMarkers, ~update).\n";
 
 class Person {
  public:
@@ -80,12 +81,9 @@ class Person {
   }
 
  private:
-  void onPhase(const std_msgs::String& m) {
-    // "run K: phase"
-    const auto colon = m.data.find(':');
-    if (m.data.rfind("run ", 0) != 0 || colon == std::string::npos) return;
-    const int run = std::atoi(m.data.substr(4, colon - 4).c_str());
-    const std::string phase = m.data.substr(colon + 2);
+  void onPhase(const bimanual_skills::GuidancePhase& m) {
+    const int run = static_cast<int>(m.run);
+    const std::string& phase = m.phase;
     if (phase == "approach" && run != run_) {
       run_ = run;
       person_.emplace(bt::PersonConfig{}, task_->lineLength(), seed_ + static_cast<std::uint32_t>(run));

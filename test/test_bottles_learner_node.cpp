@@ -7,6 +7,8 @@
 #include "cli/pinned_numerics.hpp"
 #include "node_pid.hpp"
 
+#include "ros_wait.hpp"
+
 #include <ros/ros.h>
 #include <sensor_msgs/JointState.h>
 #include <visualization_msgs/MarkerArray.h>
@@ -44,15 +46,6 @@ std::string text(const std::string& path) {
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
-bool waitFor(const std::function<bool()>& done, double seconds) {
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < deadline && !done()) {
-    ros::spinOnce();
-    ros::WallDuration(0.05).sleep();
-  }
-  return done();
-}
-
 // 2 algorithms x 3 epochs x (the noise-free policy + 4 samples), and the header.
 constexpr int kRolloutLines = 31;
 constexpr int kEpochLines = 7;
@@ -86,17 +79,18 @@ TEST(BottlesLearnerNode, PublishesTheLearningAndWritesTheResults) {
   const std::string killed = param("/bottles_killed/out");
   const int pid = bimanual_skills::test::nodePid("/bottles_killed");
   ASSERT_GT(pid, 0);
-  ASSERT_TRUE(waitFor([&] { return lines(killed + "/rollouts.csv") >= 10; }, 120.0));
+  ASSERT_TRUE(bimanual_skills::test::spinUntil([&] { return lines(killed + "/rollouts.csv") >= 10; }, 120.0));
   ASSERT_EQ(kill(pid, SIGKILL), 0);
-  waitFor([] { return false; }, 0.5);
+  bimanual_skills::test::spinUntil([] { return false; }, 0.5);
   const int before = lines(killed + "/rollouts.csv") - 1;
   ASSERT_LT(before, kRolloutLines - 1) << "the learner ended before it was killed";
 
   const std::string out = param("/bottles_learner/out");
-  ASSERT_TRUE(waitFor([&] { return std::filesystem::exists(out + "/final_paths.csv"); }, 240.0))
+  ASSERT_TRUE(
+      bimanual_skills::test::spinUntil([&] { return std::filesystem::exists(out + "/final_paths.csv"); }, 240.0))
       << "no results in " << out;
   // The node plays the best final policy now: a few seconds of its motion.
-  waitFor([] { return false; }, 3.0);
+  bimanual_skills::test::spinUntil([] { return false; }, 3.0);
   EXPECT_EQ(scene, 2u) << "the table and the line";
   EXPECT_EQ(bottles, 2u);
   EXPECT_GE(paths, 5) << "the last rollouts' tool paths and the policy's";

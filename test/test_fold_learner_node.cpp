@@ -4,6 +4,7 @@
 // camera image. The images come with their CameraInfo, in a frame on tf. ~reward:=goal replaces the learning file's
 // reward setting, and the directory records it.
 #include "cli/pinned_numerics.hpp"
+#include "ros_wait.hpp"
 
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
@@ -67,13 +68,12 @@ TEST(FoldLearnerNode, PublishesEachRolloutAndWritesTheResults) {
   const auto path_sub = node.subscribe<visualization_msgs::MarkerArray>(
       "/fold_learner/tool_paths", 10, [&](const visualization_msgs::MarkerArrayConstPtr&) { ++paths; });
   const std::string bag_path = outDir() + "/best_rollout.bag";
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(200.0);
   // summary.json is written last, after the images and the bag.
-  while (ros::ok() && ros::WallTime::now() < deadline &&
-         !(std::filesystem::exists(bag_path) && std::filesystem::exists(outDir() + "/summary.json") && images > 0)) {
-    ros::spinOnce();
-    ros::WallDuration(0.05).sleep();
-  }
+  bimanual_skills::test::spinUntil(
+      [&] {
+        return std::filesystem::exists(bag_path) && std::filesystem::exists(outDir() + "/summary.json") && images > 0;
+      },
+      200.0);
   ros::WallDuration(2.0).sleep();  // the bag is closed after the file appears
   ros::spinOnce();
   EXPECT_GT(images, 0);

@@ -1,8 +1,10 @@
 // rostest (test/guided.test): guided.launch with the scripted person over 2 runs. Checks bottles_guidance's phases
 // in order in each run, that the right tool followed the raised hand between the bottles (runs.csv), every record's
 // columns, and the policy learned from the runs (guided_policy.csv with the DMP's 20 weights, summary.json).
+#include "bimanual_skills/GuidancePhase.h"
+#include "ros_wait.hpp"
+
 #include <ros/ros.h>
-#include <std_msgs/String.h>
 
 #include <gtest/gtest.h>
 
@@ -38,27 +40,22 @@ std::vector<std::vector<std::string>> rows(const std::string& path) {
   return out;
 }
 
-bool waitFor(const std::function<bool()>& done, double seconds) {
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(seconds);
-  while (ros::ok() && ros::WallTime::now() < deadline && !done()) {
-    ros::spinOnce();
-    ros::WallDuration(0.05).sleep();
-  }
-  return done();
-}
-
 }  // namespace
 
 TEST(GuidedNode, TheScriptedPersonGuidesTheArmBetweenTheBottlesAndAPolicyIsLearned) {
   ros::NodeHandle node;
-  std::vector<std::string> phases;
-  const auto sub =
-      node.subscribe<std_msgs::String>("/bottles_guidance/phase", 20, [&](const std_msgs::StringConstPtr& m) {
-        if (phases.empty() || phases.back() != m->data) phases.push_back(m->data);
+  std::vector<std::string> phases;  // "run K: phase"
+  std::vector<std::string> outcomes;
+  const auto sub = node.subscribe<bimanual_skills::GuidancePhase>(
+      "/bottles_guidance/phase", 20, [&](const bimanual_skills::GuidancePhaseConstPtr& m) {
+        const std::string p = "run " + std::to_string(m->run) + ": " + m->phase;
+        if (phases.empty() || phases.back() != p) phases.push_back(p);
+        if (!m->outcome.empty()) outcomes.push_back(m->outcome);
+        EXPECT_EQ(m->runs, 2u);
       });
   std::string out;
-  ASSERT_TRUE(waitFor([&] { return ros::param::get("/bottles_guidance/out", out); }, 30.0));
-  ASSERT_TRUE(waitFor([&] { return std::filesystem::exists(out + "/summary.json"); }, 220.0))
+  ASSERT_TRUE(bimanual_skills::test::spinUntil([&] { return ros::param::get("/bottles_guidance/out", out); }, 30.0));
+  ASSERT_TRUE(bimanual_skills::test::spinUntil([&] { return std::filesystem::exists(out + "/summary.json"); }, 220.0))
       << "no summary in " << out << "; phases seen: " << phases.size();
   for (const int run : {0, 1}) {
     const std::string prefix = "run " + std::to_string(run) + ": ";
@@ -69,6 +66,9 @@ TEST(GuidedNode, TheScriptedPersonGuidesTheArmBetweenTheBottlesAndAPolicyIsLearn
     const std::vector<std::string> expected = {"approach", "line", "guided", "back", "arrived"};
     EXPECT_EQ(seen, expected) << "run " << run;
   }
+  bimanual_skills::test::spinUntil([&] { return !phases.empty() && phases.back() == "run 2: done"; }, 5.0);
+  EXPECT_EQ(phases.back(), "run 2: done");
+  EXPECT_EQ(outcomes, (std::vector<std::string>{"Ok", "Ok"})) << "each run's outcome, in the next run's first phase";
   const auto runs = rows(out + "/runs.csv");
   ASSERT_EQ(runs.size(), 2u);
   for (const auto& r : runs) {

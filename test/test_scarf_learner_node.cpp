@@ -4,6 +4,7 @@
 // rollouts with the task's terms, the camera's measures and the pictures (initial, final, filmstrip), and that the
 // plot script draws the learning curve, the camera views and the tables from it.
 #include "cli/pinned_numerics.hpp"
+#include "ros_wait.hpp"
 
 #include <geometry_msgs/TransformStamped.h>
 #include <ros/ros.h>
@@ -70,16 +71,9 @@ TEST(ScarfLearnerNode, PublishesEachRolloutAndWritesTheResults) {
         ++joints;
         joint_names = m->name.size();
       });
-  const ros::WallTime deadline = ros::WallTime::now() + ros::WallDuration(200.0);
-  // filmstrip.png is written last.
-  while (ros::ok() && ros::WallTime::now() < deadline && !std::filesystem::exists(outDir() + "/filmstrip.png")) {
-    ros::spinOnce();
-    ros::WallDuration(0.05).sleep();
-  }
-  for (int k = 0; k < 20; ++k) {
-    ros::spinOnce();
-    ros::WallDuration(0.05).sleep();
-  }
+  // filmstrip.png is written last; then a second more of messages.
+  bimanual_skills::test::spinUntil([&] { return std::filesystem::exists(outDir() + "/filmstrip.png"); }, 200.0);
+  bimanual_skills::test::spinUntil([] { return false; }, 1.0);
   ASSERT_TRUE(std::filesystem::exists(outDir() + "/filmstrip.png")) << "no results in " << outDir();
   EXPECT_EQ(obstacles, 6u) << "floor, torso, shoulders, neck, head, nose mark";
   EXPECT_GT(scarves, 0);
