@@ -126,14 +126,20 @@ class SimPublishing final : public hosting::StateSink {
         vision::RawRgbdSensorConfig sensor;
         sensor.colour = settings_.rgbd;
         sensor.noise = settings_.rgbd_noise;
-        raw_rgbd_ = std::make_unique<vision::RawRgbdSensor>(tasks::rendererFor(simulation.config()), sensor);
+        raw_rgbd_ = std::make_unique<vision::RawRgbdSensor>(rgbdScene(simulation.config()), sensor);
       } else {
-        rgbd_ = std::make_unique<vision::PerspectiveRenderer>(tasks::rendererFor(simulation.config()), settings_.rgbd,
+        rgbd_ = std::make_unique<vision::PerspectiveRenderer>(rgbdScene(simulation.config()), settings_.rgbd,
                                                               settings_.rgbd_noise);
       }
       rgbd_rng_.seed(simulation.config().seed + 1u);
       if (simulation.hasObject()) addMovingSolid(tasks::sceneSolid(simulation.config().object.body));
       if (settings_.arms_in_view) addArms();
+      for (std::size_t k = 0; k < simulation.config().obstacles.size(); ++k) {
+        if (simulation.config().obstacles[k].mass <= 0.0) continue;
+        const int solid = addMovingSolid(tasks::sceneSolid(simulation.config().obstacles[k]));
+        setMovingPose(solid, simulation.obstaclePose(static_cast<int>(k)));
+        free_solids_.emplace_back(k, solid);
+      }
     }
     frame.object = simulation.hasObject() ? simulation.objectPose() : Eigen::Isometry3d::Identity();
     frame.joints = initial.position;
@@ -263,6 +269,16 @@ class SimPublishing final : public hosting::StateSink {
     sem_timedwait(&signal, &deadline);
   }
 
+  /// The RGB-D camera's static scene: the renderer's (tasks::rendererFor) without the obstacles that have a mass:
+  /// they fall and are pushed, and the camera sees them as moving solids posed from each frame (free_solids_).
+  static vision::ClothRendererParameters rgbdScene(const sim::SimConfig& config) {
+    vision::ClothRendererParameters scene = tasks::rendererFor(config);
+    scene.solids.clear();
+    for (const sim::Obstacle& obstacle : config.obstacles) {
+      if (obstacle.mass <= 0.0) scene.solids.push_back(tasks::sceneSolid(obstacle));
+    }
+    return scene;
+  }
   /// A moving solid in the RGB-D camera, whichever it is.
   int addMovingSolid(const vision::SceneSolid& solid) {
     return raw_rgbd_ ? raw_rgbd_->addMovingSolid(solid) : rgbd_->addMovingSolid(solid);
@@ -411,6 +427,7 @@ class SimPublishing final : public hosting::StateSink {
         if (rgbd_ || raw_rgbd_) setMovingPose(0, frame->object);
       }
       if (!arms_.empty()) poseArms(frame->joints);
+      for (const auto& [k, solid] : free_solids_) setMovingPose(solid, frame->obstacles[k]);
       markers_.publish(markers);
       if (simulation_.hasCloth()) cloth_.publish(clothCloud(frame->vertices, ros::Time(frame->time)));
       // An image every 1/camera_rate simulated seconds, and at once after a reset (time going back).
@@ -543,6 +560,8 @@ class SimPublishing final : public hosting::StateSink {
   tf2_ros::StaticTransformBroadcaster camera_frame_;
   ros::Publisher joint_states_, clock_, markers_, cloth_, object_, obstacle_poses_;
   bool free_obstacles_ = false;  ///< The scene has obstacles with a mass: their poses go out with the markers.
+  /// The obstacles with a mass in the RGB-D camera: (obstacle, its moving solid).
+  std::vector<std::pair<std::size_t, int>> free_solids_;
   ros_layer::RgbdPublisher camera_, rgbd_camera_;
   sem_t state_signal_{}, scene_signal_{};
   std::atomic<bool> running_{true};
