@@ -269,27 +269,8 @@ class BottlesLearnerNode {
   }
 
   void writeSummary(const br::DmpLearningResult& result) const {
-    const std::vector<std::string> terms = br::BottleRolloutTask::names();
-    std::vector<bs::io::JsonRow> rows;
-    for (const br::DmpRunResult& run : result.runs) {
-      for (const br::DmpEpochStats& s : run.epochs) {
-        bs::io::JsonRow row;
-        row.add("algorithm", s.algorithm)
-            .add("run", s.run)
-            .add("epoch", s.epoch)
-            .add("policy_reward", s.policy_reward)
-            .add("policy_satisfactory", s.policy_success)
-            .add("policy_failed", s.policy_failed)
-            .add("rollout_reward_mean", s.mean_reward)
-            .add("rollout_reward_std", s.std_reward)
-            .add("rollout_satisfactory", s.successes)
-            .add("rollout_failures", s.failures);
-        for (std::size_t t = 0; t < terms.size(); ++t) {
-          row.add("rollout_mean_" + terms[t], s.term_means[static_cast<Eigen::Index>(t)]);
-        }
-        rows.push_back(row);
-      }
-    }
+    const std::vector<bs::io::JsonRow> rows = bs::nodes::epochRows(
+        result, br::BottleRolloutTask::names(), {"reward", "policy_satisfactory", "rollout_satisfactory"});
     bs::io::writeSummaryJson(out_ + "/summary.json",
                              {"bottles_learner", config_.task.crossing_term ? "wam_bottles" : "wam_bottles617",
                               config_.learning.seed, false, bs::cli::numericsState()},

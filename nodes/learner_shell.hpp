@@ -1,6 +1,7 @@
 /// \file
 /// What the learner nodes (fold_learner, scarf_learner, bottles_learner) share besides the library: rollout workers
-/// chosen by their parameters, the learning section's parameters, and file names made of algorithm names.
+/// chosen by their parameters, the learning section's parameters, summary.json's rows of a DMP learning, and file
+/// names made of algorithm names.
 #pragma once
 
 #include "bimanual_skills/rollout/dispatcher.hpp"
@@ -8,6 +9,7 @@
 #include "bimanual_skills/ros_layer/parameters.hpp"
 #include "bimanual_skills/ros_layer/robot/robot_connection.hpp"
 #include "bimanual_skills/ros_layer/workers/topic_workers.hpp"
+#include "io/summary_json.hpp"
 
 #include <ros/ros.h>
 
@@ -18,8 +20,45 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace bimanual_skills::nodes {
+
+/// How a learner's summary.json names what its task scores: `value` "reward" (as learnt) or "cost" (the reward
+/// negated: the scarf's), and a success `policy_success` of the noise-free policy and `rollout_successes` counted
+/// over an epoch's rollouts.
+struct EpochRowNames {
+  std::string value = "reward";
+  std::string policy_success = "policy_success", rollout_successes = "rollout_successes";
+};
+
+/// summary.json's rows of a DMP learning: one per algorithm, run and epoch (its policy's value, success and failure,
+/// the rollouts' mean and standard deviation, successes, failures, and each of `terms`' rollout mean).
+inline std::vector<io::JsonRow> epochRows(const rollout::DmpLearningResult& result,
+                                          const std::vector<std::string>& terms, const EpochRowNames& names) {
+  const double sign = names.value == "cost" ? -1.0 : 1.0;
+  std::vector<io::JsonRow> rows;
+  for (const rollout::DmpRunResult& run : result.runs) {
+    for (const rollout::DmpEpochStats& s : run.epochs) {
+      io::JsonRow row;
+      row.add("algorithm", s.algorithm)
+          .add("run", s.run)
+          .add("epoch", s.epoch)
+          .add("policy_" + names.value, sign * s.policy_reward)
+          .add(names.policy_success, s.policy_success)
+          .add("policy_failed", s.policy_failed)
+          .add("rollout_" + names.value + "_mean", sign * s.mean_reward)
+          .add("rollout_" + names.value + "_std", s.std_reward)
+          .add(names.rollout_successes, s.successes)
+          .add("rollout_failures", s.failures);
+      for (std::size_t t = 0; t < terms.size(); ++t) {
+        row.add("rollout_mean_" + terms[t], s.term_means[static_cast<Eigen::Index>(t)]);
+      }
+      rows.push_back(row);
+    }
+  }
+  return rows;
+}
 
 /// `text` with every character other than a letter, a digit, '-' or '_' as '_' (an algorithm's name as a file name).
 inline std::string fileName(std::string text) {

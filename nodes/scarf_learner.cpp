@@ -284,27 +284,8 @@ class ScarfLearnerNode {
   }
 
   void writeSummary(const br::DmpLearningResult& result) const {
-    const std::vector<std::string> terms = br::ScarfRolloutTask::names();
-    std::vector<bs::io::JsonRow> rows;
-    for (const br::DmpRunResult& run : result.runs) {
-      for (const br::DmpEpochStats& s : run.epochs) {
-        bs::io::JsonRow row;
-        row.add("algorithm", s.algorithm)
-            .add("run", s.run)
-            .add("epoch", s.epoch)
-            .add("policy_cost", -s.policy_reward)
-            .add("policy_success", s.policy_success)
-            .add("policy_failed", s.policy_failed)
-            .add("rollout_cost_mean", -s.mean_reward)
-            .add("rollout_cost_std", s.std_reward)
-            .add("rollout_successes", s.successes)
-            .add("rollout_failures", s.failures);
-        for (std::size_t t = 0; t < terms.size(); ++t) {
-          row.add("rollout_mean_" + terms[t], s.term_means[static_cast<Eigen::Index>(t)]);
-        }
-        rows.push_back(row);
-      }
-    }
+    const std::vector<bs::io::JsonRow> rows =
+        bs::nodes::epochRows(result, br::ScarfRolloutTask::names(), {"cost", "policy_success", "rollout_successes"});
     bs::io::writeSummaryJson(out_ + "/summary.json",
                              {"scarf_learner", "scarf", config_.learning.seed, false, bs::cli::numericsState()}, rows);
   }
