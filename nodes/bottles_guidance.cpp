@@ -80,10 +80,15 @@ const char* kUsage =
     "never let go); Failed (not arrived within ~max_run). Only Ok runs are learned from. Exits 1 when the runs give\n"
     "nothing to learn (fewer than 2 Ok runs, or an alignment that fails), with the reason.\n";
 
-enum class Stage { MoveToStart, Approach, Run, Settle, Done };
+/// Before each run the arm goes to the start (MoveToStart), the scene is reset with it there (Reset: a robot's reset
+/// leaves the arm where it is, and the move back from the goal would sweep through the bottles laid anew), and the
+/// tool holds at the line's start (Approach).
+enum class Stage { MoveToStart, Reset, Follow, Approach, Run, Settle, Done };
 
 const char* phaseName(Stage stage, bt::GuidanceFollower::Phase phase) {
-  if (stage == Stage::MoveToStart || stage == Stage::Approach) return "approach";
+  if (stage == Stage::MoveToStart || stage == Stage::Reset || stage == Stage::Follow || stage == Stage::Approach) {
+    return "approach";
+  }
   switch (phase) {
     case bt::GuidanceFollower::Phase::Line:
       return "line";
@@ -244,19 +249,37 @@ class Guidance {
         moving_ = true;
       }
       if (t - stage_start_ >= move_time_ + 0.5) {
-        bimanual_skills::SetControlMode mode;
-        mode.request.mode = "follow";
-        if (!set_mode_.call(mode) || !mode.response.success) {
-          ROS_WARN_THROTTLE(2.0, "bottles_guidance: %s follow: %s (trying again)", set_mode_.getService().c_str(),
-                            mode.response.message.c_str());
-          publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
-          return;
-        }
         moving_ = false;
-        stage_ = Stage::Approach;
+        if (reset_pending_) {
+          reset_pending_ = false;
+          resetScene();
+          stage_ = Stage::Reset;
+        } else {
+          stage_ = Stage::Follow;
+        }
         stage_start_ = t;
       }
       publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
+      publishPhase(now);
+      return;
+    }
+    // After a reset (a simulator's clock goes back: the stage starts again on it), half a second for the arm's
+    // states of the new scene; then the controller follows the reference from where the tool is.
+    if (stage_ == Stage::Reset || stage_ == Stage::Follow) {
+      if (stage_ == Stage::Reset && t - stage_start_ < 0.5) {
+        publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
+        return;
+      }
+      bimanual_skills::SetControlMode mode;
+      mode.request.mode = "follow";
+      publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
+      if (!set_mode_.call(mode) || !mode.response.success) {
+        ROS_WARN_THROTTLE(2.0, "bottles_guidance: %s follow: %s (trying again)", set_mode_.getService().c_str(),
+                          mode.response.message.c_str());
+        return;
+      }
+      stage_ = Stage::Approach;
+      stage_start_ = t;
       publishPhase(now);
       return;
     }
@@ -305,6 +328,13 @@ class Guidance {
     if (stage_ == Stage::Settle && t - stage_start_ >= end_ + settle_) finishRun("", now);
     publishPhase(now);
     if (rows_.size() % 10 == 0) publishMarkers(now);
+  }
+
+  void resetScene() {
+    std_srvs::Trigger call;
+    if (!reset_.call(call) || !call.response.success) {
+      ROS_WARN("bottles_guidance: %s failed: %s", reset_.getService().c_str(), call.response.message.c_str());
+    }
   }
 
   void publishMarkers(const ros::Time& now) {
@@ -396,12 +426,7 @@ class Guidance {
     if (!set_mode_.call(hold) || !hold.response.success) {
       ROS_WARN("bottles_guidance: %s hold: %s", set_mode_.getService().c_str(), hold.response.message.c_str());
     }
-    if (reset_) {
-      std_srvs::Trigger call;
-      if (!reset_.call(call) || !call.response.success) {
-        ROS_WARN("bottles_guidance: %s failed: %s", reset_.getService().c_str(), call.response.message.c_str());
-      }
-    }
+    reset_pending_ = static_cast<bool>(reset_);
     stage_ = Stage::MoveToStart;
     stage_start_ = last_tick_;
     follower_->reset();
@@ -464,7 +489,7 @@ class Guidance {
   const char* last_phase_ = "";
   int last_run_ = -1;
   std::uint32_t seed_ = 1;
-  bool hand_lost_ = false, learned_ = false;
+  bool hand_lost_ = false, learned_ = false, reset_pending_ = false;
   ros::Publisher target_, phase_, markers_, command_;
   ros::Subscriber hand_, tool_, obstacles_;
   ros::ServiceClient reset_, set_mode_;
