@@ -30,6 +30,8 @@ PACKAGES=(
   libnav-msgs-dev python3-nav-msgs libmessage-filters-dev
   # build and test
   cmake g++ make colcon python3-colcon-ros python3-colcon-cmake python3-colcon-test-result python3-colcon-bash
+  # the Python module (python/bindings.cpp) and its tests
+  pybind11-dev python3-pybind11 python3-dev python3-pytest
   libgtest-dev googletest libbenchmark-dev
   # plots and formatting
   python3-matplotlib python3-numpy python3-pil python3-scipy python3-yaml clang-format

@@ -1,0 +1,44 @@
+"""bimanual_skills from Python: the C++ core's rollout tasks (the cloth fold, the scarf, the bottles on the simulated
+WAM and the policy-search benchmarks) and its policy updates (REPS, CMA-ES), with NumPy arrays in and out. The ROS
+messages are bimanual_skills.msg and bimanual_skills.srv, as for every ROS package.
+
+    import bimanual_skills as bs
+    task = bs.make_task("fold", bs.config_path("fold_demo.yaml"))
+    result = task.run(task.initial_parameters(), seed=1)   # releases Python's lock while it runs
+    print(result.reward, dict(zip(task.term_names(), result.terms)))
+"""
+import os as _os
+
+from bimanual_skills._core import (  # noqa: F401
+    CmaEs,
+    Reps,
+    RepsUpdate,
+    RolloutResult,
+    Task,
+    make_task,
+    numerics,
+    pinned_environment,
+    tasks,
+)
+
+__all__ = ["CmaEs", "Reps", "RepsUpdate", "RolloutResult", "Task", "config_path", "make_task", "numerics",
+           "pinned_environment", "tasks"]
+
+
+def config_path(name):
+    """The path of one of the package's configuration files (its config/ folder), e.g. "fold_demo.yaml"."""
+    here = _os.path.dirname(_os.path.abspath(__file__))
+    # install/bimanual_skills/lib/python3/dist-packages/bimanual_skills -> install/bimanual_skills/share/...
+    prefix = _os.path.abspath(_os.path.join(here, "..", "..", "..", ".."))
+    folders = [_os.path.join(prefix, "share", "bimanual_skills", "config")]
+    try:  # a devel space or another layout: where ROS finds the package
+        import rospkg
+
+        folders.append(_os.path.join(rospkg.RosPack().get_path("bimanual_skills"), "config"))
+    except Exception:  # noqa: BLE001 - rospkg missing or the package not on ROS_PACKAGE_PATH
+        pass
+    for folder in folders:
+        path = _os.path.join(folder, name)
+        if _os.path.exists(path):
+            return path
+    raise FileNotFoundError("no configuration file %s in %s" % (name, " or ".join(folders)))

@@ -1,0 +1,161 @@
+// The Python module bimanual_skills._core (python/bimanual_skills/__init__.py re-exports it): the rollout tasks of
+// the task registry (rollout/task_registry.hpp) and the policy updates REPS and CMA-ES, NumPy in and out. A thin
+// shell like nodes/: the logic is the library's. A rollout releases Python's lock, so Python threads run rollouts in
+// parallel, one task object each; C++ exceptions arrive as Python exceptions with their reason (std::invalid_argument
+// as ValueError, std::runtime_error as RuntimeError).
+#include "bimanual_skills/learning/covariance_adaptation.hpp"
+#include "bimanual_skills/learning/reps.hpp"
+#include "bimanual_skills/rollout/task_registry.hpp"
+#include "cli/pinned_numerics.hpp"
+
+#include <pybind11/eigen.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace py = pybind11;
+namespace br = bimanual_skills::rollout;
+namespace bl = bimanual_skills::learning;
+
+namespace {
+
+/// A rollout seed from Python: an integer in [0, 2^32).
+std::uint32_t seedOf(long long seed) {
+  if (seed < 0 || seed > 4294967295LL) {
+    throw std::invalid_argument("a rollout seed is an integer in [0, 2^32), not " + std::to_string(seed));
+  }
+  return static_cast<std::uint32_t>(seed);
+}
+
+/// One task of the registry: one simulator, used from one thread at a time.
+class Task {
+ public:
+  Task(std::string name, std::string config)
+      : name_(std::move(name)), config_(std::move(config)), task_(br::makeRolloutTask(name_, config_)) {}
+
+  const std::string& name() const { return name_; }
+  const std::string& config() const { return config_; }
+  std::vector<std::string> termNames() const { return task_->termNames(); }
+  Eigen::VectorXd initialParameters() const { return task_->initialParameters(); }
+  br::RolloutResult run(const Eigen::VectorXd& parameters, long long seed) {
+    const std::uint32_t s = seedOf(seed);
+    const py::gil_scoped_release unlocked;
+    const std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
+    if (!lock.owns_lock()) {
+      throw std::runtime_error("task '" + name_ + "' is running a rollout on another thread: one task per thread");
+    }
+    return task_->run(parameters, s);
+  }
+
+ private:
+  std::string name_, config_;
+  std::unique_ptr<br::RolloutTask> task_;
+  std::mutex mutex_;  ///< Held while a rollout runs: a second thread is refused, not let into the simulator.
+};
+
+}  // namespace
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "bimanual_skills' C++ core: rollout tasks and policy updates (see the package's docstring).";
+  // Eigen blocks its products by the committed results' cache sizes, as the C++ programs do; libm and OpenCV take
+  // their code at load time, which an imported module cannot change (pinned_environment()).
+  Eigen::setCpuCacheSizes(bimanual_skills::cli::kEigenCaches[0], bimanual_skills::cli::kEigenCaches[1],
+                          bimanual_skills::cli::kEigenCaches[2]);
+  m.def("numerics", &bimanual_skills::cli::numericsState,
+        "\"pinned\" when libm, OpenCV and Eigen run the code the C++ programs pin (one seed, one result on every "
+        "x86-64 machine), else what is not.");
+  m.def(
+      "pinned_environment",
+      [] {
+        py::dict d;
+        d["GLIBC_TUNABLES"] = std::string(bimanual_skills::cli::kHwcapsTunable) + bimanual_skills::cli::kLibmMask;
+        const std::string mask = bimanual_skills::cli::openCvMask();
+        if (!mask.empty()) d["OPENCV_CPU_DISABLE"] = mask;
+        return d;
+      },
+      "The environment a Python process must start with for numerics() to be \"pinned\" (and its rollouts to "
+      "equal the C++ programs' bit for bit): set these before starting Python.");
+
+  m.def(
+      "tasks",
+      [] {
+        std::vector<py::dict> out;
+        for (const br::RolloutTaskInfo& info : br::rolloutTasks()) {
+          py::dict d;
+          d["name"] = info.name;
+          d["config"] = info.config;
+          d["description"] = info.description;
+          out.push_back(d);
+        }
+        return out;
+      },
+      "Every task make_task() builds: name, what its configuration file is, and a line on it.");
+
+  py::class_<br::RolloutResult>(m, "RolloutResult", "What one rollout returned.")
+      .def_readonly("reward", &br::RolloutResult::reward)
+      .def_readonly("terms", &br::RolloutResult::terms, "The reward's terms, named by Task.term_names().")
+      .def_readonly("ok", &br::RolloutResult::ok, "False when the rollout failed (reward: the task's failure reward).")
+      .def_readonly("outcome", &br::RolloutResult::outcome)
+      .def_readonly("reason", &br::RolloutResult::reason, "Why it failed; empty when ok.")
+      .def_readonly("wall_seconds", &br::RolloutResult::wall_seconds)
+      .def_readonly("trajectory", &br::RolloutResult::trajectory,
+                    "A summary of the rollout's trajectory, one column per sample (the fold: both tools' paths).")
+      .def("__repr__", [](const br::RolloutResult& r) {
+        return "RolloutResult(reward=" + std::to_string(r.reward) + ", outcome='" + r.outcome + "')";
+      });
+
+  py::class_<Task>(m, "Task", "A rollout task: one simulator; one object per thread.")
+      .def(py::init<std::string, std::string>(), py::arg("name"), py::arg("config") = "")
+      .def_property_readonly("name", &Task::name)
+      .def_property_readonly("config", &Task::config)
+      .def("term_names", &Task::termNames)
+      .def("initial_parameters", &Task::initialParameters, "The task's starting policy (its demonstration).")
+      .def("run", &Task::run, py::arg("parameters"), py::arg("seed"),
+           "One rollout of the policy `parameters` with the noise of `seed` (same parameters and seed, same result). "
+           "Releases Python's lock while it runs. A failed rollout is a result with ok False, not an exception.");
+  m.def(
+      "make_task",
+      [](const std::string& name, const std::string& config) { return std::make_unique<Task>(name, config); },
+      py::arg("name"), py::arg("config") = "",
+      "A new task `name` (see tasks()) configured by the file `config` (\"\": the task's defaults, where it has "
+      "them). ValueError for an unknown name or a bad configuration.");
+
+  py::class_<bl::RepsUpdate>(m, "RepsUpdate")
+      .def_readonly("mean", &bl::RepsUpdate::mean)
+      .def_readonly("covariance", &bl::RepsUpdate::covariance)
+      .def_readonly("weights", &bl::RepsUpdate::weights)
+      .def_readonly("eta", &bl::RepsUpdate::eta)
+      .def_readonly("kl", &bl::RepsUpdate::kl);
+  py::class_<bl::Reps>(m, "Reps", "REPS (thesis Sec. 5.2.2): the new Gaussian from rollouts reweighted exp(r / eta).")
+      .def(py::init([](double epsilon, int reuse, bool normalise_rewards) {
+             bl::RepsParameters p;
+             p.epsilon = epsilon;
+             p.reuse = reuse;
+             p.normalise_rewards = normalise_rewards;
+             p.validate();
+             return bl::Reps(p);
+           }),
+           py::arg("epsilon") = 0.5, py::arg("reuse") = 0, py::arg("normalise_rewards") = true)
+      .def("update", &bl::Reps::update, py::arg("samples"), py::arg("rewards"),
+           "One update from rollouts (rows of `samples`) and their rewards (higher is better).");
+
+  py::class_<bl::CovarianceAdaptation>(m, "CmaEs",
+                                       "CMA-ES (Hansen 2006): the search distribution N(m, sigma^2 C), rewards "
+                                       "maximised; step() is one generation.")
+      .def(py::init(&bl::CovarianceAdaptation::start), py::arg("covariance"))
+      .def_readonly("step_size", &bl::CovarianceAdaptation::step_size)
+      .def_readonly("generations", &bl::CovarianceAdaptation::generations)
+      .def_property_readonly("covariance", &bl::CovarianceAdaptation::covariance, "sigma^2 C: where to sample next.")
+      .def(
+          "step",
+          [](bl::CovarianceAdaptation& a, const Eigen::VectorXd& mean, const Eigen::MatrixXd& samples,
+             const Eigen::VectorXd& rewards) { return bl::cmaEsStep(mean, a, samples, rewards); },
+          py::arg("mean"), py::arg("samples"), py::arg("rewards"),
+          "One generation from the samples (rows) drawn around `mean`: returns the new mean.");
+}
