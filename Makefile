@@ -2,7 +2,8 @@
 #   make demo   install what is missing, build, and let the two simulated WAMs learn to fold a cloth from a faulty
 #               demonstration (build/fold_demo)
 #   make test   install what is missing, build, run every gtest and rostest; non-zero exit on any failure
-# Also: make build, make bench (kinematics, dynamics/control, primitives, policy-update and vision benchmarks), make format, make deps.
+# Also: make build, make bench (kinematics, dynamics/control, primitives, policy-update and vision benchmarks), make format, make deps,
+#       make venv (build/venv: Ray and Gymnasium for the Python side).
 
 SHELL := /bin/bash
 # catkin needs Debian's python3 (with catkin_pkg), not a pyenv interpreter earlier on PATH.
@@ -14,12 +15,18 @@ export ROS_HOSTNAME := localhost
 endif
 COLCON_BUILD_FLAGS := --base-paths . --cmake-args -DPYTHON_EXECUTABLE=/usr/bin/python3 -DCMAKE_BUILD_TYPE=Release
 
-.PHONY: deps build demo test bench format
+.PHONY: deps venv build demo test bench format
 
 deps:
 	@bash scripts/install_deps.sh
 
-build: deps
+# The Python side's packages from PyPI (Ray, Gymnasium; python/requirements.txt, pinned) in build/venv, which sees
+# Debian's site packages: build/venv/bin/python runs the bindings, rospy and Ray (make test's Python tests use it).
+VENV := $(CURDIR)/build/venv
+venv: deps
+	@bash scripts/make_venv.sh $(VENV)
+
+build: deps venv
 	colcon build $(COLCON_BUILD_FLAGS)
 
 # The main job: two simulated WAMs learn to fold a cloth (config/fold_demo.yaml). A second run resumes from the

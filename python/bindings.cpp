@@ -5,10 +5,12 @@
 // as ValueError, std::runtime_error as RuntimeError).
 #include "bimanual_skills/learning/covariance_adaptation.hpp"
 #include "bimanual_skills/learning/reps.hpp"
+#include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "cli/pinned_numerics.hpp"
 
 #include <pybind11/eigen.h>
+#include <pybind11/functional.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
@@ -59,6 +61,79 @@ class Task {
   std::mutex mutex_;  ///< Held while a rollout runs: a second thread is refused, not let into the simulator.
 };
 
+/// A learner's Evaluator that hands each batch to Python: `evaluate(requests, done)` with requests a list of
+/// (parameters, seed) and done(index, result) to be called as each rollout finishes (completion order, from the
+/// thread that called evaluate), returning the results in request order (Ray's backend, bimanual_skills.ray_backend).
+/// The learner runs without Python's lock; a batch takes it while Python works.
+class PythonEvaluator : public br::Evaluator {
+ public:
+  explicit PythonEvaluator(py::object evaluate) : evaluate_(std::move(evaluate)) {}
+  ~PythonEvaluator() override {
+    const py::gil_scoped_acquire locked;
+    evaluate_ = py::object();
+  }
+
+  std::vector<br::RolloutResult> evaluate(const std::vector<br::RolloutRequest>& batch, const Done& done,
+                                          const std::function<bool()>& stop) override {
+    if (stop && stop()) throw std::runtime_error("stopped");
+    const py::gil_scoped_acquire locked;
+    py::list requests;
+    for (const br::RolloutRequest& r : batch) requests.append(py::make_tuple(r.parameters, r.seed));
+    std::vector<bool> reported(batch.size(), false);
+    const auto report = [&](std::size_t index, const br::RolloutResult& result) {
+      if (index >= batch.size() || reported[index]) {
+        throw std::invalid_argument(
+            "the evaluator reported rollout " + std::to_string(index) +
+            (index >= batch.size() ? " of a batch of " + std::to_string(batch.size()) : " twice"));
+      }
+      reported[index] = true;
+      if (done) {
+        const py::gil_scoped_release unlocked;  // the learner writes its record
+        done(index, result, nullptr);
+      }
+    };
+    const py::object answer = evaluate_(requests, py::cpp_function(report));
+    std::vector<br::RolloutResult> results = answer.cast<std::vector<br::RolloutResult>>();
+    if (results.size() != batch.size()) {
+      throw std::invalid_argument("the evaluator returned " + std::to_string(results.size()) + " results for " +
+                                  std::to_string(batch.size()) + " rollouts");
+    }
+    for (std::size_t i = 0; i < batch.size(); ++i) {
+      if (!reported[i]) report(i, results[i]);
+    }
+    return results;
+  }
+
+ private:
+  py::object evaluate_;
+};
+
+/// What learn_fold() returns of a FoldLearningResult: per run, the noise-free policy's reward and fold quality
+/// before and after, and the counts.
+py::dict foldSummary(const br::FoldLearningResult& result) {
+  py::list runs;
+  for (const br::FoldRunResult& run : result.runs) {
+    py::dict d;
+    d["algorithm"] = run.algorithm;
+    d["run"] = run.run;
+    d["initial_reward"] = run.initial_policy.terms.reward;
+    d["initial_fold_quality"] = run.initial_policy.terms.fold_quality;
+    d["final_reward"] = run.final_policy.terms.reward;
+    d["final_fold_quality"] = run.final_policy.terms.fold_quality;
+    py::list epochs;
+    for (const br::FoldEpochStats& e : run.epochs) epochs.append(py::make_tuple(e.policy_reward, e.mean_reward));
+    d["epochs"] = epochs;
+    d["seconds"] = run.seconds;
+    runs.append(d);
+  }
+  py::dict out;
+  out["runs"] = runs;
+  out["simulated"] = result.simulated;
+  out["resumed"] = result.resumed;
+  out["seconds"] = result.seconds;
+  return out;
+}
+
 }  // namespace
 
 PYBIND11_MODULE(_core, m) {
@@ -97,7 +172,23 @@ PYBIND11_MODULE(_core, m) {
       },
       "Every task make_task() builds: name, what its configuration file is, and a line on it.");
 
-  py::class_<br::RolloutResult>(m, "RolloutResult", "What one rollout returned.")
+  py::class_<br::RolloutResult>(m, "RolloutResult", "What one rollout returned (picklable: Ray carries it).")
+      .def(py::pickle(
+          [](const br::RolloutResult& r) {
+            return py::make_tuple(r.reward, r.terms, r.ok, r.outcome, r.reason, r.wall_seconds, r.trajectory);
+          },
+          [](const py::tuple& t) {
+            if (t.size() != 7) throw std::invalid_argument("a pickled RolloutResult has 7 fields");
+            br::RolloutResult r;
+            r.reward = t[0].cast<double>();
+            r.terms = t[1].cast<Eigen::VectorXd>();
+            r.ok = t[2].cast<bool>();
+            r.outcome = t[3].cast<std::string>();
+            r.reason = t[4].cast<std::string>();
+            r.wall_seconds = t[5].cast<double>();
+            r.trajectory = t[6].cast<Eigen::MatrixXd>();
+            return r;
+          }))
       .def_readonly("reward", &br::RolloutResult::reward)
       .def_readonly("terms", &br::RolloutResult::terms, "The reward's terms, named by Task.term_names().")
       .def_readonly("ok", &br::RolloutResult::ok, "False when the rollout failed (reward: the task's failure reward).")
@@ -125,6 +216,34 @@ PYBIND11_MODULE(_core, m) {
       py::arg("name"), py::arg("config") = "",
       "A new task `name` (see tasks()) configured by the file `config` (\"\": the task's defaults, where it has "
       "them). ValueError for an unknown name or a bad configuration.");
+
+  m.def(
+      "learn_fold",
+      [](const std::string& config, const std::string& out, const py::object& evaluator, int runs, int updates,
+         int rollouts, long long seed, int jobs) {
+        br::FoldLearningConfig c = br::FoldLearningConfig::fromYamlFile(config);
+        if (runs > 0) c.runs = runs;
+        if (updates > 0) c.updates = updates;
+        if (rollouts > 0) c.rollouts = rollouts;
+        if (seed >= 0) c.seed = seedOf(seed);
+        c.jobs = jobs;
+        std::unique_ptr<br::Evaluator> backend;
+        if (!evaluator.is_none()) backend = std::make_unique<PythonEvaluator>(evaluator);
+        br::FoldLearner learner(c, out, {}, std::move(backend));
+        br::FoldLearningResult result;
+        {
+          const py::gil_scoped_release unlocked;
+          result = learner.learn();
+        }
+        return foldSummary(result);
+      },
+      py::arg("config"), py::arg("out"), py::arg("evaluator") = py::none(), py::arg("runs") = 0, py::arg("updates") = 0,
+      py::arg("rollouts") = 0, py::arg("seed") = -1, py::arg("jobs") = 0,
+      "The fold learning of a learning file (fold_learner's, in process), into the run directory `out` (resumed "
+      "from the rollouts already there). runs, updates, rollouts, seed override the file's (0 / -1: the file's). "
+      "Rollouts on `jobs` threads here, or, with `evaluator`, wherever it runs them: evaluator(requests, done) gets "
+      "a list of (parameters, seed) of the task \"fold\" of this file, calls done(index, result) as each finishes "
+      "and returns the results in order (bimanual_skills.ray_backend.RayEvaluator). Same seed, same results.");
 
   py::class_<bl::RepsUpdate>(m, "RepsUpdate")
       .def_readonly("mean", &bl::RepsUpdate::mean)

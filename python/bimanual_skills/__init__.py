@@ -15,14 +15,41 @@ from bimanual_skills._core import (  # noqa: F401
     RepsUpdate,
     RolloutResult,
     Task,
+    learn_fold,
     make_task,
     numerics,
     pinned_environment,
     tasks,
 )
 
-__all__ = ["CmaEs", "Reps", "RepsUpdate", "RolloutResult", "Task", "config_path", "make_task", "numerics",
-           "pinned_environment", "tasks"]
+__all__ = ["CmaEs", "Reps", "RepsUpdate", "RolloutResult", "Task", "config_path", "learn_fold", "make_task", "numerics",
+           "pin_numerics", "pinned_environment", "tasks"]
+
+_PINNED_MARKER = "BIMANUAL_SKILLS_NUMERICS_PINNED"
+
+
+def pin_numerics():
+    """As the C++ programs do at start: when libm or OpenCV run this CPU's own code (numerics() is not "pinned"),
+    executes this Python program again with pinned_environment() set, so that its rollouts equal the C++ programs'
+    bit for bit; does not return then. Call it first, before anything computes. Returns (with a warning) when the
+    re-executed program is still not pinned."""
+    import sys
+    import warnings
+
+    if numerics() == "pinned":
+        return
+    if _os.environ.get(_PINNED_MARKER):
+        warnings.warn("bimanual_skills: numerics not pinned after re-executing (%s)" % numerics())
+        return
+    env = dict(_os.environ)
+    for key, value in pinned_environment().items():
+        old = env.get(key, "")
+        env[key] = value if not old else old + (":" if key == "GLIBC_TUNABLES" else ",") + value
+    env[_PINNED_MARKER] = "1"
+    argv = sys.orig_argv if hasattr(sys, "orig_argv") else [sys.executable] + sys.argv
+    sys.stdout.flush()
+    sys.stderr.flush()
+    _os.execve(sys.executable, argv, env)
 
 
 def config_path(name):

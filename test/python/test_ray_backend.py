@@ -1,0 +1,99 @@
+"""Ray as the learners' rollout backend (bimanual_skills.ray_backend): the fold's learning on a local Ray of 1 and 2
+workers gives the in-process results exactly; a Ray worker killed mid-rollout has its rollout run again, nothing
+lost or doubled. Run by make test with build/venv's Python (Ray from PyPI, python/requirements.txt)."""
+import csv
+import os
+import shutil
+import signal
+import tempfile
+import threading
+import time
+
+import pytest
+
+import bimanual_skills as bs
+
+ray = pytest.importorskip("ray", reason="Ray is in build/venv (make venv); make test runs this file with it")
+from bimanual_skills import ray_backend  # noqa: E402
+
+SOURCE = os.environ.get("BIMANUAL_SKILLS_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", ".."))
+SMALL = os.path.join(SOURCE, "test", "fold_learner_small.yaml")
+
+
+def test_this_process_runs_the_pinned_numerics():
+    # The in-process references below run here, Ray's workers start pinned: test/python/run.py pins this process.
+    assert bs.numerics() == "pinned", "run the tests through test/python/run.py"
+
+
+def rollouts(out):
+    """rollouts.csv's rows without the wall time, in the learning's order (the file has them as they finished)."""
+    with open(os.path.join(out, "rollouts.csv")) as f:
+        rows = [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(f)]
+    return sorted(rows, key=lambda r: (r["algorithm"], int(r["run"]), int(r["epoch"]), r["kind"], int(r["index"])))
+
+
+@pytest.fixture
+def out():
+    d = tempfile.mkdtemp(prefix="ray_backend_")
+    yield d
+    shutil.rmtree(d, ignore_errors=True)
+
+
+def learn(out, name, evaluator=None):
+    path = os.path.join(out, name)
+    summary = bs.learn_fold(SMALL, path, evaluator=evaluator, updates=2, rollouts=4, jobs=2)
+    return summary, rollouts(path)
+
+
+def test_ray_gives_the_in_process_learning_for_one_and_two_workers(out):
+    reference, reference_rows = learn(out, "threads")
+    assert reference["simulated"] == len(reference_rows) > 8
+    for workers in (1, 2):
+        ray.shutdown()
+        summary, rows = learn(out, "ray%d" % workers, ray_backend.RayEvaluator("fold", SMALL, workers=workers))
+        assert rows == reference_rows, "%d workers" % workers
+        timeless = [{k: v for k, v in r.items() if k != "seconds"} for r in summary["runs"]]
+        assert timeless == [{k: v for k, v in r.items() if k != "seconds"} for r in reference["runs"]]
+    ray.shutdown()
+
+
+def _rollout_workers():
+    """PIDs of Ray worker processes running a rollout (Ray names them after the task they run)."""
+    pids = []
+    for pid in os.listdir("/proc"):
+        if not pid.isdigit():
+            continue
+        try:
+            with open("/proc/%s/cmdline" % pid, "rb") as f:
+                if f.read().startswith(b"ray::_rollout"):
+                    pids.append(int(pid))
+        except OSError:
+            pass
+    return pids
+
+
+def test_a_killed_worker_has_its_rollout_run_again_nothing_lost_or_doubled(out):
+    _, reference_rows = learn(out, "threads")
+    ray.shutdown()
+    evaluator = ray_backend.RayEvaluator("fold", SMALL, workers=2)
+    killed = []
+
+    def killer():
+        deadline = time.monotonic() + 120.0
+        while not killed and time.monotonic() < deadline:
+            pids = _rollout_workers()
+            if pids:
+                time.sleep(0.2)  # mid-rollout (one takes about 0.5 s)
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+            time.sleep(0.02)
+
+    watcher = threading.Thread(target=killer)
+    watcher.start()
+    summary, rows = learn(out, "killed", evaluator)
+    watcher.join()
+    ray.shutdown()
+    assert killed, "no rollout worker was seen to kill"
+    assert rows == reference_rows
+    keys = [(r["algorithm"], r["run"], r["epoch"], r["index"], r["kind"]) for r in rows]
+    assert len(keys) == len(set(keys))
