@@ -84,8 +84,12 @@ class Person {
   void onPhase(const bimanual_skills::GuidancePhase& m) {
     const int run = static_cast<int>(m.run);
     const std::string& phase = m.phase;
+    // The run's line starts after the arm is back and the scene reset: until then the reference (still where the
+    // last run ended, then on a clock that may jump back) says nothing of when to take.
+    on_line_ = run == run_ && (phase == "line" || phase == "guided" || phase == "back");
     if (phase == "approach" && run != run_) {
       run_ = run;
+      reference_ = Eigen::Vector2d::Zero();
       person_.emplace(bt::PersonConfig{}, task_->lineLength(), seed_ + static_cast<std::uint32_t>(run));
       take_time_ = -1.0;
       ROS_INFO("guide_person: run %d, person %u: takes at %.3f of the line, S of %.3f, %.2f s, lets go at %.3f", run,
@@ -102,7 +106,7 @@ class Person {
     if (mode_ == "scripted" && person_) {
       const double t = event.current_real.toSec();
       // Raised a fifth of a second before the reference reaches the take, as a person sees it coming.
-      if (take_time_ < 0.0 && reference_.x() + 0.2 * line_speed_ >= person_->take()) take_time_ = t;
+      if (take_time_ < 0.0 && on_line_ && reference_.x() + 0.2 * line_speed_ >= person_->take()) take_time_ = t;
       const double since = take_time_ < 0.0 ? -1.0 : t - take_time_;
       const Eigen::Vector2d at = since < 0.0 ? Eigen::Vector2d(person_->take(), 0.0) : person_->intended(since);
       hand_ = task_->fromLine(at);
@@ -168,6 +172,7 @@ class Person {
   Eigen::Vector3d hand_ = Eigen::Vector3d::Zero();
   ros::Publisher carry_;
   ros::Subscriber phase_, target_;
+  bool on_line_ = false;  ///< bottles_guidance's current run is on its line (the person may take).
   std::unique_ptr<interactive_markers::InteractiveMarkerServer> server_;
   ros::Timer timer_;
 };
