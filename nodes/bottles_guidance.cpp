@@ -80,9 +80,10 @@ const char* kUsage =
     "never let go); Failed (not arrived within ~max_run). Only Ok runs are learned from. Exits 1 when the runs give\n"
     "nothing to learn (fewer than 2 Ok runs, or an alignment that fails), with the reason.\n";
 
-/// Before each run the arm goes to the start (MoveToStart), the scene is reset with it there (Reset: a robot's reset
-/// leaves the arm where it is, and the move back from the goal would sweep through the bottles laid anew), and the
-/// tool holds at the line's start (Approach).
+/// Before each run the arm goes to the start (MoveToStart), the scene is reset with it there (Reset, half a second:
+/// a robot's reset leaves the arm where it is, and the move back from the goal would sweep through the bottles laid
+/// anew; the first run has no reset), the controller is switched to follow mode (Follow, retried until it takes)
+/// and the tool holds at the line's start (Approach).
 enum class Stage { MoveToStart, Reset, Follow, Approach, Run, Settle, Done };
 
 const char* phaseName(Stage stage, bt::GuidanceFollower::Phase phase) {
