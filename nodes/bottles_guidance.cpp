@@ -30,6 +30,7 @@
 #include <fstream>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -63,6 +64,8 @@ const char* kUsage =
     "                   [0, 2^32) (default 1; guided.launch passes its seed:=, the scripted person's)\n"
     "  ~max_run         [s] a run whose reference has not arrived by then ends as failed (default 30)\n"
     "  ~hand_max_age    [s] a hand estimate older than this (robot clock) counts as lowered (default 0.3)\n"
+    "  ~controller_max_age [s] the arm's follow_state older than this (robot clock), or saying it no longer\n"
+    "                   follows, ends the run as failed (default 0.5)\n"
     "  ~lag, ~max_speed the follower's time constant [s] (0.15) and speed cap [line lengths/s] (0.6)\n"
     "  ~hand_topic      bimanual_skills/TrackedObject of the hand (default /object_tracker/object)\n"
     "  ~tool_topic      bimanual_skills/FollowerState of the arm's controller (default /ARM/follow_state)\n"
@@ -77,17 +80,18 @@ const char* kUsage =
     "take, release, bottles down, sides, length, reward), and after the last run guided_policy.csv (the learned\n"
     "DMP's 20 weights) and summary.json. Outcomes: Ok; HandLost (the hand's estimate went stale or the tracker lost\n"
     "it while guiding: the tool went back to the line, but the person did not let go); NotGuided (never taken or\n"
-    "never let go); Failed (not arrived within ~max_run). Only Ok runs are learned from. Exits 1 when the runs give\n"
+    "never let go); Failed (not arrived within ~max_run, or the arm's controller stopped following or went silent, or\n"
+    "did not take follow mode within ~max_run). Only Ok runs are learned from. Exits 1 when the runs give\n"
     "nothing to learn (fewer than 2 Ok runs, or an alignment that fails), with the reason.\n";
 
-/// Before each run the arm goes to the start (MoveToStart), the scene is reset with it there (Reset, half a second:
-/// a robot's reset leaves the arm where it is, and the move back from the goal would sweep through the bottles laid
-/// anew; the first run has no reset), the controller is switched to follow mode (Follow, retried until it takes)
-/// and the tool holds at the line's start (Approach).
-enum class Stage { MoveToStart, Reset, Follow, Approach, Run, Settle, Done };
+/// Before each run the arm goes to the start (MoveToStart) and the scene is reset with it there (a robot's reset
+/// leaves the arm where it is, and the move back from the goal would sweep through the bottles laid anew; the first
+/// run has no reset); half a second after a reset for the new scene's states, the controller is switched to follow
+/// mode (Follow, retried until it takes, up to ~max_run) and the tool holds at the line's start (Approach).
+enum class Stage { MoveToStart, Follow, Approach, Run, Settle, Done };
 
 const char* phaseName(Stage stage, bt::GuidanceFollower::Phase phase) {
-  if (stage == Stage::MoveToStart || stage == Stage::Reset || stage == Stage::Follow || stage == Stage::Approach) {
+  if (stage == Stage::MoveToStart || stage == Stage::Follow || stage == Stage::Approach) {
     return "approach";
   }
   switch (phase) {
@@ -122,6 +126,7 @@ class Guidance {
     if (seed != std::floor(seed)) throw std::invalid_argument("~seed must be an integer in [0, 2^32)");
     seed_ = static_cast<std::uint32_t>(seed);
     hand_max_age_ = p.number("hand_max_age", 0.3, 1e-3, 10.0);
+    controller_max_age_ = p.number("controller_max_age", 0.5, 1e-3, 10.0);
     guidance_.line_speed = 1.0 / config.duration;
     guidance_.lag = p.number("lag", guidance_.lag, 1e-3, 10.0);
     guidance_.max_speed = p.number("max_speed", guidance_.max_speed, 1e-3, 100.0);
@@ -176,6 +181,12 @@ class Guidance {
   void onTool(const bimanual_skills::FollowerState& m) {
     const Eigen::Vector3d p(m.tool.x, m.tool.y, m.tool.z);
     if (p.allFinite()) tool_position_ = p;
+    controller_following_ = m.following;
+    controller_reason_ = m.reason;
+    controller_stamp_ = m.header.stamp.toSec();
+    if (m.following && (stage_ == Stage::Approach || stage_ == Stage::Run || stage_ == Stage::Settle)) {
+      controller_confirmed_ = true;
+    }
   }
   void onObstacles(const geometry_msgs::PoseArray& m) {
     down_ = 0;
@@ -251,13 +262,13 @@ class Guidance {
       }
       if (t - stage_start_ >= move_time_ + 0.5) {
         moving_ = false;
+        follow_wait_ = 0.0;
         if (reset_pending_) {
           reset_pending_ = false;
           resetScene();
-          stage_ = Stage::Reset;
-        } else {
-          stage_ = Stage::Follow;
+          follow_wait_ = 0.5;
         }
+        stage_ = Stage::Follow;
         stage_start_ = t;
       }
       publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
@@ -266,21 +277,24 @@ class Guidance {
     }
     // After a reset (a simulator's clock goes back: the stage starts again on it), half a second for the arm's
     // states of the new scene; then the controller follows the reference from where the tool is.
-    if (stage_ == Stage::Reset || stage_ == Stage::Follow) {
-      if (stage_ == Stage::Reset && t - stage_start_ < 0.5) {
-        publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
-        return;
-      }
+    if (stage_ == Stage::Follow) {
+      publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
+      if (t - stage_start_ < follow_wait_) return;
       bimanual_skills::SetControlMode mode;
       mode.request.mode = "follow";
-      publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
       if (!set_mode_.call(mode) || !mode.response.success) {
+        const std::string why = mode.response.message.empty() ? "no answer" : mode.response.message;
+        if (t - stage_start_ > max_run_) {
+          finishRun(set_mode_.getService() + " follow not taken within ~max_run: " + why, now);
+          return;
+        }
         ROS_WARN_THROTTLE(2.0, "bottles_guidance: %s follow: %s (trying again)", set_mode_.getService().c_str(),
-                          mode.response.message.c_str());
+                          why.c_str());
         return;
       }
       stage_ = Stage::Approach;
       stage_start_ = t;
+      controller_confirmed_ = false;
       publishPhase(now);
       return;
     }
@@ -295,6 +309,26 @@ class Guidance {
       }
       publishPhase(now);
       return;
+    }
+    // The arm's controller left follow mode (its states came late, a velocity limit) or went silent (stopped,
+    // dead): the tool no longer went where the person led it; the run ends and is not learned from.
+    if (usable && (stage_ == Stage::Run || stage_ == Stage::Settle)) {
+      std::string stopped;
+      if (!controller_confirmed_ && t - stage_start_ > controller_max_age_) {
+        stopped = "the arm's controller never reported following";
+      } else if (controller_confirmed_ && !controller_following_) {
+        stopped = "the arm's controller stopped following" +
+                  (controller_reason_.empty() ? std::string() : " (" + controller_reason_ + ")");
+      } else if (controller_confirmed_ && t - controller_stamp_ > controller_max_age_) {
+        std::ostringstream age;
+        age << "the arm's controller went silent (its follow_state " << t - controller_stamp_ << " s old)";
+        stopped = age.str();
+      }
+      if (!stopped.empty()) {
+        ROS_WARN("bottles_guidance: run %d: %s", run_, stopped.c_str());
+        finishRun(stopped, now);
+        return;
+      }
     }
     const bool fresh = hand_tracking_ && t - hand_stamp_ <= hand_max_age_;
     const bool raised = fresh && hand_position_.z() > gesture_height_;
@@ -432,6 +466,8 @@ class Guidance {
     stage_start_ = last_tick_;
     follower_->reset();
     hand_lost_ = false;
+    take_ = release_ = -1.0;
+    end_ = 0.0;
     publishPhase(now, outcome);
   }
 
@@ -475,7 +511,9 @@ class Guidance {
   std::string out_;
   int runs_ = 20, run_ = 0, down_ = 0, satisfactory_ = 0;
   double gesture_height_ = 0.0, period_ = 0.01, approach_ = 4.0, settle_ = 0.5, max_run_ = 30.0, hand_max_age_ = 0.3;
-  double move_time_ = 3.0;
+  double move_time_ = 3.0, follow_wait_ = 0.0, controller_max_age_ = 0.5, controller_stamp_ = -1e9;
+  bool controller_following_ = false, controller_confirmed_ = false;
+  std::string controller_reason_;
   Stage stage_ = Stage::MoveToStart;
   bool moving_ = false;
   double stage_start_ = 0.0, last_tick_ = -1.0, take_ = -1.0, release_ = -1.0, end_ = 0.0;

@@ -1,7 +1,10 @@
-// rostest (test/guided.test): guided.launch with the scripted person over 2 runs. Checks bottles_guidance's phases
+// rostest (test/guided.test): guided.launch with the scripted person over 3 runs. Checks bottles_guidance's phases
 // in order in each run, that the right tool followed the raised hand between the bottles (runs.csv), every record's
-// columns, and the policy learned from the runs (guided_policy.csv with the DMP's 20 weights, summary.json).
+// columns, and the policy learned from the runs (guided_policy.csv with the DMP's 20 weights, summary.json). In the
+// third run, while the hand guides, the arm's controller is switched to hold (as a controller that leaves follow
+// mode by itself would be): that run ends as Failed and is not learned from.
 #include "bimanual_skills/GuidancePhase.h"
+#include "bimanual_skills/SetControlMode.h"
 #include "ros_wait.hpp"
 
 #include <ros/ros.h>
@@ -51,11 +54,18 @@ TEST(GuidedNode, TheScriptedPersonGuidesTheArmBetweenTheBottlesAndAPolicyIsLearn
         const std::string p = "run " + std::to_string(m->run) + ": " + m->phase;
         if (phases.empty() || phases.back() != p) phases.push_back(p);
         if (!m->outcome.empty()) outcomes.push_back(m->outcome);
-        EXPECT_EQ(m->runs, 2u);
+        EXPECT_EQ(m->runs, 3u);
       });
   std::string out;
   ASSERT_TRUE(bimanual_skills::test::spinUntil([&] { return ros::param::get("/bottles_guidance/out", out); }, 30.0));
-  ASSERT_TRUE(bimanual_skills::test::spinUntil([&] { return std::filesystem::exists(out + "/summary.json"); }, 220.0))
+  ASSERT_TRUE(bimanual_skills::test::spinUntil(
+      [&] { return std::find(phases.begin(), phases.end(), "run 2: guided") != phases.end(); }, 200.0))
+      << "run 2 never guided; phases seen: " << phases.size();
+  bimanual_skills::SetControlMode hold;
+  hold.request.mode = "hold";
+  ASSERT_TRUE(ros::service::call("/right/set_mode", hold));
+  ASSERT_TRUE(hold.response.success) << hold.response.message;
+  ASSERT_TRUE(bimanual_skills::test::spinUntil([&] { return std::filesystem::exists(out + "/summary.json"); }, 120.0))
       << "no summary in " << out << "; phases seen: " << phases.size();
   for (const int run : {0, 1}) {
     const std::string prefix = "run " + std::to_string(run) + ": ";
@@ -66,11 +76,16 @@ TEST(GuidedNode, TheScriptedPersonGuidesTheArmBetweenTheBottlesAndAPolicyIsLearn
     const std::vector<std::string> expected = {"approach", "line", "guided", "back", "arrived"};
     EXPECT_EQ(seen, expected) << "run " << run;
   }
-  bimanual_skills::test::spinUntil([&] { return !phases.empty() && phases.back() == "run 2: done"; }, 5.0);
-  EXPECT_EQ(phases.back(), "run 2: done");
-  EXPECT_EQ(outcomes, (std::vector<std::string>{"Ok", "Ok"})) << "each run's outcome, in the next run's first phase";
-  const auto runs = rows(out + "/runs.csv");
-  ASSERT_EQ(runs.size(), 2u);
+  bimanual_skills::test::spinUntil([&] { return !phases.empty() && phases.back() == "run 3: done"; }, 5.0);
+  EXPECT_EQ(phases.back(), "run 3: done");
+  EXPECT_EQ(outcomes, (std::vector<std::string>{"Ok", "Ok", "Failed"}))
+      << "each run's outcome, in the next run's first phase";
+  auto runs = rows(out + "/runs.csv");
+  ASSERT_EQ(runs.size(), 3u);
+  ASSERT_EQ(runs[2].size(), 12u);
+  EXPECT_EQ(runs[2][1], "Failed") << "the run whose controller left follow mode";
+  EXPECT_EQ(runs[2][3], "-1") << "a failed run has no release";
+  runs.pop_back();
   for (const auto& r : runs) {
     ASSERT_EQ(r.size(), 12u);
     EXPECT_EQ(r[1], "Ok") << "run " << r[0];
