@@ -6,13 +6,17 @@
 #include "bimanual_skills/learning/covariance_adaptation.hpp"
 #include "bimanual_skills/learning/reps.hpp"
 #include "bimanual_skills/rollout/fold_learning.hpp"
+#include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
+#include "bimanual_skills/tasks/fold_quality.hpp"
 #include "cli/pinned_numerics.hpp"
 
 #include <pybind11/eigen.h>
 #include <pybind11/functional.h>
+#include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <opencv2/core.hpp>
 
 #include <cstdint>
 #include <memory>
@@ -24,6 +28,7 @@
 namespace py = pybind11;
 namespace br = bimanual_skills::rollout;
 namespace bl = bimanual_skills::learning;
+namespace tasks = bimanual_skills::tasks;
 
 namespace {
 
@@ -59,6 +64,84 @@ class Task {
   std::string name_, config_;
   std::unique_ptr<br::RolloutTask> task_;
   std::mutex mutex_;  ///< Held while a rollout runs: a second thread is refused, not let into the simulator.
+};
+
+/// `image` (bgr8 or 32FC1) as a read-only NumPy view of its buffer, no copy: rows × columns (× channels). `owner`
+/// (the object holding the image) lives as long as the view; the next rollout or render writes over it.
+py::array imageView(const cv::Mat& image, const py::object& owner) {
+  if (image.depth() != CV_8U && image.depth() != CV_32F) throw std::logic_error("an image neither 8U nor 32F");
+  std::vector<py::ssize_t> shape{image.rows, image.cols};
+  std::vector<py::ssize_t> strides{static_cast<py::ssize_t>(image.step[0]), static_cast<py::ssize_t>(image.elemSize())};
+  if (image.channels() > 1) {
+    shape.push_back(image.channels());
+    strides.push_back(static_cast<py::ssize_t>(image.elemSize1()));
+  }
+  const py::dtype dtype = image.depth() == CV_8U ? py::dtype::of<std::uint8_t>() : py::dtype::of<float>();
+  py::array view(dtype, shape, strides, image.data, owner);
+  view.attr("flags").attr("writeable") = false;
+  return view;
+}
+
+/// The cloth fold of a fold learning file with its images: what the Gymnasium environment
+/// (bimanual_skills.gym_env.FoldEnv) runs. One simulator and camera, used from one thread at a time.
+class FoldTask {
+ public:
+  FoldTask(const std::string& config, const std::string& noise)
+      : config_(withNoise(br::withSimulationRenderer(br::FoldLearningConfig::fromYamlFile(config)), noise)),
+        task_(config_.task, config_.reward) {}
+
+  br::FoldRolloutTask& task() { return task_; }
+  std::string noise() const { return config_.task.noise.setting; }
+  /// The policy of the demonstration's latent weights moved by `offsets` (Ω = I).
+  Eigen::VectorXd parametersFor(const Eigen::VectorXd& offsets) {
+    const Eigen::VectorXd weights = task_.task().demonstrationParameters();
+    if (offsets.size() != weights.size() || !offsets.allFinite()) {
+      throw std::invalid_argument("the fold's policy has " + std::to_string(weights.size()) +
+                                  " latent weights: offsets of that many finite values, not " +
+                                  std::to_string(offsets.size()));
+    }
+    return br::encodeCoordinatedPolicy(
+        {Eigen::MatrixXd::Identity(tasks::ClothFoldTask::kDofs, tasks::ClothFoldTask::kDofs)}, weights + offsets);
+  }
+  Eigen::VectorXd weightStddev() { return br::latentWeightStddev(config_, task_.task()); }
+  br::RolloutResult run(const Eigen::VectorXd& parameters, long long seed) {
+    const std::uint32_t s = seedOf(seed);
+    const py::gil_scoped_release unlocked;
+    const std::unique_lock<std::mutex> lock = own();
+    return task_.run(parameters, s);
+  }
+  std::string renderStart(long long seed) {
+    const std::uint32_t s = seedOf(seed);
+    const py::gil_scoped_release unlocked;
+    const std::unique_lock<std::mutex> lock = own();
+    return bimanual_skills::vision::toString(task_.renderStart(s));
+  }
+  py::dict startFold(long long seed) {
+    // The start against itself: its own rest, as the rollout of `seed` measures its cloth.
+    const Eigen::Matrix3Xd start = task_.task().clothStartVertices(seedOf(seed));
+    const bimanual_skills::sim::ClothParameters& cloth = task_.task().simConfig().cloth;
+    const tasks::FoldQuality f = tasks::foldQuality(start, start, cloth.nodes_x, cloth.nodes_y, cloth.thickness);
+    py::dict d;
+    d["q"] = f.q;
+    d["distance"] = f.distance;
+    d["displacement"] = f.displacement;
+    return d;
+  }
+
+ private:
+  static br::FoldLearningConfig withNoise(br::FoldLearningConfig c, const std::string& noise) {
+    if (!noise.empty()) c.task.noise = tasks::foldNoiseSetting(noise, "FoldTask's noise");
+    return c;
+  }
+  std::unique_lock<std::mutex> own() {
+    std::unique_lock<std::mutex> lock(mutex_, std::try_to_lock);
+    if (!lock.owns_lock()) throw std::runtime_error("this fold task is busy on another thread: one task per thread");
+    return lock;
+  }
+
+  br::FoldLearningConfig config_;
+  br::FoldRolloutTask task_;
+  std::mutex mutex_;
 };
 
 /// A learner's Evaluator that hands each batch to Python: `evaluate(requests, done)` with requests a list of
@@ -210,6 +293,47 @@ PYBIND11_MODULE(_core, m) {
       .def("run", &Task::run, py::arg("parameters"), py::arg("seed"),
            "One rollout of the policy `parameters` with the noise of `seed` (same parameters and seed, same result). "
            "Releases Python's lock while it runs. A failed rollout is a result with ok False, not an exception.");
+  py::class_<FoldTask>(m, "FoldTask",
+                       "The cloth fold of a fold learning file with the camera's images as NumPy arrays (the "
+                       "Gymnasium environment's core). One simulator; one object per thread.")
+      .def(py::init<std::string, std::string>(), py::arg("config"), py::arg("noise") = "",
+           "`config`: a fold learning file (config/fold_demo.yaml); `noise`: the robot's repeatability setting, "
+           "\"none\" or \"robot\" (\"\": the file's). ValueError for a bad file or setting.")
+      .def_property_readonly("noise", &FoldTask::noise)
+      .def("term_names", [](const FoldTask&) { return br::FoldRolloutTask::names(); })
+      .def(
+          "initial_parameters", [](FoldTask& t) { return t.task().initialParameters(); },
+          "The demonstration's policy (Ω = I and its latent weights).")
+      .def("parameters_for", &FoldTask::parametersFor, py::arg("offsets"),
+           "The policy whose latent weights are the demonstration's plus `offsets` (Ω = I).")
+      .def("latent_weight_stddev", &FoldTask::weightStddev,
+           "The learning file's starting exploration per latent weight (kernel weights initial_stddev, goal "
+           "weights the forcing that moves the goal by goal_stddev), in parameters_for()'s order.")
+      .def_property_readonly(
+          "thickness", [](FoldTask& t) { return t.task().task().simConfig().cloth.thickness; },
+          "The cloth's thickness [m]: an ideal fold's halves lie this far apart.")
+      .def("run", &FoldTask::run, py::arg("parameters"), py::arg("seed"),
+           "One rollout, as Task.run (releases Python's lock); its final images are images() until the next.")
+      .def("render_start", &FoldTask::renderStart, py::arg("seed"),
+           "The camera's picture of rollout `seed`'s start (the flat cloth where that rollout's noise lays it): "
+           "start_images() until the next call. Returns the vision status (\"Ok\").")
+      .def(
+          "images",
+          [](py::object self) {
+            FoldTask& t = self.cast<FoldTask&>();
+            return py::make_tuple(imageView(t.task().reward().bgr(), self), imageView(t.task().reward().depth(), self));
+          },
+          "The last rollout's final images as the reward scored them: (bgr uint8 H x W x 3, depth float32 H x W "
+          "[m]), read-only views of the task's buffers (no copy; the next rollout writes over them).")
+      .def(
+          "start_images",
+          [](py::object self) {
+            FoldTask& t = self.cast<FoldTask&>();
+            return py::make_tuple(imageView(t.task().startBgr(), self), imageView(t.task().startDepth(), self));
+          },
+          "The last render_start()'s images, as images() (views, no copy).")
+      .def("start_fold", &FoldTask::startFold, py::arg("seed"),
+           "The fold quality of rollout `seed`'s start (q 0: the flat cloth): q, distance, displacement [m].");
   m.def(
       "make_task",
       [](const std::string& name, const std::string& config) { return std::make_unique<Task>(name, config); },

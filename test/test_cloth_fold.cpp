@@ -303,6 +303,13 @@ TEST(ClothFold, TheRobotsNoiseMovesTheClothAndTheReleaseByTheSeedsDraw) {
   }
   EXPECT_LT(worst, 1e-9);
   EXPECT_NE(a.fold.q, plain.fold.q);
+  // clothStartVertices(seed), before that rollout, is where the simulation then lays the cloth; without noise, the
+  // file's placement for every seed.
+  const Eigen::Matrix3Xd predicted = noisy.clothStartVertices(8u);
+  ASSERT_EQ(predicted.cols(), other.cloth_rest_vertices.cols());
+  EXPECT_LT((predicted - other.cloth_rest_vertices).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_GT((predicted - noisy.clothStartVertices(7u)).cwiseAbs().maxCoeff(), 1e-4);
+  EXPECT_EQ((quiet.clothStartVertices(8u) - plain.cloth_rest_vertices).cwiseAbs().maxCoeff(), 0.0);
 
   bt::FoldNoise bad = robot;
   bad.release_time = -0.01;

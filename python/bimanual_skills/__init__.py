@@ -11,6 +11,7 @@ import os as _os
 
 from bimanual_skills._core import (  # noqa: F401
     CmaEs,
+    FoldTask,
     Reps,
     RepsUpdate,
     RolloutResult,
@@ -22,7 +23,7 @@ from bimanual_skills._core import (  # noqa: F401
     tasks,
 )
 
-__all__ = ["CmaEs", "Reps", "RepsUpdate", "RolloutResult", "Task", "config_path", "learn_fold", "make_task", "numerics",
+__all__ = ["CmaEs", "FoldTask", "Reps", "RepsUpdate", "RolloutResult", "Task", "config_path", "learn_fold", "make_task", "numerics",
            "pin_numerics", "pinned_environment", "tasks"]
 
 _PINNED_MARKER = "BIMANUAL_SKILLS_NUMERICS_PINNED"

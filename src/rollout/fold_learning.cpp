@@ -27,7 +27,24 @@ using realtime::Clock;
 using realtime::secondsSince;
 constexpr double kInfinity = std::numeric_limits<double>::infinity();
 
+/// Per goal weight the forcing α_z β_z goal_stddev that moves the goal by goal_stddev.
+double goalWeightStddev(const FoldLearningConfig& config, const primitives::DmpParameters& dmp) {
+  return dmp.alpha_z * dmp.beta_z * config.goal_stddev;
+}
+
 }  // namespace
+
+Eigen::VectorXd latentWeightStddev(const FoldLearningConfig& config, const tasks::ClothFoldTask& task) {
+  const int basis = task.policyBasisSize();
+  const bool goals = task.config().policy == tasks::FoldPolicy::WeightsAndGoals;
+  Eigen::VectorXd out = Eigen::VectorXd::Constant(tasks::ClothFoldTask::kDofs * basis, config.initial_stddev);
+  if (goals) {
+    for (int dof = 0; dof < tasks::ClothFoldTask::kDofs; ++dof) {
+      out[dof * basis + basis - 1] = goalWeightStddev(config, task.dmpParameters());
+    }
+  }
+  return out;
+}
 
 FoldLearningConfig withSimulationRenderer(FoldLearningConfig config) {
   const vision::RenderNoise noise = config.reward.renderer.noise;
@@ -346,8 +363,7 @@ struct FoldLearner::Impl {
     settings.reuse = config.reuse;
     settings.covariance_memory = config.covariance_memory;
     settings.initial_stddev = config.initial_stddev;
-    // Per goal weight the forcing α_z β_z goal_stddev that moves the goal by goal_stddev.
-    settings.goal_stddev = parameters.dmp.alpha_z * parameters.dmp.beta_z * config.goal_stddev;
+    settings.goal_stddev = goalWeightStddev(config, parameters.dmp);
     DmpSearch search(variant, parameters, task.demonstrationTrajectory(), task.demonstrationStep(), settings);
     FoldRunResult result;
     result.best.terms.reward = -kInfinity;

@@ -10,7 +10,8 @@ namespace bimanual_skills::rollout {
 FoldRolloutTask::FoldRolloutTask(const tasks::ClothFoldConfig& task, const tasks::FoldRewardConfig& reward)
     : task_(task),
       reward_(reward, task_.simConfig().cloth.length * task_.simConfig().cloth.width, task_.idealFoldVertices(),
-              task_.clothTriangles()) {}
+              task_.clothTriangles()),
+      start_renderer_(reward.renderer) {}
 
 std::vector<std::string> FoldRolloutTask::termNames() const {
   return names();
@@ -62,6 +63,12 @@ tasks::FoldRewardTerms FoldRolloutTask::score(const tasks::FoldRollout& rollout,
   std::seed_seq sequence{seed, 0x5eedu};
   std::mt19937 rng(sequence);
   return reward_.evaluate(rollout, rng);
+}
+
+vision::VisionStatus FoldRolloutTask::renderStart(std::uint32_t seed) {
+  std::seed_seq sequence{seed, 0x57a27u};
+  std::mt19937 rng(sequence);
+  return start_renderer_.render(task_.clothStartVertices(seed), task_.clothTriangles(), rng);
 }
 
 RolloutResult FoldRolloutTask::run(const Eigen::VectorXd& parameters, std::uint32_t seed) {

@@ -228,6 +228,7 @@ struct ClothFoldTask::Impl {
   std::vector<CartesianDmp> demonstration;
   std::vector<std::vector<Pose>> demonstration_paths;
   std::vector<Eigen::VectorXd> start_q;
+  Eigen::Matrix3Xd file_rest;  ///< The flat cloth at rest as the simulation file places it (world frame).
 
   /// New controllers for both arms (the robot path's ArmController) with room for a plan of `periods` periods: a
   /// rollout must not depend on which rollouts ran before it on this task (filters and trajectories carry state).
@@ -306,6 +307,7 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
   m.sim_config = sim::SimConfig::fromYamlFile(config.sim_config, config.robot);
   if (!m.sim_config.has_cloth) throw std::invalid_argument("cloth fold: '" + config.sim_config + "' has no cloth");
   m.simulation = std::make_unique<sim::BimanualSimulation>(m.sim_config);
+  m.file_rest = m.simulation->cloth().restVertices();
   if (m.simulation->armCount() != 2) throw std::invalid_argument("cloth fold: the simulation needs two arms");
   kinematics::InverseOperator op;
   kinematics::LimitScheme scheme;
@@ -764,6 +766,19 @@ const Eigen::Matrix3Xi& ClothFoldTask::clothTriangles() const {
 
 const Eigen::Matrix3Xd& ClothFoldTask::clothRestVertices() const {
   return impl_->simulation->cloth().restVertices();
+}
+
+Eigen::Matrix3Xd ClothFoldTask::clothStartVertices(std::uint32_t seed) const {
+  const Impl& m = *impl_;
+  if (!m.config.noise.any()) return m.file_rest;
+  // run() lays the cloth at T(x, y) * pose * Rz(yaw) instead of pose: the file's mesh moved by that times pose⁻¹.
+  const FoldNoiseDraw draw = drawFoldNoise(m.config.noise, seed);
+  const Eigen::Isometry3d& pose = m.sim_config.cloth.pose;
+  const Eigen::Isometry3d moved = Eigen::Translation3d(draw.cloth_x, draw.cloth_y, 0.0) * pose *
+                                  Eigen::AngleAxisd(draw.cloth_yaw, Eigen::Vector3d::UnitZ()) * pose.inverse();
+  Eigen::Matrix3Xd out = moved.linear() * m.file_rest;
+  out.colwise() += moved.translation();
+  return out;
 }
 
 }  // namespace bimanual_skills::tasks

@@ -75,6 +75,11 @@ struct FoldLearningConfig {
 /// \throws std::invalid_argument for an unreadable simulation file.
 FoldLearningConfig withSimulationRenderer(FoldLearningConfig config);
 
+/// The exploration's starting standard deviation of each latent weight of `task`'s policy with Ω = I, in
+/// encodeCoordinatedPolicy()'s order (DoF by DoF: the kernels' `config.initial_stddev`, then, with goals, the goal
+/// weight's α_z β_z `config.goal_stddev`, the forcing that moves the goal by goal_stddev).
+Eigen::VectorXd latentWeightStddev(const FoldLearningConfig& config, const tasks::ClothFoldTask& task);
+
 /// One finished rollout, as written to DIR/rollouts.csv.
 struct FoldRolloutRecord {
   std::string algorithm;

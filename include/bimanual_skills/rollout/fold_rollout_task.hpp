@@ -57,10 +57,18 @@ class FoldRolloutTask : public RolloutTask {
   const tasks::FoldRewardTerms& lastTerms() const noexcept { return last_terms_; }
   /// Renders and scores `rollout` with the camera noise of `seed`, as run() does.
   tasks::FoldRewardTerms score(const tasks::FoldRollout& rollout, std::uint32_t seed);
+  /// The camera's picture of rollout `seed`'s start (ClothFoldTask::clothStartVertices: the flat cloth where that
+  /// rollout lays it) with camera noise of its own stream of `seed`: startBgr() and startDepth() until the next call.
+  /// Same seed, same images.
+  vision::VisionStatus renderStart(std::uint32_t seed);
+  /// Colour (bgr8) and depth (32FC1, metres) of the last renderStart().
+  const cv::Mat& startBgr() const noexcept { return start_renderer_.bgr(); }
+  const cv::Mat& startDepth() const noexcept { return start_renderer_.depth(); }
 
  private:
   tasks::ClothFoldTask task_;
   tasks::FoldReward reward_;
+  vision::ClothRenderer start_renderer_;
   tasks::FoldRollout last_;
   tasks::FoldRewardTerms last_terms_;
 };

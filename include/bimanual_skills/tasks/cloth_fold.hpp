@@ -211,8 +211,12 @@ class ClothFoldTask {
   /// The ideal fold of this task's cloth (idealFold(), world frame) and the cloth's triangles: the goal image's mesh.
   Eigen::Matrix3Xd idealFoldVertices() const;
   const Eigen::Matrix3Xi& clothTriangles() const;
-  /// The flat cloth at rest (world frame): what foldQualityOf() measures against.
+  /// The flat cloth at rest (world frame) in the last rollout's simulation (before any, the simulation file's
+  /// placement): what foldQualityOf() measures against.
   const Eigen::Matrix3Xd& clothRestVertices() const;
+  /// The flat cloth at rest where rollout `seed` lays it (the simulation file's placement moved by
+  /// drawFoldNoise(config().noise, seed)): that rollout's start, before it runs.
+  Eigen::Matrix3Xd clothStartVertices(std::uint32_t seed) const;
 
   /// The DoF of the policy's forcing terms: 2 arms × (position + orientation vector).
   static constexpr int kDofs = 12;

@@ -1,0 +1,132 @@
+"""The cloth fold as a Gymnasium environment (bimanual_skills.gym_env.FoldEnv): Gymnasium's own checker, seeded
+resets that perturb the cloth's start, an episode that is the C++ rollout bit for bit, SoftGym's normalised
+performance recomputed from the fold quality's definition, the images as views without copies, and bad calls as
+errors. Run by make test with build/venv's Python (gymnasium from PyPI, python/requirements.txt)."""
+import os
+import warnings
+
+import numpy as np
+import pytest
+
+import bimanual_skills as bs
+
+gymnasium = pytest.importorskip("gymnasium", reason="gymnasium is in build/venv (make venv)")
+from gymnasium.utils.env_checker import check_env  # noqa: E402
+
+from bimanual_skills import gym_env  # noqa: E402, F401  (registers the environment)
+
+SOURCE = os.environ.get("BIMANUAL_SKILLS_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", ".."))
+FOLD = os.path.join(SOURCE, "config", "fold_demo.yaml")
+
+
+@pytest.fixture(scope="module")
+def env():
+    e = gymnasium.make("bimanual_skills/ClothFold-v0", config=FOLD, render_mode="rgb_array")
+    yield e
+    e.close()
+
+
+def test_gymnasiums_checker_passes_without_a_warning(env):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped)
+    assert [str(w.message) for w in caught] == []
+
+
+def test_a_seed_gives_one_start_and_other_seeds_move_the_cloth(env):
+    first, info = env.reset(seed=7)
+    again, info_again = env.reset(seed=7)
+    assert info["seed"] == info_again["seed"] and info["noise"] == "robot"
+    assert np.array_equal(first["rgb"], again["rgb"]) and np.array_equal(first["depth"], again["depth"])
+    assert env.observation_space.contains(first)
+    # The cloth (blue: B well above R) lies elsewhere for another seed: its pixels' centroid moves.
+    def centroid(obs):
+        rgb = obs["rgb"].astype(int)
+        rows, cols = np.nonzero(rgb[:, :, 2] - rgb[:, :, 0] > 80)
+        assert rows.size > 1000
+        return np.array([rows.mean(), cols.mean()])
+
+    moved = [np.linalg.norm(centroid(env.reset(seed=s)[0]) - centroid(first)) for s in (8, 9, 10)]
+    assert max(moved) > 1.0, moved  # pixels; 1 cm on the table is about 2 here
+    # Without the robot's noise every seed starts from the same cloth (only the camera's noise differs).
+    still = gym_env.FoldEnv(config=FOLD, noise="none")
+    a, _ = still.reset(seed=8)
+    b, _ = still.reset(seed=9)
+    assert np.linalg.norm(centroid(a) - centroid(b)) < 0.2
+
+
+def test_an_episode_is_the_c_plus_plus_rollout_bit_for_bit(env):
+    obs, info = env.reset(seed=11)
+    action = np.linspace(-0.5, 0.5, env.action_space.shape[0]).astype(np.float32)
+    final, reward, terminated, truncated, step_info = env.step(action)
+    assert terminated and not truncated
+    task = bs.FoldTask(FOLD, "robot")
+    scale = 3.0 * np.asarray(task.latent_weight_stddev())
+    parameters = task.parameters_for(action.astype(np.float64) * scale)
+    assert np.array_equal(parameters, step_info["parameters"])
+    direct = task.run(parameters, info["seed"])
+    assert direct.reward == reward and direct.outcome == step_info["outcome"] == "Ok"
+    assert step_info["q"] == dict(zip(task.term_names(), direct.terms))["fold_quality"]
+    bgr, depth = task.images()
+    assert np.array_equal(final["rgb"], bgr[:, :, ::-1]) and np.array_equal(final["depth"], depth)
+    assert np.array_equal(env.render(), final["rgb"])
+    # the start: the same seed's picture
+    task.render_start(info["seed"])
+    start_bgr, _ = task.start_images()
+    assert np.array_equal(obs["rgb"], start_bgr[:, :, ::-1])
+
+
+def test_the_normalised_performance_is_softgyms_and_agrees_with_q(env):
+    _, info = env.reset(seed=12)
+    _, _, _, _, out = env.step(np.zeros(env.action_space.shape, np.float32))
+    terms = out["terms"]
+    p = -(terms["fold_distance"] + 1.2 * terms["fold_displacement"])
+    p0 = out["performance_start"]
+    assert p0 < 0.0 and out["performance"] == p
+    assert out["normalized_performance"] == pytest.approx((p - p0) / (0.0 - p0), abs=1e-15)
+    # q = (d_flat - (d + 1.2 s)) / (d_flat - thickness) (tasks::foldQuality): SoftGym's normalisation differs from it
+    # only by the ideal fold's thickness.
+    thickness = env.unwrapped.task.thickness
+    d_flat = -p0
+    assert out["normalized_performance"] == pytest.approx(out["q"] * (d_flat - thickness) / d_flat, abs=1e-12)
+    assert 0.3 < out["normalized_performance"] < 1.0
+
+
+def test_the_images_are_read_only_views_of_the_tasks_buffers():
+    task = bs.FoldTask(FOLD, "none")
+    assert task.render_start(3) == "Ok"
+    bgr, depth = task.start_images()
+    again, _ = task.start_images()
+    assert np.shares_memory(bgr, again) and not bgr.flags.owndata and not bgr.flags.writeable
+    assert bgr.dtype == np.uint8 and bgr.shape[2] == 3 and depth.dtype == np.float32 and depth.shape == bgr.shape[:2]
+    before = bgr.copy()
+    task.render_start(4)  # the camera's noise of another seed, into the same buffer
+    assert not np.array_equal(before, bgr)
+    # The start measured against itself: q 0, nothing displaced; the halves' distance does not depend on where the
+    # robot's noise lays the cloth.
+    noisy = bs.FoldTask(FOLD, "robot")
+    start, other = noisy.start_fold(3), noisy.start_fold(4)
+    assert start["q"] == 0.0 and start["displacement"] == 0.0 and start["distance"] > 0.1
+    assert other["distance"] == pytest.approx(start["distance"], abs=1e-12)
+
+
+def test_bad_calls_are_errors_with_the_reason(env):
+    fresh = gym_env.FoldEnv(config=FOLD)
+    with pytest.raises(RuntimeError, match="reset"):
+        fresh.step(np.zeros(fresh.action_space.shape, np.float32))
+    fresh.reset(seed=1)
+    with pytest.raises(ValueError, match="252 finite values"):
+        fresh.step(np.zeros(3, np.float32))
+    with pytest.raises(ValueError, match="NaN or Inf"):
+        fresh.step(np.full(fresh.action_space.shape, np.nan, np.float32))
+    fresh.step(np.zeros(fresh.action_space.shape, np.float32))
+    with pytest.raises(RuntimeError, match="reset"):
+        fresh.step(np.zeros(fresh.action_space.shape, np.float32))  # an episode is one rollout
+    with pytest.raises(ValueError, match="noise"):
+        gym_env.FoldEnv(config=FOLD, noise="loud")
+    with pytest.raises(ValueError, match="action_scale"):
+        gym_env.FoldEnv(config=FOLD, action_scale=float("nan"))
+    with pytest.raises(ValueError, match="render_mode"):
+        gym_env.FoldEnv(config=FOLD, render_mode="human")
+    with pytest.raises(ValueError, match="seed"):
+        bs.FoldTask(FOLD).render_start(-1)
