@@ -1,0 +1,262 @@
+#!/usr/bin/env python3
+"""Table 7.5's fold learning (config/fold_table75.yaml) on each rollout backend, timed side by side: the learning's
+wall time, rollouts per second, speed-up and efficiency against one thread, and whether every rollout (reward, terms,
+policy) equals the one-thread run's.
+
+    source install/setup.bash
+    build/venv/bin/python scripts/scaling_study.py --experiment table75 --seed 90168 --out build/scaling [--quick]
+        [--backends threads1,threads2,ros2,ray1,ray2,ray_two_hosts]
+
+Backends (each a fresh learning into OUT/BACKEND, in this order; the cluster is started before its timer starts):
+  threads1, threads2  bimanual_skills.learn_fold in one process, rollouts on 1 or 2 threads
+  ros2                fold_learner (C++) dispatching to 2 rollout_worker processes (rollout_workers.launch) over a
+                      ROS master of its own on loopback
+  ray1, ray2          learn_fold with bimanual_skills.ray_backend.RayEvaluator on a local Ray of 1 or 2 CPUs
+  ray_two_hosts       the same on a Ray cluster of two "hosts": network namespaces bs_ray_head (Ray's head and the
+                      learner) and bs_ray_node (a worker node, `ray start --address`), one CPU each, joined by a veth
+                      pair on 10.77.0.0/24 (root; the namespaces are removed at the end)
+
+--quick: IDR-DMP_CMU and CMA-ES, 1 run x 4 updates x 12 rollouts, no repetitions (about 100 rollouts per backend,
+about 8 min on 2 cores in all); without it the file's whole study (5 algorithms x 10 runs x 15 updates x 12 rollouts
+and 12 repetitions: 9012 rollouts, about 1.5 h per backend on one core). --seed replaces the file's learning seed.
+Writes OUT/study.yaml (the learning file run), OUT/scaling.csv (a row per backend as it finishes) and
+OUT/summary.json."""
+import argparse
+import csv
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import yaml
+
+ALL = ["threads1", "threads2", "ros2", "ray1", "ray2", "ray_two_hosts"]
+PROCESSES = {"threads1": 1, "threads2": 2, "ros2": 2, "ray1": 1, "ray2": 2, "ray_two_hosts": 2}
+HEAD, NODE, HEAD_IP, NODE_IP, RAY_PORT = "bs_ray_head", "bs_ray_node", "10.77.0.1", "10.77.0.2", 6390
+
+
+def study_file(out, quick, seed):
+    """OUT/study.yaml: fold_table75.yaml with its simulation file's path made absolute (the workers read it)."""
+    import bimanual_skills as bs
+
+    source = bs.config_path("fold_table75.yaml")
+    with open(source) as f:
+        study = yaml.safe_load(f)
+    study["sim"] = os.path.join(os.path.dirname(source), study["sim"])
+    learning = study["learning"]
+    if seed is not None:
+        learning["seed"] = seed
+    if quick:
+        learning.update(algorithms=["IDR-DMP_CMU", "CMA-ES"], runs=1, updates=4, repetitions=0)
+    path = os.path.join(out, "study.yaml")
+    with open(path, "w") as f:
+        yaml.safe_dump(study, f, sort_keys=False)
+    return path
+
+
+def rollouts(out):
+    """rollouts.csv's rows without the wall time, in the learning's order (the file has them as they finished)."""
+    with open(os.path.join(out, "rollouts.csv")) as f:
+        rows = [{k: v for k, v in r.items() if k != "wall_seconds"} for r in csv.DictReader(f)]
+    return sorted(rows, key=lambda r: (r["algorithm"], int(r["run"]), int(r["epoch"]), r["kind"], int(r["index"])))
+
+
+def inner(args):
+    """One learning in this process (threads or Ray): prints its wall time as JSON."""
+    import bimanual_skills as bs
+
+    bs.pin_numerics()
+    evaluator = None
+    if args.inner == "ray":
+        from bimanual_skills import ray_backend
+
+        evaluator = ray_backend.RayEvaluator("fold", args.config, address=args.address, workers=args.jobs or None)
+        # Ray starts its worker processes with their first tasks: started here before the timer, as the ROS
+        # workers are before theirs (each builds its simulator with its first rollout, as the threads do).
+        import ray
+
+        @ray.remote
+        def warm():
+            import bimanual_skills  # noqa: F401
+
+            time.sleep(0.5)
+            return os.getpid()
+
+        ray.get([warm.remote() for _ in range(4)])
+    start = time.monotonic()
+    summary = bs.learn_fold(args.config, args.out, evaluator=evaluator, jobs=args.jobs)
+    print(json.dumps({"seconds": time.monotonic() - start, "simulated": summary["simulated"]}), flush=True)
+
+
+def run_inner(kind, config, out, jobs=0, address=None, prefix=()):
+    command = list(prefix) + [sys.executable, os.path.abspath(__file__), "--inner", kind, "--config", config,
+                              "--run-out", out, "--jobs", str(jobs)]
+    if address:
+        command += ["--address", address]
+    done = subprocess.run(command, check=True, stdout=subprocess.PIPE, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])["seconds"]
+
+
+def free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def run_ros(config, out, workers=2):
+    """fold_learner against `workers` rollout_worker processes on a master of its own."""
+    env = dict(os.environ, ROS_MASTER_URI="http://127.0.0.1:%d" % free_port(), ROS_HOSTNAME="127.0.0.1")
+    port = env["ROS_MASTER_URI"].rsplit(":", 1)[1]
+    logs = open(os.path.join(out, "ros.log"), "w")
+    core = subprocess.Popen(["roscore", "-p", port], env=env, stdout=logs, stderr=subprocess.STDOUT,
+                            start_new_session=True)
+    launch = None
+    try:
+        for _ in range(100):
+            if subprocess.run(["rostopic", "list"], env=env, capture_output=True).returncode == 0:
+                break
+            time.sleep(0.2)
+        launch = subprocess.Popen(["roslaunch", "bimanual_skills", "rollout_workers.launch", "workers:=%d" % workers],
+                                  env=env, stdout=logs, stderr=subprocess.STDOUT, start_new_session=True)
+        for _ in range(300):
+            nodes = subprocess.run(["rosnode", "list"], env=env, capture_output=True, text=True).stdout.split()
+            if sum(n.startswith("/rollout_workers/worker_") for n in nodes) == workers:
+                break
+            time.sleep(0.2)
+        else:
+            raise RuntimeError("the rollout workers did not come up (see %s)" % logs.name)
+        start = time.monotonic()
+        subprocess.run(["rosrun", "bimanual_skills", "fold_learner", "_config:=" + config, "_out:=" + out,
+                        "_worker_namespace:=/rollout_workers"], env=env, check=True, stdout=logs,
+                       stderr=subprocess.STDOUT)
+        return time.monotonic() - start
+    finally:
+        for p in (launch, core):
+            if p is not None and p.poll() is None:
+                os.killpg(p.pid, signal.SIGINT)
+                try:
+                    p.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    os.killpg(p.pid, signal.SIGKILL)
+        logs.close()
+
+
+def sh(*command, check=True):
+    done = subprocess.run(list(command), capture_output=True, text=True)
+    if check and done.returncode != 0:
+        raise RuntimeError("%s: exit %d\n%s" % (" ".join(command), done.returncode, done.stderr[-2000:]))
+    return done
+
+
+def two_hosts_down():
+    for ns in (HEAD, NODE):
+        sh("ip", "netns", "exec", ns, sys.executable, "-m", "ray.scripts.scripts", "stop", "--force", check=False)
+        sh("ip", "netns", "del", ns, check=False)
+
+
+def run_ray_two_hosts(config, out):
+    """A Ray head in one network namespace, a worker node in another, one CPU each; the learner beside the head."""
+    if os.geteuid() != 0:
+        raise RuntimeError("ray_two_hosts makes network namespaces: run as root")
+    two_hosts_down()
+    sh("ip", "link", "del", "bs_veth_h", check=False)
+    ray = [sys.executable, "-m", "ray.scripts.scripts"]
+    try:
+        sh("ip", "netns", "add", HEAD)
+        sh("ip", "netns", "add", NODE)
+        sh("ip", "link", "add", "bs_veth_h", "type", "veth", "peer", "name", "bs_veth_n")
+        sh("ip", "link", "set", "bs_veth_h", "netns", HEAD)
+        sh("ip", "link", "set", "bs_veth_n", "netns", NODE)
+        for ns, dev, ip in ((HEAD, "bs_veth_h", HEAD_IP), (NODE, "bs_veth_n", NODE_IP)):
+            sh("ip", "netns", "exec", ns, "ip", "addr", "add", ip + "/24", "dev", dev)
+            sh("ip", "netns", "exec", ns, "ip", "link", "set", dev, "up")
+            sh("ip", "netns", "exec", ns, "ip", "link", "set", "lo", "up")
+        # Ray's token authentication, as `ray start` sets it up (the token in ~/.ray/auth_token, one home here).
+        env_prefix = ["env", "RAY_USAGE_STATS_ENABLED=0", "RAY_AUTH_MODE=token"]
+        sh("ip", "netns", "exec", HEAD, *env_prefix, *ray, "start", "--head", "--node-ip-address", HEAD_IP, "--port",
+           str(RAY_PORT), "--num-cpus", "1", "--include-dashboard", "false", "--disable-usage-stats")
+        sh("ip", "netns", "exec", NODE, *env_prefix, *ray, "start", "--address", "%s:%d" % (HEAD_IP, RAY_PORT),
+           "--node-ip-address", NODE_IP, "--num-cpus", "1", "--disable-usage-stats")
+        return run_inner("ray", config, out, address="%s:%d" % (HEAD_IP, RAY_PORT),
+                         prefix=["ip", "netns", "exec", HEAD] + env_prefix)
+    finally:
+        two_hosts_down()
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--experiment", default="table75", choices=["table75"])
+    p.add_argument("--seed", type=int, default=None, help="the learning's seed (default: the file's, 90168)")
+    p.add_argument("--out", help="results directory")
+    p.add_argument("--quick", action="store_true", help="a small study (about 100 rollouts per backend)")
+    p.add_argument("--backends", default=",".join(ALL), help="comma-separated, from " + ",".join(ALL))
+    p.add_argument("--inner", choices=["threads", "ray"], help=argparse.SUPPRESS)
+    p.add_argument("--config", help=argparse.SUPPRESS)
+    p.add_argument("--run-out", help=argparse.SUPPRESS)
+    p.add_argument("--jobs", type=int, default=0, help=argparse.SUPPRESS)
+    p.add_argument("--address", default=None, help=argparse.SUPPRESS)
+    args = p.parse_args()
+    if args.inner:
+        args.out = args.run_out
+        return inner(args)
+    if not args.out:
+        p.error("--out DIR is needed")
+    backends = [b for b in args.backends.split(",") if b]
+    unknown = [b for b in backends if b not in ALL]
+    if unknown or not backends:
+        p.error("--backends: %s unknown; from %s" % (",".join(unknown) or "none given", ",".join(ALL)))
+    if args.seed is not None and not 0 <= args.seed < 2**32:
+        p.error("--seed: an integer in [0, 2^32)")
+    if "threads1" not in backends:
+        backends.insert(0, "threads1")  # the reference every other backend is compared with
+    os.makedirs(args.out, exist_ok=True)
+    config = study_file(args.out, args.quick, args.seed)
+    with open(config) as f:
+        seed = yaml.safe_load(f)["learning"]["seed"]
+    print("scaling_study: %s%s, seed %d, backends %s, into %s" %
+          (args.experiment, " --quick" if args.quick else "", seed, ",".join(backends), args.out), flush=True)
+    rows, reference, reference_seconds = [], None, None
+    table = open(os.path.join(args.out, "scaling.csv"), "w", newline="")
+    writer = csv.DictWriter(table, fieldnames=["backend", "processes", "rollouts", "seconds", "rollouts_per_second",
+                                               "speedup", "efficiency", "identical"])
+    writer.writeheader()
+    for backend in backends:
+        out = os.path.join(args.out, backend)
+        shutil.rmtree(out, ignore_errors=True)
+        os.makedirs(out)
+        print("  %-14s ..." % backend, end="", flush=True)
+        if backend.startswith("threads"):
+            seconds = run_inner("threads", config, out, jobs=PROCESSES[backend])
+        elif backend == "ros2":
+            seconds = run_ros(config, out)
+        elif backend == "ray_two_hosts":
+            seconds = run_ray_two_hosts(config, out)
+        else:
+            seconds = run_inner("ray", config, out, jobs=PROCESSES[backend])
+        done = rollouts(out)
+        if reference is None:
+            reference, reference_seconds = done, seconds
+        speedup = reference_seconds / seconds
+        row = {"backend": backend, "processes": PROCESSES[backend], "rollouts": len(done),
+               "seconds": round(seconds, 2), "rollouts_per_second": round(len(done) / seconds, 3),
+               "speedup": round(speedup, 3), "efficiency": round(speedup / PROCESSES[backend], 3),
+               "identical": done == reference}
+        rows.append(row)
+        writer.writerow(row)
+        table.flush()
+        print(" %d rollouts in %.1f s: %.2f/s, %.2fx, efficiency %.2f, %s" %
+              (row["rollouts"], seconds, row["rollouts_per_second"], speedup, row["efficiency"],
+               "identical to threads1" if row["identical"] else "DIFFERENT from threads1"), flush=True)
+    table.close()
+    with open(os.path.join(args.out, "summary.json"), "w") as f:
+        json.dump({"program": "scaling_study", "experiment": args.experiment, "seed": seed, "quick": args.quick,
+                   "machine_cores": os.cpu_count(), "results": rows}, f, indent=2)
+    return 0 if all(r["identical"] for r in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
