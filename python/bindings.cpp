@@ -4,7 +4,10 @@
 // parallel, one task object each; C++ exceptions arrive as Python exceptions with their reason (std::invalid_argument
 // as ValueError, std::runtime_error as RuntimeError).
 #include "bimanual_skills/learning/covariance_adaptation.hpp"
+#include "bimanual_skills/learning/dual_reps.hpp"
+#include "bimanual_skills/learning/pi2.hpp"
 #include "bimanual_skills/learning/reps.hpp"
+#include "bimanual_skills/primitives/dmp.hpp"
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
@@ -29,6 +32,7 @@ namespace py = pybind11;
 namespace br = bimanual_skills::rollout;
 namespace bl = bimanual_skills::learning;
 namespace tasks = bimanual_skills::tasks;
+namespace bp = bimanual_skills::primitives;
 
 namespace {
 
@@ -65,6 +69,25 @@ class Task {
   std::unique_ptr<br::RolloutTask> task_;
   std::mutex mutex_;  ///< Held while a rollout runs: a second thread is refused, not let into the simulator.
 };
+
+/// A DMP's path from its start, every dt for its duration (rows = samples, columns = DoF), by Dmp::step.
+Eigen::MatrixXd dmpPath(const bp::Dmp& dmp, double dt) {
+  if (!(dt > 0.0) || !std::isfinite(dt) || dmp.duration() / dt > 1e7) {
+    throw std::invalid_argument("dt must be finite, > 0 and give at most 1e7 samples of the DMP's duration");
+  }
+  const auto samples = static_cast<Eigen::Index>(std::lround(dmp.duration() / dt)) + 1;
+  Eigen::MatrixXd out(samples, dmp.dofs());
+  bp::DmpState state = dmp.initialState();
+  out.row(0) = state.y.transpose();
+  for (Eigen::Index k = 1; k < samples; ++k) {
+    if (dmp.step(state, dt) == bp::DmpStatus::InvalidInput) {
+      throw std::invalid_argument("a DMP step of dt = " + std::to_string(dt) +
+                                  " s is unstable for its duration and gains (DmpParameters::stableStep)");
+    }
+    out.row(k) = state.y.transpose();
+  }
+  return out;
+}
 
 /// `image` (bgr8 or 32FC1) as a read-only NumPy view of its buffer, no copy: rows × columns (× channels). `owner`
 /// (the object holding the image) lives as long as the view; the next rollout or render writes over it.
@@ -387,6 +410,80 @@ PYBIND11_MODULE(_core, m) {
            py::arg("epsilon") = 0.5, py::arg("reuse") = 0, py::arg("normalise_rewards") = true)
       .def("update", &bl::Reps::update, py::arg("samples"), py::arg("rewards"),
            "One update from rollouts (rows of `samples`) and their rewards (higher is better).");
+
+  py::class_<bl::DualRepsCluster>(m, "DualRepsCluster")
+      .def_readonly("mean", &bl::DualRepsCluster::mean)
+      .def_readonly("covariance", &bl::DualRepsCluster::covariance)
+      .def_readonly("attractive", &bl::DualRepsCluster::attractive)
+      .def_readonly("size", &bl::DualRepsCluster::size)
+      .def_readonly("multiplier", &bl::DualRepsCluster::multiplier);
+  py::class_<bl::DualRepsUpdate>(m, "DualRepsUpdate")
+      .def_readonly("policy", &bl::DualRepsUpdate::policy, "The new Gaussian (a RepsUpdate).")
+      .def_readonly("clusters", &bl::DualRepsUpdate::clusters)
+      .def_readonly("repairs", &bl::DualRepsUpdate::repairs)
+      .def_readonly("repulsion_dropped", &bl::DualRepsUpdate::repulsion_dropped)
+      .def_readonly("plain_reps", &bl::DualRepsUpdate::plain_reps);
+  py::class_<bl::DualReps>(m, "DualReps",
+                           "Dual REPS (thesis Alg. 6.2): REPS with attractive and repulsive clusters of the rollouts, "
+                           "for multimodal rewards. DualReps(epsilon, reuse) has the thesis' DREPS settings (c = 5, "
+                           "xi = 5, chi = 2 epsilon); clusters=0 makes every update the REPS one.")
+      .def(py::init([](double epsilon, int reuse, int clusters) {
+             bl::DualRepsParameters p = bl::thesisDreps(epsilon, reuse);
+             p.clusters = clusters;
+             p.validate();
+             return bl::DualReps(p);
+           }),
+           py::arg("epsilon") = 0.5, py::arg("reuse") = 0, py::arg("clusters") = 5)
+      .def("update", &bl::DualReps::update, py::arg("mean"), py::arg("covariance"), py::arg("samples"),
+           py::arg("rewards"),
+           "One update from rollouts (rows of `samples`) drawn from N(mean, covariance) and their rewards (higher is "
+           "better).");
+  m.def(
+      "pi2_update",
+      [](const Eigen::VectorXd& mean, const Eigen::MatrixXd& covariance, const Eigen::MatrixXd& samples,
+         const Eigen::MatrixXd& costs, const Eigen::MatrixXd& basis, double h, double control_cost,
+         bool covariance_adaptation) {
+        bl::Pi2Parameters p;
+        p.h = h;
+        p.control_cost = control_cost;
+        p.covariance_adaptation = covariance_adaptation;
+        p.validate();
+        const bl::Pi2Update u = bl::pi2Update(p, mean, covariance, samples, costs, basis);
+        return py::make_tuple(u.mean, u.covariance, u.probabilities);
+      },
+      py::arg("mean"), py::arg("covariance"), py::arg("samples"), py::arg("costs"), py::arg("basis"),
+      py::arg("h") = 10.0, py::arg("control_cost") = 0.0, py::arg("covariance_adaptation") = false,
+      "One PI2 update (thesis eqs. 5.8-5.13; PI2-CMA with covariance_adaptation) of a policy linear in `basis` "
+      "(time steps x B, shared by the D DoF of mean's D*B weights): samples K x D*B, costs K x time steps (lower is "
+      "better). Returns (mean, covariance, probabilities).");
+
+  py::class_<bp::Dmp>(m, "Dmp",
+                      "A discrete DMP (thesis (5.14)-(5.15)): weights (DoF x kernels), start, goal, duration.")
+      .def(py::init([](const Eigen::MatrixXd& weights, const Eigen::VectorXd& start, const Eigen::VectorXd& goal,
+                       double duration) {
+             bp::DmpParameters p;
+             p.kernels = static_cast<int>(weights.cols());
+             p.validate();
+             return bp::Dmp(p, weights, start, goal, duration);
+           }),
+           py::arg("weights"), py::arg("start"), py::arg("goal"), py::arg("duration"))
+      .def_static(
+          "fit",
+          [](const Eigen::MatrixXd& positions, double dt, int kernels, double smoothing_hz) {
+            bp::DmpParameters p;
+            p.kernels = kernels;
+            p.validate();
+            return bp::Dmp::fit(p, positions, dt, smoothing_hz);
+          },
+          py::arg("positions"), py::arg("dt"), py::arg("kernels") = 25, py::arg("smoothing_hz") = 20.0,
+          "The least-squares DMP of a demonstration (rows = samples every dt, columns = DoF).")
+      .def_property_readonly("weights", &bp::Dmp::weights)
+      .def_property_readonly("start", &bp::Dmp::start)
+      .def_property_readonly("goal", &bp::Dmp::goal)
+      .def_property_readonly("duration", &bp::Dmp::duration)
+      .def("with_weights", &bp::Dmp::withWeights, py::arg("weights"), "A copy with other weights (a policy sample).")
+      .def("path", &dmpPath, py::arg("dt"),
+           "The DMP's positions from its start every dt for its duration (rows = samples, columns = DoF).");
 
   py::class_<bl::CovarianceAdaptation>(m, "CmaEs",
                                        "CMA-ES (Hansen 2006): the search distribution N(m, sigma^2 C), rewards "

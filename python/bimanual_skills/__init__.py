@@ -1,6 +1,7 @@
 """bimanual_skills from Python: the C++ core's rollout tasks (the cloth fold, the scarf, the bottles on the simulated
-WAM and the policy-search benchmarks) and its policy updates (REPS, CMA-ES), with NumPy arrays in and out. The ROS
-messages are bimanual_skills.msg and bimanual_skills.srv, as for every ROS package.
+WAM and the policy-search benchmarks), the fold with its camera images (FoldTask; the Gymnasium environment is
+bimanual_skills.gym_env), DMPs, and the policy updates (REPS, Dual REPS, PI2 and PI2-CMA, CMA-ES), with NumPy arrays
+in and out. The ROS messages are bimanual_skills.msg and bimanual_skills.srv, as for every ROS package.
 
     import bimanual_skills as bs
     task = bs.make_task("fold", bs.config_path("fold_demo.yaml"))
@@ -11,6 +12,9 @@ import os as _os
 
 from bimanual_skills._core import (  # noqa: F401
     CmaEs,
+    Dmp,
+    DualReps,
+    DualRepsUpdate,
     FoldTask,
     Reps,
     RepsUpdate,
@@ -19,12 +23,14 @@ from bimanual_skills._core import (  # noqa: F401
     learn_fold,
     make_task,
     numerics,
+    pi2_update,
     pinned_environment,
     tasks,
 )
 
-__all__ = ["CmaEs", "FoldTask", "Reps", "RepsUpdate", "RolloutResult", "Task", "config_path", "learn_fold", "make_task", "numerics",
-           "pin_numerics", "pinned_environment", "tasks"]
+__all__ = ["CmaEs", "Dmp", "DualReps", "DualRepsUpdate", "FoldTask", "Reps", "RepsUpdate", "RolloutResult", "Task",
+           "config_path", "learn_fold", "make_task", "numerics", "pi2_update", "pin_numerics", "pinned_environment",
+           "tasks"]
 
 _PINNED_MARKER = "BIMANUAL_SKILLS_NUMERICS_PINNED"
 

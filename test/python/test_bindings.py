@@ -162,3 +162,68 @@ def test_reps_and_cma_es_climb_the_quadratic():
             else:
                 mean = cma.step(mean, samples, rewards)
         assert task.run(mean, 0).reward > 0.7 * start, update  # 30 % of the way to the optimum (0) at least
+
+
+def test_a_dmp_fitted_from_python_reproduces_its_demonstration():
+    t = np.linspace(0.0, 1.0, 201)
+    demo = np.column_stack([10 * t**3 - 15 * t**4 + 6 * t**5, np.sin(np.pi * t) ** 2])  # minimum jerk; a bump
+    dmp = bs.Dmp.fit(demo, 0.005, kernels=30)
+    assert dmp.weights.shape == (2, 30) and dmp.duration == pytest.approx(1.0)
+    assert np.allclose(dmp.start, demo[0]) and np.allclose(dmp.goal, demo[-1])
+    path = dmp.path(0.005)
+    assert path.shape == demo.shape
+    assert np.abs(path - demo).max() < 0.02
+    # Without its forcing term the DMP is a spring to the goal: no bump.
+    spring = dmp.with_weights(np.zeros((2, 30))).path(0.005)
+    assert np.abs(spring[:, 1] - demo[:, 1]).max() > 0.5
+    with pytest.raises(ValueError, match="unstable"):
+        dmp.path(0.5)
+    with pytest.raises(ValueError):
+        bs.Dmp.fit(demo[:5], 0.005)
+    with pytest.raises(ValueError):
+        dmp.with_weights(np.zeros((3, 30)))
+
+
+def test_dual_reps_without_clusters_is_the_reps_update_and_with_them_takes_the_better_mode():
+    rng = np.random.default_rng(5)
+    mean, covariance = np.zeros(2), np.eye(2)
+    samples = rng.multivariate_normal(mean, covariance, size=40)
+    # Two modes, at (1.5, 0) (the higher) and (-1.5, 0).
+    rewards = np.maximum(np.exp(-np.sum((samples - [1.5, 0.0]) ** 2, axis=1)),
+                         0.7 * np.exp(-np.sum((samples + [1.5, 0.0]) ** 2, axis=1)))
+    plain = bs.DualReps(epsilon=0.5, clusters=0).update(mean, covariance, samples, rewards)
+    assert plain.plain_reps or not plain.clusters
+    reps = bs.Reps(epsilon=0.5).update(samples, rewards)
+    assert np.allclose(plain.policy.mean, reps.mean, atol=1e-9)
+    dual = bs.DualReps(epsilon=0.5).update(mean, covariance, samples, rewards)
+    attractive = [c for c in dual.clusters if c.attractive]
+    assert len(attractive) == 1 and attractive[0].mean[0] > 0.8  # the cluster at the higher mode
+    assert any(not c.attractive for c in dual.clusters)
+    assert dual.policy.mean[0] > 0.0  # towards the higher mode
+    with pytest.raises(ValueError):
+        bs.DualReps().update(mean, covariance, samples, rewards[:3])
+
+
+def test_pi2_lowers_the_cost_of_a_policy_linear_in_its_basis():
+    rng = np.random.default_rng(2)
+    steps, kernels = 50, 5
+    t = np.linspace(0.0, 1.0, steps)
+    centres = np.linspace(0.0, 1.0, kernels)
+    basis = np.exp(-0.5 * (t[:, None] - centres[None, :]) ** 2 / 0.02)
+    basis /= basis.sum(axis=1, keepdims=True)
+    target = np.sin(2 * np.pi * t)
+
+    def cost(w):
+        return (basis @ w - target) ** 2
+
+    mean, covariance = np.zeros(kernels), np.eye(kernels)
+    for _ in range(15):
+        samples = rng.multivariate_normal(mean, covariance, size=10)
+        costs = np.array([cost(w) for w in samples])
+        mean, covariance, probabilities = bs.pi2_update(mean, covariance, samples, costs, basis,
+                                                        covariance_adaptation=True)
+        assert probabilities.shape == (steps, 10)
+        assert np.allclose(probabilities.sum(axis=1), 1.0)
+    assert cost(mean).sum() < 0.5 * cost(np.zeros(kernels)).sum()
+    with pytest.raises(ValueError):
+        bs.pi2_update(mean, covariance, samples, costs[:, :3], basis)
