@@ -8,9 +8,11 @@
 #include "bimanual_skills/learning/pi2.hpp"
 #include "bimanual_skills/learning/reps.hpp"
 #include "bimanual_skills/primitives/dmp.hpp"
+#include "bimanual_skills/primitives/promp.hpp"
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
+#include "bimanual_skills/sim/sim_config.hpp"
 #include "bimanual_skills/tasks/fold_quality.hpp"
 #include "cli/pinned_numerics.hpp"
 
@@ -24,6 +26,7 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <random>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -87,6 +90,28 @@ Eigen::MatrixXd dmpPath(const bp::Dmp& dmp, double dt) {
     out.row(k) = state.y.transpose();
   }
   return out;
+}
+
+/// A ProMP's mean positions and velocities and its positions' standard deviations at `samples` phases from 0 to 1
+/// (rows = samples, columns = DoF), by ProMp::mean and ProMp::covariance.
+py::tuple promPath(const bp::ProMp& promp, int samples) {
+  if (samples < 2 || samples > 1000000) throw std::invalid_argument("samples in [2, 1e6]");
+  bp::ProMpData data(promp);
+  const int dofs = promp.dofs();
+  Eigen::MatrixXd position(samples, dofs), velocity(samples, dofs), deviation(samples, dofs);
+  Eigen::VectorXd q(dofs), qd(dofs);
+  Eigen::MatrixXd covariance(dofs, dofs);
+  for (int k = 0; k < samples; ++k) {
+    const double z = static_cast<double>(k) / (samples - 1);
+    if (promp.mean(data, z, q, qd) != bp::ProMpStatus::Success ||
+        promp.covariance(data, z, covariance) != bp::ProMpStatus::Success) {
+      throw std::logic_error("ProMP evaluation failed at z = " + std::to_string(z));
+    }
+    position.row(k) = q.transpose();
+    velocity.row(k) = qd.transpose();
+    deviation.row(k) = covariance.diagonal().cwiseMax(0.0).cwiseSqrt().transpose();
+  }
+  return py::make_tuple(position, velocity, deviation);
 }
 
 /// `image` (bgr8 or 32FC1) as a read-only NumPy view of its buffer, no copy: rows × columns (× channels). `owner`
@@ -484,6 +509,74 @@ PYBIND11_MODULE(_core, m) {
       .def("with_weights", &bp::Dmp::withWeights, py::arg("weights"), "A copy with other weights (a policy sample).")
       .def("path", &dmpPath, py::arg("dt"),
            "The DMP's positions from its start every dt for its duration (rows = samples, columns = DoF).");
+
+  m.def(
+      "robot",
+      [](const std::string& sim_file, const std::string& robot_file) {
+        const bimanual_skills::sim::SimConfig c = bimanual_skills::sim::SimConfig::fromYamlFile(sim_file, robot_file);
+        py::list arms;
+        for (const bimanual_skills::sim::ArmConfig& a : c.arms) {
+          py::dict d;
+          d["name"] = a.name;
+          d["base_link"] = a.base_link;
+          d["tip_link"] = a.tip_link;
+          d["start"] = a.start;
+          d["ik_seed"] = a.ik_seed;
+          d["friction_file"] = a.friction_file;
+          arms.append(d);
+        }
+        py::dict out;
+        out["arms"] = arms;
+        out["urdf"] = c.urdf_path;
+        out["plant"] = c.plant_path;
+        out["robot_file"] = c.robot_path;
+        out["kp"] = c.kp;
+        out["kv"] = c.kv;
+        out["step"] = c.step;
+        out["has_cloth"] = c.has_cloth;
+        return out;
+      },
+      py::arg("sim_file"), py::arg("robot_file") = "",
+      "What a simulation file and a robot file (config/robots/*.yaml, \"\": the one the simulation file names) say "
+      "the pair is, as bullet_sim reads them: each arm's name, base and tip links, start posture, IK seed and "
+      "friction model, the URDF, the plant, the gains, the step. ValueError for a bad file, naming it.");
+
+  py::class_<bp::ProMp>(m, "ProMp",
+                        "A probabilistic movement primitive (thesis (5.16)-(5.18)): weights ~ N(mean, covariance) of "
+                        "a normalised Gaussian basis per DoF over the phase z = t / duration.")
+      .def_static(
+          "fit",
+          [](const std::vector<Eigen::MatrixXd>& demonstrations, double duration, int kernels) {
+            bp::ProMpParameters p;
+            p.kernels = kernels;
+            p.validate();
+            return bp::ProMp::fit(p, demonstrations, duration);
+          },
+          py::arg("demonstrations"), py::arg("duration"), py::arg("kernels") = 20,
+          "The maximum-likelihood ProMP of demonstrations (each samples x DoF, spread over its own duration; "
+          "`duration` [s] their mean length).")
+      .def_property_readonly("dofs", &bp::ProMp::dofs)
+      .def_property_readonly("kernels", &bp::ProMp::kernels)
+      .def_property_readonly("duration", &bp::ProMp::duration)
+      .def_property_readonly("weight_mean", &bp::ProMp::weightMean)
+      .def_property_readonly("weight_covariance", &bp::ProMp::weightCovariance)
+      .def_property_readonly("observation_variance", &bp::ProMp::observationVariance)
+      .def("with_mean", &bp::ProMp::withMean, py::arg("mean"), "The same ProMP with another weight mean.")
+      .def(
+          "sample",
+          [](const bp::ProMp& promp, long long seed) {
+            std::mt19937 rng(seedOf(seed));
+            return promp.sample(rng);
+          },
+          py::arg("seed"), "Weights drawn from N(mean, covariance) with a generator seeded by `seed`.")
+      .def(
+          "conditioned",
+          [](const bp::ProMp& promp, double z, const Eigen::VectorXd& position, const Eigen::MatrixXd& covariance,
+             const Eigen::VectorXd& velocity) { return promp.conditioned(z, position, covariance, velocity); },
+          py::arg("z"), py::arg("position"), py::arg("observation_covariance"), py::arg("velocity") = Eigen::VectorXd(),
+          "The ProMP conditioned on passing through `position` (and `velocity`) at phase z (a via-point).")
+      .def("path", &promPath, py::arg("samples") = 101,
+           "(mean positions, mean velocities, positions' standard deviations) at `samples` phases from 0 to 1.");
 
   py::class_<bl::CovarianceAdaptation>(m, "CmaEs",
                                        "CMA-ES (Hansen 2006): the search distribution N(m, sigma^2 C), rewards "

@@ -1,7 +1,8 @@
 """bimanual_skills from Python: the C++ core's rollout tasks (the cloth fold, the scarf, the bottles on the simulated
 WAM and the policy-search benchmarks), the fold with its camera images (FoldTask; the Gymnasium environment is
-bimanual_skills.gym_env), DMPs, and the policy updates (REPS, Dual REPS, PI2 and PI2-CMA, CMA-ES), with NumPy arrays
-in and out. The ROS messages are bimanual_skills.msg and bimanual_skills.srv, as for every ROS package.
+bimanual_skills.gym_env), DMPs and ProMPs, the policy updates (REPS, Dual REPS, PI2 and PI2-CMA, CMA-ES) and what a
+robot file says (robot()), with NumPy arrays in and out. The ROS messages are bimanual_skills.msg and
+bimanual_skills.srv, as for every ROS package.
 
     import bimanual_skills as bs
     task = bs.make_task("fold", bs.config_path("fold_demo.yaml"))
@@ -16,6 +17,7 @@ from bimanual_skills._core import (  # noqa: F401
     DualReps,
     DualRepsUpdate,
     FoldTask,
+    ProMp,
     Reps,
     RepsUpdate,
     RolloutResult,
@@ -25,12 +27,13 @@ from bimanual_skills._core import (  # noqa: F401
     numerics,
     pi2_update,
     pinned_environment,
+    robot,
     tasks,
 )
 
-__all__ = ["CmaEs", "Dmp", "DualReps", "DualRepsUpdate", "FoldTask", "Reps", "RepsUpdate", "RolloutResult", "Task",
-           "config_path", "learn_fold", "make_task", "numerics", "pi2_update", "pin_numerics", "pinned_environment",
-           "tasks"]
+__all__ = ["CmaEs", "Dmp", "DualReps", "DualRepsUpdate", "FoldTask", "ProMp", "Reps", "RepsUpdate", "RolloutResult",
+           "Task", "config_path", "learn_fold", "make_task", "numerics", "pi2_update", "pin_numerics",
+           "pinned_environment", "robot", "tasks"]
 
 _PINNED_MARKER = "BIMANUAL_SKILLS_NUMERICS_PINNED"
 

@@ -227,3 +227,39 @@ def test_pi2_lowers_the_cost_of_a_policy_linear_in_its_basis():
     assert cost(mean).sum() < 0.5 * cost(np.zeros(kernels)).sum()
     with pytest.raises(ValueError):
         bs.pi2_update(mean, covariance, samples, costs[:, :3], basis)
+
+
+def test_a_promp_fitted_from_python_has_the_demonstrations_mean_and_spread_and_takes_a_via_point():
+    rng = np.random.default_rng(4)
+    t = np.linspace(0.0, 1.0, 101)
+    amplitudes = rng.normal(1.0, 0.1, size=12)
+    demos = [np.column_stack([a * np.sin(np.pi * t), 0.5 * t]) for a in amplitudes]
+    promp = bs.ProMp.fit(demos, duration=2.0, kernels=15)
+    assert promp.dofs == 2 and promp.kernels == 15 and promp.weight_mean.shape == (30,)
+    position, velocity, deviation = promp.path(101)
+    assert np.abs(position[:, 0] - amplitudes.mean() * np.sin(np.pi * t)).max() < 0.01
+    # the spread at the middle is the amplitudes' (their sample standard deviation), none on the second DoF's line
+    assert deviation[50, 0] == pytest.approx(amplitudes.std(ddof=1), rel=0.05)
+    assert deviation[50, 1] < 0.01
+    # velocities in time: d/dt of 0.5 t over 2 s is 0.25 per second
+    assert velocity[50, 1] == pytest.approx(0.25, rel=0.02)
+    via = promp.conditioned(0.5, np.array([1.3, 0.25]), 1e-6 * np.eye(2))
+    assert np.allclose(via.path(101)[0][50], [1.3, 0.25], atol=1e-3)
+    assert np.array_equal(promp.sample(seed=3), promp.sample(seed=3))
+    assert not np.array_equal(promp.sample(seed=3), promp.sample(seed=4))
+    with pytest.raises(ValueError):
+        bs.ProMp.fit(demos[:1], duration=2.0)
+    with pytest.raises(ValueError):
+        promp.with_mean(np.zeros(3))
+
+
+def test_a_robot_file_reads_as_bullet_sim_reads_it():
+    sim = os.path.join(SOURCE, "config", "sim.yaml")
+    wam = bs.robot(sim)
+    assert [a["name"] for a in wam["arms"]] == ["left", "right"]
+    assert all(a["start"].shape == (7,) for a in wam["arms"]) and wam["has_cloth"]
+    assert wam["urdf"].endswith(".urdf") and os.path.exists(wam["urdf"])
+    other = bs.robot(sim, os.path.join(SOURCE, "config", "robots", "offset_wrist.yaml"))
+    assert other["robot_file"].endswith("offset_wrist.yaml") and other["urdf"] != wam["urdf"]
+    with pytest.raises(ValueError, match="nope.yaml"):
+        bs.robot(sim, "/nope.yaml")
