@@ -22,6 +22,7 @@
 
 #include <Eigen/Geometry>
 
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -33,6 +34,8 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <thread>
+#include <utility>
 #include <vector>
 
 namespace bs = bimanual_skills;
@@ -64,8 +67,9 @@ const char* kUsage =
     "                   [0, 2^32) (default 1; guided.launch passes its seed:=, the scripted person's)\n"
     "  ~max_run         [s] a run whose reference has not arrived by then ends as failed (default 30)\n"
     "  ~hand_max_age    [s] a hand estimate older than this (robot clock) counts as lowered (default 0.3)\n"
-    "  ~controller_max_age [s] the arm's follow_state older than this (robot clock), or saying it no longer\n"
-    "                   follows, ends the run as failed (default 0.5)\n"
+    "  ~controller_max_age [s] no follow_state from the arm's controller for this long (robot clock; more than\n"
+    "                   its 1 / publish_rate), or one saying it no longer follows, ends the run as failed\n"
+    "                   (default 0.5)\n"
     "  ~lag, ~max_speed the follower's time constant [s] (0.15) and speed cap [line lengths/s] (0.6)\n"
     "  ~hand_topic      bimanual_skills/TrackedObject of the hand (default /object_tracker/object)\n"
     "  ~tool_topic      bimanual_skills/FollowerState of the arm's controller (default /ARM/follow_state)\n"
@@ -107,6 +111,50 @@ const char* phaseName(Stage stage, bt::GuidanceFollower::Phase phase) {
   return "?";
 }
 
+/// ARM/set_mode calls on threads of their own, one at a time: a controller process that is stopped (SIGSTOP) still
+/// has its connection accepted by the kernel and never answers, and roscpp's service calls have no timeout; the
+/// timer polls for the answer instead of waiting in it.
+class ModeCalls {
+ public:
+  struct Answer {
+    int id = 0;
+    std::string mode, message;
+    bool success = false;
+  };
+  explicit ModeCalls(std::string service) : service_(std::move(service)) {}
+  const std::string& service() const { return service_; }
+  /// Whether the last call is still unanswered.
+  bool busy() const { return in_flight_ && !in_flight_->done.load(std::memory_order_acquire); }
+  /// Starts a call of `mode`: its id, or 0 (nothing started) while the last one is unanswered.
+  int start(const std::string& mode) {
+    if (busy()) return 0;
+    auto call = std::make_shared<Call>();
+    call->answer.id = ++ids_;
+    call->answer.mode = mode;
+    in_flight_ = call;
+    std::thread([call, service = service_] {
+      bimanual_skills::SetControlMode request;
+      request.request.mode = call->answer.mode;
+      const bool answered = ros::service::call(service, request);
+      call->answer.success = answered && request.response.success;
+      call->answer.message = answered ? request.response.message : "no answer from " + service;
+      call->done.store(true, std::memory_order_release);
+    }).detach();
+    return call->answer.id;
+  }
+  /// The last call's answer, once it came (id 0 before any).
+  Answer last() const { return in_flight_ && !busy() ? in_flight_->answer : Answer{}; }
+
+ private:
+  struct Call {
+    Answer answer;
+    std::atomic<bool> done{false};
+  };
+  std::string service_;
+  std::shared_ptr<Call> in_flight_;
+  int ids_ = 0;
+};
+
 class Guidance {
  public:
   Guidance(ros::NodeHandle& node, ros::NodeHandle& private_node) {
@@ -142,7 +190,7 @@ class Guidance {
     if (!reset.empty()) reset_ = node.serviceClient<std_srvs::Trigger>(reset);
     target_ = private_node.advertise<bimanual_skills::TrackedObject>("target", 10);
     command_ = node.advertise<trajectory_msgs::JointTrajectory>("/" + config.arm + "/command", 1);
-    set_mode_ = node.serviceClient<bimanual_skills::SetControlMode>("/" + config.arm + "/set_mode");
+    set_mode_.emplace("/" + config.arm + "/set_mode");
     phase_ = private_node.advertise<bimanual_skills::GuidancePhase>("phase", 1, true);
     markers_ = private_node.advertise<visualization_msgs::MarkerArray>("markers", 1);
     hand_ = node.subscribe(hand_topic, 10, &Guidance::onHand, this);
@@ -183,7 +231,7 @@ class Guidance {
     if (p.allFinite()) tool_position_ = p;
     controller_following_ = m.following;
     controller_reason_ = m.reason;
-    controller_stamp_ = m.header.stamp.toSec();
+    controller_stamp_ = ros::Time::now().toSec();  // on this node's clock, as the ticks' (hosts' clocks may differ)
     if (m.following && (stage_ == Stage::Approach || stage_ == Stage::Run || stage_ == Stage::Settle)) {
       controller_confirmed_ = true;
     }
@@ -246,8 +294,20 @@ class Guidance {
     if (dt < 0.0) stage_start_ = t;
     if (stage_ == Stage::MoveToStart) {
       // The arm to the task's start posture (its tool at the line's start, pointing down) by a joint trajectory,
-      // then into follow mode: the follower takes over where the tool already is.
+      // then into follow mode: the follower takes over where the tool already is. Sent once the controller has
+      // answered the last run's hold (a stopped controller would take it, and the reset after it, only when it
+      // resumes, far from where they belong); a controller silent for ~max_run fails the run.
+      if (!moving_ && set_mode_->busy()) {
+        publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
+        publishPhase(now);
+        if (t - stage_start_ > max_run_) {
+          finishRun(set_mode_->service() + " hold unanswered within ~max_run: the arm's controller is not answering",
+                    now);
+        }
+        return;
+      }
       if (!moving_) {
+        stage_start_ = t;  // the move's time runs from when it is sent
         trajectory_msgs::JointTrajectory move;
         move.header.stamp = ros::Time(0);
         move.joint_names = task_->jointNames()[static_cast<std::size_t>(task_->arm())];
@@ -280,18 +340,25 @@ class Guidance {
     if (stage_ == Stage::Follow) {
       publishTarget(Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(), now);
       if (t - stage_start_ < follow_wait_) return;
-      bimanual_skills::SetControlMode mode;
-      mode.request.mode = "follow";
-      if (!set_mode_.call(mode) || !mode.response.success) {
-        const std::string why = mode.response.message.empty() ? "no answer" : mode.response.message;
+      const ModeCalls::Answer answer = set_mode_->last();
+      const bool answered = follow_call_ != 0 && answer.id == follow_call_;
+      if (!answered || !answer.success) {
+        const std::string why = set_mode_->busy() ? "no answer yet" : answered ? answer.message : "not asked yet";
         if (t - stage_start_ > max_run_) {
-          finishRun(set_mode_.getService() + " follow not taken within ~max_run: " + why, now);
+          finishRun(set_mode_->service() + " follow not taken within ~max_run: " + why, now);
           return;
         }
-        ROS_WARN_THROTTLE(2.0, "bottles_guidance: %s follow: %s (trying again)", set_mode_.getService().c_str(),
-                          why.c_str());
+        if (answered) {
+          ROS_WARN_THROTTLE(2.0, "bottles_guidance: %s follow: %s (trying again)", set_mode_->service().c_str(),
+                            why.c_str());
+        }
+        if (!set_mode_->busy() && (!answered || t >= follow_retry_at_)) {
+          follow_call_ = set_mode_->start("follow");
+          follow_retry_at_ = t + 0.5;
+        }
         return;
       }
+      follow_call_ = 0;
       stage_ = Stage::Approach;
       stage_start_ = t;
       controller_confirmed_ = false;
@@ -321,7 +388,7 @@ class Guidance {
                   (controller_reason_.empty() ? std::string() : " (" + controller_reason_ + ")");
       } else if (controller_confirmed_ && t - controller_stamp_ > controller_max_age_) {
         std::ostringstream age;
-        age << "the arm's controller went silent (its follow_state " << t - controller_stamp_ << " s old)";
+        age << "the arm's controller went silent (no follow_state for " << t - controller_stamp_ << " s)";
         stopped = age.str();
       }
       if (!stopped.empty()) {
@@ -456,11 +523,11 @@ class Guidance {
       publishPhase(now, outcome);
       return;
     }
-    bimanual_skills::SetControlMode hold;
-    hold.request.mode = "hold";
-    if (!set_mode_.call(hold) || !hold.response.success) {
-      ROS_WARN("bottles_guidance: %s hold: %s", set_mode_.getService().c_str(), hold.response.message.c_str());
+    // The arm held while it goes back (answered or not: the next run's follow waits for this call to end).
+    if (set_mode_->start("hold") == 0) {
+      ROS_WARN("bottles_guidance: %s has not answered its last call: hold not sent", set_mode_->service().c_str());
     }
+    rows_.clear();
     reset_pending_ = static_cast<bool>(reset_);
     stage_ = Stage::MoveToStart;
     stage_start_ = last_tick_;
@@ -531,7 +598,10 @@ class Guidance {
   bool hand_lost_ = false, learned_ = false, reset_pending_ = false;
   ros::Publisher target_, phase_, markers_, command_;
   ros::Subscriber hand_, tool_, obstacles_;
-  ros::ServiceClient reset_, set_mode_;
+  ros::ServiceClient reset_;
+  std::optional<ModeCalls> set_mode_;
+  int follow_call_ = 0;
+  double follow_retry_at_ = 0.0;
   ros::Timer timer_;
 };
 

@@ -30,12 +30,14 @@ def _rollout(name, config, parameters, seed):
 
 def init(address=None, workers=None, **kwargs):
     """ray.init() as the backend needs it: no dashboard, no usage statistics, the workers' numerics pinned.
-    address None: a local Ray of `workers` CPUs (None: all); "auto" or "HOST:PORT": a running cluster."""
+    address None: a new local Ray of `workers` CPUs (None: all), even when a cluster runs on this machine; "auto" or
+    "HOST:PORT": a running cluster."""
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
     if ray.is_initialized():
         return
     options = dict(include_dashboard=False, runtime_env={"env_vars": bs.pinned_environment()}, log_to_driver=False)
     if address is None:
+        options["address"] = "local"  # not a cluster found in RAY_ADDRESS or /tmp/ray (ray.init's default)
         options["num_cpus"] = workers
     else:
         options["address"] = address
