@@ -131,6 +131,13 @@ struct ReferenceGenerator {
   double acceleration_cost = 0.0, max_ik_error = 0.0;
 };
 
+/// Where a rollout lays the cloth: the file's pose `pose` shifted by the noise draw and turned about the cloth's own
+/// vertical.
+Eigen::Isometry3d noisyClothPose(const Eigen::Isometry3d& pose, const FoldNoiseDraw& draw) {
+  return Eigen::Translation3d(draw.cloth_x, draw.cloth_y, 0.0) * pose *
+         Eigen::AngleAxisd(draw.cloth_yaw, Eigen::Vector3d::UnitZ());
+}
+
 }  // namespace
 
 const char* toString(FoldOutcome outcome) noexcept {
@@ -539,8 +546,7 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
   // The robot's noise: the cloth laid down a little elsewhere, the grippers opening a little early or late.
   out.noise = drawFoldNoise(m.config.noise, seed);
   if (m.config.noise.any()) {
-    sim_config.cloth.pose = Eigen::Translation3d(out.noise.cloth_x, out.noise.cloth_y, 0.0) * sim_config.cloth.pose *
-                            Eigen::AngleAxisd(out.noise.cloth_yaw, Eigen::Vector3d::UnitZ());
+    sim_config.cloth.pose = noisyClothPose(sim_config.cloth.pose, out.noise);
   }
   m.simulation = std::make_unique<sim::BimanualSimulation>(sim_config);
   sim::BimanualSimulation& simulation = *m.simulation;
@@ -771,11 +777,9 @@ const Eigen::Matrix3Xd& ClothFoldTask::clothRestVertices() const {
 Eigen::Matrix3Xd ClothFoldTask::clothStartVertices(std::uint32_t seed) const {
   const Impl& m = *impl_;
   if (!m.config.noise.any()) return m.file_rest;
-  // run() lays the cloth at T(x, y) * pose * Rz(yaw) instead of pose: the file's mesh moved by that times pose⁻¹.
-  const FoldNoiseDraw draw = drawFoldNoise(m.config.noise, seed);
+  // run() lays the cloth at noisyClothPose() instead of the file's pose: the file's mesh moved by that times pose⁻¹.
   const Eigen::Isometry3d& pose = m.sim_config.cloth.pose;
-  const Eigen::Isometry3d moved = Eigen::Translation3d(draw.cloth_x, draw.cloth_y, 0.0) * pose *
-                                  Eigen::AngleAxisd(draw.cloth_yaw, Eigen::Vector3d::UnitZ()) * pose.inverse();
+  const Eigen::Isometry3d moved = noisyClothPose(pose, drawFoldNoise(m.config.noise, seed)) * pose.inverse();
   Eigen::Matrix3Xd out = moved.linear() * m.file_rest;
   out.colwise() += moved.translation();
   return out;
