@@ -164,6 +164,81 @@ class FoldTask {
     const std::unique_lock<std::mutex> lock = own();
     return bimanual_skills::vision::toString(task_.renderStart(s));
   }
+  /// The references ClothFoldTask::run would follow for `parameters`, rows = periods, columns = both arms' joints.
+  py::dict plan(const Eigen::VectorXd& parameters) {
+    std::vector<Eigen::MatrixXd> coordination;
+    Eigen::VectorXd weights;
+    if (!br::decodeCoordinatedPolicy(parameters, tasks::ClothFoldTask::kDofs, task_.task().policyBasisSize(),
+                                     coordination, weights)) {
+      throw std::invalid_argument("the parameters do not encode a coordinated policy of the fold");
+    }
+    tasks::FoldPlan plan;
+    {
+      const py::gil_scoped_release unlocked;
+      const std::unique_lock<std::mutex> lock = own();
+      plan = task_.task().plan(coordination, weights);
+    }
+    const auto both = [](const std::vector<Eigen::MatrixXd>& arms) {
+      Eigen::MatrixXd out(arms[0].cols(), arms[0].rows() + arms[1].rows());
+      out << arms[0].transpose(), arms[1].transpose();
+      return out;
+    };
+    py::dict d;
+    d["outcome"] = tasks::toString(plan.outcome);
+    d["reason"] = plan.reason;
+    d["dt"] = plan.dt;
+    d["move_start"] = plan.move_start;
+    d["release"] = plan.release;
+    d["position"] = both(plan.position);
+    d["velocity"] = both(plan.velocity);
+    d["acceleration"] = both(plan.acceleration);
+    return d;
+  }
+  std::string beginSteps(long long seed) {
+    const std::uint32_t s = seedOf(seed);
+    const py::gil_scoped_release unlocked;
+    const std::unique_lock<std::mutex> lock = own();
+    steps_seed_ = s;
+    return tasks::toString(task_.task().beginSteps(s));
+  }
+  std::string step(const Eigen::Ref<const Eigen::VectorXd>& velocity) {
+    const py::gil_scoped_release unlocked;
+    const std::unique_lock<std::mutex> lock = own();
+    return tasks::toString(task_.task().step(velocity));
+  }
+  br::RolloutResult finishSteps() {
+    const py::gil_scoped_release unlocked;
+    const std::unique_lock<std::mutex> lock = own();
+    return task_.record(task_.task().finishSteps(), steps_seed_);
+  }
+  py::tuple jointState() {
+    Eigen::VectorXd q(14), qd(14), arm_q, arm_qd;
+    for (int arm = 0; arm < 2; ++arm) {
+      task_.task().measuredState(arm, arm_q, arm_qd);
+      q.segment<7>(7 * arm) = arm_q;
+      qd.segment<7>(7 * arm) = arm_qd;
+    }
+    return py::make_tuple(q, qd);
+  }
+  py::dict jointLimits() {
+    Eigen::VectorXd lower(14), upper(14), velocity(14);
+    for (int arm = 0; arm < 2; ++arm) {
+      const bimanual_skills::kinematics::ChainModel& model = task_.task().armModel(arm);
+      lower.segment<7>(7 * arm) = model.lowerLimits();
+      upper.segment<7>(7 * arm) = model.upperLimits();
+      velocity.segment<7>(7 * arm) = model.velocityLimits();
+    }
+    py::dict d;
+    d["lower"] = lower;
+    d["upper"] = upper;
+    d["velocity"] = velocity;
+    return d;
+  }
+  Eigen::MatrixXd toolPositions() {
+    Eigen::MatrixXd out(2, 3);
+    for (int arm = 0; arm < 2; ++arm) out.row(arm) = task_.task().toolPosition(arm).transpose();
+    return out;
+  }
   py::dict startFold(long long seed) {
     // The start against itself: its own rest, as the rollout of `seed` measures its cloth.
     const Eigen::Matrix3Xd start = task_.task().clothStartVertices(seedOf(seed));
@@ -189,6 +264,7 @@ class FoldTask {
 
   br::FoldLearningConfig config_;
   br::FoldRolloutTask task_;
+  std::uint32_t steps_seed_ = 0;  ///< The stepped rollout's seed: its camera noise when it is scored.
   std::mutex mutex_;
 };
 
@@ -380,6 +456,53 @@ PYBIND11_MODULE(_core, m) {
             return py::make_tuple(imageView(t.task().startBgr(), self), imageView(t.task().startDepth(), self));
           },
           "The last render_start()'s images, as images() (views, no copy).")
+      .def("plan", &FoldTask::plan, py::arg("parameters"),
+           "The joint references run(parameters, ...) follows, computed without simulating: a dict of outcome, "
+           "reason, dt [s], move_start and release (periods), and position, velocity, acceleration (periods x 14: "
+           "the left arm's 7 joints, then the right's; row k is period k's reference).")
+      .def("begin_steps", &FoldTask::beginSteps, py::arg("seed"),
+           "Begins a stepped rollout of `seed` (the joint-space environment's episode): the simulation as run() "
+           "builds it, the arms at the start, the grasp. Returns the outcome (\"Ok\" or \"GraspFailed\").")
+      .def_property_readonly(
+          "stepped_periods", [](FoldTask& t) { return t.task().task().steppedPeriods(); },
+          "The periods a stepped rollout's policy drives (up to the grippers' planned release).")
+      .def_property_readonly(
+          "stepping", [](FoldTask& t) { return t.task().task().stepping(); },
+          "Whether step() may be called (a stepped rollout is Ok with driven periods left).")
+      .def_property_readonly(
+          "stepped_period", [](FoldTask& t) { return t.task().task().steppedPeriod(); },
+          "The periods the stepped rollout has run.")
+      .def_property_readonly(
+          "dt", [](FoldTask& t) { return t.task().task().simConfig().step; },
+          "The control period [s] (the simulation's step).")
+      .def("step", &FoldTask::step, py::arg("velocity"),
+           "One control period of the stepped rollout: `velocity` (14 joint velocities [rad/s], left arm then "
+           "right) sets the next period's reference, which the controllers track from then on. Returns the "
+           "outcome: \"Ok\", or why the rollout ended (InvalidPolicy, OutOfLimits, ControllerFailed, ...). "
+           "Releases Python's lock. RuntimeError without begin_steps() or after the driven periods.")
+      .def("finish_steps", &FoldTask::finishSteps,
+           "Ends the stepped rollout (the arms hold through the rest and the settling) and scores it as run() "
+           "does: its result; its images are images().")
+      .def("joint_state", &FoldTask::jointState,
+           "Both arms' joint positions and velocities as the controllers measured them in the last stepped "
+           "period (the start, at rest, before the first): (q, qd), 14 each.")
+      .def_property_readonly(
+          "step_acceleration", [](FoldTask& t) { return t.task().task().config().step_acceleration; },
+          "How fast a stepped rollout's reference reaches its commanded velocity [rad/s^2].")
+      .def("joint_limits", &FoldTask::jointLimits,
+           "Both arms' URDF limits, 14 values each (left arm, then right): lower and upper [rad], velocity [rad/s].")
+      .def("tool_positions", &FoldTask::toolPositions, "Both tools' positions now (2 x 3, world) [m].")
+      .def(
+          "cloth_vertices", [](FoldTask& t) { return Eigen::Matrix3Xd(t.task().task().clothVertices()); },
+          "The cloth's mesh now (3 x nodes, world) [m].")
+      .def_property_readonly(
+          "cloth_nodes",
+          [](FoldTask& t) {
+            const bimanual_skills::sim::ClothParameters& c = t.task().task().simConfig().cloth;
+            return py::make_tuple(c.nodes_x, c.nodes_y);
+          },
+          "The cloth mesh's nodes along its length and its width, (nodes_x, nodes_y): node (i, j) is column "
+          "i + nodes_x j of cloth_vertices().")
       .def("start_fold", &FoldTask::startFold, py::arg("seed"),
            "The fold quality of rollout `seed`'s start (q 0: the flat cloth): q, distance, displacement [m].");
   m.def(

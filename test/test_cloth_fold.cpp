@@ -210,6 +210,109 @@ TEST(ClothFold, BadAndWildPoliciesEndWithAReason) {
   EXPECT_EQ(task.run(task.demonstrationParameters()).outcome, bt::FoldOutcome::Ok);
 }
 
+// A stepped rollout (a step-by-step policy at the control rate) that streams the plan's velocities as its
+// references follows the plan's positions and folds the cloth as run() does: the same simulation, noise, grasp,
+// release and controllers, the references a period apart as one-waypoint trajectories instead of one spline.
+TEST(ClothFold, ASteppedRolloutThatStreamsThePlanFoldsAsRunDoes) {
+  bt::ClothFoldConfig c = config();
+  c.noise = bt::foldNoiseSetting("robot", "test");
+  bt::ClothFoldTask task(c);
+  const std::vector<Eigen::MatrixXd> identity{
+      Eigen::MatrixXd::Identity(bt::ClothFoldTask::kDofs, bt::ClothFoldTask::kDofs)};
+  const bt::FoldPlan plan = task.plan(identity, task.demonstrationParameters());
+  ASSERT_EQ(plan.outcome, bt::FoldOutcome::Ok);
+  const bt::FoldRollout reference = task.run(identity, task.demonstrationParameters(), 5);
+  ASSERT_EQ(reference.outcome, bt::FoldOutcome::Ok);
+  EXPECT_THROW((void)task.step(Eigen::VectorXd::Zero(14)), std::logic_error);  // no stepped rollout yet
+  ASSERT_EQ(task.beginSteps(5), bt::FoldOutcome::Ok);
+  EXPECT_EQ(task.steppedPeriods(), plan.release);
+  EXPECT_TRUE(task.stepping());
+  Eigen::VectorXd velocity(14);
+  double reference_error = 0.0;
+  for (int k = 0; k < task.steppedPeriods(); ++k) {
+    velocity << plan.velocity[0].col(k + 1), plan.velocity[1].col(k + 1);
+    ASSERT_EQ(task.step(velocity), bt::FoldOutcome::Ok) << "period " << k;
+    for (int arm = 0; arm < 2; ++arm) {
+      reference_error = std::max(
+          reference_error,
+          (task.steppedReference(arm) - plan.position[static_cast<std::size_t>(arm)].col(k + 1)).cwiseAbs().maxCoeff());
+    }
+  }
+  EXPECT_FALSE(task.stepping());
+  EXPECT_THROW((void)task.step(velocity), std::logic_error);  // its driven periods are over
+  const bt::FoldRollout stepped = task.finishSteps();
+  ASSERT_EQ(stepped.outcome, bt::FoldOutcome::Ok) << stepped.reason;
+  const double cloth = (stepped.cloth_vertices - reference.cloth_vertices).colwise().norm().maxCoeff();
+  std::printf(
+      "stepped: q %.4f (run %.4f), cloth within %.2e m, references within %.1e rad, acceleration cost %.1f "
+      "(run %.1f), tracking %.4f rad (run %.4f), %.2f s simulated in %.2f s\n",
+      stepped.fold.q, reference.fold.q, cloth, reference_error, stepped.acceleration_cost, reference.acceleration_cost,
+      stepped.max_tracking_error, reference.max_tracking_error, stepped.simulated_seconds, stepped.wall_seconds);
+  EXPECT_LT(reference_error, 1e-7);  // q + (Δq / dt) dt, rounded period by period
+  EXPECT_EQ(stepped.simulated_seconds, reference.simulated_seconds);
+  EXPECT_EQ(stepped.path_times.size(), reference.path_times.size());
+  EXPECT_NEAR(stepped.fold.q, reference.fold.q, 0.01);
+  EXPECT_LT(cloth, 0.005);
+  EXPECT_NEAR(stepped.acceleration_cost, reference.acceleration_cost, 0.05 * reference.acceleration_cost);
+  EXPECT_NEAR(stepped.max_tracking_error, reference.max_tracking_error, 0.01);
+  // The same seed and references, the same rollout, bit for bit.
+  ASSERT_EQ(task.beginSteps(5), bt::FoldOutcome::Ok);
+  for (int k = 0; k < task.steppedPeriods(); ++k) {
+    velocity << plan.velocity[0].col(k + 1), plan.velocity[1].col(k + 1);
+    ASSERT_EQ(task.step(velocity), bt::FoldOutcome::Ok);
+  }
+  EXPECT_EQ((task.finishSteps().cloth_vertices - stepped.cloth_vertices).cwiseAbs().maxCoeff(), 0.0);
+}
+
+// Bad steps end the stepped rollout with the reason (never a crash); a reference pushed against a joint's limit
+// stops at it; finishSteps() early holds the arms through the rest; run() ends a stepped rollout.
+TEST(ClothFold, BadStepsEndASteppedRolloutWithAReason) {
+  bt::ClothFoldTask task(config());
+  ASSERT_EQ(task.beginSteps(1), bt::FoldOutcome::Ok);
+  Eigen::VectorXd velocity = Eigen::VectorXd::Zero(14);
+  ASSERT_EQ(task.step(velocity), bt::FoldOutcome::Ok);
+  velocity[3] = std::nan("");
+  EXPECT_EQ(task.step(velocity), bt::FoldOutcome::InvalidPolicy);
+  EXPECT_EQ(task.step(Eigen::VectorXd::Zero(14)), bt::FoldOutcome::InvalidPolicy);  // it ended
+  bt::FoldRollout ended = task.finishSteps();
+  EXPECT_EQ(ended.outcome, bt::FoldOutcome::InvalidPolicy);
+  EXPECT_NE(ended.reason.find("NaN"), std::string::npos) << ended.reason;
+  EXPECT_THROW((void)task.finishSteps(), std::logic_error);
+
+  ASSERT_EQ(task.beginSteps(1), bt::FoldOutcome::Ok);
+  EXPECT_EQ(task.step(Eigen::VectorXd::Zero(13)), bt::FoldOutcome::InvalidPolicy);
+  (void)task.finishSteps();
+  ASSERT_EQ(task.beginSteps(1), bt::FoldOutcome::Ok);
+  velocity.setZero();
+  velocity[8] = 100.0;  // the right arm's joint 2, beyond any WAM's velocity limit
+  EXPECT_EQ(task.step(velocity), bt::FoldOutcome::OutOfLimits);
+  ended = task.finishSteps();
+  EXPECT_NE(ended.reason.find("joint 2 leaves its limits: velocity 100"), std::string::npos) << ended.reason;
+
+  // The left arm's wrist roll (joint 7: it turns the gripper about its axis) driven towards its upper limit: the
+  // reference slows and stops at the limit and stays.
+  const Eigen::VectorXd upper = task.armModel(0).upperLimits(), limit = task.armModel(0).velocityLimits();
+  const Eigen::Index joint = 6;
+  ASSERT_EQ(task.beginSteps(1), bt::FoldOutcome::Ok);
+  velocity.setZero();
+  velocity[joint] = 0.9 * limit[joint];
+  int at_limit = 0;
+  while (task.stepping() && task.step(velocity) == bt::FoldOutcome::Ok) {
+    const double q = task.steppedReference(0)[joint];
+    ASSERT_LE(q, upper[joint]);
+    at_limit += q == upper[joint];
+  }
+  ended = task.finishSteps();
+  std::printf("joint %d driven to its limit %.3f rad: %d periods there, %s %s\n", static_cast<int>(joint) + 1,
+              upper[joint], at_limit, bt::toString(ended.outcome), ended.reason.c_str());
+  EXPECT_GT(at_limit, 100);
+  // run() ends a stepped rollout in progress.
+  ASSERT_EQ(task.beginSteps(1), bt::FoldOutcome::Ok);
+  EXPECT_EQ(task.run(task.demonstrationParameters()).outcome, bt::FoldOutcome::Ok);
+  EXPECT_FALSE(task.stepping());
+  EXPECT_THROW((void)task.step(Eigen::VectorXd::Zero(14)), std::logic_error);
+}
+
 // References a robot would be sent are checked against the URDF's limits as they are made, in the plan the ROS
 // backend sends and in the rollout the simulation runs alike: the demonstration squeezed into 0.25 s asks for joint
 // speeds beyond the WAM's limits.

@@ -22,6 +22,27 @@ outcome and reason, SoftGym's ClothFold performance -(distance + 1.2 displacemen
 (performance - performance_start) / (0 - performance_start) (Lin et al. 2020: 0 the start, 1 the halves on each
 other), seed (the rollout's) and parameters (the policy run). A rollout that failed before its cloth was measured
 scores as its start (performance_start, normalized 0).
+
+The step-by-step variant, bimanual_skills/ClothFoldJoint-v0 (FoldJointEnv), drives the same rollout one control
+period (1 ms) at a time with joint-space actions, for step-by-step policies (reinforcement learning, imitation):
+
+    env = gym.make("bimanual_skills/ClothFoldJoint-v0")
+    obs, info = env.reset(seed=1)                  # the arms at the start, the cloth grasped at its far corners
+    while True:
+        obs, reward, terminated, truncated, info = env.step(policy(obs))
+        if terminated: break                      # the grippers opened, the cloth settled, the fold scored
+
+Action: both arms' commanded joint velocities, 14 values in [-1, 1] (left arm's joints 1-7, then the right's) times
+action_scale times the URDF's velocity limits; the reference reaches them at most at the task's step acceleration
+(4 rad/s^2), slows to stop at a position limit, and the controllers (the robot path's computed-torque law) track it
+from the next period on. Each step holds an action for frame_skip periods (1: the control rate). Observation:
+joint_position and joint_velocity (14 each, as the controllers measured them), tool_position (both tools, 6, world
+[m]), cloth_corners (the mesh's four corners, 12, world [m], the ground truth SoftGym's key-point observation gives)
+and progress (the fraction of the driven periods done). The episode drives hold_before + duration + hold_after
+(4.5 s: 4500 periods at frame_skip 1); then, in the same step, the grippers open when the episodic rollout's would,
+the cloth settles and the camera reward scores it. Reward: 0 until then, the learning file's reward in the last step
+(the episodic environment's for the same motion); info then has q, terms, outcome and the normalised performance as
+above. A controller's stop or a diverging simulation ends the episode early with its outcome and that reward.
 """
 import gymnasium
 import numpy as np
@@ -92,24 +113,9 @@ class FoldEnv(gymnasium.Env):
         parameters = self.parameters(action)
         seed, self._rollout_seed = self._rollout_seed, None
         result = self._task.run(parameters, seed)
-        terms = dict(zip(self._names, (float(t) for t in result.terms)))
-        start = self._performance_start
-        if result.ok:
-            performance = -(terms["fold_distance"] + _FIXATION_WEIGHT * terms["fold_displacement"])
-        else:
-            performance = start
         self._observation = self._images(*self._task.images())
-        info = {
-            "q": terms["fold_quality"],
-            "terms": terms,
-            "outcome": result.outcome,
-            "reason": result.reason,
-            "performance": performance,
-            "performance_start": start,
-            "normalized_performance": (performance - start) / (0.0 - start),
-            "seed": seed,
-            "parameters": np.asarray(parameters),
-        }
+        info = _fold_info(result, self._names, self._performance_start, seed)
+        info["parameters"] = np.asarray(parameters)
         return self._observation, float(result.reward), True, False, info
 
     def render(self):
@@ -118,5 +124,113 @@ class FoldEnv(gymnasium.Env):
         return self._observation["rgb"].copy()
 
 
-# No time limit: the environment terminates each episode itself, after its one step.
+def _fold_info(result, names, performance_start, seed):
+    """What both environments tell of a finished rollout (the module's docstring)."""
+    terms = dict(zip(names, (float(t) for t in result.terms)))
+    if result.ok:
+        performance = -(terms["fold_distance"] + _FIXATION_WEIGHT * terms["fold_displacement"])
+    else:
+        performance = performance_start
+    return {
+        "q": terms["fold_quality"],
+        "terms": terms,
+        "outcome": result.outcome,
+        "reason": result.reason,
+        "performance": performance,
+        "performance_start": performance_start,
+        "normalized_performance": (performance - performance_start) / (0.0 - performance_start),
+        "seed": seed,
+    }
+
+
+class FoldJointEnv(gymnasium.Env):
+    """The fold of a learning file driven period by period by joint-space actions (the module's docstring)."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, config=None, noise="robot", action_scale=0.5, frame_skip=1):
+        if not (np.isfinite(action_scale) and 0.0 < action_scale <= 1.0):
+            raise ValueError("action_scale must be in (0, 1] (a fraction of the velocity limits), not %r" %
+                             (action_scale,))
+        if int(frame_skip) != frame_skip or not 1 <= frame_skip <= 1000:
+            raise ValueError("frame_skip must be a whole number of periods in [1, 1000], not %r" % (frame_skip,))
+        self._task = FoldTask(config or config_path("fold_demo.yaml"), noise)
+        self._frame_skip = int(frame_skip)
+        self._names = self._task.term_names()
+        limits = self._task.joint_limits()
+        self._velocity_scale = float(action_scale) * np.asarray(limits["velocity"], dtype=np.float64)
+        self._periods = self._task.stepped_periods
+        self._corners = self._corner_indices(*self._task.cloth_nodes)
+        margin = 0.5  # [rad]: a measured position may pass a limit a little
+        self.action_space = spaces.Box(-1.0, 1.0, shape=(14,), dtype=np.float32)
+        self.observation_space = spaces.Dict({
+            "joint_position": spaces.Box((limits["lower"] - margin).astype(np.float32),
+                                         (limits["upper"] + margin).astype(np.float32), dtype=np.float32),
+            "joint_velocity": spaces.Box((-3.0 * limits["velocity"]).astype(np.float32),
+                                         (3.0 * limits["velocity"]).astype(np.float32), dtype=np.float32),
+            "tool_position": spaces.Box(-10.0, 10.0, shape=(6,), dtype=np.float32),
+            "cloth_corners": spaces.Box(-10.0, 10.0, shape=(12,), dtype=np.float32),
+            "progress": spaces.Box(0.0, 1.0, shape=(1,), dtype=np.float32),
+        })
+        self._rollout_seed = None
+        self._performance_start = None
+
+    @staticmethod
+    def _corner_indices(nodes_x, nodes_y):
+        return [0, nodes_x - 1, nodes_x * (nodes_y - 1), nodes_x * nodes_y - 1]
+
+    @property
+    def task(self):
+        """The bimanual_skills.FoldTask the episodes run on."""
+        return self._task
+
+    @property
+    def velocity_scale(self):
+        """What an action of 1 commands per joint [rad/s] (action_scale times the velocity limits)."""
+        return self._velocity_scale.copy()
+
+    def _observation(self):
+        q, qd = self._task.joint_state()
+        corners = np.asarray(self._task.cloth_vertices())[:, self._corners]
+        obs = {
+            "joint_position": q,
+            "joint_velocity": qd,
+            "tool_position": np.asarray(self._task.tool_positions()).reshape(6),
+            "cloth_corners": corners.T.reshape(12),
+            "progress": np.array([min(1.0, self._task.stepped_period / self._periods)]),
+        }
+        return {k: np.clip(v, self.observation_space[k].low, self.observation_space[k].high).astype(np.float32)
+                for k, v in obs.items()}
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        self._rollout_seed = int(self.np_random.integers(0, 2**32))
+        outcome = self._task.begin_steps(self._rollout_seed)
+        if outcome != "Ok":
+            result = self._task.finish_steps()
+            raise RuntimeError("the episode's rollout cannot start: %s: %s" % (outcome, result.reason))
+        self._performance_start = -self._task.start_fold(self._rollout_seed)["distance"]
+        return self._observation(), {"seed": self._rollout_seed, "noise": self._task.noise, "periods": self._periods}
+
+    def step(self, action):
+        if self._rollout_seed is None:
+            raise RuntimeError("FoldJointEnv: call reset() before step(): the episode has ended")
+        a = np.asarray(action, dtype=np.float64)
+        if a.shape != (14,) or not np.all(np.isfinite(a)):
+            raise ValueError("an action is 14 finite values in [-1, 1], not shape %s%s" %
+                             (a.shape, "" if np.all(np.isfinite(a)) else " with NaN or Inf"))
+        velocity = np.clip(a, -1.0, 1.0) * self._velocity_scale
+        for _ in range(self._frame_skip):
+            if not self._task.stepping or self._task.step(velocity) != "Ok":
+                break
+        if self._task.stepping:
+            return self._observation(), 0.0, False, False, {}
+        seed, self._rollout_seed = self._rollout_seed, None
+        result = self._task.finish_steps()
+        info = _fold_info(result, self._names, self._performance_start, seed)
+        return self._observation(), float(result.reward), True, False, info
+
+
+# No time limit: the environments terminate each episode themselves (the episodic one after its one step).
 gymnasium.register(id="bimanual_skills/ClothFold-v0", entry_point="bimanual_skills.gym_env:FoldEnv")
+gymnasium.register(id="bimanual_skills/ClothFoldJoint-v0", entry_point="bimanual_skills.gym_env:FoldJointEnv")

@@ -76,13 +76,17 @@ RolloutResult FoldRolloutTask::run(const Eigen::VectorXd& parameters, std::uint3
   Eigen::VectorXd weights;
   if (decodeCoordinatedPolicy(parameters, tasks::ClothFoldTask::kDofs, task_.policyBasisSize(), coordination,
                               weights)) {
-    last_ = task_.run(coordination, weights, seed);
-  } else {
-    last_ = tasks::FoldRollout{};
-    last_.outcome = tasks::FoldOutcome::InvalidPolicy;
-    last_.reason = "the parameters do not encode a coordinated policy of 12 DoF and " +
-                   std::to_string(task_.policyBasisSize()) + " weights per latent DoF";
+    return record(task_.run(coordination, weights, seed), seed);
   }
+  tasks::FoldRollout invalid;
+  invalid.outcome = tasks::FoldOutcome::InvalidPolicy;
+  invalid.reason = "the parameters do not encode a coordinated policy of 12 DoF and " +
+                   std::to_string(task_.policyBasisSize()) + " weights per latent DoF";
+  return record(std::move(invalid), seed);
+}
+
+RolloutResult FoldRolloutTask::record(tasks::FoldRollout rollout, std::uint32_t seed) {
+  last_ = std::move(rollout);
   last_terms_ = score(last_, seed);
   return resultOf(last_terms_, last_.reason, last_.actual_path);
 }

@@ -237,6 +237,240 @@ struct ClothFoldTask::Impl {
   std::vector<Eigen::VectorXd> start_q;
   Eigen::Matrix3Xd file_rest;  ///< The flat cloth at rest as the simulation file places it (world frame).
 
+  /// A rollout in progress (run()'s and a stepped one's): its result so far, buffers and recordings, period k next.
+  struct Rollout {
+    FoldRollout out;
+    std::chrono::steady_clock::time_point wall_start;
+    int k = 0, steps = 0;
+    int release[2] = {0, 0};
+    int path_every = 1, cloth_every = 0;
+    std::vector<sim::JointState> measured;
+    Eigen::VectorXd torque;
+    std::vector<kinematics::ChainData> commanded_kinematics;
+    std::vector<std::vector<Eigen::Vector3d>> commanded, actual;
+    std::vector<std::vector<Eigen::VectorXd>> joints;
+    std::vector<double> path_times, cloth_times;
+  };
+
+  /// The periods of a rollout at step dt: the grippers open at `release` (after the holds and the movement), it
+  /// ends at `steps` (after the settling).
+  void periods(double dt, int& move_start, int& move_end, int& release, int& steps) const {
+    move_start = static_cast<int>(std::lround(config.hold_before / dt));
+    move_end = move_start + static_cast<int>(std::lround(config.duration / dt));
+    release = move_end + static_cast<int>(std::lround(config.hold_after / dt));
+    steps = release + static_cast<int>(std::lround(config.settle / dt));
+  }
+
+  void fail(Rollout& r, FoldOutcome outcome, const std::string& reason) const {
+    r.out.outcome = outcome;
+    r.out.reason = reason + " at t = " + std::to_string(simulation->time()) + " s";
+  }
+
+  /// Rollout `seed`'s start: a new simulation with its noise, the arms at the start, the grasp, new controllers with
+  /// room for `capacity` waypoints, the grippers' release periods about `release`. Not Ok (GraspFailed): it ends.
+  /// A new simulation and new controllers for every rollout: after reset() a simulation whose cloth was grasped
+  /// differs from a new one in the last bits, which the contacts amplify (0.6 mm on the cloth after a fold), and the
+  /// controllers carry state from the last rollout; new ones make rollouts repeatable bit for bit whichever worker
+  /// runs them and whatever it ran before.
+  void begin(Rollout& r, std::uint32_t seed, int release, int steps, int capacity) {
+    r.wall_start = std::chrono::steady_clock::now();
+    sim::SimConfig rollout_config = sim_config;
+    rollout_config.seed = seed;
+    // The robot's noise: the cloth laid down a little elsewhere, the grippers opening a little early or late.
+    r.out.noise = drawFoldNoise(config.noise, seed);
+    if (config.noise.any()) rollout_config.cloth.pose = noisyClothPose(rollout_config.cloth.pose, r.out.noise);
+    simulation = std::make_unique<sim::BimanualSimulation>(rollout_config);
+    std::vector<sim::ArmState> start;
+    for (const Eigen::VectorXd& q : start_q) start.push_back({q, Eigen::VectorXd::Zero(q.size())});
+    if (simulation->reset(start) != sim::SimStatus::Ok) throw std::logic_error("cloth fold: reset rejected");
+    r.steps = steps;
+    for (int arm = 0; arm < 2; ++arm) {
+      if (simulation->grasp(arm, &r.out.grasped_nodes[arm]) != sim::SimStatus::Ok || r.out.grasped_nodes[arm] == 0) {
+        r.out.outcome = FoldOutcome::GraspFailed;
+        r.out.reason = "arm " + std::to_string(arm) + " grasped no cloth node";
+        return;
+      }
+    }
+    const double dt = simulation->stepSize();
+    resetControl(capacity);
+    r.measured.assign(2, sim::JointState(7));
+    r.torque = Eigen::VectorXd::Zero(7);
+    r.commanded_kinematics.clear();
+    for (int arm = 0; arm < 2; ++arm) r.commanded_kinematics.emplace_back(simulation->armModel(arm));
+    r.path_every = std::max(1, static_cast<int>(std::lround(1.0 / (config.path_rate * dt))));
+    r.cloth_every =
+        config.cloth_rate > 0.0 ? std::max(1, static_cast<int>(std::lround(1.0 / (config.cloth_rate * dt)))) : 0;
+    r.commanded.assign(2, {});
+    r.actual.assign(2, {});
+    r.joints.assign(2, {});
+    // Each gripper opens at the planned period, moved by its noise within the hold after the movement.
+    const int hold_after = static_cast<int>(std::lround(config.hold_after / dt));
+    for (int arm = 0; arm < 2; ++arm) {
+      r.release[arm] = std::clamp(release + static_cast<int>(std::lround(r.out.noise.release[arm] / dt)),
+                                  release - hold_after + 1, steps - 1);
+    }
+  }
+
+  /// Period k = r.k: the releases due, the recordings, each arm's controller update (then `after_update(arm, k,
+  /// controller)`), its stop rules and torque, the simulation's step; `commanded(arm, k)` is the arm's reference
+  /// recorded in the commanded path. A failure ends the rollout (r.out.outcome).
+  template <class AfterUpdate, class Commanded>
+  void period(Rollout& r, AfterUpdate&& after_update, Commanded&& commanded) {
+    const int k = r.k++;
+    for (int arm = 0; arm < 2; ++arm) {
+      if (k == r.release[arm]) (void)simulation->release(arm);
+    }
+    if (k % r.path_every == 0) r.path_times.push_back(simulation->time());
+    if (r.cloth_every > 0 && k % r.cloth_every == 0) {
+      r.out.cloth_frames.push_back(simulation->cloth().vertices());
+      r.cloth_times.push_back(simulation->time());
+    }
+    const double now = simulation->time();
+    for (int arm = 0; arm < 2; ++arm) {
+      const auto a = static_cast<std::size_t>(arm);
+      control::ArmController& controller = *controllers[a];
+      sim::JointState& state = r.measured[a];
+      simulation->readJointState(arm, state);
+      const control::ControllerStatus status = controller.update(now, now, state.position, state.velocity, r.torque);
+      const std::string stop = controllerStopReason(status, arm, state.velocity, controller_configs[a].velocity_limit);
+      if (!stop.empty()) {
+        fail(r, FoldOutcome::ControllerFailed, stop);
+        return;
+      }
+      after_update(arm, k, controller);
+      const double tracking = controller.trackingError().cwiseAbs().maxCoeff();
+      r.out.max_tracking_error = std::max(r.out.max_tracking_error, tracking);
+      if (tracking > config.max_tracking_error) {
+        fail(r, FoldOutcome::ControllerFailed,
+             "arm " + std::to_string(arm) + " is " + std::to_string(tracking) + " rad off its references");
+        return;
+      }
+      simulation->writeJointTorques(arm, r.torque);
+      if (k % r.path_every == 0) {
+        (void)kinematics::forwardKinematics(simulation->armModel(arm), r.commanded_kinematics[a], commanded(arm, k));
+        r.commanded[a].push_back(simulation->basePose(arm) *
+                                 Eigen::Vector3d(r.commanded_kinematics[a].tipPose().translation()));
+        r.actual[a].push_back(simulation->toolPose(arm).translation());
+        r.joints[a].push_back(state.position);
+      }
+    }
+    const sim::SimStatus status = simulation->step();
+    if (status == sim::SimStatus::ArmDiverged) fail(r, FoldOutcome::SimulationDiverged, "an arm diverged");
+    if (status == sim::SimStatus::ClothDiverged) fail(r, FoldOutcome::SimulationDiverged, "the cloth diverged");
+    r.out.max_edge_stretch = std::max(r.out.max_edge_stretch, simulation->cloth().maxEdgeStretch());
+  }
+
+  /// The rollout's end after its last period: its paths, the images' moment, the fold's quality, its times.
+  FoldRollout finish(Rollout& r) {
+    FoldRollout& out = r.out;
+    if (r.measured.empty()) return std::move(out);  // it ended before its first period (no grasp)
+    sim::BimanualSimulation& sim = *simulation;
+    const double dt = sim.stepSize();
+    // A failure may stop a period between the arms: keep the samples both arms have.
+    const std::size_t samples = std::min({r.path_times.size(), r.commanded[0].size(), r.commanded[1].size()});
+    r.path_times.resize(samples);
+    for (int arm = 0; arm < 2; ++arm) {
+      const auto a = static_cast<std::size_t>(arm);
+      Eigen::Matrix3Xd c(3, static_cast<Eigen::Index>(samples)), p(3, c.cols());
+      for (Eigen::Index i = 0; i < c.cols(); ++i) {
+        c.col(i) = r.commanded[a][static_cast<std::size_t>(i)];
+        p.col(i) = r.actual[a][static_cast<std::size_t>(i)];
+      }
+      out.commanded_path.push_back(c);
+      out.actual_path.push_back(p);
+      Eigen::MatrixXd j(7, static_cast<Eigen::Index>(r.joints[a].size()));
+      for (Eigen::Index i = 0; i < j.cols(); ++i) j.col(i) = r.joints[a][static_cast<std::size_t>(i)];
+      out.joint_path.push_back(j);
+    }
+    out.path_times =
+        Eigen::Map<const Eigen::VectorXd>(r.path_times.data(), static_cast<Eigen::Index>(r.path_times.size()));
+    out.cloth_times =
+        Eigen::Map<const Eigen::VectorXd>(r.cloth_times.data(), static_cast<Eigen::Index>(r.cloth_times.size()));
+    out.cloth_vertices = sim.cloth().vertices();
+    const int image_steps = static_cast<int>(std::lround(config.image_delay / dt));
+    // The images' moment: the arms hold (this simulator's arms touch the cloth only through their grippers, released
+    // by now, so where a robot's arms go meanwhile does not change the cloth) and the cloth slides on.
+    for (int k = 0; k < image_steps && out.outcome == FoldOutcome::Ok; ++k) {
+      const double now = sim.time();
+      for (int arm = 0; arm < 2 && out.outcome == FoldOutcome::Ok; ++arm) {
+        const auto a = static_cast<std::size_t>(arm);
+        sim::JointState& state = r.measured[a];
+        sim.readJointState(arm, state);
+        const control::ControllerStatus status =
+            controllers[a]->update(now, now, state.position, state.velocity, r.torque);
+        const std::string stop =
+            controllerStopReason(status, arm, state.velocity, controller_configs[a].velocity_limit);
+        if (!stop.empty()) fail(r, FoldOutcome::ControllerFailed, stop);
+        sim.writeJointTorques(arm, r.torque);
+      }
+      const sim::SimStatus status = sim.step();
+      if (status == sim::SimStatus::ArmDiverged) fail(r, FoldOutcome::SimulationDiverged, "an arm diverged");
+      if (status == sim::SimStatus::ClothDiverged) fail(r, FoldOutcome::SimulationDiverged, "the cloth diverged");
+    }
+    if (image_steps > 0) out.cloth_image_vertices = sim.cloth().vertices();
+    out.cloth_triangles = sim.cloth().triangles();
+    out.cloth_rest_vertices = sim.cloth().restVertices();
+    const sim::ClothParameters& cloth = sim.cloth().parameters();
+    out.fold = foldQuality(out.cloth_vertices, out.cloth_rest_vertices, cloth.nodes_x, cloth.nodes_y, cloth.thickness);
+    out.simulated_seconds = sim.time();
+    out.wall_seconds = realtime::secondsSince(r.wall_start);
+    out.cloth_wall_seconds = sim.timings().cloth.wall();
+    return std::move(out);
+  }
+
+  /// The stepped rollout in progress (beginSteps() to finishSteps()): its periods so far and the references.
+  struct Stepped {
+    bool running = false;
+    std::uint32_t seed = 0;
+    int driven = 0;  ///< Periods a policy drives (up to the planned release); the settling follows in finishSteps().
+    Rollout rollout;
+    std::vector<Eigen::VectorXd> q, qd, qdd, q_next, qd_next;  ///< Per arm: this period's reference, the next one's.
+    control::Waypoints waypoint;                               ///< One waypoint, a period ahead.
+  };
+  Stepped stepped;
+
+  /// A stepped period: the next period's reference from the commanded joint velocities `velocity` (both arms), loaded
+  /// as one waypoint a period ahead from this period's reference (the controller started in hold at period 0, so from
+  /// period 1 on), then the period.
+  FoldOutcome steppedPeriod(const Eigen::Ref<const Eigen::VectorXd>& velocity) {
+    Stepped& s = stepped;
+    Rollout& r = s.rollout;
+    const double dt = simulation->stepSize();
+    for (int arm = 0; arm < 2; ++arm) {
+      const auto a = static_cast<std::size_t>(arm);
+      const kinematics::ChainModel& model = simulation->armModel(arm);
+      // The commanded velocity, reached at most at the stepped acceleration and slowed so that the reference can
+      // stop at a position limit; a reference that would pass one ends on it.
+      const double most = config.step_acceleration * dt;
+      for (int j = 0; j < 7; ++j) {
+        const double q = s.q[a][j], lower = model.lowerLimits()[j], upper = model.upperLimits()[j];
+        double v = std::clamp(velocity[7 * arm + j], s.qd[a][j] - most, s.qd[a][j] + most);
+        v = std::min(v, std::sqrt(2.0 * config.step_acceleration * std::max(0.0, upper - q)));
+        v = std::max(v, -std::sqrt(2.0 * config.step_acceleration * std::max(0.0, q - lower)));
+        s.q_next[a][j] = std::clamp(q + v * dt, lower, upper);
+      }
+      s.qd_next[a] = (s.q_next[a] - s.q[a]) / dt;
+      const Eigen::VectorXd qdd_next = (s.qd_next[a] - s.qd[a]) / dt;
+      r.out.acceleration_cost += qdd_next.squaredNorm() * dt;
+      if (r.k >= 1) {
+        s.waypoint.positions.col(0) = s.q_next[a];
+        s.waypoint.velocities.col(0) = s.qd_next[a];
+        s.waypoint.accelerations.col(0) = qdd_next;
+        if (controllers[a]->setTrajectoryFrom(s.waypoint, s.q[a], s.qd[a], s.qdd[a]) != control::TrajectoryStatus::Ok) {
+          fail(r, FoldOutcome::ControllerFailed, "arm " + std::to_string(arm) + "'s controller refused its reference");
+          return r.out.outcome;
+        }
+      }
+      s.qdd[a] = qdd_next;
+    }
+    period(
+        r, [](int, int, control::ArmController&) {},
+        [&](int arm, int) -> const Eigen::VectorXd& { return s.q[static_cast<std::size_t>(arm)]; });
+    s.q.swap(s.q_next);
+    s.qd.swap(s.qd_next);
+    return r.out.outcome;
+  }
+
   /// New controllers for both arms (the robot path's ArmController) with room for a plan of `periods` periods: a
   /// rollout must not depend on which rollouts ran before it on this task (filters and trajectories carry state).
   void resetControl(int periods) {
@@ -308,6 +542,8 @@ ClothFoldTask::ClothFoldTask(const ClothFoldConfig& config) : impl_(std::make_un
       !(config.demo_inward >= 0.0 && config.demo_inward <= 0.9)) {
     throw std::invalid_argument("cloth fold: demo_right_arc in [0, 1], demo_inward in [0, 0.9]");
   }
+  if (!(config.step_acceleration > 0.0) || !std::isfinite(config.step_acceleration))
+    throw std::invalid_argument("cloth fold: step_acceleration > 0 and finite");
   if (!(config.image_delay >= 0.0) || !std::isfinite(config.image_delay))
     throw std::invalid_argument("cloth fold: image_delay >= 0 and finite");
   config.noise.validate("cloth fold");
@@ -526,171 +762,146 @@ FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination,
 FoldRollout ClothFoldTask::run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights,
                                std::uint32_t seed) {
   Impl& m = *impl_;
-  FoldRollout out;
-  const auto wall_start = std::chrono::steady_clock::now();
+  m.stepped.running = false;  // a stepped rollout in progress ends here
+  Impl::Rollout r;
+  r.wall_start = std::chrono::steady_clock::now();
   // The references first (open loop, as the robot path sends them), then the controllers track them.
   const FoldPlan plan = this->plan(coordination, latent_weights);
-  out.acceleration_cost = plan.acceleration_cost;
-  out.max_ik_error = plan.max_ik_error;
+  r.out.acceleration_cost = plan.acceleration_cost;
+  r.out.max_ik_error = plan.max_ik_error;
   if (plan.outcome != FoldOutcome::Ok) {
-    out.outcome = plan.outcome;
-    out.reason = plan.reason;
-    return out;
+    r.out.outcome = plan.outcome;
+    r.out.reason = plan.reason;
+    return std::move(r.out);
   }
-  // A new simulation and new controllers for every rollout: after reset() a simulation whose cloth was grasped
-  // differs from a new one in the last bits, which the contacts amplify (0.6 mm on the cloth after a fold), and the
-  // controllers carry state from the last rollout; new ones make rollouts repeatable bit for bit whichever worker
-  // runs them and whatever it ran before.
-  sim::SimConfig sim_config = m.sim_config;
-  sim_config.seed = seed;
-  // The robot's noise: the cloth laid down a little elsewhere, the grippers opening a little early or late.
-  out.noise = drawFoldNoise(m.config.noise, seed);
-  if (m.config.noise.any()) {
-    sim_config.cloth.pose = noisyClothPose(sim_config.cloth.pose, out.noise);
-  }
-  m.simulation = std::make_unique<sim::BimanualSimulation>(sim_config);
-  sim::BimanualSimulation& simulation = *m.simulation;
-  std::vector<sim::ArmState> start;
-  for (const Eigen::VectorXd& q : m.start_q) start.push_back({q, Eigen::VectorXd::Zero(q.size())});
-  if (simulation.reset(start) != sim::SimStatus::Ok) throw std::logic_error("cloth fold: reset rejected");
-  for (int arm = 0; arm < 2; ++arm) {
-    if (simulation.grasp(arm, &out.grasped_nodes[arm]) != sim::SimStatus::Ok || out.grasped_nodes[arm] == 0) {
-      out.outcome = FoldOutcome::GraspFailed;
-      out.reason = "arm " + std::to_string(arm) + " grasped no cloth node";
-      return out;
-    }
-  }
-
-  const double dt = simulation.stepSize();
-  const int n = 7;
   const int steps = static_cast<int>(plan.position[0].cols());
-  m.resetControl(steps);
+  m.begin(r, seed, plan.release, steps, steps);
+  if (r.out.outcome != FoldOutcome::Ok) return std::move(r.out);
+  const double dt = m.simulation->stepSize();
   std::vector<control::Waypoints> waypoints;
   for (int arm = 0; arm < 2; ++arm) {
     const auto a = static_cast<std::size_t>(arm);
     waypoints.push_back(plannedWaypoints(plan.position[a], plan.velocity[a], plan.acceleration[a], 0, dt));
   }
-  std::vector<sim::JointState> measured(2, sim::JointState(n));
-  Eigen::VectorXd torque(n);
-  std::vector<kinematics::ChainData> commanded_kinematics;
-  for (int arm = 0; arm < 2; ++arm) commanded_kinematics.emplace_back(simulation.armModel(arm));
-  const int path_every = std::max(1, static_cast<int>(std::lround(1.0 / (m.config.path_rate * dt))));
-  const int cloth_every =
-      m.config.cloth_rate > 0.0 ? std::max(1, static_cast<int>(std::lround(1.0 / (m.config.cloth_rate * dt)))) : 0;
-  std::vector<std::vector<Eigen::Vector3d>> commanded(2), actual(2);
-  std::vector<std::vector<Eigen::VectorXd>> joints(2);
-  std::vector<double> path_times, cloth_times;
-  const auto fail = [&](FoldOutcome outcome, const std::string& reason) {
-    out.outcome = outcome;
-    out.reason = reason + " at t = " + std::to_string(simulation.time()) + " s";
+  // The controller starts holding the arm where it stands (the plan's start), then tracks the plan from the next
+  // period on.
+  const auto load = [&](int arm, int k, control::ArmController& controller) {
+    if (k == 0 && controller.setTrajectory(waypoints[static_cast<std::size_t>(arm)]) != control::TrajectoryStatus::Ok) {
+      throw std::logic_error("cloth fold: the controller refused the planned references");
+    }
   };
+  const auto commanded = [&](int arm, int k) { return plan.position[static_cast<std::size_t>(arm)].col(k); };
+  while (r.k < steps && r.out.outcome == FoldOutcome::Ok) m.period(r, load, commanded);
+  return m.finish(r);
+}
 
-  // Each gripper opens at the planned period, moved by its noise within the hold after the movement.
-  const int hold_after = static_cast<int>(std::lround(m.config.hold_after / dt));
-  int release[2];
-  for (int arm = 0; arm < 2; ++arm) {
-    release[arm] = std::clamp(plan.release + static_cast<int>(std::lround(out.noise.release[arm] / dt)),
-                              plan.release - hold_after + 1, steps - 1);
-  }
-  for (int k = 0; k < steps && out.outcome == FoldOutcome::Ok; ++k) {
-    for (int arm = 0; arm < 2; ++arm) {
-      if (k == release[arm]) (void)simulation.release(arm);
-    }
-    if (k % path_every == 0) path_times.push_back(simulation.time());
-    if (cloth_every > 0 && k % cloth_every == 0) {
-      out.cloth_frames.push_back(simulation.cloth().vertices());
-      cloth_times.push_back(simulation.time());
-    }
-    const double now = simulation.time();
-    for (int arm = 0; arm < 2 && out.outcome == FoldOutcome::Ok; ++arm) {
-      const auto a = static_cast<std::size_t>(arm);
-      control::ArmController& controller = *m.controllers[a];
-      sim::JointState& state = measured[a];
-      simulation.readJointState(arm, state);
-      // The controller starts holding the arm where it stands (the plan's start), then tracks the plan from the
-      // next period on.
-      const control::ControllerStatus status = controller.update(now, now, state.position, state.velocity, torque);
-      const std::string stop =
-          controllerStopReason(status, arm, state.velocity, m.controller_configs[a].velocity_limit);
-      if (!stop.empty()) {
-        fail(FoldOutcome::ControllerFailed, stop);
-        break;
-      }
-      if (k == 0 && controller.setTrajectory(waypoints[a]) != control::TrajectoryStatus::Ok) {
-        throw std::logic_error("cloth fold: the controller refused the planned references");
-      }
-      const double tracking = controller.trackingError().cwiseAbs().maxCoeff();
-      out.max_tracking_error = std::max(out.max_tracking_error, tracking);
-      if (tracking > m.config.max_tracking_error) {
-        fail(FoldOutcome::ControllerFailed,
-             "arm " + std::to_string(arm) + " is " + std::to_string(tracking) + " rad off its references");
-        break;
-      }
-      simulation.writeJointTorques(arm, torque);
-      if (k % path_every == 0) {
-        (void)kinematics::forwardKinematics(simulation.armModel(arm), commanded_kinematics[a], plan.position[a].col(k));
-        commanded[a].push_back(simulation.basePose(arm) *
-                               Eigen::Vector3d(commanded_kinematics[a].tipPose().translation()));
-        actual[a].push_back(simulation.toolPose(arm).translation());
-        joints[a].push_back(state.position);
-      }
-    }
-    if (out.outcome != FoldOutcome::Ok) break;
-    const sim::SimStatus status = simulation.step();
-    if (status == sim::SimStatus::ArmDiverged) fail(FoldOutcome::SimulationDiverged, "an arm diverged");
-    if (status == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the cloth diverged");
-    out.max_edge_stretch = std::max(out.max_edge_stretch, simulation.cloth().maxEdgeStretch());
-  }
+int ClothFoldTask::steppedPeriods() const {
+  int move_start = 0, move_end = 0, release = 0, steps = 0;
+  impl_->periods(impl_->simulation->stepSize(), move_start, move_end, release, steps);
+  return release;
+}
 
-  // A failure may stop the loop between the arms: keep the samples both arms have.
-  const std::size_t samples = std::min({path_times.size(), commanded[0].size(), commanded[1].size()});
-  path_times.resize(samples);
+FoldOutcome ClothFoldTask::beginSteps(std::uint32_t seed) {
+  Impl& m = *impl_;
+  Impl::Stepped& s = m.stepped;
+  int move_start = 0, move_end = 0, release = 0, steps = 0;
+  m.periods(m.simulation->stepSize(), move_start, move_end, release, steps);
+  s.rollout = Impl::Rollout{};
+  s.rollout.wall_start = std::chrono::steady_clock::now();
+  s.seed = seed;
+  s.driven = release;
+  s.q = m.start_q;
+  s.qd.assign(2, Eigen::VectorXd::Zero(7));
+  s.qdd = s.qd;
+  s.q_next = s.q;
+  s.qd_next = s.qd;
+  s.waypoint.times = Eigen::VectorXd::Constant(1, m.simulation->stepSize());
+  s.waypoint.positions.resize(7, 1);
+  s.waypoint.velocities.resize(7, 1);
+  s.waypoint.accelerations.resize(7, 1);
+  m.begin(s.rollout, seed, release, steps, 2);
+  s.running = true;
+  return s.rollout.out.outcome;
+}
+
+bool ClothFoldTask::stepping() const noexcept {
+  const Impl::Stepped& s = impl_->stepped;
+  return s.running && s.rollout.out.outcome == FoldOutcome::Ok && s.rollout.k < s.driven;
+}
+
+int ClothFoldTask::steppedPeriod() const noexcept {
+  return impl_->stepped.rollout.k;
+}
+
+FoldOutcome ClothFoldTask::step(const Eigen::Ref<const Eigen::VectorXd>& velocity) {
+  Impl& m = *impl_;
+  Impl::Stepped& s = m.stepped;
+  if (!s.running) throw std::logic_error("cloth fold: step() without beginSteps()");
+  Impl::Rollout& r = s.rollout;
+  if (r.out.outcome != FoldOutcome::Ok) return r.out.outcome;
+  if (r.k >= s.driven) {
+    throw std::logic_error("cloth fold: the stepped rollout's " + std::to_string(s.driven) +
+                           " driven periods are over: finishSteps()");
+  }
+  if (velocity.size() != 14 || !velocity.allFinite()) {
+    r.out.outcome = FoldOutcome::InvalidPolicy;
+    r.out.reason = "a step takes 14 finite joint velocities (left arm, then right), not " +
+                   std::to_string(velocity.size()) + (velocity.allFinite() ? "" : " with NaN or Inf");
+    return r.out.outcome;
+  }
   for (int arm = 0; arm < 2; ++arm) {
-    const auto a = static_cast<std::size_t>(arm);
-    Eigen::Matrix3Xd c(3, static_cast<Eigen::Index>(samples)), r(3, c.cols());
-    for (Eigen::Index i = 0; i < c.cols(); ++i) {
-      c.col(i) = commanded[a][static_cast<std::size_t>(i)];
-      r.col(i) = actual[a][static_cast<std::size_t>(i)];
+    const Eigen::VectorXd& limit = m.simulation->armModel(arm).velocityLimits();
+    for (int j = 0; j < 7; ++j) {
+      const double v = velocity[7 * arm + j];
+      if (std::abs(v) <= limit[j]) continue;
+      std::ostringstream why;
+      why << "arm " << arm << "'s reference for joint " << j + 1 << " leaves its limits: velocity " << v
+          << " rad/s, limit " << limit[j];
+      m.fail(r, FoldOutcome::OutOfLimits, why.str());
+      return r.out.outcome;
     }
-    out.commanded_path.push_back(c);
-    out.actual_path.push_back(r);
-    Eigen::MatrixXd j(n, static_cast<Eigen::Index>(joints[a].size()));
-    for (Eigen::Index i = 0; i < j.cols(); ++i) j.col(i) = joints[a][static_cast<std::size_t>(i)];
-    out.joint_path.push_back(j);
   }
-  out.path_times = Eigen::Map<const Eigen::VectorXd>(path_times.data(), static_cast<Eigen::Index>(path_times.size()));
-  out.cloth_times =
-      Eigen::Map<const Eigen::VectorXd>(cloth_times.data(), static_cast<Eigen::Index>(cloth_times.size()));
-  out.cloth_vertices = simulation.cloth().vertices();
-  const int image_steps = static_cast<int>(std::lround(m.config.image_delay / dt));
-  // The images' moment: the arms hold (this simulator's arms touch the cloth only through their grippers, released by
-  // now, so where a robot's arms go meanwhile does not change the cloth) and the cloth slides on.
-  for (int k = 0; k < image_steps && out.outcome == FoldOutcome::Ok; ++k) {
-    const double now = simulation.time();
-    for (int arm = 0; arm < 2 && out.outcome == FoldOutcome::Ok; ++arm) {
-      const auto a = static_cast<std::size_t>(arm);
-      sim::JointState& state = measured[a];
-      simulation.readJointState(arm, state);
-      const control::ControllerStatus status =
-          m.controllers[a]->update(now, now, state.position, state.velocity, torque);
-      const std::string stop =
-          controllerStopReason(status, arm, state.velocity, m.controller_configs[a].velocity_limit);
-      if (!stop.empty()) fail(FoldOutcome::ControllerFailed, stop);
-      simulation.writeJointTorques(arm, torque);
-    }
-    const sim::SimStatus status = simulation.step();
-    if (status == sim::SimStatus::ArmDiverged) fail(FoldOutcome::SimulationDiverged, "an arm diverged");
-    if (status == sim::SimStatus::ClothDiverged) fail(FoldOutcome::SimulationDiverged, "the cloth diverged");
+  return m.steppedPeriod(velocity);
+}
+
+const Eigen::VectorXd& ClothFoldTask::steppedReference(int arm) const {
+  return impl_->stepped.q.at(static_cast<std::size_t>(arm));
+}
+
+void ClothFoldTask::measuredState(int arm, Eigen::VectorXd& position, Eigen::VectorXd& velocity) const {
+  if (arm < 0 || arm > 1) throw std::out_of_range("cloth fold: arm 0 or 1");
+  const auto a = static_cast<std::size_t>(arm);
+  const Impl::Rollout& r = impl_->stepped.rollout;
+  // Not read again: the simulation's sensor noise draws from the rollout's stream.
+  if (r.k == 0 || r.measured.empty()) {
+    position = impl_->start_q[a];
+    velocity = Eigen::VectorXd::Zero(position.size());
+  } else {
+    position = r.measured[a].position;
+    velocity = r.measured[a].velocity;
   }
-  if (image_steps > 0) out.cloth_image_vertices = simulation.cloth().vertices();
-  out.cloth_triangles = simulation.cloth().triangles();
-  out.cloth_rest_vertices = simulation.cloth().restVertices();
-  const sim::ClothParameters& cloth = simulation.cloth().parameters();
-  out.fold = foldQuality(out.cloth_vertices, out.cloth_rest_vertices, cloth.nodes_x, cloth.nodes_y, cloth.thickness);
-  out.simulated_seconds = simulation.time();
-  out.wall_seconds = realtime::secondsSince(wall_start);
-  out.cloth_wall_seconds = simulation.timings().cloth.wall();
-  return out;
+}
+
+Eigen::Vector3d ClothFoldTask::toolPosition(int arm) const {
+  if (arm < 0 || arm > 1) throw std::out_of_range("cloth fold: arm 0 or 1");
+  return impl_->simulation->toolPose(arm).translation();
+}
+
+const Eigen::Matrix3Xd& ClothFoldTask::clothVertices() const {
+  return impl_->simulation->cloth().vertices();
+}
+
+FoldRollout ClothFoldTask::finishSteps() {
+  Impl& m = *impl_;
+  Impl::Stepped& s = m.stepped;
+  if (!s.running) throw std::logic_error("cloth fold: finishSteps() without beginSteps()");
+  s.running = false;
+  Impl::Rollout& r = s.rollout;
+  // The arms hold their last reference's position through what is left of the rollout (the policy's periods it did
+  // not drive, the settling).
+  const Eigen::VectorXd rest = Eigen::VectorXd::Zero(14);
+  while (!r.measured.empty() && r.k < r.steps && r.out.outcome == FoldOutcome::Ok) (void)m.steppedPeriod(rest);
+  return m.finish(r);
 }
 
 FoldPlan ClothFoldTask::plan(const std::vector<Eigen::MatrixXd>& coordination,
@@ -705,10 +916,8 @@ FoldPlan ClothFoldTask::plan(const std::vector<Eigen::MatrixXd>& coordination,
     return out;
   }
   // The same periods as run(): hold, move, hold, then settle after the release.
-  out.move_start = static_cast<int>(std::lround(m.config.hold_before / out.dt));
-  const int move_end = out.move_start + static_cast<int>(std::lround(m.config.duration / out.dt));
-  out.release = move_end + static_cast<int>(std::lround(m.config.hold_after / out.dt));
-  const int steps = out.release + static_cast<int>(std::lround(m.config.settle / out.dt));
+  int move_end = 0, steps = 0;
+  m.periods(out.dt, out.move_start, move_end, out.release, steps);
   ReferenceGenerator references(m.demonstration, std::move(forcing), m.start_q, out.dt);
   std::vector<kinematics::ClikData> clik;
   for (int arm = 0; arm < 2; ++arm) {

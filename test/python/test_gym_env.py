@@ -130,3 +130,88 @@ def test_bad_calls_are_errors_with_the_reason(env):
         gym_env.FoldEnv(config=FOLD, render_mode="human")
     with pytest.raises(ValueError, match="seed"):
         bs.FoldTask(FOLD).render_start(-1)
+
+
+# The step-by-step variant (FoldJointEnv): joint-space actions at the control rate.
+
+def test_the_joint_space_environment_passes_gymnasiums_checker():
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(gymnasium.make("bimanual_skills/ClothFoldJoint-v0", config=FOLD).unwrapped)
+    assert [str(w.message) for w in caught] == []
+
+
+def test_streaming_the_plans_velocities_folds_as_the_episodic_rollout():
+    env = gym_env.FoldJointEnv(config=FOLD, action_scale=1.0)
+    task = env.task
+    plan = task.plan(task.initial_parameters())
+    assert plan["outcome"] == "Ok" and plan["release"] == task.stepped_periods == 4500
+
+    def episode(seed):
+        obs, info = env.reset(seed=seed)
+        assert env.observation_space.contains(obs) and obs["progress"][0] == 0.0
+        start_q = obs["joint_position"].copy()
+        for k in range(task.stepped_periods):
+            obs, reward, terminated, truncated, out = env.step(plan["velocity"][k + 1] / env.velocity_scale)
+            assert not truncated and terminated == (k == task.stepped_periods - 1)
+            if not terminated:
+                assert reward == 0.0 and out == {}
+        assert env.observation_space.contains(obs)
+        return start_q, obs, reward, out, info["seed"]
+
+    start_q, obs, reward, out, seed = episode(21)
+    assert np.allclose(start_q, plan["position"][0], atol=1e-6)  # the arms at the start, at rest
+    direct = task.run(task.initial_parameters(), seed)
+    direct_q = dict(zip(task.term_names(), direct.terms))["fold_quality"]
+    assert out["outcome"] == "Ok" and out["seed"] == seed
+    assert abs(out["q"] - direct_q) < 0.01, (out["q"], direct_q)
+    assert abs(reward - direct.reward) < 0.01, (reward, direct.reward)
+    assert 0.3 < out["normalized_performance"] < 1.0
+    assert obs["progress"][0] == 1.0
+    # The same seed and actions, the same episode, bit for bit.
+    _, again, reward_again, out_again, _ = episode(21)
+    assert reward_again == reward and out_again["q"] == out["q"]
+    assert all(np.array_equal(again[k], obs[k]) for k in obs)
+
+
+def test_random_joint_actions_end_with_an_outcome_and_frame_skip_holds_them():
+    env = gym_env.FoldJointEnv(config=FOLD, frame_skip=100)
+    obs, _ = env.reset(seed=4)
+    env.action_space.seed(4)
+    steps = 0
+    while True:
+        obs, reward, terminated, truncated, out = env.step(env.action_space.sample())
+        steps += 1
+        assert env.observation_space.contains(obs) and np.isfinite(reward) and not truncated
+        if terminated:
+            break
+    assert steps <= 45  # 4500 periods, 100 per step
+    assert out["outcome"] in ("Ok", "ControllerFailed", "SimulationDiverged")
+    assert out["outcome"] == "Ok" or out["reason"]
+    assert np.isfinite(out["normalized_performance"])
+
+
+def test_bad_joint_space_calls_are_errors_with_the_reason():
+    env = gym_env.FoldJointEnv(config=FOLD, frame_skip=1000)
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(14, np.float32))
+    env.reset(seed=1)
+    with pytest.raises(ValueError, match="14 finite values"):
+        env.step(np.zeros(13, np.float32))
+    with pytest.raises(ValueError, match="NaN or Inf"):
+        env.step(np.full(14, np.inf, np.float32))
+    for _ in range(5):
+        *_, terminated, _, out = env.step(np.zeros(14, np.float32))
+    assert terminated and out["outcome"] == "Ok"
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(14, np.float32))
+    with pytest.raises(ValueError, match="action_scale"):
+        gym_env.FoldJointEnv(config=FOLD, action_scale=2.0)
+    with pytest.raises(ValueError, match="frame_skip"):
+        gym_env.FoldJointEnv(config=FOLD, frame_skip=0)
+    task = bs.FoldTask(FOLD)
+    with pytest.raises(RuntimeError, match="beginSteps"):
+        task.step(np.zeros(14))
+    assert task.begin_steps(1) == "Ok"
+    assert task.step(np.full(14, np.nan)) == "InvalidPolicy"
+    assert "NaN" in task.finish_steps().reason

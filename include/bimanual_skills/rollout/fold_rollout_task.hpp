@@ -49,6 +49,9 @@ class FoldRolloutTask : public RolloutTask {
   /// One rollout of the encoded policy with the simulation's and the camera's noise seeded by `seed`; its trajectory
   /// summary holds the arms' actual tool paths, 3 rows per arm.
   RolloutResult run(const Eigen::VectorXd& parameters, std::uint32_t seed) override;
+  /// Keeps a rollout that ran outside run() (tasks::ClothFoldTask's stepped rollouts) as the last one and scores it
+  /// with the camera noise of `seed`, as run() does.
+  RolloutResult record(tasks::FoldRollout rollout, std::uint32_t seed);
 
   tasks::ClothFoldTask& task() noexcept { return task_; }
   tasks::FoldReward& reward() noexcept { return reward_; }

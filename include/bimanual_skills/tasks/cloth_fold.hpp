@@ -79,6 +79,9 @@ struct ClothFoldConfig {
   /// this stops the rollout as ControllerFailed): one entry for every joint or one per joint; empty: the robot's
   /// velocity limits, as `ctc_controller`'s `~velocity_limit` defaults.
   Eigen::VectorXd velocity_limit;
+  /// A stepped rollout's (ClothFoldTask::step) reference reaches its commanded velocity at most at this rate
+  /// [rad/s², > 0] (TargetFollower's default): a velocity step would ask the computed-torque law for q̈ = Δq̇/dt.
+  double step_acceleration = 4.0;
   double path_rate = 50.0;  ///< Samples per second of the recorded tool and joint paths.
   double cloth_rate = 0.0;  ///< Cloth meshes recorded per second (FoldRollout::cloth_frames); 0: none.
   /// The scripted demonstration (deliberately imperfect, as a first kinesthetic attempt would be): the far corners
@@ -198,12 +201,45 @@ class ClothFoldTask {
   FoldRollout run(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights,
                   std::uint32_t seed);
 
+  /// Stepped rollouts, for step-by-step policies at the control rate (the Gymnasium joint-space environment):
+  /// beginSteps(seed) builds rollout `seed` as run() does (its noise, the arms at startPositions(), the grasp:
+  /// Ok or GraspFailed); each step() drives one control period; finishSteps() holds the arms through the rest
+  /// (up to the release, the settling), scores the fold and ends it. The grippers open when run()'s would. run()
+  /// ends a stepped rollout in progress. Not real-time (it records the rollout as run() does).
+  FoldOutcome beginSteps(std::uint32_t seed);
+  /// The periods a policy drives, hold_before + duration + hold_after at the simulation's step (run()'s release).
+  int steppedPeriods() const;
+  /// Whether step() may be called: a stepped rollout began, is Ok and has driven periods left.
+  bool stepping() const noexcept;
+  /// The next stepped period's index (periods run so far).
+  int steppedPeriod() const noexcept;
+  /// One period with both arms' commanded joint velocities `velocity` (left arm's 7, then the right's) [rad/s]: the
+  /// reference's velocity moves towards them at most at config().step_acceleration, slowed so that it can stop at a
+  /// position limit, and sets the next period's reference q + q̇ dt (never beyond a limit), which the controller
+  /// tracks from then on (a streamed reference's one-period latency; the first period holds the start). Returns Ok or
+  /// why the rollout ended: InvalidPolicy (wrong size, NaN/Inf), OutOfLimits (a velocity beyond the URDF's limit), or a
+  /// failure of the period (ControllerFailed, SimulationDiverged). \throws std::logic_error without a stepped
+  /// rollout or after its driven periods.
+  FoldOutcome step(const Eigen::Ref<const Eigen::VectorXd>& velocity);
+  /// Arm `arm`'s reference of the next stepped period. \throws std::out_of_range.
+  const Eigen::VectorXd& steppedReference(int arm) const;
+  /// Arm `arm`'s joint state as its controller measured it in the last stepped period (the start, at rest, before
+  /// the first). \throws std::out_of_range.
+  void measuredState(int arm, Eigen::VectorXd& position, Eigen::VectorXd& velocity) const;
+  /// Arm `arm`'s tool position (world) and the cloth's mesh (world) in the simulation now.
+  Eigen::Vector3d toolPosition(int arm) const;
+  const Eigen::Matrix3Xd& clothVertices() const;
+  /// The stepped rollout's end, as run() returns it (acceleration_cost of its references; no IK error).
+  /// \throws std::logic_error without a stepped rollout.
+  FoldRollout finishSteps();
+
   /// The joint references run() would follow for this policy (same values), without simulating: for a robot that
   /// executes the rollout through its own interfaces.
   FoldPlan plan(const std::vector<Eigen::MatrixXd>& coordination, const Eigen::VectorXd& latent_weights) const;
   /// Each arm's joint positions at the start of the fold (the tools at the cloth's far corners).
   const std::vector<Eigen::VectorXd>& startPositions() const noexcept;
-  /// Arm `arm`'s kinematic model and its base in the world (0 left, 1 right). \throws std::out_of_range.
+  /// Arm `arm`'s kinematic model and its base in the world (0 left, 1 right): the model is the simulation's, valid
+  /// until the next run() or beginSteps() builds a new one. \throws std::out_of_range.
   const kinematics::ChainModel& armModel(int arm) const;
   Eigen::Isometry3d basePose(int arm) const;
   /// The fold quality of a cloth mesh of this task's cloth (world frame, its nodes in the simulation's order).
