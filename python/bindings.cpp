@@ -23,12 +23,18 @@
 #include <pybind11/stl.h>
 #include <opencv2/core.hpp>
 
+#include <atomic>
+#include <chrono>
 #include <cstdint>
+#include <exception>
+#include <future>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 
 namespace py = pybind11;
@@ -298,8 +304,17 @@ class PythonEvaluator : public br::Evaluator {
         const py::gil_scoped_release unlocked;  // the learner writes its record
         done(index, result, nullptr);
       }
+      // Polled as each rollout finishes, so that a stop does not wait for the batch: the evaluator's Python gets
+      // a RuntimeError from done().
+      if (stop && stop()) throw std::runtime_error("stopped");
     };
-    const py::object answer = evaluate_(requests, py::cpp_function(report));
+    py::object answer;
+    try {
+      answer = evaluate_(requests, py::cpp_function(report));
+    } catch (const py::error_already_set&) {
+      if (stop && stop()) throw std::runtime_error("stopped");
+      throw;
+    }
     std::vector<br::RolloutResult> results = answer.cast<std::vector<br::RolloutResult>>();
     if (results.size() != batch.size()) {
       throw std::invalid_argument("the evaluator returned " + std::to_string(results.size()) + " results for " +
@@ -524,12 +539,39 @@ PYBIND11_MODULE(_core, m) {
         c.jobs = jobs;
         std::unique_ptr<br::Evaluator> backend;
         if (!evaluator.is_none()) backend = std::make_unique<PythonEvaluator>(evaluator);
-        br::FoldLearner learner(c, out, {}, std::move(backend));
+        // The learning on a thread of its own, this one watching Python's signals meanwhile (they are handled on
+        // the main thread only): Ctrl-C stops it between rollouts, with what finished on disk, and raises here.
+        std::atomic<bool> interrupted{false};
+        br::FoldLearningObserver observer;
+        observer.stop = [&interrupted] { return interrupted.load(); };
+        br::FoldLearner learner(c, out, observer, std::move(backend));
         br::FoldLearningResult result;
+        std::exception_ptr failure;
+        std::optional<py::error_already_set> signal;
         {
           const py::gil_scoped_release unlocked;
-          result = learner.learn();
+          std::promise<void> finished;
+          std::future<void> done = finished.get_future();
+          std::thread learning([&] {
+            try {
+              result = learner.learn();
+            } catch (...) {
+              failure = std::current_exception();
+            }
+            finished.set_value();
+          });
+          while (done.wait_for(std::chrono::milliseconds(50)) != std::future_status::ready) {
+            if (interrupted) continue;
+            const py::gil_scoped_acquire locked;
+            if (PyErr_CheckSignals() != 0) {
+              signal.emplace();
+              interrupted = true;
+            }
+          }
+          learning.join();
         }
+        if (signal) throw *signal;
+        if (failure) std::rethrow_exception(failure);
         return foldSummary(result);
       },
       py::arg("config"), py::arg("out"), py::arg("evaluator") = py::none(), py::arg("runs") = 0, py::arg("updates") = 0,
@@ -538,7 +580,8 @@ PYBIND11_MODULE(_core, m) {
       "from the rollouts already there). runs, updates, rollouts, seed override the file's (0 / -1: the file's). "
       "Rollouts on `jobs` threads here, or, with `evaluator`, wherever it runs them: evaluator(requests, done) gets "
       "a list of (parameters, seed) of the task \"fold\" of this file, calls done(index, result) as each finishes "
-      "and returns the results in order (bimanual_skills.ray_backend.RayEvaluator). Same seed, same results.");
+      "and returns the results in order (bimanual_skills.ray_backend.RayEvaluator). Same seed, same results. "
+      "Ctrl-C (KeyboardInterrupt) stops it between rollouts; what finished is on disk and is resumed.");
 
   py::class_<bl::RepsUpdate>(m, "RepsUpdate")
       .def_readonly("mean", &bl::RepsUpdate::mean)

@@ -59,11 +59,16 @@ class RayEvaluator:
         index = {ref: i for i, ref in enumerate(refs)}
         results = [None] * len(refs)
         pending = list(refs)
-        while pending:
-            ready, pending = ray.wait(pending, num_returns=1)
-            i = index[ready[0]]
-            results[i] = ray.get(ready[0])
-            done(i, results[i])
+        try:
+            while pending:
+                ready, pending = ray.wait(pending, num_returns=1)
+                i = index[ready[0]]
+                results[i] = ray.get(ready[0])
+                done(i, results[i])  # raises RuntimeError("stopped") when the learner stops
+        except BaseException:
+            for ref in pending:  # a stopped learning leaves no rollouts running on the cluster
+                ray.cancel(ref, force=True)
+            raise
         return results
 
     def map(self, requests):

@@ -5,6 +5,8 @@ import csv
 import os
 import shutil
 import signal
+import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -100,3 +102,47 @@ def test_a_killed_worker_has_its_rollout_run_again_nothing_lost_or_doubled(out):
     assert rows == reference_rows
     keys = [(r["algorithm"], r["run"], r["epoch"], r["index"], r["kind"]) for r in rows]
     assert len(keys) == len(set(keys))
+
+
+def _interrupted_learning(out, name, ray_workers):
+    """A learn_fold in a child process interrupted by SIGINT (Ctrl-C) once two rollouts are on disk: how long it took
+    to stop, its exit, its stderr."""
+    path = os.path.join(out, name)
+    evaluator = ("ray_backend.RayEvaluator('fold', %r, workers=%d)" % (SMALL, ray_workers)) if ray_workers else "None"
+    code = ("import bimanual_skills as bs\nfrom bimanual_skills import ray_backend\n"
+            "bs.learn_fold(%r, %r, evaluator=%s, updates=2, rollouts=4, jobs=2)\n" % (SMALL, path, evaluator))
+    child = subprocess.Popen([sys.executable, "-c", code], env=dict(os.environ, **bs.pinned_environment()),
+                             stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120.0
+    while time.monotonic() < deadline and child.poll() is None:
+        try:
+            with open(os.path.join(path, "rollouts.csv")) as f:
+                if len(f.readlines()) >= 3:  # the header and two rollouts
+                    break
+        except OSError:
+            pass
+        time.sleep(0.05)
+    assert child.poll() is None, "the learning ended before it was interrupted"
+    child.send_signal(signal.SIGINT)
+    sent = time.monotonic()
+    try:
+        _, err = child.communicate(timeout=30.0)
+    finally:
+        child.kill()
+    return time.monotonic() - sent, child.returncode, err
+
+
+@pytest.mark.parametrize("ray_workers", [0, 2], ids=["threads", "ray"])
+def test_ctrl_c_stops_the_learning_between_rollouts_and_it_resumes(out, ray_workers):
+    _, reference_rows = learn(out, "reference")
+    stopped_after, code, err = _interrupted_learning(out, "interrupted", ray_workers)
+    assert code != 0 and "KeyboardInterrupt" in err, err[-2000:]
+    assert stopped_after < 10.0, stopped_after  # a rollout takes about 0.5 s; Ray's shutdown the rest
+    path = os.path.join(out, "interrupted")
+    with open(os.path.join(path, "rollouts.csv"), newline="") as f:
+        lines = list(csv.reader(f))
+    assert 3 <= len(lines) < len(reference_rows) + 1  # stopped before the end
+    assert {len(line) for line in lines} == {len(lines[0])}  # every record whole
+    summary, rows = learn(out, "interrupted")  # resumed in process: nothing lost or doubled
+    assert summary["resumed"] == len(lines) - 1 and rows == reference_rows
+    assert not _rollout_workers()
