@@ -9,8 +9,12 @@
 #include "bimanual_skills/learning/reps.hpp"
 #include "bimanual_skills/primitives/dmp.hpp"
 #include "bimanual_skills/primitives/promp.hpp"
+#include "bimanual_skills/rollout/bottle_learning.hpp"
+#include "bimanual_skills/rollout/dmp_learning.hpp"
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
+#include "bimanual_skills/rollout/parallel_evaluator.hpp"
+#include "bimanual_skills/rollout/scarf_learning.hpp"
 #include "bimanual_skills/rollout/task_registry.hpp"
 #include "bimanual_skills/sim/sim_config.hpp"
 #include "bimanual_skills/tasks/fold_quality.hpp"
@@ -330,14 +334,86 @@ class PythonEvaluator : public br::Evaluator {
   py::object evaluate_;
 };
 
-/// What learn_fold() returns of a FoldLearningResult: per run, the noise-free policy's reward and fold quality
-/// before and after, and the counts.
-py::dict foldSummary(const br::FoldLearningResult& result) {
+/// `learn()` on a thread of its own while this one, holding no Python lock, watches Python's signals (CPython handles
+/// them on the main thread only): a signal's exception (Ctrl-C's KeyboardInterrupt) sets `interrupted`, which the
+/// learner polls as its stop between rollouts, and is raised here once it has stopped.
+template <class Result>
+Result learnWatchingSignals(const std::function<Result()>& learn, std::atomic<bool>& interrupted) {
+  Result result;
+  std::exception_ptr failure;
+  std::optional<py::error_already_set> signal;
+  {
+    const py::gil_scoped_release unlocked;
+    std::promise<void> finished;
+    std::future<void> done = finished.get_future();
+    std::thread learning([&] {
+      try {
+        result = learn();
+      } catch (...) {
+        failure = std::current_exception();
+      }
+      finished.set_value();
+    });
+    while (done.wait_for(std::chrono::milliseconds(50)) != std::future_status::ready) {
+      if (interrupted) continue;
+      const py::gil_scoped_acquire locked;
+      if (PyErr_CheckSignals() != 0) {
+        signal.emplace();
+        interrupted = true;
+      }
+    }
+    learning.join();
+  }
+  if (signal) throw *signal;
+  if (failure) std::rethrow_exception(failure);
+  return result;
+}
+
+/// What a learning returns: per run its algorithm, index, what `per_run(run, dict)` adds and its seconds, then the
+/// rollouts simulated now and resumed from disk, and the seconds.
+template <class Result, class PerRun>
+py::dict learningSummary(const Result& result, int simulated, PerRun&& per_run) {
   py::list runs;
-  for (const br::FoldRunResult& run : result.runs) {
+  for (const auto& run : result.runs) {
     py::dict d;
     d["algorithm"] = run.algorithm;
     d["run"] = run.run;
+    per_run(run, d);
+    d["seconds"] = run.seconds;
+    runs.append(d);
+  }
+  py::dict out;
+  out["runs"] = runs;
+  out["simulated"] = simulated;
+  out["resumed"] = result.resumed;
+  out["seconds"] = result.seconds;
+  return out;
+}
+
+/// learn_dmp()'s: the noise-free policy's reward before, after and at best, and per epoch.
+py::dict dmpSummary(const br::DmpLearningResult& result) {
+  return learningSummary(result, result.ran, [](const br::DmpRunResult& run, py::dict& d) {
+    d["initial_reward"] = run.initial_policy.result.reward;
+    d["final_reward"] = run.final_policy.result.reward;
+    d["best_reward"] = run.best.result.reward;
+    py::list epochs;
+    for (const br::DmpEpochStats& e : run.epochs) {
+      py::dict epoch;
+      epoch["epoch"] = e.epoch;
+      epoch["mean_reward"] = e.mean_reward;
+      epoch["policy_reward"] = e.policy_reward;
+      epoch["successes"] = e.successes;
+      epoch["failures"] = e.failures;
+      epochs.append(epoch);
+    }
+    d["epochs"] = epochs;
+  });
+}
+
+/// learn_fold()'s: the noise-free policy's reward and fold quality before and after, and per epoch (policy reward,
+/// mean reward).
+py::dict foldSummary(const br::FoldLearningResult& result) {
+  return learningSummary(result, result.simulated, [](const br::FoldRunResult& run, py::dict& d) {
     d["initial_reward"] = run.initial_policy.terms.reward;
     d["initial_fold_quality"] = run.initial_policy.terms.fold_quality;
     d["final_reward"] = run.final_policy.terms.reward;
@@ -345,15 +421,7 @@ py::dict foldSummary(const br::FoldLearningResult& result) {
     py::list epochs;
     for (const br::FoldEpochStats& e : run.epochs) epochs.append(py::make_tuple(e.policy_reward, e.mean_reward));
     d["epochs"] = epochs;
-    d["seconds"] = run.seconds;
-    runs.append(d);
-  }
-  py::dict out;
-  out["runs"] = runs;
-  out["simulated"] = result.simulated;
-  out["resumed"] = result.resumed;
-  out["seconds"] = result.seconds;
-  return out;
+  });
 }
 
 }  // namespace
@@ -539,39 +607,12 @@ PYBIND11_MODULE(_core, m) {
         c.jobs = jobs;
         std::unique_ptr<br::Evaluator> backend;
         if (!evaluator.is_none()) backend = std::make_unique<PythonEvaluator>(evaluator);
-        // The learning on a thread of its own, this one watching Python's signals meanwhile (they are handled on
-        // the main thread only): Ctrl-C stops it between rollouts, with what finished on disk, and raises here.
         std::atomic<bool> interrupted{false};
         br::FoldLearningObserver observer;
         observer.stop = [&interrupted] { return interrupted.load(); };
         br::FoldLearner learner(c, out, observer, std::move(backend));
-        br::FoldLearningResult result;
-        std::exception_ptr failure;
-        std::optional<py::error_already_set> signal;
-        {
-          const py::gil_scoped_release unlocked;
-          std::promise<void> finished;
-          std::future<void> done = finished.get_future();
-          std::thread learning([&] {
-            try {
-              result = learner.learn();
-            } catch (...) {
-              failure = std::current_exception();
-            }
-            finished.set_value();
-          });
-          while (done.wait_for(std::chrono::milliseconds(50)) != std::future_status::ready) {
-            if (interrupted) continue;
-            const py::gil_scoped_acquire locked;
-            if (PyErr_CheckSignals() != 0) {
-              signal.emplace();
-              interrupted = true;
-            }
-          }
-          learning.join();
-        }
-        if (signal) throw *signal;
-        if (failure) std::rethrow_exception(failure);
+        const br::FoldLearningResult result =
+            learnWatchingSignals<br::FoldLearningResult>([&learner] { return learner.learn(); }, interrupted);
         return foldSummary(result);
       },
       py::arg("config"), py::arg("out"), py::arg("evaluator") = py::none(), py::arg("runs") = 0, py::arg("updates") = 0,
@@ -582,6 +623,58 @@ PYBIND11_MODULE(_core, m) {
       "a list of (parameters, seed) of the task \"fold\" of this file, calls done(index, result) as each finishes "
       "and returns the results in order (bimanual_skills.ray_backend.RayEvaluator). Same seed, same results. "
       "Ctrl-C (KeyboardInterrupt) stops it between rollouts; what finished is on disk and is resumed.");
+
+  m.def(
+      "learn_dmp",
+      [](const std::string& task, const std::string& config, const std::string& out, const py::object& evaluator,
+         int runs, int updates, int rollouts, long long seed, int jobs) {
+        br::DmpLearningConfig learning;
+        br::DmpTaskModel model;
+        std::function<std::unique_ptr<br::RolloutTask>()> make;
+        int dofs = 0;
+        if (task == "scarf") {
+          const br::ScarfLearningConfig c = br::ScarfLearningConfig::fromYamlFile(config);
+          br::ScarfRolloutTask t(c.task);
+          model = br::scarfTaskModel(t.task());
+          learning = c.learning;
+          dofs = t.task().dofs();
+          make = [settings = c.task] { return std::make_unique<br::ScarfRolloutTask>(settings); };
+        } else if (task == "bottles_learning") {
+          const br::BottleLearningConfig c = br::BottleLearningConfig::fromYamlFile(config);
+          br::BottleRolloutTask t(c.task);
+          model = br::bottleTaskModel(t.task());
+          learning = c.learning;
+          dofs = 2;
+          make = [settings = c.task] { return std::make_unique<br::BottleRolloutTask>(settings); };
+        } else {
+          throw std::invalid_argument("learn_dmp: task 'scarf' or 'bottles_learning', not '" + task + "'");
+        }
+        if (runs > 0) learning.runs = runs;
+        if (updates > 0) learning.updates = updates;
+        if (rollouts > 0) learning.rollouts = rollouts;
+        if (seed >= 0) learning.seed = seedOf(seed);
+        learning.jobs = jobs;
+        learning.validate(dofs);
+        std::unique_ptr<br::Evaluator> backend;
+        if (evaluator.is_none()) {
+          backend = std::make_unique<br::ParallelEvaluator>(make, learning.jobs);
+        } else {
+          backend = std::make_unique<PythonEvaluator>(evaluator);
+        }
+        std::atomic<bool> interrupted{false};
+        br::DmpLearningObserver observer;
+        observer.stop = [&interrupted] { return interrupted.load(); };
+        br::DmpLearner learner(model, learning, out, std::move(backend), observer);
+        return dmpSummary(
+            learnWatchingSignals<br::DmpLearningResult>([&learner] { return learner.learn(); }, interrupted));
+      },
+      py::arg("task"), py::arg("config"), py::arg("out"), py::arg("evaluator") = py::none(), py::arg("runs") = 0,
+      py::arg("updates") = 0, py::arg("rollouts") = 0, py::arg("seed") = -1, py::arg("jobs") = 0,
+      "The DR-DMP learning of task \"scarf\" (a scarf learning file, scarf_learner's) or \"bottles_learning\" (a "
+      "bottles learning file, bottles_learner's), in process, into the run directory `out` (resumed from the "
+      "rollouts already there). runs, updates, rollouts, seed override the file's (0 / -1: the file's). Rollouts "
+      "on `jobs` threads here, or with `evaluator` wherever it runs them, as learn_fold's (RayEvaluator(task, "
+      "config)). Same seed, same results; Ctrl-C stops it between rollouts.");
 
   py::class_<bl::RepsUpdate>(m, "RepsUpdate")
       .def_readonly("mean", &bl::RepsUpdate::mean)

@@ -479,13 +479,14 @@ TEST(TaskRegistry, BuildsTheTasksByNameAndRefusesUnknownOnes) {
     FAIL() << "expected an error";
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find(
-                  "unknown rollout task 'juggle' (known: fold, scarf, quadratic, bottles, wam_bottles, "
-                  "circle, planar_viapoint, viapoint, multimodal)"),
+                  "unknown rollout task 'juggle' (known: fold, scarf, quadratic, bottles, bottles_learning, "
+                  "wam_bottles, circle, planar_viapoint, viapoint, multimodal)"),
               std::string::npos)
         << e.what();
   }
   EXPECT_THROW(br::makeRolloutTask("fold", ""), std::invalid_argument);
   EXPECT_THROW(br::makeRolloutTask("circle", ""), std::invalid_argument);
+  EXPECT_THROW(br::makeRolloutTask("bottles_learning", ""), std::invalid_argument);
   EXPECT_THROW(br::makeRolloutTask("fold", "/nonexistent.yaml"), std::invalid_argument);
 }
 

@@ -22,6 +22,7 @@ from bimanual_skills._core import (  # noqa: F401
     RepsUpdate,
     RolloutResult,
     Task,
+    learn_dmp,
     learn_fold,
     make_task,
     numerics,
@@ -32,7 +33,7 @@ from bimanual_skills._core import (  # noqa: F401
 )
 
 __all__ = ["CmaEs", "Dmp", "DualReps", "DualRepsUpdate", "FoldTask", "ProMp", "Reps", "RepsUpdate", "RolloutResult",
-           "Task", "config_path", "learn_fold", "make_task", "numerics", "pi2_update", "pin_numerics",
+           "Task", "config_path", "learn_dmp", "learn_fold", "make_task", "numerics", "pi2_update", "pin_numerics",
            "pinned_environment", "robot", "tasks"]
 
 _PINNED_MARKER = "BIMANUAL_SKILLS_NUMERICS_PINNED"

@@ -1,5 +1,7 @@
 #include "bimanual_skills/rollout/task_registry.hpp"
 
+#include "bimanual_skills/rollout/bottle_learning.hpp"
+
 #include "bimanual_skills/rollout/fold_learning.hpp"
 #include "bimanual_skills/rollout/fold_rollout_task.hpp"
 #include "bimanual_skills/rollout/scarf_learning.hpp"
@@ -269,6 +271,13 @@ std::unique_ptr<RolloutTask> makeFold(const std::string& config) {
   return std::make_unique<FoldRolloutTask>(c.task, c.reward);
 }
 
+std::unique_ptr<RolloutTask> makeBottlesLearning(const std::string& config) {
+  if (config.empty()) {
+    throw std::invalid_argument("task 'bottles_learning' needs a bottles learning file as its configuration");
+  }
+  return std::make_unique<BottleRolloutTask>(BottleLearningConfig::fromYamlFile(config).task);
+}
+
 std::unique_ptr<RolloutTask> makeScarf(const std::string& config) {
   if (config.empty()) throw std::invalid_argument("task 'scarf' needs a scarf learning file as its configuration");
   return std::make_unique<ScarfRolloutTask>(ScarfLearningConfig::fromYamlFile(config).task);
@@ -287,6 +296,9 @@ const std::vector<RolloutTaskInfo>& rolloutTasks() {
        "-|theta|^2/n plus seeded noise, no simulation: measures the dispatch's own cost"},
       {"bottles", "optional YAML with crossing_term (true: reward 6.18; false: 6.17)",
        "the planar path between two bottles of thesis Figs. 6.8-6.12 (a DMP of 20 weights)"},
+      {"bottles_learning", "a bottles learning file (config/bottles_learning.yaml)",
+       "the bottle task on the simulated WAM as bottles_learner runs it, its crossing_term the file's (a policy: "
+       "encodeCoordinatedPolicy of one matrix)"},
       {"wam_bottles", "the task file (config/bottles_wam.yaml)",
        "the bottle task on the simulated WAM, thesis Sec. 6.2: its tool between two free bottles (a DMP of 20 "
        "weights; terms satisfactory, bottles_down, length, crossed, max_tracking_error; trajectory: the tool path)"},
@@ -309,6 +321,7 @@ std::unique_ptr<RolloutTask> makeRolloutTask(const std::string& name, const std:
   if (name == "quadratic") return makeQuadratic(config);
   if (name == "bottles") return makeBottles(config);
   if (name == "wam_bottles") return makeWamBottles(config);
+  if (name == "bottles_learning") return makeBottlesLearning(config);
   if (name == "circle") return makeCircle(config);
   if (name == "viapoint") return makeViaPoint();
   if (name == "planar_viapoint") return makePlanarViaPoint(config);

@@ -1,5 +1,6 @@
-"""Ray as the learners' rollout backend (bimanual_skills.ray_backend): the fold's learning on a local Ray of 1 and 2
-workers gives the in-process results exactly; a Ray worker killed mid-rollout has its rollout run again, nothing
+"""Ray as the learners' rollout backend (bimanual_skills.ray_backend): the fold's learning, and the scarf's and the
+bottles' DR-DMP learning, on a local Ray of 1 and 2 workers give the in-process results exactly; Ctrl-C stops a
+learning between rollouts and it resumes; a Ray worker killed mid-rollout has its rollout run again, nothing
 lost or doubled. Run by make test with build/venv's Python (Ray from PyPI, python/requirements.txt)."""
 import csv
 import os
@@ -57,6 +58,30 @@ def test_ray_gives_the_in_process_learning_for_one_and_two_workers(out):
         timeless = [{k: v for k, v in r.items() if k != "seconds"} for r in summary["runs"]]
         assert timeless == [{k: v for k, v in r.items() if k != "seconds"} for r in reference["runs"]]
     ray.shutdown()
+
+
+@pytest.mark.parametrize("task,config,ray_workers", [("scarf", "scarf_learning.yaml", (2,)),
+                                                     ("bottles_learning", "bottles_learning.yaml", (1, 2))])
+def test_ray_gives_the_in_process_dmp_learning_of_the_scarf_and_the_bottles(out, task, config, ray_workers):
+    path = bs.config_path(config)
+
+    def learn_dmp(name, evaluator=None):
+        summary = bs.learn_dmp(task, path, os.path.join(out, name), evaluator=evaluator, runs=1, updates=2,
+                               rollouts=4, jobs=2)
+        return summary, rollouts(os.path.join(out, name))
+
+    reference, reference_rows = learn_dmp("threads")
+    assert reference["simulated"] == len(reference_rows) > 8
+    assert reference["runs"][0]["final_reward"] != reference["runs"][0]["initial_reward"]  # it learned something
+    for workers in ray_workers:
+        ray.shutdown()
+        summary, rows = learn_dmp("ray%d" % workers, ray_backend.RayEvaluator(task, path, workers=workers))
+        assert rows == reference_rows, "%d workers" % workers
+        timeless = [{k: v for k, v in r.items() if k != "seconds"} for r in summary["runs"]]
+        assert timeless == [{k: v for k, v in r.items() if k != "seconds"} for r in reference["runs"]]
+    ray.shutdown()
+    with pytest.raises(ValueError, match="'scarf' or 'bottles_learning'"):
+        bs.learn_dmp("fold", path, os.path.join(out, "bad"))
 
 
 def _rollout_workers():
