@@ -5,19 +5,21 @@ policy) equals the one-thread run's.
 
     source install/setup.bash
     build/venv/bin/python scripts/scaling_study.py --experiment table75 --seed 90168 --out build/scaling [--quick]
-        [--backends threads1,threads2,ros2,ray1,ray2,ray_two_hosts]
+        [--backends threads1,threads2,ros2,ros_two_hosts,ray1,ray2,ray_two_hosts]
 
 Backends (each a fresh learning into OUT/BACKEND, in this order; the cluster is started before its timer starts):
   threads1, threads2  bimanual_skills.learn_fold in one process, rollouts on 1 or 2 threads
   ros2                fold_learner (C++) dispatching to 2 rollout_worker processes (rollout_workers.launch) over a
                       ROS master of its own on loopback
+  ros_two_hosts       the same on two "hosts" (the network namespaces below): the master, fold_learner and worker_0
+                      in bs_ray_head, worker_1 in bs_ray_node (root)
   ray1, ray2          learn_fold with bimanual_skills.ray_backend.RayEvaluator on a local Ray of 1 or 2 CPUs
   ray_two_hosts       the same on a Ray cluster of two "hosts": network namespaces bs_ray_head (Ray's head and the
                       learner) and bs_ray_node (a worker node, `ray start --address`), one CPU each, joined by a veth
                       pair on 10.77.0.0/24 (root; the namespaces are removed at the end)
 
 --quick: IDR-DMP_CMU and CMA-ES, 1 run x 4 updates x 12 rollouts, no repetitions (130 rollouts per backend with each
-epoch's noise-free policy, about 9 min on 2 cores in all); without it the file's whole study (5 algorithms x 10 runs x
+epoch's noise-free policy, about 10 min on 2 cores in all); without it the file's whole study (5 algorithms x 10 runs x
 16 epochs x (12 rollouts + the noise-free policy) and 12 repetitions: 10412 rollouts, about 2.5 h per backend on one
 core). --seed replaces the file's learning seed.
 Writes OUT/study.yaml (the learning file run), OUT/scaling.csv (a row per backend as it finishes) and
@@ -35,8 +37,8 @@ import time
 
 import yaml
 
-ALL = ["threads1", "threads2", "ros2", "ray1", "ray2", "ray_two_hosts"]
-PROCESSES = {"threads1": 1, "threads2": 2, "ros2": 2, "ray1": 1, "ray2": 2, "ray_two_hosts": 2}
+ALL = ["threads1", "threads2", "ros2", "ros_two_hosts", "ray1", "ray2", "ray_two_hosts"]
+PROCESSES = {"threads1": 1, "threads2": 2, "ros2": 2, "ros_two_hosts": 2, "ray1": 1, "ray2": 2, "ray_two_hosts": 2}
 HEAD, NODE, HEAD_IP, NODE_IP, RAY_PORT = "bs_ray_head", "bs_ray_node", "10.77.0.1", "10.77.0.2", 6390
 
 
@@ -108,38 +110,51 @@ def free_port():
         return s.getsockname()[1]
 
 
-def run_ros(config, out, workers=2):
-    """fold_learner against `workers` rollout_worker processes on a master of its own."""
-    env = dict(os.environ, ROS_MASTER_URI="http://127.0.0.1:%d" % free_port(), ROS_HOSTNAME="127.0.0.1")
-    port = env["ROS_MASTER_URI"].rsplit(":", 1)[1]
+def run_ros(config, out, two_hosts=False):
+    """fold_learner against 2 rollout_worker processes on a master of its own: all on loopback, or (two_hosts) the
+    master, the learner and worker_0 in the namespace bs_ray_head, worker_1 in bs_ray_node (two_hosts_up())."""
+    if two_hosts:
+        master = "http://%s:11311" % HEAD_IP
+        env = {k: v for k, v in os.environ.items() if k not in ("ROS_HOSTNAME", "ROS_IP")}
+        env["ROS_MASTER_URI"] = master
+        head = ["ip", "netns", "exec", HEAD, "env", "ROS_IP=" + HEAD_IP]
+        launches = [(head, 1, 0), (["ip", "netns", "exec", NODE, "env", "ROS_IP=" + NODE_IP], 1, 1)]
+    else:
+        master = "http://127.0.0.1:%d" % free_port()
+        env = dict(os.environ, ROS_MASTER_URI=master, ROS_HOSTNAME="127.0.0.1")
+        head = []
+        launches = [([], 2, 0)]
+    port = master.rsplit(":", 1)[1]
     logs = open(os.path.join(out, "ros.log"), "w")
-    core = subprocess.Popen(["roscore", "-p", port], env=env, stdout=logs, stderr=subprocess.STDOUT,
+    core = subprocess.Popen(head + ["roscore", "-p", port], env=env, stdout=logs, stderr=subprocess.STDOUT,
                             start_new_session=True)
-    launch = None
+    started = [core]
     try:
         for _ in range(100):
-            if subprocess.run(["rostopic", "list"], env=env, capture_output=True).returncode == 0:
+            if subprocess.run(head + ["rostopic", "list"], env=env, capture_output=True).returncode == 0:
                 break
             time.sleep(0.2)
         else:
             raise RuntimeError("roscore did not come up on port %s (see %s)" % (port, logs.name))
-        launch = subprocess.Popen(["roslaunch", "bimanual_skills", "rollout_workers.launch", "workers:=%d" % workers],
-                                  env=env, stdout=logs, stderr=subprocess.STDOUT, start_new_session=True)
+        for prefix, workers, first in launches:
+            started.append(subprocess.Popen(prefix + ["roslaunch", "bimanual_skills", "rollout_workers.launch",
+                                                      "workers:=%d" % workers, "first:=%d" % first],
+                                            env=env, stdout=logs, stderr=subprocess.STDOUT, start_new_session=True))
         for _ in range(300):
-            nodes = subprocess.run(["rosnode", "list"], env=env, capture_output=True, text=True).stdout.split()
-            if sum(n.startswith("/rollout_workers/worker_") for n in nodes) == workers:
+            nodes = subprocess.run(head + ["rosnode", "list"], env=env, capture_output=True, text=True).stdout.split()
+            if sum(n.startswith("/rollout_workers/worker_") for n in nodes) == 2:
                 break
             time.sleep(0.2)
         else:
             raise RuntimeError("the rollout workers did not come up (see %s)" % logs.name)
         start = time.monotonic()
-        subprocess.run(["rosrun", "bimanual_skills", "fold_learner", "_config:=" + config, "_out:=" + out,
-                        "_worker_namespace:=/rollout_workers"], env=env, check=True, stdout=logs,
+        subprocess.run(head + ["rosrun", "bimanual_skills", "fold_learner", "_config:=" + config, "_out:=" + out,
+                               "_worker_namespace:=/rollout_workers"], env=env, check=True, stdout=logs,
                        stderr=subprocess.STDOUT)
         return time.monotonic() - start
     finally:
-        for p in (launch, core):
-            if p is not None and p.poll() is None:
+        for p in reversed(started):
+            if p.poll() is None:
                 os.killpg(p.pid, signal.SIGINT)
                 try:
                     p.wait(timeout=20)
@@ -173,23 +188,29 @@ def two_hosts_down():
         sh("ip", "netns", "del", ns, check=False)
 
 
-def run_ray_two_hosts(config, out):
-    """A Ray head in one network namespace, a worker node in another, one CPU each; the learner beside the head."""
+def two_hosts_up():
+    """Two "hosts": the network namespaces bs_ray_head (10.77.0.1) and bs_ray_node (10.77.0.2) joined by a veth pair,
+    made anew (root)."""
     if os.geteuid() != 0:
-        raise RuntimeError("ray_two_hosts makes network namespaces: run as root")
+        raise RuntimeError("the two-host backends make network namespaces: run as root")
     two_hosts_down()
     sh("ip", "link", "del", "bs_veth_h", check=False)
+    sh("ip", "netns", "add", HEAD)
+    sh("ip", "netns", "add", NODE)
+    sh("ip", "link", "add", "bs_veth_h", "type", "veth", "peer", "name", "bs_veth_n")
+    sh("ip", "link", "set", "bs_veth_h", "netns", HEAD)
+    sh("ip", "link", "set", "bs_veth_n", "netns", NODE)
+    for ns, dev, ip in ((HEAD, "bs_veth_h", HEAD_IP), (NODE, "bs_veth_n", NODE_IP)):
+        sh("ip", "netns", "exec", ns, "ip", "addr", "add", ip + "/24", "dev", dev)
+        sh("ip", "netns", "exec", ns, "ip", "link", "set", dev, "up")
+        sh("ip", "netns", "exec", ns, "ip", "link", "set", "lo", "up")
+
+
+def run_ray_two_hosts(config, out):
+    """A Ray head in one network namespace, a worker node in another, one CPU each; the learner beside the head."""
     ray = [sys.executable, "-m", "ray.scripts.scripts"]
     try:
-        sh("ip", "netns", "add", HEAD)
-        sh("ip", "netns", "add", NODE)
-        sh("ip", "link", "add", "bs_veth_h", "type", "veth", "peer", "name", "bs_veth_n")
-        sh("ip", "link", "set", "bs_veth_h", "netns", HEAD)
-        sh("ip", "link", "set", "bs_veth_n", "netns", NODE)
-        for ns, dev, ip in ((HEAD, "bs_veth_h", HEAD_IP), (NODE, "bs_veth_n", NODE_IP)):
-            sh("ip", "netns", "exec", ns, "ip", "addr", "add", ip + "/24", "dev", dev)
-            sh("ip", "netns", "exec", ns, "ip", "link", "set", dev, "up")
-            sh("ip", "netns", "exec", ns, "ip", "link", "set", "lo", "up")
+        two_hosts_up()
         # Ray's token authentication, as `ray start` sets it up (the token in ~/.ray/auth_token, one home here).
         env_prefix = ["env", "RAY_USAGE_STATS_ENABLED=0", "RAY_AUTH_MODE=token"]
         sh("ip", "netns", "exec", HEAD, *env_prefix, *ray, "start", "--head", "--node-ip-address", HEAD_IP, "--port",
@@ -198,6 +219,15 @@ def run_ray_two_hosts(config, out):
            "--node-ip-address", NODE_IP, "--num-cpus", "1", "--disable-usage-stats")
         return run_inner("ray", config, out, address="%s:%d" % (HEAD_IP, RAY_PORT),
                          prefix=["ip", "netns", "exec", HEAD] + env_prefix)
+    finally:
+        two_hosts_down()
+
+
+def run_ros_two_hosts(config, out):
+    """The ROS master, fold_learner and one rollout_worker in one network namespace, the other worker in another."""
+    try:
+        two_hosts_up()
+        return run_ros(config, out, two_hosts=True)
     finally:
         two_hosts_down()
 
@@ -249,6 +279,8 @@ def main():
             seconds = run_inner("threads", config, out, jobs=PROCESSES[backend])
         elif backend == "ros2":
             seconds = run_ros(config, out)
+        elif backend == "ros_two_hosts":
+            seconds = run_ros_two_hosts(config, out)
         elif backend == "ray_two_hosts":
             seconds = run_ray_two_hosts(config, out)
         else:
