@@ -1,5 +1,5 @@
-"""Ray as the learners' rollout backend (bimanual_skills.ray_backend): the fold's learning, and the scarf's and the
-bottles' DR-DMP learning, on a local Ray of 1 and 2 workers give the in-process results exactly; Ctrl-C stops a
+"""Ray as the learners' rollout backend (bimanual_skills.ray_backend): the fold's learning on a local Ray of 1 and 2
+workers, and the scarf's and the bottles' DR-DMP learning on 2, give the in-process results exactly; Ctrl-C stops a
 learning between rollouts and it resumes; a Ray worker killed mid-rollout has its rollout run again, nothing
 lost or doubled. Run by make test with build/venv's Python (Ray from PyPI, python/requirements.txt)."""
 import csv
@@ -48,8 +48,16 @@ def learn(out, name, evaluator=None):
     return summary, rollouts(path)
 
 
-def test_ray_gives_the_in_process_learning_for_one_and_two_workers(out):
-    reference, reference_rows = learn(out, "threads")
+@pytest.fixture(scope="module")
+def threads_learning():
+    """The fold's learning on 2 threads, once for the module: the reference of every backend here."""
+    d = tempfile.mkdtemp(prefix="ray_backend_threads_")
+    yield learn(d, "threads")
+    shutil.rmtree(d, ignore_errors=True)
+
+
+def test_ray_gives_the_in_process_learning_for_one_and_two_workers(out, threads_learning):
+    reference, reference_rows = threads_learning
     assert reference["simulated"] == len(reference_rows) > 8
     for workers in (1, 2):
         ray.shutdown()
@@ -60,9 +68,8 @@ def test_ray_gives_the_in_process_learning_for_one_and_two_workers(out):
     ray.shutdown()
 
 
-@pytest.mark.parametrize("task,config,ray_workers", [("scarf", "scarf_learning.yaml", (2,)),
-                                                     ("bottles_learning", "bottles_learning.yaml", (1, 2))])
-def test_ray_gives_the_in_process_dmp_learning_of_the_scarf_and_the_bottles(out, task, config, ray_workers):
+@pytest.mark.parametrize("task,config", [("scarf", "scarf_learning.yaml"), ("bottles_learning", "bottles_learning.yaml")])
+def test_ray_gives_the_in_process_dmp_learning_of_the_scarf_and_the_bottles(out, task, config):
     path = bs.config_path(config)
 
     def learn_dmp(name, evaluator=None):
@@ -73,12 +80,11 @@ def test_ray_gives_the_in_process_dmp_learning_of_the_scarf_and_the_bottles(out,
     reference, reference_rows = learn_dmp("threads")
     assert reference["simulated"] == len(reference_rows) > 8
     assert reference["runs"][0]["final_reward"] != reference["runs"][0]["initial_reward"]  # it learned something
-    for workers in ray_workers:
-        ray.shutdown()
-        summary, rows = learn_dmp("ray%d" % workers, ray_backend.RayEvaluator(task, path, workers=workers))
-        assert rows == reference_rows, "%d workers" % workers
-        timeless = [{k: v for k, v in r.items() if k != "seconds"} for r in summary["runs"]]
-        assert timeless == [{k: v for k, v in r.items() if k != "seconds"} for r in reference["runs"]]
+    ray.shutdown()  # 2 workers (1 worker's equality: the fold's test above)
+    summary, rows = learn_dmp("ray2", ray_backend.RayEvaluator(task, path, workers=2))
+    assert rows == reference_rows
+    timeless = [{k: v for k, v in r.items() if k != "seconds"} for r in summary["runs"]]
+    assert timeless == [{k: v for k, v in r.items() if k != "seconds"} for r in reference["runs"]]
     ray.shutdown()
     with pytest.raises(ValueError, match="'scarf' or 'bottles_learning'"):
         bs.learn_dmp("fold", path, os.path.join(out, "bad"))
@@ -99,8 +105,8 @@ def _rollout_workers():
     return pids
 
 
-def test_a_killed_worker_has_its_rollout_run_again_nothing_lost_or_doubled(out):
-    _, reference_rows = learn(out, "threads")
+def test_a_killed_worker_has_its_rollout_run_again_nothing_lost_or_doubled(out, threads_learning):
+    _, reference_rows = threads_learning
     ray.shutdown()
     evaluator = ray_backend.RayEvaluator("fold", SMALL, workers=2)
     killed = []
@@ -158,8 +164,8 @@ def _interrupted_learning(out, name, ray_workers):
 
 
 @pytest.mark.parametrize("ray_workers", [0, 2], ids=["threads", "ray"])
-def test_ctrl_c_stops_the_learning_between_rollouts_and_it_resumes(out, ray_workers):
-    _, reference_rows = learn(out, "reference")
+def test_ctrl_c_stops_the_learning_between_rollouts_and_it_resumes(out, ray_workers, threads_learning):
+    _, reference_rows = threads_learning
     stopped_after, code, err = _interrupted_learning(out, "interrupted", ray_workers)
     assert code != 0 and "KeyboardInterrupt" in err, err[-2000:]
     assert stopped_after < 10.0, stopped_after  # a rollout takes about 0.5 s; Ray's shutdown the rest
