@@ -188,17 +188,20 @@ class FoldTask {
       const std::unique_lock<std::mutex> lock = own();
       plan = task_.task().plan(coordination, weights);
     }
-    const auto both = [](const std::vector<Eigen::MatrixXd>& arms) {
-      Eigen::MatrixXd out(arms[0].cols(), arms[0].rows() + arms[1].rows());
-      out << arms[0].transpose(), arms[1].transpose();
-      return out;
-    };
     py::dict d;
     d["outcome"] = tasks::toString(plan.outcome);
     d["reason"] = plan.reason;
     d["dt"] = plan.dt;
     d["move_start"] = plan.move_start;
     d["release"] = plan.release;
+    // A failed plan has no references (its matrices stop at the failure, or were never made): None.
+    const bool whole = plan.outcome == tasks::FoldOutcome::Ok && plan.position.size() == 2;
+    const auto both = [whole](const std::vector<Eigen::MatrixXd>& arms) -> py::object {
+      if (!whole) return py::none();
+      Eigen::MatrixXd out(arms[0].cols(), arms[0].rows() + arms[1].rows());
+      out << arms[0].transpose(), arms[1].transpose();
+      return py::cast(out);
+    };
     d["position"] = both(plan.position);
     d["velocity"] = both(plan.velocity);
     d["acceleration"] = both(plan.acceleration);
@@ -336,7 +339,8 @@ class PythonEvaluator : public br::Evaluator {
 
 /// `learn()` on a thread of its own while this one, holding no Python lock, watches Python's signals (CPython handles
 /// them on the main thread only): a signal's exception (Ctrl-C's KeyboardInterrupt) sets `interrupted`, which the
-/// learner polls as its stop between rollouts, and is raised here once it has stopped.
+/// learner polls as its stop between rollouts, and is raised here once it has stopped. A rollout that never ends
+/// (an evaluator waiting on a lost cluster) holds the stop until it does; a second Ctrl-C changes nothing.
 template <class Result>
 Result learnWatchingSignals(const std::function<Result()>& learn, std::atomic<bool>& interrupted) {
   Result result;
@@ -354,6 +358,15 @@ Result learnWatchingSignals(const std::function<Result()>& learn, std::atomic<bo
       }
       finished.set_value();
     });
+    // Joined on every path, a throw below included: the learner stops at the flag.
+    struct Joiner {
+      std::thread& thread;
+      std::atomic<bool>& stop;
+      ~Joiner() {
+        stop = true;
+        thread.join();
+      }
+    } joiner{learning, interrupted};
     while (done.wait_for(std::chrono::milliseconds(50)) != std::future_status::ready) {
       if (interrupted) continue;
       const py::gil_scoped_acquire locked;
@@ -362,7 +375,6 @@ Result learnWatchingSignals(const std::function<Result()>& learn, std::atomic<bo
         interrupted = true;
       }
     }
-    learning.join();
   }
   if (signal) throw *signal;
   if (failure) std::rethrow_exception(failure);
@@ -542,7 +554,7 @@ PYBIND11_MODULE(_core, m) {
       .def("plan", &FoldTask::plan, py::arg("parameters"),
            "The joint references run(parameters, ...) follows, computed without simulating: a dict of outcome, "
            "reason, dt [s], move_start and release (periods), and position, velocity, acceleration (periods x 14: "
-           "the left arm's 7 joints, then the right's; row k is period k's reference).")
+           "the left arm's 7 joints, then the right's; row k is period k's reference; None when the plan failed).")
       .def("begin_steps", &FoldTask::beginSteps, py::arg("seed"),
            "Begins a stepped rollout of `seed` (the joint-space environment's episode): the simulation as run() "
            "builds it, the arms at the start, the grasp. Returns the outcome (\"Ok\" or \"GraspFailed\").")
@@ -564,7 +576,8 @@ PYBIND11_MODULE(_core, m) {
            "outcome: \"Ok\", or why the rollout ended (InvalidPolicy, OutOfLimits, ControllerFailed, ...). "
            "Releases Python's lock. RuntimeError without begin_steps() or after the driven periods.")
       .def("finish_steps", &FoldTask::finishSteps,
-           "Ends the stepped rollout (the arms hold through the rest and the settling) and scores it as run() "
+           "Ends the stepped rollout (through the rest and the settling the references come to rest at "
+           "step_acceleration and hold) and scores it as run() "
            "does: its result; its images are images().")
       .def("joint_state", &FoldTask::jointState,
            "Both arms' joint positions and velocities as the controllers measured them in the last stepped "

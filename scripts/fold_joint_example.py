@@ -43,7 +43,7 @@ def episode(env, seed, velocities, spread, rng):
     began = time.perf_counter()
     k = 0
     while True:
-        action = velocities[k + 1] / scale
+        action = velocities[min(k + 1, len(velocities) - 1)] / scale
         if spread > 0.0:
             action = action + rng.uniform(-spread, spread, 14)
         obs, reward, terminated, _, info = env.step(action.astype(np.float32))

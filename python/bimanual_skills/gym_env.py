@@ -36,11 +36,12 @@ Action: both arms' commanded joint velocities, 14 values in [-1, 1] (left arm's 
 action_scale times the URDF's velocity limits; the reference reaches them at most at the task's step acceleration
 (4 rad/s^2), slows to stop at a position limit, and the controllers (the robot path's computed-torque law) track it
 from the next period on. Each step holds an action for frame_skip periods (1: the control rate). Observation:
-joint_position and joint_velocity (14 each, as the controllers measured them), tool_position (both tools, 6, world
-[m]), cloth_corners (the mesh's four corners, 12, world [m], the ground truth SoftGym's key-point observation gives)
+joint_position and joint_velocity (14 each, as the controllers measured them at the start of the last period, one
+period older than the rest), tool_position (both tools, 6, world [m]), cloth_corners (the mesh's four corners, 12, world [m], the ground truth SoftGym's key-point observation gives)
 and progress (the fraction of the driven periods done). The episode drives hold_before + duration + hold_after
-(4.5 s: 4500 periods at frame_skip 1); then, in the same step, the grippers open when the episodic rollout's would,
-the cloth settles and the camera reward scores it. Reward: 0 until then, the learning file's reward in the last step
+(4.5 s: 4500 periods at frame_skip 1); then, in the same step, the cloth settles and the camera reward scores it.
+The grippers open when the episodic rollout's would: at the end of the driven periods moved by the robot's noise
+(noise="robot": sigma 0.05 s, cut at 3 sigma), so up to 0.15 s early, while the last actions still drive the arms. Reward: 0 until then, the learning file's reward in the last step
 (the episodic environment's for the same motion); info then has q, terms, outcome and the normalised performance as
 above. A controller's stop or a diverging simulation ends the episode early with its outcome and that reward.
 """

@@ -67,7 +67,10 @@ class RayEvaluator:
                 done(i, results[i])  # raises RuntimeError("stopped") when the learner stops
         except BaseException:
             for ref in pending:  # a stopped learning leaves no rollouts running on the cluster
-                ray.cancel(ref, force=True)
+                try:
+                    ray.cancel(ref, force=True)
+                except Exception:  # noqa: BLE001 - the first error is the one to raise
+                    pass
             raise
         return results
 

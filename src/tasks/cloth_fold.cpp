@@ -273,7 +273,6 @@ struct ClothFoldTask::Impl {
   /// controllers carry state from the last rollout; new ones make rollouts repeatable bit for bit whichever worker
   /// runs them and whatever it ran before.
   void begin(Rollout& r, std::uint32_t seed, int release, int steps, int capacity) {
-    r.wall_start = std::chrono::steady_clock::now();
     sim::SimConfig rollout_config = sim_config;
     rollout_config.seed = seed;
     // The robot's noise: the cloth laid down a little elsewhere, the grippers opening a little early or late.
@@ -897,8 +896,8 @@ FoldRollout ClothFoldTask::finishSteps() {
   if (!s.running) throw std::logic_error("cloth fold: finishSteps() without beginSteps()");
   s.running = false;
   Impl::Rollout& r = s.rollout;
-  // The arms hold their last reference's position through what is left of the rollout (the policy's periods it did
-  // not drive, the settling).
+  // Through what is left of the rollout (the periods the policy did not drive, the settling) the references come to
+  // rest at the stepped acceleration and hold there.
   const Eigen::VectorXd rest = Eigen::VectorXd::Zero(14);
   while (!r.measured.empty() && r.k < r.steps && r.out.outcome == FoldOutcome::Ok) (void)m.steppedPeriod(rest);
   return m.finish(r);

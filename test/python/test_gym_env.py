@@ -215,3 +215,9 @@ def test_bad_joint_space_calls_are_errors_with_the_reason():
     assert task.begin_steps(1) == "Ok"
     assert task.step(np.full(14, np.nan)) == "InvalidPolicy"
     assert "NaN" in task.finish_steps().reason
+    with pytest.raises(ValueError, match="coordinated policy"):
+        task.plan(np.full(task.initial_parameters().shape, np.nan))
+    policy = np.array(task.initial_parameters())
+    policy[-1] = np.nan  # a weight: the encoding decodes, the plan fails
+    bad = task.plan(policy)
+    assert bad["outcome"] == "InvalidPolicy" and bad["position"] is None and bad["reason"]

@@ -203,9 +203,11 @@ class ClothFoldTask {
 
   /// Stepped rollouts, for step-by-step policies at the control rate (the Gymnasium joint-space environment):
   /// beginSteps(seed) builds rollout `seed` as run() does (its noise, the arms at startPositions(), the grasp:
-  /// Ok or GraspFailed); each step() drives one control period; finishSteps() holds the arms through the rest
-  /// (up to the release, the settling), scores the fold and ends it. The grippers open when run()'s would. run()
-  /// ends a stepped rollout in progress. Not real-time (it records the rollout as run() does).
+  /// Ok or GraspFailed); each step() drives one control period; finishSteps() runs the rest (the driven periods
+  /// left, the settling) with the references coming to rest at config().step_acceleration, scores the fold and ends
+  /// it. The grippers open when run()'s would: at the planned release moved by the seed's noise, which may fall
+  /// within the last driven periods (FoldNoise::release_time). run() ends a stepped rollout in progress. Not
+  /// real-time (it records the rollout as run() does).
   FoldOutcome beginSteps(std::uint32_t seed);
   /// The periods a policy drives, hold_before + duration + hold_after at the simulation's step (run()'s release).
   int steppedPeriods() const;
@@ -223,8 +225,9 @@ class ClothFoldTask {
   FoldOutcome step(const Eigen::Ref<const Eigen::VectorXd>& velocity);
   /// Arm `arm`'s reference of the next stepped period. \throws std::out_of_range.
   const Eigen::VectorXd& steppedReference(int arm) const;
-  /// Arm `arm`'s joint state as its controller measured it in the last stepped period (the start, at rest, before
-  /// the first). \throws std::out_of_range.
+  /// Arm `arm`'s joint state as its controller measured it in the last stepped period, before that period's
+  /// simulation step (the start, at rest, before the first): a period older than toolPosition() and
+  /// clothVertices(), which are the simulation's now. \throws std::out_of_range.
   void measuredState(int arm, Eigen::VectorXd& position, Eigen::VectorXd& velocity) const;
   /// Arm `arm`'s tool position (world) and the cloth's mesh (world) in the simulation now.
   Eigen::Vector3d toolPosition(int arm) const;
