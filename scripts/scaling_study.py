@@ -21,7 +21,10 @@ Backends (each a fresh learning into OUT/BACKEND, in this order; the cluster is 
 --quick: IDR-DMP_CMU and CMA-ES, 1 run x 4 updates x 12 rollouts, no repetitions (130 rollouts per backend with each
 epoch's noise-free policy, about 10 min on 2 cores in all); without it the file's whole study (5 algorithms x 10 runs x
 16 epochs x (12 rollouts + the noise-free policy) and 12 repetitions: 10412 rollouts, about 2.5 h per backend on one
-core). --seed replaces the file's learning seed.
+core). --seed replaces the file's learning seed. --resume continues every backend's learning where it stopped (the learners
+resume from their records; each backend's wall time is the sum of its segments, OUT/BACKEND/segments.csv, a killed
+segment counting up to its last record, so the rollouts in flight when it died count only when they run again), so
+the whole study can run in parts.
 Writes OUT/study.yaml (the learning file run), OUT/scaling.csv (a row per backend as it finishes) and
 OUT/summary.json."""
 import argparse
@@ -232,6 +235,44 @@ def run_ros_two_hosts(config, out):
         two_hosts_down()
 
 
+def _write_segments(out, rows):
+    path = os.path.join(out, "segments.csv")
+    with open(path + ".tmp", "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=["start", "seconds"])
+        writer.writeheader()
+        writer.writerows(rows)
+    os.replace(path + ".tmp", path)
+
+
+def earlier_segments(out):
+    """A backend's earlier segments (OUT/BACKEND/segments.csv: each one's start [Unix s] and seconds). A segment
+    that never ended (killed; seconds -1) is given the time up to its last record (rollouts.csv's, before this
+    segment writes one) and written so."""
+    path = os.path.join(out, "segments.csv")
+    if not os.path.exists(path):
+        return []
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    records = os.path.join(out, "rollouts.csv")
+    last_record = os.path.getmtime(records) if os.path.exists(records) else 0.0
+    for row in rows:
+        if float(row["seconds"]) < 0.0:
+            row["seconds"] = "%.3f" % max(0.0, last_record - float(row["start"]))
+    _write_segments(out, rows)
+    return rows
+
+
+def segment(out, rows, run):
+    """Runs `run()` (the learning's seconds) as a new segment after `rows`, recorded in OUT/BACKEND/segments.csv
+    before it starts (seconds -1) and once it ends."""
+    rows = rows + [{"start": "%.3f" % time.time(), "seconds": "-1"}]
+    _write_segments(out, rows)
+    seconds = run()
+    rows[-1]["seconds"] = "%.3f" % seconds
+    _write_segments(out, rows)
+    return seconds
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--experiment", default="table75", choices=["table75"])
@@ -239,6 +280,9 @@ def main():
     p.add_argument("--out", help="results directory")
     p.add_argument("--quick", action="store_true", help="a small study (about 100 rollouts per backend)")
     p.add_argument("--backends", default=",".join(ALL), help="comma-separated, from " + ",".join(ALL))
+    p.add_argument("--resume", action="store_true",
+                   help="continue each backend's learning in OUT/BACKEND where it stopped (killed, or a machine "
+                        "stopped), its wall time summed over its segments; without it each backend starts afresh")
     p.add_argument("--inner", choices=["threads", "ray"], help=argparse.SUPPRESS)
     p.add_argument("--config", help=argparse.SUPPRESS)
     p.add_argument("--run-out", help=argparse.SUPPRESS)
@@ -272,19 +316,26 @@ def main():
     writer.writeheader()
     for backend in backends:
         out = os.path.join(args.out, backend)
-        shutil.rmtree(out, ignore_errors=True)
-        os.makedirs(out)
-        print("  %-14s ..." % backend, end="", flush=True)
-        if backend.startswith("threads"):
-            seconds = run_inner("threads", config, out, jobs=PROCESSES[backend])
-        elif backend == "ros2":
-            seconds = run_ros(config, out)
-        elif backend == "ros_two_hosts":
-            seconds = run_ros_two_hosts(config, out)
-        elif backend == "ray_two_hosts":
-            seconds = run_ray_two_hosts(config, out)
-        else:
-            seconds = run_inner("ray", config, out, jobs=PROCESSES[backend])
+        if not args.resume:
+            shutil.rmtree(out, ignore_errors=True)
+        os.makedirs(out, exist_ok=True)
+        earlier = earlier_segments(out)
+        before = sum(float(r["seconds"]) for r in earlier)
+        print("  %-14s ...%s" % (backend, " (resumed after %d segments, %.1f s)" % (len(earlier), before)
+                                 if earlier else ""), end="", flush=True)
+
+        def run(backend=backend, out=out):
+            if backend.startswith("threads"):
+                return run_inner("threads", config, out, jobs=PROCESSES[backend])
+            if backend == "ros2":
+                return run_ros(config, out)
+            if backend == "ros_two_hosts":
+                return run_ros_two_hosts(config, out)
+            if backend == "ray_two_hosts":
+                return run_ray_two_hosts(config, out)
+            return run_inner("ray", config, out, jobs=PROCESSES[backend])
+
+        seconds = before + segment(out, earlier, run)
         done = rollouts(out)
         if reference is None:
             reference, reference_seconds = done, seconds
