@@ -26,14 +26,14 @@ def interval(values):
     return float(v.mean()), float(half)
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def episode_arguments(doc, seed_help, spread, spread_help, out_help):
+    """The episode examples' command line (--episodes, --seed, --spread, --config, --out), checked."""
+    parser = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=int, default=10, help="episodes per policy (default 10)")
-    parser.add_argument("--seed", type=int, default=1, help="reset seeds seed, seed+1, ... (default 1)")
-    parser.add_argument("--spread", type=float, default=0.3,
-                        help="random actions uniform in [-spread, spread] of the action box (default 0.3)")
+    parser.add_argument("--seed", type=int, default=1, help=seed_help + " (default 1)")
+    parser.add_argument("--spread", type=float, default=spread, help="%s (default %g)" % (spread_help, spread))
     parser.add_argument("--config", default="", help="a fold learning file (default config/fold_demo.yaml)")
-    parser.add_argument("--out", default="", help="a directory for episodes.csv and summary.json")
+    parser.add_argument("--out", default="", help=out_help)
     args = parser.parse_args()
     if args.episodes < 2 or args.episodes > 10000:
         parser.error("--episodes: 2 to 10000")
@@ -41,6 +41,13 @@ def main():
         parser.error("--spread: in [0, 1]")
     if not (0 <= args.seed < 2**32 - args.episodes):
         parser.error("--seed: a non-negative integer")
+    return args
+
+
+def main():
+    args = episode_arguments(__doc__, "reset seeds seed, seed+1, ...", 0.3,
+                             "random actions uniform in [-spread, spread] of the action box",
+                             "a directory for episodes.csv and summary.json")
 
     import bimanual_skills as bs
 

@@ -14,24 +14,15 @@ over the first episode of each policy).
     build/venv/bin/python scripts/fold_joint_example.py --episodes 10 --seed 1 [--spread 0.05] [--out DIR]
 
 Run it with build/venv's Python (gymnasium), after `source install/setup.bash`."""
-import argparse
 import csv
 import json
-import math
 import os
 import sys
 import time
 
 import numpy as np
 
-
-def interval(values):
-    """Mean and the half-width of its 95 % Student-t interval."""
-    from scipy import stats  # noqa: PLC0415 - only for the summary
-
-    v = np.asarray(values, dtype=float)
-    half = stats.t.ppf(0.975, v.size - 1) * v.std(ddof=1) / math.sqrt(v.size) if v.size > 1 else float("nan")
-    return float(v.mean()), float(half)
+from fold_gym_example import episode_arguments, interval  # the same command line and intervals
 
 
 def episode(env, seed, velocities, spread, rng):
@@ -56,20 +47,9 @@ def episode(env, seed, velocities, spread, rng):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--episodes", type=int, default=10, help="episodes per policy (default 10)")
-    parser.add_argument("--seed", type=int, default=1, help="reset seeds seed, seed+1, ...; noise from seed (default 1)")
-    parser.add_argument("--spread", type=float, default=0.05,
-                        help="the noisy policy's noise, uniform in [-spread, spread] of the action box (default 0.05)")
-    parser.add_argument("--config", default="", help="a fold learning file (default config/fold_demo.yaml)")
-    parser.add_argument("--out", default="", help="a directory for episodes.csv, summary.json and tools.png")
-    args = parser.parse_args()
-    if args.episodes < 2 or args.episodes > 10000:
-        parser.error("--episodes: 2 to 10000")
-    if not (0.0 <= args.spread <= 1.0):
-        parser.error("--spread: in [0, 1]")
-    if not (0 <= args.seed < 2**32 - args.episodes):
-        parser.error("--seed: a non-negative integer")
+    args = episode_arguments(__doc__, "reset seeds seed, seed+1, ...; noise from seed", 0.05,
+                             "the noisy policy's noise, uniform in [-spread, spread] of the action box",
+                             "a directory for episodes.csv, summary.json and tools.png")
 
     import bimanual_skills as bs
 
